@@ -1,0 +1,34 @@
+"""Tumble: particles, rigid bodies and cloth, simulated with Warp kernels.
+
+Public API::
+
+    world = tumble.World(gravity=(0, 0, -9.81))
+    world.add_plane()
+    world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    world.run(duration=1.0)
+
+    world = tumble.load_scene("samples/sphere_pile.toml")
+"""
+
+from .errors import SceneError, SimulationError, TumbleError
+from .shapes import ShapeType
+from .state import BodyId
+from .world import World
+
+__all__ = [
+    "BodyId",
+    "SceneError",
+    "ShapeType",
+    "SimulationError",
+    "TumbleError",
+    "World",
+    "load_scene",
+]
+__version__ = "0.1.0"
+
+
+def load_scene(path, **overrides):
+    """Build a `World` from a TOML scene file; see docs/scenes.md. Raises `SceneError` on bad input."""
+    from .io.scene import load_scene as _load
+
+    return _load(path, **overrides)

@@ -1,0 +1,1 @@
+"""Implementations of the `tumble` subcommands (see `tumble.cli`)."""

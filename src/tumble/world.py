@@ -1,0 +1,564 @@
+"""The World: owns every array and runs the step pipeline.
+
+Typical use::
+
+    import tumble
+    world = tumble.World(gravity=(0, 0, -9.81), dt=1 / 240)
+    world.add_plane(normal=(0, 0, 1), offset=0.0)
+    ball = world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0, restitution=0.5)
+    world.run(duration=2.0)
+    print(world.body_position[ball.index])
+
+Units are SI throughout: metres, kilograms, seconds, radians (degrees only where a scene file
+says so). Orientations are unit quaternions stored as (x, y, z, w).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import warp as wp
+
+from . import shapes as _shapes
+from .collision import broadphase, narrowphase
+from .errors import SimulationError
+from .shapes import ShapeType
+from .solver import contacts as contact_solver
+from .solver import integrate
+from .state import ArraySet, BodyId, float_t, quat, readonly, vec3
+
+#: per-body arrays, static description first, then per-step state
+BODY_FIELDS = {
+    # model
+    "body_shape": wp.int32,  # ShapeType
+    "body_radius": float_t,  # sphere radius [m] (0 for other shapes)
+    "body_half_extents": vec3,  # box half extents [m] (0 for other shapes)
+    "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
+    "body_mass": float_t,  # [kg] (0 for static bodies)
+    "body_inv_mass": float_t,  # [1/kg] (0 for static bodies)
+    "body_inv_inertia": vec3,  # principal inverse moments in the body frame [1/(kg m^2)]
+    "body_restitution": float_t,
+    "body_friction": float_t,
+    # state
+    "body_position": vec3,  # centre of mass [m]
+    "body_orientation": quat,  # body-to-world rotation (x, y, z, w)
+    "body_velocity": vec3,  # [m/s]
+    "body_angular_velocity": vec3,  # world frame [rad/s]
+    "body_force": vec3,  # user force for the next step [N]
+    "body_torque": vec3,  # user torque for the next step [N m]
+    # scratch for the solver: pose at the start of the step
+    "body_position_start": vec3,
+    "body_orientation_start": quat,
+}
+
+
+def _vec(value, name: str, n: int = 3) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64).reshape(-1)
+    if a.shape != (n,):
+        raise ValueError(f"{name} must have {n} components, got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return a
+
+
+def _positive(value, name: str) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return v
+
+
+def _unit_interval(value, name: str) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v < 0.0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+    if name == "restitution" and v > 1.0:
+        raise ValueError(f"restitution must be in [0, 1], got {value!r}")
+    return v
+
+
+def _unit_quat(value, name: str = "orientation") -> np.ndarray:
+    q = _vec(value, name, 4)
+    norm = np.linalg.norm(q)
+    if norm < 1e-12:
+        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {value!r}")
+    return q / norm
+
+
+def _quat_from_z(normal: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) rotating +z onto `normal` (unit)."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(np.dot(z, normal))
+    if c < -1.0 + 1e-12:
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    axis = np.cross(z, normal)
+    q = np.array([axis[0], axis[1], axis[2], 1.0 + c])
+    return q / np.linalg.norm(q)
+
+
+class World:
+    """A simulated world of planes, spheres, boxes, emitters and cloth.
+
+    Args:
+        gravity: gravitational acceleration [m/s^2], shape (3,).
+        dt: fixed time step [s] used by `step()` and `run()`.
+        substeps: solver substeps per step (more = stiffer stacks, less penetration).
+        seed: seed of the world's random generator (emitters, turbulence).
+        device: Warp device, "cpu" (default) or "cuda".
+        restitution_threshold: relative normal speed [m/s] below which contacts do not bounce,
+            so that resting bodies stay at rest.
+    """
+
+    def __init__(
+        self,
+        *,
+        gravity: Sequence[float] = (0.0, 0.0, -9.81),
+        dt: float = 1.0 / 240.0,
+        substeps: int = 4,
+        seed: int = 0,
+        device: str = "cpu",
+        restitution_threshold: float = 0.5,
+    ):
+        wp.config.quiet = True
+        wp.init()
+        self.device = str(wp.get_device(device))
+        self.gravity = _vec(gravity, "gravity")
+        self.dt = _positive(dt, "dt")
+        self.substeps = int(substeps)
+        if self.substeps < 1:
+            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+        self.seed = int(seed)
+        self.restitution_threshold = float(restitution_threshold)
+        self.rng = np.random.default_rng(self.seed)
+        self.time = 0.0
+        self.step_count = 0
+        self.profile: dict[str, float] = {}
+        self.metadata: dict = {}
+
+        self.bodies = ArraySet(BODY_FIELDS, device=self.device)
+        self.emitters: list = []
+        self.broadphase = broadphase.BroadPhase(self.device)
+        self.contacts = contact_solver.ContactSet(self.device)
+        self._cloth = None  # created on the first add_cloth
+
+    # ------------------------------------------------------------------ bodies
+
+    def add_plane(
+        self,
+        *,
+        normal: Sequence[float] = (0.0, 0.0, 1.0),
+        offset: float = 0.0,
+        restitution: float = 0.5,
+        friction: float = 0.5,
+    ) -> BodyId:
+        """Add a static infinite plane {x : dot(normal, x) = offset}; bodies stay on the +normal side.
+
+        Args:
+            normal: plane normal, shape (3,); need not be unit length but must not be zero.
+            offset: signed distance of the plane from the origin along the normal [m].
+            restitution: coefficient of restitution in [0, 1].
+            friction: Coulomb friction coefficient (>= 0).
+        """
+        n = _vec(normal, "normal")
+        length = np.linalg.norm(n)
+        if length < 1e-12:
+            raise ValueError(f"normal must not be zero, got {normal!r}")
+        n = n / length
+        offset = float(offset)
+        if not math.isfinite(offset):
+            raise ValueError(f"offset must be finite, got {offset!r}")
+        return self._add_bodies(
+            shape=ShapeType.PLANE,
+            position=(n * offset)[None],
+            orientation=_quat_from_z(n)[None],
+            radius=np.zeros(1),
+            half_extents=np.zeros((1, 3)),
+            mass=np.zeros(1),
+            inertia=np.zeros((1, 3)),
+            restitution=_unit_interval(restitution, "restitution"),
+            friction=_unit_interval(friction, "friction"),
+        )[0]
+
+    def add_sphere(
+        self,
+        *,
+        position: Sequence[float],
+        radius: float,
+        mass: float | None = None,
+        density: float | None = None,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+    ) -> BodyId:
+        """Add a solid sphere.
+
+        Args:
+            position: centre [m], shape (3,).
+            radius: [m], > 0.
+            mass: [kg], > 0. Give `mass` or `density`; with neither, density is 1000 kg/m^3.
+            density: [kg/m^3], > 0.
+            velocity: initial linear velocity [m/s].
+            orientation: initial orientation (x, y, z, w).
+            angular_velocity: initial angular velocity, world frame [rad/s].
+            restitution: coefficient of restitution in [0, 1].
+            friction: Coulomb friction coefficient (>= 0).
+            static: if True the sphere never moves (inverse mass 0).
+        """
+        r = _positive(radius, "radius")
+        m = self._mass(mass, density, _shapes.sphere_volume(r))
+        return self._add_solid(
+            ShapeType.SPHERE, position, velocity, orientation, angular_velocity,
+            radius=r, half_extents=np.zeros(3), mass=m, inertia=_shapes.sphere_inertia(m, r),
+            restitution=restitution, friction=friction, static=static,
+        )
+
+    def add_box(
+        self,
+        *,
+        position: Sequence[float],
+        half_extents: Sequence[float],
+        mass: float | None = None,
+        density: float | None = None,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+    ) -> BodyId:
+        """Add a solid box. Arguments as `add_sphere`, with half extents [m], shape (3,), all > 0."""
+        h = _vec(half_extents, "half_extents")
+        if np.any(h <= 0.0):
+            raise ValueError(f"half_extents must all be > 0, got {half_extents!r}")
+        m = self._mass(mass, density, _shapes.box_volume(h))
+        return self._add_solid(
+            ShapeType.BOX, position, velocity, orientation, angular_velocity,
+            radius=0.0, half_extents=h, mass=m, inertia=_shapes.box_inertia(m, h),
+            restitution=restitution, friction=friction, static=static,
+        )
+
+    def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
+        """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
+        kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(shape)
+        return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box}[
+            kind
+        ](**kwargs)
+
+    def add_emitter(self, **kwargs):
+        """Add an emitter that releases bodies over time; see `tumble.emitters.Emitter` for keywords.
+
+        Returns:
+            The `Emitter`, whose `rate` may be changed while the world runs.
+        """
+        from .emitters import Emitter
+
+        emitter = Emitter(**kwargs)
+        if emitter.seed is None:
+            emitter.seed = int(self.rng.integers(0, 2**31 - 1))
+        emitter.reset_rng()
+        self.emitters.append(emitter)
+        return emitter
+
+    def add_cloth(self, **kwargs):
+        """Add a rectangular mass-spring cloth; see `tumble.cloth.ClothSystem.add_cloth` for keywords."""
+        return self.cloth.add_cloth(**kwargs)
+
+    @property
+    def cloth(self):
+        """The world's `ClothSystem` (created on first use)."""
+        if self._cloth is None:
+            from .cloth import ClothSystem
+
+            self._cloth = ClothSystem(self)
+        return self._cloth
+
+    def set_wind(self, **kwargs) -> None:
+        """Set the wind acting on cloth; see `tumble.cloth.Wind` for keywords."""
+        self.cloth.set_wind(**kwargs)
+
+    def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
+        """Set restitution and/or friction of every body (planes included), effective at once."""
+        n = self.bodies.count
+        if restitution is not None:
+            self.bodies.write("body_restitution", slice(0, n), _unit_interval(restitution, "restitution"))
+        if friction is not None:
+            self.bodies.write("body_friction", slice(0, n), _unit_interval(friction, "friction"))
+
+    def apply_force(self, body, force: Sequence[float], *, point: Sequence[float] | None = None) -> None:
+        """Apply a force [N] (at a world `point`, default the centre of mass) during the next step only."""
+        i = int(body)
+        f = _vec(force, "force")
+        self.bodies.write("body_force", i, self.bodies.numpy("body_force")[i] + f)
+        if point is not None:
+            r = _vec(point, "point") - self.bodies.numpy("body_position")[i]
+            self.bodies.write("body_torque", i, self.bodies.numpy("body_torque")[i] + np.cross(r, f))
+
+    def _mass(self, mass, density, volume: float) -> float:
+        if mass is not None and density is not None:
+            raise ValueError("give mass or density, not both")
+        if mass is not None:
+            return _positive(mass, "mass")
+        return _positive(1000.0 if density is None else density, "density") * volume
+
+    def _add_solid(self, shape, position, velocity, orientation, angular_velocity, *, radius, half_extents,
+                   mass, inertia, restitution, friction, static) -> BodyId:
+        if static:
+            mass, inertia = 0.0, np.zeros(3)
+        return self._add_bodies(
+            shape=shape,
+            position=_vec(position, "position")[None],
+            velocity=(np.zeros(3) if static else _vec(velocity, "velocity"))[None],
+            orientation=_unit_quat(orientation)[None],
+            angular_velocity=(np.zeros(3) if static else _vec(angular_velocity, "angular_velocity"))[None],
+            radius=np.array([radius]),
+            half_extents=np.asarray(half_extents, dtype=np.float64)[None],
+            mass=np.array([mass]),
+            inertia=np.asarray(inertia, dtype=np.float64)[None],
+            restitution=_unit_interval(restitution, "restitution"),
+            friction=_unit_interval(friction, "friction"),
+        )[0]
+
+    def _add_bodies(self, *, shape, position, orientation, radius, half_extents, mass, inertia,
+                    restitution, friction, velocity=None, angular_velocity=None) -> list[BodyId]:
+        """Append k bodies given as arrays with k rows (vectorised; used by emitters too)."""
+        k = len(position)
+        shape = np.broadcast_to(np.asarray(shape, dtype=np.int32), (k,))
+        bound = np.where(
+            shape == ShapeType.SPHERE,
+            radius,
+            np.where(shape == ShapeType.BOX, np.linalg.norm(half_extents, axis=1), np.inf),
+        )
+        with np.errstate(divide="ignore"):
+            inv_mass = np.where(mass > 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
+            inv_inertia = np.where(inertia > 0.0, 1.0 / np.where(inertia > 0.0, inertia, 1.0), 0.0)
+        rows = self.bodies.append(
+            {
+                "body_shape": shape,
+                "body_radius": radius,
+                "body_half_extents": half_extents,
+                "body_bound_radius": bound,
+                "body_mass": mass,
+                "body_inv_mass": inv_mass,
+                "body_inv_inertia": inv_inertia,
+                "body_restitution": np.broadcast_to(restitution, (k,)),
+                "body_friction": np.broadcast_to(friction, (k,)),
+                "body_position": position,
+                "body_orientation": orientation,
+                "body_velocity": np.zeros((k, 3)) if velocity is None else velocity,
+                "body_angular_velocity": np.zeros((k, 3)) if angular_velocity is None else angular_velocity,
+            }
+        )
+        return [BodyId(i) for i in rows]
+
+    # ------------------------------------------------------------------ stepping
+
+    def step(self, dt: float | None = None) -> None:
+        """Advance the world by one step of `dt` seconds (default `self.dt`)."""
+        dt = self.dt if dt is None else _positive(dt, "dt")
+        h = dt / self.substeps
+        bodies, contacts = self.bodies, self.contacts
+        cloth = self._cloth
+
+        # validate: finite state, so a NaN is reported where it appeared rather than spreading
+        with self._timer("validate"):
+            self._validate()
+
+        # emit: emitters release bodies where they overlap nothing
+        with self._timer("emit"):
+            for emitter in self.emitters:
+                emitter.emit(self, dt)
+
+        # broad phase: spatial hash -> candidate pairs of bodies whose swept bounds overlap
+        with self._timer("broad_phase"):
+            pairs = self.broadphase.find_pairs(bodies, dt)
+
+        # narrow phase: pair table -> contact points with normal, separation and anchors
+        with self._timer("narrow_phase"):
+            narrowphase.collide(bodies, pairs, contacts, dt)
+
+        # contact prepare: match last step's contacts for warm starting, effective masses
+        with self._timer("solver"):
+            contacts.match_previous(bodies)
+            contact_solver.prepare(bodies, contacts, self.restitution_threshold)
+            integrate.store_start_pose(bodies)
+
+        # substeps: integrate velocities -> solve contacts -> integrate positions -> relax -> cloth
+        for _ in range(self.substeps):
+            with self._timer("integrate"):
+                integrate.integrate_velocities(bodies, self.gravity, h)
+            with self._timer("solver"):
+                contact_solver.solve(bodies, contacts, h, use_bias=True)
+            with self._timer("integrate"):
+                integrate.integrate_positions(bodies, h)
+            with self._timer("solver"):
+                contact_solver.solve(bodies, contacts, h, use_bias=False)
+            if cloth is not None:
+                with self._timer("cloth"):
+                    cloth.substep(h)
+
+        # restitution: bounce contacts that approached faster than the threshold; keep impulses
+        with self._timer("solver"):
+            contact_solver.restitution(bodies, contacts)
+            contacts.store_impulses()
+            integrate.clear_forces(bodies)
+
+        self.time += dt
+        self.step_count += 1
+
+    def run(self, duration: float, *, callback: Callable[[World], None] | None = None) -> int:
+        """Step for `duration` seconds of simulated time; call `callback(world)` after each step.
+
+        Returns:
+            The number of steps taken.
+        """
+        steps = int(round(_positive(duration, "duration") / self.dt))
+        for _ in range(steps):
+            self.step()
+            if callback is not None:
+                callback(self)
+        return steps
+
+    @contextlib.contextmanager
+    def _timer(self, stage: str):
+        start = time.perf_counter()
+        yield
+        if self.device != "cpu":
+            wp.synchronize_device(self.device)
+        self.profile[stage] = self.profile.get(stage, 0.0) + time.perf_counter() - start
+
+    def _validate(self) -> None:
+        n = self.bodies.count
+        if n == 0:
+            return
+        for name in ("body_position", "body_velocity", "body_angular_velocity"):
+            values = self.bodies.numpy(name)
+            if not np.isfinite(values).all():
+                bad = int(np.nonzero(~np.isfinite(values).all(axis=1))[0][0])
+                raise SimulationError(
+                    f"{name} of body {bad} is not finite at t = {self.time:.6g} s "
+                    f"(step {self.step_count}); the simulation diverged or was given NaN"
+                )
+
+    # ------------------------------------------------------------------ read-only views
+
+    def _view(self, name: str) -> np.ndarray:
+        return readonly(self.bodies.numpy(name))
+
+    @property
+    def body_count(self) -> int:
+        """Number of bodies, planes included."""
+        return self.bodies.count
+
+    @property
+    def contact_count(self) -> int:
+        """Number of contact points found by the last step (speculative ones included)."""
+        return self.contacts.count
+
+    body_shape = property(lambda self: self._view("body_shape"), doc="Shape types (ShapeType), shape (n,), int32.")
+    body_radius = property(lambda self: self._view("body_radius"), doc="Sphere radii [m], shape (n,).")
+    body_half_extents = property(lambda self: self._view("body_half_extents"), doc="Box half extents [m], shape (n, 3).")
+    body_mass = property(lambda self: self._view("body_mass"), doc="Masses [kg], shape (n,); 0 for static bodies.")
+    body_inv_mass = property(lambda self: self._view("body_inv_mass"), doc="Inverse masses [1/kg], shape (n,).")
+    body_restitution = property(lambda self: self._view("body_restitution"), doc="Restitution, shape (n,).")
+    body_friction = property(lambda self: self._view("body_friction"), doc="Friction coefficients, shape (n,).")
+    body_position = property(lambda self: self._view("body_position"), doc="Positions [m], shape (n, 3).")
+    body_orientation = property(lambda self: self._view("body_orientation"), doc="Orientations (x, y, z, w), shape (n, 4).")
+    body_velocity = property(lambda self: self._view("body_velocity"), doc="Linear velocities [m/s], shape (n, 3).")
+    body_angular_velocity = property(
+        lambda self: self._view("body_angular_velocity"), doc="Angular velocities, world frame [rad/s], shape (n, 3)."
+    )
+
+    @property
+    def body_plane_normal(self) -> np.ndarray:
+        """Unit normals of plane bodies (the body's local +z in world), shape (n, 3); zero for non-planes."""
+        q = self.body_orientation
+        x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        normal = np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], axis=1)
+        return np.where((self.body_shape == ShapeType.PLANE)[:, None], normal, 0.0)
+
+    @property
+    def body_inertia_world(self) -> np.ndarray:
+        """World-frame inertia tensors [kg m^2], shape (n, 3, 3) (zero for static bodies)."""
+        inv_i = self.bodies.numpy("body_inv_inertia")
+        with np.errstate(divide="ignore"):
+            inertia = np.where(inv_i > 0.0, 1.0 / np.where(inv_i > 0.0, inv_i, 1.0), 0.0)
+        rot = quat_to_matrix(self.body_orientation)
+        return np.einsum("nij,nj,nkj->nik", rot, inertia, rot)
+
+    @property
+    def contact_point(self) -> np.ndarray:
+        """Contact points (midway between the surfaces) [m], shape (k, 3)."""
+        return readonly(self.contacts.numpy("contact_point"))
+
+    @property
+    def contact_normal(self) -> np.ndarray:
+        """Contact normals, unit, pointing from body a to body b, shape (k, 3)."""
+        return readonly(self.contacts.numpy("contact_normal"))
+
+    @property
+    def contact_depth(self) -> np.ndarray:
+        """Penetration depths [m] at the start of the last step, shape (k,); negative = speculative gap."""
+        return readonly(-self.contacts.numpy("contact_separation"))
+
+    @property
+    def contact_pair(self) -> np.ndarray:
+        """Body indices (a, b) of each contact, shape (k, 2), int32."""
+        c = self.contacts
+        return readonly(np.stack([c.numpy("contact_body_a"), c.numpy("contact_body_b")], axis=1))
+
+    # ------------------------------------------------------------------ diagnostics
+
+    def kinetic_energy(self) -> float:
+        """Total kinetic energy of bodies (and cloth) [J]: sum 1/2 m v^2 + 1/2 w . I w."""
+        m = self.bodies.numpy("body_mass")
+        v = self.bodies.numpy("body_velocity")
+        w = self.bodies.numpy("body_angular_velocity")
+        energy = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
+        if len(m):
+            energy += 0.5 * float(np.einsum("ni,nij,nj->", w, self.body_inertia_world, w))
+        if self._cloth is not None:
+            energy += self._cloth.kinetic_energy()
+        return energy
+
+    def potential_energy(self) -> float:
+        """Gravitational potential energy of bodies (and cloth) relative to the origin [J]: -m g . x."""
+        m = self.bodies.numpy("body_mass")
+        energy = -float(np.sum(m * (self.bodies.numpy("body_position") @ self.gravity)))
+        if self._cloth is not None:
+            energy += self._cloth.potential_energy()
+        return energy
+
+    def momentum(self) -> np.ndarray:
+        """Total linear momentum of bodies [kg m/s], shape (3,)."""
+        return np.sum(self.bodies.numpy("body_mass")[:, None] * self.bodies.numpy("body_velocity"), axis=0)
+
+    def state_hash(self) -> str:
+        """SHA-256 of the state arrays, to check determinism bit for bit."""
+        import hashlib
+
+        digest = hashlib.sha256()
+        for name in ("body_position", "body_orientation", "body_velocity", "body_angular_velocity"):
+            digest.update(np.ascontiguousarray(self.bodies.numpy(name)).tobytes())
+        if self._cloth is not None:
+            digest.update(np.ascontiguousarray(self._cloth.particle_position_numpy()).tobytes())
+        return digest.hexdigest()
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of unit quaternions (x, y, z, w), shape (n, 4) -> (n, 3, 3)."""
+    x, y, z, w = (q[:, i] for i in range(4))
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+        ],
+        axis=1,
+    )
