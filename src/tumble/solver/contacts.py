@@ -152,13 +152,14 @@ def inv_inertia_times(q: quat, inv_i: vec3, x: vec3):
 
 
 @wp.func
-def _effective_mass(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
-    # k = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + (r_b x d) . I_b^-1 (r_b x d)
-    ca = wp.cross(ra, d)
-    cb = wp.cross(rb, d)
-    k = b.inv_mass[ia] + b.inv_mass[ib]
-    k += wp.dot(ca, inv_inertia_times(b.q[ia], b.inv_inertia[ia], ca))
-    k += wp.dot(cb, inv_inertia_times(b.q[ib], b.inv_inertia[ib], cb))
+def _inv_inertia_world(q: quat, inv_i: vec3):
+    """World-frame inverse inertia tensor R diag(inv_i) R^T."""
+    R = wp.quat_to_matrix(q)
+    return R * wp.diag(inv_i) * wp.transpose(R)
+
+
+@wp.func
+def _inverse(k: float_t):
     if k > float_t(0.0):
         return float_t(1.0) / k
     return float_t(0.0)
@@ -328,15 +329,26 @@ def _prepare(
     t2 = wp.cross(n, t1)
     c.t1[k] = t1
     c.t2[k] = t2
-    c.ang_a_n[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, n))
-    c.ang_b_n[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, n))
-    c.ang_a_t1[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t1))
-    c.ang_b_t1[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t1))
-    c.ang_a_t2[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t2))
-    c.ang_b_t2[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t2))
-    c.mass_n[k] = _effective_mass(b, ia, ib, ra, rb, n)
-    c.mass_t1[k] = _effective_mass(b, ia, ib, ra, rb, t1)
-    c.mass_t2[k] = _effective_mass(b, ia, ib, ra, rb, t2)
+    # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
+    # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
+    Ia = _inv_inertia_world(b.q[ia], b.inv_inertia[ia])
+    Ib = _inv_inertia_world(b.q[ib], b.inv_inertia[ib])
+    im = b.inv_mass[ia] + b.inv_mass[ib]
+    ca = wp.cross(ra, n)
+    cb = wp.cross(rb, n)
+    c.ang_a_n[k] = Ia * ca
+    c.ang_b_n[k] = Ib * cb
+    c.mass_n[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t1)
+    cb = wp.cross(rb, t1)
+    c.ang_a_t1[k] = Ia * ca
+    c.ang_b_t1[k] = Ib * cb
+    c.mass_t1[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t2)
+    cb = wp.cross(rb, t2)
+    c.ang_a_t2[k] = Ia * ca
+    c.ang_b_t2[k] = Ib * cb
+    c.mass_t2[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
