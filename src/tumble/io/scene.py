@@ -136,7 +136,8 @@ def choice(*names: str) -> Check:
             raise _Bad(f"unknown value {value!r}: expected one of {', '.join(map(repr, names))}")
         return value
 
-    return Check(" | ".join(f'"{n}"' for n in names), convert)
+    quoted = [f'"{n}"' for n in names]
+    return Check(quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " or " + quoted[-1], convert)
 
 
 def _vector(value, n: int) -> list[float]:
@@ -247,7 +248,7 @@ def shape_list() -> Check:
                 raise _Bad(f"unknown shape {item!r}: expected \"sphere\" or \"box\"")
         return value if isinstance(value, str) else list(items)
 
-    return Check('"sphere" | "box" | list of them', convert)
+    return Check('"sphere", "box" or a list of them', convert)
 
 
 SPRING_KINDS = ("structural", "shear", "bend")
@@ -293,7 +294,7 @@ def pins() -> Check:
             out.append((int(item[0]), int(item[1])))
         return out
 
-    return Check('"corners" | "top-corners" | "top-edge" | list of [i, j]', convert)
+    return Check('"corners", "top-corners", "top-edge" or a list of [i, j]', convert)
 
 
 def resolution() -> Check:
@@ -508,7 +509,7 @@ SCHEMA: dict[str, TableSpec] = {
                 "min_z": Field(number(), None, "m", "lowest allowed body centre height", "none"),
                 "max_speed": Field(number(low=0, low_open=True), None, "m/s", "fastest allowed body", "none"),
                 "max_kinetic_energy": Field(number(low=0, low_open=True), None, "J", "largest allowed total kinetic energy", "none"),
-                "max_extent": Field(number(low=0, low_open=True), 100.0, "m", "largest allowed |x|, |y|, |z|"),
+                "max_extent": Field(number(low=0, low_open=True), 100.0, "m", "largest allowed absolute value of a coordinate"),
                 "max_strain": Field(number(low=0, low_open=True), None, "", "largest allowed cloth spring strain", "none"),
             },
         ),
@@ -553,7 +554,7 @@ class Scene:
         """One line: counts per table, e.g. "1 world, 5 planes, 1 emitter (1000 bodies)"."""
         parts = []
         for name, n in self.counts().items():
-            label = name if (n == 1 or not SCHEMA[name].array) else name + "s"
+            label = name if n == 1 else name + ("es" if name.endswith(("x", "s")) else "s")
             if not SCHEMA[name].array:
                 parts.append(f"[{name}]")
                 continue
@@ -855,3 +856,7 @@ def _toml_value(value) -> str:
     if isinstance(value, float):
         return f"`{value:g}`"
     return f"`{value}`"
+
+
+if __name__ == "__main__":  # python -m tumble.io.scene > reference.md (for docs/scenes.md)
+    print(reference_markdown())
