@@ -744,7 +744,11 @@ def load_scene(path, **overrides):
 
 def _given(values: dict) -> dict:
     """Keyword arguments for the World API: keys left to the engine (None) are not passed."""
-    return {k: (tuple(v) if isinstance(v, list) and k != "pins" else v) for k, v in values.items() if v is not None}
+    return {
+        k: (tuple(v) if isinstance(v, list) and all(_is_number(x) for x in v) else v)
+        for k, v in values.items()
+        if v is not None
+    }
 
 
 class _api_errors:
