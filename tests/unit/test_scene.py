@@ -60,6 +60,8 @@ BAD_SCENES = [
      "pins = \"left-edge\"", "cloth[0]", "pins", "unknown value"),
     ("cloth unknown spring kind", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
      "stiffness = { structural = 1, twist = 2 }", "cloth[0]", "stiffness", "twist"),
+    ("cloth mass and areal density", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+     "mass = 0.2\nareal_density = 0.1", "cloth[0]", "areal_density", "not both"),
     ("cloth tiny resolution", "[[cloth]]\nsize = [1, 1]\nresolution = [1, 4]\nposition = [0, 0, 1]",
      "cloth[0]", "resolution", ">= 2"),
     ("camera fov", "[camera]\nfov = 0", "camera", "fov", "> 0"),
@@ -141,7 +143,8 @@ def test_cloth_table_accepts_per_kind_springs_and_pin_lists():
     assert c["stiffness"] == {"structural": 1000.0, "bend": 10.0}
     assert c["damping"] == 0.5 and c["pins"] == [(0, 15), (7, 15)]
     assert c["max_stretch"] == 0.1
-    assert scene.table("wind") == {"velocity": [3.0, 0.0, 0.0], "turbulence": 1.0, "scale": 1.0, "seed": 0}
+    assert scene.table("wind") == {"velocity": [3.0, 0.0, 0.0], "turbulence": 1.0, "scale": 1.0, "seed": 0,
+                                   "drag": 1.2, "lift": 0.3, "air_density": 1.2}
     assert "(128 particles)" in scene.summary()
 
 

@@ -119,7 +119,7 @@ class Recorder:
                     a[k, : len(rows)] = rows
             out["cloth_position"] = a
             out["cloth_triangles"] = np.array(cloth.triangles, dtype=np.int32)
-            rest = getattr(cloth, "particle_rest_position", None)
+            rest = getattr(cloth, "rest_position", getattr(cloth, "particle_rest_position", None))
             if rest is not None:
                 out["cloth_rest_position"] = np.array(rest, dtype=np.float64)
         return out

@@ -254,9 +254,9 @@ def shape_list() -> Check:
 SPRING_KINDS = ("structural", "shear", "bend")
 
 
-def per_spring(*, low_open: bool) -> Check:
-    """A number for every spring kind, or a table {structural, shear, bend} (missing kinds: engine default)."""
-    each = number(low=0, low_open=low_open)
+def per_spring() -> Check:
+    """A number >= 0 for every spring kind, or a table with some of {structural, shear, bend}."""
+    each = number(low=0)
 
     def convert(value):
         if isinstance(value, dict):
@@ -271,7 +271,7 @@ def per_spring(*, low_open: bool) -> Check:
             return out
         return each(value)
 
-    return Check(f"float {'>' if low_open else '>='} 0 or {{structural, shear, bend}}", convert)
+    return Check("float >= 0 or { structural, shear, bend }", convert)
 
 
 PIN_NAMES = ("corners", "top-corners", "top-edge")
@@ -360,6 +360,8 @@ def _emitter_rules(values: dict) -> None:
 
 
 def _cloth_rules(values: dict) -> None:
+    if values.get("mass") is not None and values.get("areal_density") is not None:
+        raise _KeyBad("areal_density", "give mass or areal_density, not both")
     nx, ny = values["resolution"]
     if isinstance(values.get("pins"), list):
         for i, j in values["pins"]:
@@ -464,17 +466,20 @@ SCHEMA: dict[str, TableSpec] = {
                 "resolution": Field(resolution(), REQUIRED, "", "particles [nx, ny]"),
                 "position": Field(vector(3), REQUIRED, "m", "centre of the cloth"),
                 "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation quaternion (x, y, z, w)"),
-                "mass": Field(number(low=0, low_open=True), None, "kg", "total mass", "engine default"),
-                "stiffness": Field(
-                    per_spring(low_open=True), None, "N/m", "spring stiffness, one value or per kind", "engine default"
-                ),
-                "damping": Field(
-                    per_spring(low_open=False), None, "N s/m", "spring damping, one value or per kind", "engine default"
-                ),
-                "max_stretch": Field(number(low=0), 0.1, "", "largest relative stretch of a spring (Provot)"),
+                "mass": Field(number(low=0, low_open=True), None, "kg", "total mass; give mass or areal_density",
+                              "from areal_density"),
+                "areal_density": Field(number(low=0, low_open=True), None, "kg/m^2",
+                                       "mass per area; give mass or areal_density", "0.2"),
+                "stiffness": Field(per_spring(), None, "N/m",
+                                   "spring stiffness ks, one value or per kind (a missing kind has no springs)",
+                                   "{ structural = 12, shear = 1.2, bend = 0.3 }"),
+                "damping": Field(per_spring(), None, "N s/m", "spring damping kd, one value or per kind",
+                                 "{ structural = 0.002, shear = 0.0005, bend = 0.0001 }"),
+                "max_stretch": Field(number(low=0), 0.1, "", "largest strain of a structural spring (Provot)"),
                 "pins": Field(pins(), None, "", "pinned grid points", "none"),
-                "thickness": Field(number(low=0, low_open=True), None, "m", "collision thickness", "engine default"),
-                "friction": Field(number(low=0), None, "", "friction against bodies", "engine default"),
+                "thickness": Field(number(low=0, low_open=True), None, "m",
+                                   "distance kept from bodies and between layers of cloth", "0.01"),
+                "friction": Field(number(low=0), None, "", "Coulomb friction against bodies", "0.3"),
             },
             _cloth_rules,
         ),
@@ -487,6 +492,9 @@ SCHEMA: dict[str, TableSpec] = {
                 "turbulence": Field(number(low=0), 0.0, "m/s", "strength of the turbulent part"),
                 "scale": Field(number(low=0, low_open=True), 1.0, "m", "length scale of the turbulence"),
                 "seed": Field(integer(low=0), 0, "", "seed of the turbulence field"),
+                "drag": Field(number(low=0), 1.2, "", "drag coefficient of a cloth face"),
+                "lift": Field(number(low=0), 0.3, "", "lift coefficient of a cloth face"),
+                "air_density": Field(number(low=0), 1.2, "kg/m^3", "density of the air"),
             },
         ),
         TableSpec(
