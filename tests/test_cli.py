@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 
@@ -146,3 +147,26 @@ def test_bad_arguments_exit_2(write_scene, capsys, argv, fragment):
     assert main([path if a == "SCENE" else a for a in argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and fragment in err
+
+
+CLOTH_READY = importlib.util.find_spec("tumble.cloth") is not None
+
+
+@pytest.mark.skipif(not CLOTH_READY, reason="the cloth engine (tumble.cloth) is not merged yet")
+def test_record_writes_cloth_arrays(write_scene, tmp_path):
+    """Add cloth_position, cloth_triangles and cloth_rest_position to recordings of cloth."""
+    out = tmp_path / "cloth.npz"
+    scene = write_scene(
+        "[[plane]]\n[[cloth]]\nsize = [1, 0.5]\nresolution = [6, 4]\nposition = [0, 0, 1]\npins = 'top-edge'\n"
+    )
+    assert main(["run", str(scene), "--duration", "0.25", "--record", str(out)]) == 0
+    rec = np.load(out)
+    f, p = 16, 6 * 4
+    assert rec["cloth_position"].shape == (f, p, 3)
+    assert rec["cloth_triangles"].shape == (2 * 5 * 3, 3) and rec["cloth_triangles"].dtype == np.int32
+    np.testing.assert_allclose(rec["cloth_rest_position"], rec["cloth_position"][0])
+    # row-major, i fastest: particle j * nx + i sits at x = -0.5 + i * 0.2, y = -0.25 + j * 0.5 / 3 at rest
+    np.testing.assert_allclose(rec["cloth_rest_position"][7, :2], [-0.3, -0.25 + 0.5 / 3], atol=1e-12)
+    # the pinned top edge (j = 3) stays; the rest falls
+    np.testing.assert_allclose(rec["cloth_position"][-1, 18:, 2], 1.0, atol=1e-9)
+    assert rec["cloth_position"][-1, :6, 2].max() < 1.0
