@@ -42,7 +42,7 @@ def test_run_prints_a_summary(write_scene, capsys):
     out = capsys.readouterr().out
     for label in ("bodies", "steps", "steps/s", "kinetic energy", "contacts"):
         assert label in out
-    assert "2 (1 planes, 1 spheres, 0 boxes)" in out
+    assert "2 (1 plane, 1 sphere, 0 boxes)" in out
     assert "60 (0.250 s simulated" in out  # 0.25 s at dt = 1/240
 
 

@@ -113,8 +113,8 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
     rate = (steps - 1) / wall if steps > 1 and wall > 0 else 1.0 / max(first_step, 1e-9)
     lines = [
         ("scene", str(world.metadata.get("path", args.scene))),
-        ("bodies", f"{world.body_count:,} ({counts[ShapeType.PLANE]:,} planes, {counts[ShapeType.SPHERE]:,} spheres, "
-                   f"{counts[ShapeType.BOX]:,} boxes)"),
+        ("bodies", f"{world.body_count:,} ({_count(counts[ShapeType.PLANE], 'plane')}, "
+                   f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})"),
     ]
     if world._cloth is not None:
         lines.append(("cloth", f"{world.cloth.particle_count:,} particles"))
@@ -130,6 +130,11 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
     for name, value in lines:
         print(f"{name:<{width}}  {value}")
     sys.stdout.flush()
+
+
+def _count(n: int, noun: str) -> str:
+    """'1 box', '3 boxes', '1,000 spheres'."""
+    return f"{n:,} {noun}" if n == 1 else f"{n:,} {noun}{'es' if noun.endswith('x') else 's'}"
 
 
 def _print_profile(world, steps: int) -> None:
