@@ -423,7 +423,9 @@ SCHEMA: dict[str, TableSpec] = {
             "box",
             True,
             "Solid boxes.",
-            _body_fields("half_extents", Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes")),
+            _body_fields(
+                "half_extents", Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes")
+            ),
             _mass_or_density,
         ),
         TableSpec(
@@ -516,9 +518,15 @@ SCHEMA: dict[str, TableSpec] = {
                 "duration": Field(number(low=0, low_open=True), 1.0, "s", "simulated time the test runs"),
                 "min_z": Field(number(), None, "m", "lowest allowed body centre height", "none"),
                 "max_speed": Field(number(low=0, low_open=True), None, "m/s", "fastest allowed body", "none"),
-                "max_kinetic_energy": Field(number(low=0, low_open=True), None, "J", "largest allowed total kinetic energy", "none"),
-                "max_extent": Field(number(low=0, low_open=True), 100.0, "m", "largest allowed absolute value of a coordinate"),
-                "max_strain": Field(number(low=0, low_open=True), None, "", "largest allowed cloth spring strain", "none"),
+                "max_kinetic_energy": Field(
+                    number(low=0, low_open=True), None, "J", "largest allowed total kinetic energy", "none"
+                ),
+                "max_extent": Field(
+                    number(low=0, low_open=True), 100.0, "m", "largest allowed absolute value of a coordinate"
+                ),
+                "max_strain": Field(
+                    number(low=0, low_open=True), None, "", "largest allowed cloth spring strain", "none"
+                ),
             },
         ),
     ]
