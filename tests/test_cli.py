@@ -170,3 +170,18 @@ def test_record_writes_cloth_arrays(write_scene, tmp_path):
     # the pinned top edge (j = 3) stays; the rest falls
     np.testing.assert_allclose(rec["cloth_position"][-1, 18:, 2], 1.0, atol=1e-9)
     assert rec["cloth_position"][-1, :6, 2].max() < 1.0
+
+
+def test_recorder_samples_at_the_nearest_step(write_scene):
+    """Record one frame per 1/fps of simulated time, at the step nearest to it, when dt does not divide it."""
+    import tumble
+    from tumble.io.record import Recorder
+
+    world = tumble.load_scene(write_scene("[world]\ndt = 0.01\n" + BALL))
+    recorder = Recorder(world, fps=30)
+    world.run(1.0, callback=recorder)
+    time = recorder.arrays()["time"]
+    assert len(time) == 31  # t = 0, 1/30, ..., 1
+    assert np.all(np.abs(time - np.arange(31) / 30) <= 0.5 * world.dt + 1e-12)
+    with pytest.raises(ValueError, match="fps"):
+        Recorder(world, fps=0)

@@ -567,7 +567,7 @@ class Scene:
         }
 
     def summary(self) -> str:
-        """One line: counts per table, e.g. "1 world, 5 planes, 1 emitter (1000 bodies)"."""
+        """One line: counts per table, e.g. "[world], 5 planes, 1 emitter (1000 bodies)"."""
         parts = []
         for name, n in self.counts().items():
             label = name if n == 1 else name + ("es" if name.endswith(("x", "s")) else "s")
