@@ -394,7 +394,7 @@ SCHEMA: dict[str, TableSpec] = {
             {
                 "gravity": Field(vector(3), [0.0, 0.0, -9.81], "m/s^2", "gravitational acceleration"),
                 "dt": Field(number(low=0, low_open=True), 1.0 / 240.0, "s", "fixed time step", "1/240"),
-                "substeps": Field(integer(low=1), 4, "", "solver substeps per step"),
+                "substeps": Field(integer(low=1), 8, "", "solver substeps per step"),
                 "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
                 "restitution_threshold": Field(
                     number(low=0), 0.5, "m/s", "approach speed below which contacts do not bounce"
