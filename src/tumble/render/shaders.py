@@ -13,7 +13,7 @@ uniform sampler2D u_shadow_map;
 uniform mat4 u_light_vp;   // world -> sun clip space
 uniform float u_shadow_on; // 1 when the shadow map is valid
 
-const vec3 SUN = vec3(1.00, 0.95, 0.88) * 1.6;
+const vec3 SUN = vec3(1.00, 0.96, 0.90) * 1.25;
 const vec3 SKY_ZENITH = vec3(0.30, 0.50, 0.80);
 const vec3 SKY_HORIZON = vec3(0.84, 0.89, 0.95);
 const vec3 SKY_BELOW = vec3(0.60, 0.64, 0.69);
@@ -59,7 +59,7 @@ vec3 shade(vec3 albedo, vec3 p, vec3 n, float shininess, float specular) {
     float vis = ndl > 0.0 ? sun_visibility(p, n) : 0.0;
     // hemisphere ambient: sky from above, a warm bounce from the ground below
     float up = dot(n, u_up) * 0.5 + 0.5;
-    vec3 ambient = mix(vec3(0.10, 0.09, 0.08), vec3(0.30, 0.34, 0.42), up);
+    vec3 ambient = mix(vec3(0.09, 0.08, 0.07), vec3(0.26, 0.29, 0.35), up);
     vec3 h = normalize(u_light_dir + v);
     float spec = specular * pow(max(dot(n, h), 0.0), shininess) * vis * step(0.0, ndl);
     return a * (SUN * ndl * vis + ambient) + SUN * spec;
@@ -133,7 +133,7 @@ void main() {
     if (denom >= -1e-6 || t <= 0.0) discard;
     vec3 p = u_eye + t * dir;
     vec2 uv = vec2(dot(p, u_tangent), dot(p, u_bitangent)) / u_cell;
-    vec3 albedo = mix(vec3(0.80, 0.80, 0.78), vec3(0.60, 0.62, 0.64), checker(uv));
+    vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv));
     vec3 c = to_srgb(tonemap(shade(albedo, p, u_normal, 24.0, 0.04)));
     float fog = 1.0 - exp(-pow(t / u_fade, 2.0));
     f_color = vec4(mix(c, sky_color(dir), fog), 1.0);
@@ -273,7 +273,7 @@ void main() {
     float rim = smoothstep(width - aa, width + aa, edge);
     vec3 albedo = v_color * mix(0.72, 1.0, rim);
     vec3 n = normalize(v_normal);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.2))), 1.0);
+    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.12))), 1.0);
 }
 """
 )
