@@ -59,6 +59,15 @@ def test_energy_and_momentum_match_free_fall(tmp_path):
     assert np.allclose(s.strain, 0.1 * t)
 
 
+def test_recorded_kinetic_energy_is_used_as_is(tmp_path):
+    """A recording's own kinetic_energy array (which includes cloth) wins over the estimate."""
+    path, t, _ = _record(tmp_path)
+    arrays = dict(np.load(path))
+    arrays["kinetic_energy"] = 7.0 + t
+    np.savez(tmp_path / "ke.npz", **arrays)
+    assert np.array_equal(compute_series(load_record(tmp_path / "ke.npz")).kinetic, 7.0 + t)
+
+
 def test_max_strain_of_one_stretched_edge():
     """Only the stretched edge counts: l / l0 - 1 of the longest relative stretch."""
     rest = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=float)

@@ -229,3 +229,27 @@ def test_no_context_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(moderngl, "create_standalone_context", fail)
     with pytest.raises(TumbleError, match="^no OpenGL context: .*eglGetDisplay failed"):
         create_context()
+
+
+def test_walls_are_cut_to_the_scene(small_renderer, chromaticity):
+    """A container's far wall shows near the bodies but not far above them; its near wall is unseen."""
+
+    def world_with(walls: bool):
+        world = tumble.World()
+        world.add_plane()
+        if walls:
+            world.add_plane(normal=(1, 0, 0), offset=-0.5)  # far wall, facing the camera
+            world.add_plane(normal=(-1, 0, 0), offset=-0.5)  # near wall, seen from behind
+        world.add_sphere(position=(0.0, 0.0, 0.3), radius=0.2)
+        return world
+
+    camera = Camera(position=(3.0, 0.0, 1.0), target=(0.0, 0.0, 0.5), fov_deg=60)
+    small_renderer.shadows = False
+    walled = small_renderer.render(world_with(True), camera)
+    open_ = small_renderer.render(world_with(False), camera)
+    on_wall = (-0.5, 0.4, 0.4)
+    high_above = (-0.5, 0.0, 2.2)
+    assert not np.array_equal(_pixel(walled, camera, on_wall), _pixel(open_, camera, on_wall))
+    assert np.array_equal(_pixel(walled, camera, high_above), _pixel(open_, camera, high_above))
+    sphere = body_colors([3])
+    assert _like(_pixel(walled, camera, (0.0, 0.0, 0.3)), sphere, chromaticity)

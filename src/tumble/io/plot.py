@@ -5,7 +5,7 @@ NaN and count as absent)::
 
     time (F,)  position (F, N, 3)  velocity (F, N, 3)  orientation (F, N, 4) as (x, y, z, w)
     angular_velocity (F, N, 3)  shape (N,) int  shape_names  radius (N,)  half_extents (N, 3)
-    mass (N,)  gravity (3,)  contact_count (F,)
+    mass (N,)  gravity (3,)  contact_count (F,)  kinetic_energy (F,) (used as is when present)
     cloth_position (F, P, 3)  cloth_triangles (T, 3)  cloth_rest_position (P, 3)
     cloth_mass (P,)  cloth_velocity (F, P, 3)  cloth_max_strain (F,)
 
@@ -127,8 +127,12 @@ def compute_series(record: dict) -> Series:
         if pos is not None and vel.shape != pos.shape:
             raise ValueError(f"recording array 'velocity' has shape {vel.shape}, expected {pos.shape}")
 
-    # kinetic energy: sum 1/2 m v^2 + 1/2 w_b . I w_b, with w_b the angular velocity in the body frame
-    if pos is None or vel is None or mass is None:
+    # kinetic energy: the engine's own value when recorded (it includes the cloth), else
+    # sum 1/2 m v^2 + 1/2 w_b . I w_b, with w_b the angular velocity in the body frame
+    recorded_kinetic = record.get("kinetic_energy")
+    if recorded_kinetic is not None:
+        s.kinetic = np.asarray(recorded_kinetic, dtype=np.float64).reshape(-1)[:f]
+    elif pos is None or vel is None or mass is None:
         s.missing["kinetic"] = "needs " + " and ".join(
             k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None)
     else:
@@ -180,7 +184,7 @@ def compute_series(record: dict) -> Series:
             if s.potential is not None:
                 s.potential = s.potential - np.einsum("p,fp->f", cm, np.nan_to_num(cloth_pos) @ g)
             cloth_vel = record.get("cloth_velocity")
-            if s.kinetic is not None and cloth_vel is not None:
+            if s.kinetic is not None and cloth_vel is not None and recorded_kinetic is None:
                 cv = np.nan_to_num(np.asarray(cloth_vel, dtype=np.float64))
                 s.kinetic = s.kinetic + 0.5 * np.einsum("p,fpi,fpi->f", cm, cv, cv)
     if "cloth_max_strain" in record:

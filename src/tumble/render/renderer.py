@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import TumbleError
 from ..shapes import ShapeType
 from . import shaders
-from .camera import Camera, scene_bounds
+from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
 
 #: floats per instance: centre 3, radius 1, orientation 4, colour 3
@@ -217,6 +217,10 @@ class Renderer:
         self.cloth_color = CLOTH_COLOR
         self._fbo = self._resolve = None
         self._fbo_size = None
+        # box that walls are cut to: the union of the scene's bounds over the frames drawn of
+        # one world, so walls keep their size while bodies fall or fly out
+        self._wall_world = None
+        self._wall_box = None
 
         prog = ctx.program
         self._sky = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.SKY_FRAGMENT)
@@ -360,9 +364,23 @@ class Renderer:
             self._set_mat(p, "u_vp", vp)
             self._set(p, "u_cell", float(self.ground_cell_size))
             self._set(p, "u_fade", max(40.0 * camera.distance, 10.0))
-            for plane in arrays.planes:
+            clip_min, clip_max = self._wall_clip_box(world, arrays.planes)
+            self._set(p, "u_clip_min", clip_min)
+            self._set(p, "u_clip_max", clip_max)
+            up = np.asarray(camera.up, dtype=np.float64)
+            for k, plane in enumerate(arrays.planes):
                 n = plane[:3]
                 t, b = _perpendicular(n)
+                # only level planes facing up stretch to the horizon; walls and ramps are cut
+                wall = float(np.dot(n, up)) < 0.99
+                self._set(p, "u_wall", 1.0 if wall else 0.0)
+                if wall:
+                    others = np.zeros((8, 4), dtype=np.float32)
+                    rest = np.delete(arrays.planes, k, axis=0)[:8]
+                    others[: len(rest)] = rest
+                    if "u_others" in p:
+                        p["u_others"].write(others.tobytes())
+                    self._set(p, "u_other_count", len(rest))
                 self._set(p, "u_normal", n)
                 self._set(p, "u_offset", float(plane[3]))
                 self._set(p, "u_tangent", t)
@@ -453,6 +471,29 @@ class Renderer:
             self._cloth_tris = np.array(tri, copy=True)
             self._upload(self._cloth_ibo, np.ascontiguousarray(tri, dtype=np.uint32))
         return tri.size
+
+    def _wall_clip_box(self, world, planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Box [m] that walls and ramps are cut to: the scene's bounds (grown over the frames drawn),
+        widened sideways, a little higher on top, and down to the highest level floor."""
+        box = scene_box(world)
+        if self._wall_world is not world:
+            self._wall_world, self._wall_box = world, None
+        if box is not None:
+            if self._wall_box is None:
+                self._wall_box = (box[0].copy(), box[1].copy())
+            else:
+                self._wall_box = (np.minimum(self._wall_box[0], box[0]), np.maximum(self._wall_box[1], box[1]))
+        if self._wall_box is None:
+            return np.full(3, -1.0), np.full(3, 1.0)
+        lo, hi = self._wall_box
+        size = float(np.linalg.norm(hi - lo))
+        side, top = 0.2 * size + 0.3, 0.05 * size + 0.05
+        lo = lo - np.array([side, side, top])
+        hi = hi + np.array([side, side, top])
+        floors = planes[planes[:, 2] > 0.99]  # level floors: z = offset
+        if len(floors):
+            lo[2] = min(lo[2], float(floors[:, 3].max()) - 1e-3)
+        return lo, hi
 
     def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int) -> np.ndarray:
         """Render depth from the sun into the shadow map; return the world -> sun clip matrix."""

@@ -108,6 +108,13 @@ uniform vec3 u_tangent;
 uniform vec3 u_bitangent;
 uniform float u_cell;
 uniform float u_fade;
+// walls and ramps (planes not facing straight up) are cut to the inside of the other planes and
+// to a box around the scene, so a container of planes shows as its far walls, not endless sheets
+uniform float u_wall;
+uniform vec4 u_others[8];   // the other planes: unit normal, offset
+uniform int u_other_count;
+uniform vec3 u_clip_min;
+uniform vec3 u_clip_max;
 out vec4 f_color;
 """
     + COMMON
@@ -132,8 +139,20 @@ void main() {
     // seen from behind, parallel, or behind the eye: not drawn
     if (denom >= -1e-6 || t <= 0.0) discard;
     vec3 p = u_eye + t * dir;
+    float rim = 1.0;
+    if (u_wall > 0.5) {
+        // distance inside the clip region: the nearest other plane or box face
+        float inside = min(min(p.x - u_clip_min.x, u_clip_max.x - p.x),
+                           min(min(p.y - u_clip_min.y, u_clip_max.y - p.y), min(p.z - u_clip_min.z, u_clip_max.z - p.z)));
+        for (int i = 0; i < u_other_count; i++) {
+            inside = min(inside, dot(u_others[i].xyz, p) - u_others[i].w);
+        }
+        if (inside < 0.0) discard;
+        float w = 0.004 * t;  // edge line about a few pixels wide
+        rim = mix(0.55, 1.0, smoothstep(w, 2.0 * w, inside));
+    }
     vec2 uv = vec2(dot(p, u_tangent), dot(p, u_bitangent)) / u_cell;
-    vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv));
+    vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv)) * rim;
     vec3 c = to_srgb(tonemap(shade(albedo, p, u_normal, 24.0, 0.04)));
     float fog = 1.0 - exp(-pow(t / u_fade, 2.0));
     f_color = vec4(mix(c, sky_color(dir), fog), 1.0);
@@ -217,7 +236,7 @@ void main() {
     // a faint band around the body's x = 0 great circle shows the sphere rolling
     vec3 local = rotate_inv(v_quat, n);
     float band = smoothstep(0.07, 0.10, abs(local.x));
-    vec3 albedo = v_color * mix(0.78, 1.0, band);
+    vec3 albedo = v_color * mix(0.84, 1.0, band);
     f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), 1.0);
 }
 """
