@@ -327,7 +327,10 @@ void main() {
     vec3 n = normalize(v_normal);
     vec3 albedo = u_front;
     if (!gl_FrontFacing) { n = -n; albedo = u_back; }
-    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 12.0, 0.06))), 1.0);
+    // thin fabric lets some sunlight through: the side facing away from the sun still glows
+    float through = 0.35 * max(-dot(n, u_light_dir), 0.0);
+    vec3 c = shade(albedo, v_world, n, 12.0, 0.06) + to_linear(albedo) * SUN * through;
+    f_color = vec4(to_srgb(tonemap(c)), 1.0);
 }
 """
 )
