@@ -232,7 +232,7 @@ def test_no_context_is_a_clear_error(monkeypatch):
 
 
 def test_walls_are_cut_to_the_scene(small_renderer, chromaticity):
-    """A container's far wall shows near the bodies but not far above them; its near wall is unseen."""
+    """A container's far wall shows near the bodies but not far above them; its near wall is glass."""
 
     def world_with(walls: bool):
         world = tumble.World()
@@ -251,5 +251,8 @@ def test_walls_are_cut_to_the_scene(small_renderer, chromaticity):
     high_above = (-0.5, 0.0, 2.2)
     assert not np.array_equal(_pixel(walled, camera, on_wall), _pixel(open_, camera, on_wall))
     assert np.array_equal(_pixel(walled, camera, high_above), _pixel(open_, camera, high_above))
+    # the near wall is faint glass: the sphere behind it is tinted but keeps its colour
     sphere = body_colors([3])
-    assert _like(_pixel(walled, camera, (0.0, 0.0, 0.3)), sphere, chromaticity)
+    behind_glass = _pixel(walled, camera, (0.0, 0.0, 0.3))
+    assert _like(behind_glass, sphere, chromaticity)
+    assert not np.array_equal(behind_glass, _pixel(open_, camera, (0.0, 0.0, 0.3)))

@@ -367,24 +367,9 @@ class Renderer:
             clip_min, clip_max = self._wall_clip_box(world, arrays.planes)
             self._set(p, "u_clip_min", clip_min)
             self._set(p, "u_clip_max", clip_max)
-            up = np.asarray(camera.up, dtype=np.float64)
+            self._set(p, "u_glass", 0.0)
             for k, plane in enumerate(arrays.planes):
-                n = plane[:3]
-                t, b = _perpendicular(n)
-                # only level planes facing up stretch to the horizon; walls and ramps are cut
-                wall = float(np.dot(n, up)) < 0.99
-                self._set(p, "u_wall", 1.0 if wall else 0.0)
-                if wall:
-                    others = np.zeros((8, 4), dtype=np.float32)
-                    rest = np.delete(arrays.planes, k, axis=0)[:8]
-                    others[: len(rest)] = rest
-                    if "u_others" in p:
-                        p["u_others"].write(others.tobytes())
-                    self._set(p, "u_other_count", len(rest))
-                self._set(p, "u_normal", n)
-                self._set(p, "u_offset", float(plane[3]))
-                self._set(p, "u_tangent", t)
-                self._set(p, "u_bitangent", b)
+                self._set_plane(arrays.planes, k, wall=self._is_wall(plane, camera))
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
 
         if len(arrays.spheres):
@@ -406,6 +391,20 @@ class Renderer:
             self._set(c, "u_front", self.cloth_color)
             self._set(c, "u_back", np.clip(np.asarray(self.cloth_color) * 0.6 + 0.4, 0, 1))
             self._cloth_vao.render(mgl.TRIANGLES, vertices=n_cloth_idx)
+
+        # glass: walls seen from behind (a container's near walls), blended over everything
+        near_walls = [k for k, plane in enumerate(arrays.planes)
+                      if self._is_wall(plane, camera) and float(np.dot(plane[:3], camera.position)) < plane[3]]
+        if near_walls:
+            p = self._plane
+            self._set(p, "u_glass", 1.0)
+            ctx.enable(mgl.BLEND)
+            ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
+            for k in near_walls:
+                self._set_plane(arrays.planes, k)
+                self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            ctx.disable(mgl.BLEND)
+            self._set(p, "u_glass", 0.0)
 
     def release(self) -> None:
         """Free the GL objects this renderer made (not the context)."""
@@ -471,6 +470,29 @@ class Renderer:
             self._cloth_tris = np.array(tri, copy=True)
             self._upload(self._cloth_ibo, np.ascontiguousarray(tri, dtype=np.uint32))
         return tri.size
+
+    @staticmethod
+    def _is_wall(plane: np.ndarray, camera: Camera) -> bool:
+        """Only level planes facing up stretch to the horizon; walls and ramps are cut."""
+        return float(np.dot(plane[:3], camera.up)) < 0.99
+
+    def _set_plane(self, planes: np.ndarray, k: int, *, wall: bool = True) -> None:
+        """Uniforms of the plane pass for plane k (normal, offset, tangents; the others for walls)."""
+        p = self._plane
+        n = planes[k, :3]
+        t, b = _perpendicular(n)
+        self._set(p, "u_wall", 1.0 if wall else 0.0)
+        if wall:
+            others = np.zeros((8, 4), dtype=np.float32)
+            rest = np.delete(planes, k, axis=0)[:8]
+            others[: len(rest)] = rest
+            if "u_others" in p:
+                p["u_others"].write(others.tobytes())
+            self._set(p, "u_other_count", len(rest))
+        self._set(p, "u_normal", n)
+        self._set(p, "u_offset", float(planes[k, 3]))
+        self._set(p, "u_tangent", t)
+        self._set(p, "u_bitangent", b)
 
     def _wall_clip_box(self, world, planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Box [m] that walls and ramps are cut to: the scene's bounds (grown over the frames drawn),

@@ -115,6 +115,7 @@ uniform vec4 u_others[8];   // the other planes: unit normal, offset
 uniform int u_other_count;
 uniform vec3 u_clip_min;
 uniform vec3 u_clip_max;
+uniform float u_glass;
 out vec4 f_color;
 """
     + COMMON
@@ -136,8 +137,9 @@ void main() {
     vec3 dir = normalize(far_point.xyz / far_point.w - u_eye);
     float denom = dot(u_normal, dir);
     float t = (u_offset - dot(u_normal, u_eye)) / denom;
-    // seen from behind, parallel, or behind the eye: not drawn
-    if (denom >= -1e-6 || t <= 0.0) discard;
+    // the opaque pass draws a plane's front side only; the glass pass (walls seen from behind,
+    // drawn last and blended) draws the back side as faint glass with darker edges
+    if (t <= 0.0 || (u_glass < 0.5 ? denom >= -1e-6 : denom <= 1e-6)) discard;
     vec3 p = u_eye + t * dir;
     float rim = 1.0;
     if (u_wall > 0.5) {
@@ -150,6 +152,13 @@ void main() {
         if (inside < 0.0) discard;
         float w = 0.004 * t;  // edge line about a few pixels wide
         rim = mix(0.55, 1.0, smoothstep(w, 2.0 * w, inside));
+        if (u_glass > 0.5) {
+            float edge = 1.0 - smoothstep(w, 2.0 * w, inside);
+            f_color = vec4(mix(vec3(0.80, 0.88, 0.95), vec3(0.30, 0.33, 0.36), edge), mix(0.10, 0.55, edge));
+            vec4 clip_glass = u_vp * vec4(p, 1.0);
+            gl_FragDepth = clip_glass.z / clip_glass.w * 0.5 + 0.5;
+            return;
+        }
     }
     vec2 uv = vec2(dot(p, u_tangent), dot(p, u_bitangent)) / u_cell;
     vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv)) * rim;
