@@ -204,7 +204,7 @@ class Renderer:
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
-                 shadow_size: int = 2048):
+                 shadow_size: int = 1024):
         import moderngl
 
         self._mgl = moderngl
