@@ -256,3 +256,25 @@ def test_walls_are_cut_to_the_scene(small_renderer, chromaticity):
     behind_glass = _pixel(walled, camera, (0.0, 0.0, 0.3))
     assert _like(behind_glass, sphere, chromaticity)
     assert not np.array_equal(behind_glass, _pixel(open_, camera, (0.0, 0.0, 0.3)))
+
+
+def test_multisampling_smooths_only_the_sphere_silhouette(gl_context):
+    """With 4x MSAA, pixels change only in a thin ring at the sphere's outline (edge coverage)."""
+    from tumble.render import Renderer
+
+    world = tumble.World()
+    world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.3)
+    camera = _camera()
+    plain = Renderer(gl_context, W, H, shadows=False)
+    smooth = Renderer(gl_context, W, H, shadows=False, samples=4)
+    a = plain.render(world, camera).astype(int)
+    b = smooth.render(world, camera).astype(int)
+    plain.release()
+    smooth.release()
+    changed = np.argwhere(np.abs(a - b).max(axis=2) > 8)
+    assert len(changed) > 10  # the outline did change
+    x, y, depth = camera.project((0.0, 0.0, 0.5), W, H)
+    f = H / 2 / np.tan(np.radians(camera.fov_deg) / 2)
+    radius_px = 0.3 * f / np.sqrt(depth**2 - 0.3**2)
+    dist = np.hypot(changed[:, 1] + 0.5 - x, changed[:, 0] + 0.5 - y)
+    assert np.all(np.abs(dist - radius_px) < 2.0)

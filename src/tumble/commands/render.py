@@ -64,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
     # cheap checks first: the output kind, the size, then an OpenGL context (TumbleError -> exit 2)
     output_kind(args.output)
     width, height = parse_size(args.size)
-    renderer = Renderer(create_context(), width, height)
+    renderer = Renderer(create_context(), width, height, samples=4)
     world = tumble.load_scene(args.scene)
     duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
     camera = camera_for(world, args, width / height)

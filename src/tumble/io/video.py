@@ -90,7 +90,7 @@ def render_frames(
         camera: a `tumble.render.Camera`; default the scene's `[camera]`, else automatic framing
             of the first frame (kept fixed afterwards, so the view does not jump).
         renderer: a `tumble.render.Renderer` to reuse (its size is set to `size`); default a new
-            one on a new headless context.
+            one on a new headless context, 4x multisampled (smooth edges, ~1.3-1.8x the time).
 
     Raises:
         TumbleError: no OpenGL context could be made.
@@ -100,7 +100,7 @@ def render_frames(
     n = frame_count(duration, fps)
     width, height = parse_size(size)
     if renderer is None:
-        renderer = Renderer(create_context(), width, height)
+        renderer = Renderer(create_context(), width, height, samples=4)
     else:
         renderer.resize(width, height)
     if camera is None:

@@ -26,6 +26,8 @@ from . import shaders
 from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
 
+#: OpenGL enum of alpha-to-coverage (moderngl has no named flag for it)
+GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
 #: floats per instance: centre 3, radius 1, orientation 4, colour 3
 SPHERE_FLOATS = 11
 #: floats per instance: centre 3, orientation 4, half extents 3, colour 3
@@ -377,7 +379,14 @@ class Renderer:
             self._set_mat(s, "u_view", view)
             self._set_mat(s, "u_proj", proj)
             self._set_mat(s, "u_inv_view", inv_view)
+            # multisampled target: the fragment's coverage of the disc becomes its sample mask
+            msaa = int(getattr(fbo, "samples", 0) or 0) > 1
+            self._set(s, "u_coverage", 1.0 if msaa else 0.0)
+            if msaa:
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
             self._sphere_vao.render(mgl.TRIANGLE_STRIP, vertices=4, instances=len(arrays.spheres))
+            if msaa:
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
 
         if len(arrays.boxes):
             ctx.enable(mgl.CULL_FACE)
@@ -400,9 +409,11 @@ class Renderer:
             self._set(p, "u_glass", 1.0)
             ctx.enable(mgl.BLEND)
             ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
+            fbo.depth_mask = False  # glass hides nothing, not even other glass
             for k in near_walls:
                 self._set_plane(arrays.planes, k)
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            fbo.depth_mask = True
             ctx.disable(mgl.BLEND)
             self._set(p, "u_glass", 0.0)
 

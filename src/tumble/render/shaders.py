@@ -222,6 +222,7 @@ flat in vec4 v_quat;
 flat in vec3 v_color;
 uniform mat4 u_proj;
 uniform mat4 u_inv_view;
+uniform float u_coverage;  // 1 when drawing multisampled with alpha-to-coverage: smooth edges
 out vec4 f_color;
 """
     + COMMON
@@ -234,9 +235,12 @@ void main() {
     // ray x = t d from the eye: |t d - c|^2 = r^2  ->  t^2 - 2 t (d.c) + c.c - r^2 = 0
     vec3 d = normalize(v_eye_pos);
     float b = dot(d, v_center);
-    float disc = b * b - dot(v_center, v_center) + v_radius * v_radius;
-    if (disc < 0.0) discard;
-    float t = b - sqrt(disc);
+    // distance from the centre to the ray; the pixel's share of the disc (edge antialiasing)
+    // is its distance inside the silhouette over the pixel's size there
+    float miss = sqrt(max(dot(v_center, v_center) - b * b, 0.0));
+    float alpha = clamp((v_radius - miss) / max(fwidth(miss), 1e-7) + 0.5, 0.0, 1.0);
+    if (u_coverage < 0.5 ? miss > v_radius : alpha <= 0.0) discard;
+    float t = b - sqrt(max(v_radius * v_radius - miss * miss, 0.0));
     vec3 hit = t * d;
     vec4 clip = u_proj * vec4(hit, 1.0);
     gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
@@ -246,7 +250,7 @@ void main() {
     vec3 local = rotate_inv(v_quat, n);
     float band = smoothstep(0.07, 0.10, abs(local.x));
     vec3 albedo = v_color * mix(0.84, 1.0, band);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), 1.0);
+    f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), u_coverage < 0.5 ? 1.0 : alpha);
 }
 """
 )
