@@ -10,7 +10,8 @@ no Python loop runs over bodies. Passes, in order:
    fading into the sky with distance, drawn only from the front side);
 4. spheres: one quad per sphere, ray-cast against the sphere, true depth written;
 5. boxes: one instanced 36-vertex cube per box, darkened edges;
-6. cloth: one indexed, two-sided triangle mesh with per-vertex normals.
+6. cloth: one indexed, two-sided triangle mesh with per-vertex normals;
+7. glass: walls seen from behind (a container's near walls), blended, no depth written.
 """
 
 from __future__ import annotations
@@ -202,7 +203,7 @@ class Renderer:
         shadow_size: shadow map size in texels.
 
     Attributes you may change between frames: `ground_cell_size` [m] (checker square size),
-    `light_direction` (unit vector towards the sun), `shadows`.
+    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB).
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
@@ -304,8 +305,9 @@ class Renderer:
         """Draw `world` seen by `camera` into `framebuffer` (None: the currently bound one).
 
         Args:
-            framebuffer: a moderngl Framebuffer; None detects the one bound now (for a
-                QOpenGLWidget's `paintGL`, or pass `ctx.detect_framebuffer(widget.defaultFramebufferObject())`).
+            framebuffer: a moderngl Framebuffer; None detects the one bound now (a new wrapper
+                each call, so for a widget drawn every frame prefer passing
+                `ctx.detect_framebuffer(widget.defaultFramebufferObject())` once per resize).
             viewport: (x, y, width, height) in pixels; default the whole framebuffer.
         """
         ctx, mgl = self.ctx, self._mgl
@@ -418,13 +420,17 @@ class Renderer:
             self._set(p, "u_glass", 0.0)
 
     def release(self) -> None:
-        """Free the GL objects this renderer made (not the context)."""
-        for obj in list(vars(self).values()):
-            if hasattr(obj, "release") and obj is not self.ctx and not isinstance(obj, type(self)):
-                try:
-                    obj.release()
-                except Exception:
-                    pass
+        """Free the GL objects this renderer made (not the context); the renderer is unusable after."""
+        objects = [v for k, v in vars(self).items() if k not in ("ctx", "_mgl") and hasattr(v, "release")]
+        for fbo in (self._fbo, self._resolve):
+            if fbo is not None:
+                objects += [*fbo.color_attachments, fbo.depth_attachment]
+        for obj in objects:
+            try:
+                obj.release()
+            except Exception:  # already released
+                pass
+        self._fbo = self._resolve = self._fbo_size = None
 
     # ------------------------------------------------------------------ internals
 
