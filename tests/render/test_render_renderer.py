@@ -278,3 +278,26 @@ def test_multisampling_smooths_only_the_sphere_silhouette(gl_context):
     radius_px = 0.3 * f / np.sqrt(depth**2 - 0.3**2)
     dist = np.hypot(changed[:, 1] + 0.5 - x, changed[:, 0] + 0.5 - y)
     assert np.all(np.abs(dist - radius_px) < 2.0)
+
+
+def test_multisampled_widget_framebuffer_stays_opaque(gl_context):
+    """Drawing into a multisampled framebuffer (as a viewer widget may have) leaves alpha at 1."""
+    world = tumble.World()
+    world.add_plane(normal=(1, 0, 0), offset=-0.5)  # walls, so the glass pass runs too
+    world.add_plane(normal=(-1, 0, 0), offset=-0.5)
+    world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.3)
+    from tumble.render import Renderer
+
+    r = Renderer(gl_context, W, H, shadow_size=256)
+    msaa = gl_context.framebuffer(
+        color_attachments=[gl_context.renderbuffer((W, H), 4, samples=4)],
+        depth_attachment=gl_context.depth_renderbuffer((W, H), samples=4),
+    )
+    plain = gl_context.simple_framebuffer((W, H), components=4)
+    r.draw(world, Camera(position=(3.0, 0.0, 1.0), target=(0.0, 0.0, 0.5)), msaa)
+    gl_context.copy_framebuffer(plain, msaa)
+    rgba = np.frombuffer(plain.read(components=4, alignment=1), np.uint8).reshape(H, W, 4)
+    for obj in (*msaa.color_attachments, msaa.depth_attachment, msaa, plain):
+        obj.release()
+    r.release()
+    assert rgba[..., 3].min() == 255

@@ -384,10 +384,15 @@ class Renderer:
             # multisampled target: the fragment's coverage of the disc becomes its sample mask
             msaa = int(getattr(fbo, "samples", 0) or 0) > 1
             self._set(s, "u_coverage", 1.0 if msaa else 0.0)
+            # (alpha itself is not written: the sky left 1 everywhere, so a widget stays opaque)
             if msaa:
                 ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                fbo.color_mask = (True, True, True, False)
+                fbo.use()  # moderngl applies a framebuffer's masks when it is bound
             self._sphere_vao.render(mgl.TRIANGLE_STRIP, vertices=4, instances=len(arrays.spheres))
             if msaa:
+                fbo.color_mask = (True, True, True, True)
+                fbo.use()
                 ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
 
         if len(arrays.boxes):
@@ -412,10 +417,14 @@ class Renderer:
             ctx.enable(mgl.BLEND)
             ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
             fbo.depth_mask = False  # glass hides nothing, not even other glass
+            fbo.color_mask = (True, True, True, False)  # and leaves the target opaque
+            fbo.use()
             for k in near_walls:
                 self._set_plane(arrays.planes, k)
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
             fbo.depth_mask = True
+            fbo.color_mask = (True, True, True, True)
+            fbo.use()
             ctx.disable(mgl.BLEND)
             self._set(p, "u_glass", 0.0)
 
