@@ -354,14 +354,16 @@ class Renderer:
                 prog["u_shadow_map"].value = 0
         self._shadow_tex.use(location=0)
 
-        # sky: no depth test, so no depth written
-        ctx.disable(mgl.DEPTH_TEST)
-        self._set_mat(self._sky, "u_inv_vp", inv_vp)
-        self._sky_vao.render(mgl.TRIANGLES, vertices=3)
+        # sky: no depth test, so no depth written (skipped when a level floor paints it)
+        walls = [self._is_wall(plane, camera) for plane in arrays.planes]
+        first_floor = walls.index(False) if False in walls else -1
+        if first_floor < 0:
+            ctx.disable(mgl.DEPTH_TEST)
+            self._set_mat(self._sky, "u_inv_vp", inv_vp)
+            self._sky_vao.render(mgl.TRIANGLES, vertices=3)
 
         ctx.enable(mgl.DEPTH_TEST)
-        ctx.depth_func = "<"
-        # planes: a handful at most, one full-screen pass each
+        # planes: a handful at most, one full-screen pass each, the sky-painting floor first
         if len(arrays.planes):
             p = self._plane
             self._set_mat(p, "u_inv_vp", inv_vp)
@@ -372,9 +374,18 @@ class Renderer:
             self._set(p, "u_clip_min", clip_min)
             self._set(p, "u_clip_max", clip_max)
             self._set(p, "u_glass", 0.0)
-            for k, plane in enumerate(arrays.planes):
-                self._set_plane(arrays.planes, k, wall=self._is_wall(plane, camera))
+            order = list(range(len(arrays.planes)))
+            if first_floor >= 0:
+                order.remove(first_floor)
+                order.insert(0, first_floor)
+            for k in order:
+                sky = k == first_floor
+                ctx.depth_func = "<=" if sky else "<"  # the sky sits at depth 1, the cleared value
+                self._set(p, "u_sky_on_miss", 1.0 if sky else 0.0)
+                self._set_plane(arrays.planes, k, wall=walls[k])
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            self._set(p, "u_sky_on_miss", 0.0)
+        ctx.depth_func = "<"
 
         if len(arrays.spheres):
             s = self._sphere
