@@ -139,13 +139,14 @@ def test_same_scene_renders_identically(small_renderer, make_cloth):
 def test_draw_into_a_given_framebuffer(gl_context, small_renderer):
     """draw() into a caller's framebuffer gives the same picture as render()."""
     world, camera = _scene_one_sphere(), _camera()
-    fbo = gl_context.simple_framebuffer((W, H))
-    fbo.use()
-    small_renderer.draw(world, camera)  # the bound framebuffer
-    bound = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
-    small_renderer.draw(world, camera, fbo)
-    given = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
-    fbo.release()
+    with gl_context:  # draw() uses the current context, as a widget's paint method would
+        fbo = gl_context.simple_framebuffer((W, H))
+        fbo.use()
+        small_renderer.draw(world, camera)  # the bound framebuffer
+        bound = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
+        small_renderer.draw(world, camera, fbo)
+        given = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
+        fbo.release()
     assert np.array_equal(bound, small_renderer.render(world, camera))
     assert np.array_equal(given, bound)
 
@@ -289,15 +290,33 @@ def test_multisampled_widget_framebuffer_stays_opaque(gl_context):
     from tumble.render import Renderer
 
     r = Renderer(gl_context, W, H, shadow_size=256)
-    msaa = gl_context.framebuffer(
-        color_attachments=[gl_context.renderbuffer((W, H), 4, samples=4)],
-        depth_attachment=gl_context.depth_renderbuffer((W, H), samples=4),
-    )
-    plain = gl_context.simple_framebuffer((W, H), components=4)
-    r.draw(world, Camera(position=(3.0, 0.0, 1.0), target=(0.0, 0.0, 0.5)), msaa)
-    gl_context.copy_framebuffer(plain, msaa)
-    rgba = np.frombuffer(plain.read(components=4, alignment=1), np.uint8).reshape(H, W, 4)
-    for obj in (*msaa.color_attachments, msaa.depth_attachment, msaa, plain):
-        obj.release()
+    with gl_context:
+        msaa = gl_context.framebuffer(
+            color_attachments=[gl_context.renderbuffer((W, H), 4, samples=4)],
+            depth_attachment=gl_context.depth_renderbuffer((W, H), samples=4),
+        )
+        plain = gl_context.simple_framebuffer((W, H), components=4)
+        r.draw(world, Camera(position=(3.0, 0.0, 1.0), target=(0.0, 0.0, 0.5)), msaa)
+        gl_context.copy_framebuffer(plain, msaa)
+        rgba = np.frombuffer(plain.read(components=4, alignment=1), np.uint8).reshape(H, W, 4)
+        for obj in (*msaa.color_attachments, msaa.depth_attachment, msaa, plain):
+            obj.release()
     r.release()
     assert rgba[..., 3].min() == 255
+
+
+def test_renderers_on_two_contexts_stay_apart():
+    """A renderer keeps drawing in its own context after another context is made and released."""
+    from tumble.render import Renderer, create_context
+
+    world, camera = _scene_one_sphere(), _camera()
+    first_ctx, second_ctx = create_context(), create_context()
+    first = Renderer(first_ctx, W, H, shadow_size=256)  # made while the second context is current
+    before = first.render(world, camera)
+    second = Renderer(second_ctx, W, H, shadow_size=256)
+    assert np.array_equal(second.render(world, camera), before)
+    second.release()
+    second_ctx.release()
+    assert np.array_equal(first.render(world, camera), before)
+    first.release()
+    first_ctx.release()

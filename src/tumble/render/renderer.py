@@ -224,7 +224,11 @@ class Renderer:
         # one world, so walls keep their size while bodies fall or fly out
         self._wall_world = None
         self._wall_box = None
+        with ctx:  # create the GL objects in this context, whichever is current now
+            self._create_gl_objects(int(shadow_size))
 
+    def _create_gl_objects(self, shadow_size: int) -> None:
+        ctx, moderngl = self.ctx, self._mgl
         prog = ctx.program
         self._sky = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.SKY_FRAGMENT)
         self._plane = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.PLANE_FRAGMENT)
@@ -273,7 +277,7 @@ class Renderer:
                                     index_buffer=self._cloth_ibo, index_element_size=4)
 
         # sun shadow map: a depth texture read as plain values (no hardware comparison)
-        self._shadow_tex = ctx.depth_texture((int(shadow_size), int(shadow_size)))
+        self._shadow_tex = ctx.depth_texture((shadow_size, shadow_size))
         self._shadow_tex.compare_func = ""
         self._shadow_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._shadow_tex.repeat_x = self._shadow_tex.repeat_y = False
@@ -292,17 +296,23 @@ class Renderer:
         """
         if camera is None:
             camera = Camera.for_world(world, aspect=self.width / self.height)
-        fbo = self._offscreen()
-        self.draw(world, camera, fbo)
-        if self._resolve is not None:
-            self.ctx.copy_framebuffer(self._resolve, fbo)
-            fbo = self._resolve
-        data = fbo.read(components=3, alignment=1)
+        # make this renderer's context current (another one may have been made or released
+        # since), and restore the previous one afterwards
+        with self.ctx:
+            fbo = self._offscreen()
+            self.draw(world, camera, fbo)
+            if self._resolve is not None:
+                self.ctx.copy_framebuffer(self._resolve, fbo)
+                fbo = self._resolve
+            data = fbo.read(components=3, alignment=1)
         image = np.frombuffer(data, dtype=np.uint8).reshape(self.height, self.width, 3)
         return np.ascontiguousarray(image[::-1])
 
     def draw(self, world, camera: Camera, framebuffer=None, *, viewport=None) -> None:
         """Draw `world` seen by `camera` into `framebuffer` (None: the currently bound one).
+
+        Uses the current GL context (a widget's, in its paint method); with a standalone context
+        that may not be current, call this inside `with renderer.ctx:`.
 
         Args:
             framebuffer: a moderngl Framebuffer; None detects the one bound now (a new wrapper
@@ -445,11 +455,12 @@ class Renderer:
         for fbo in (self._fbo, self._resolve):
             if fbo is not None:
                 objects += [*fbo.color_attachments, fbo.depth_attachment]
-        for obj in objects:
-            try:
-                obj.release()
-            except Exception:  # already released
-                pass
+        with self.ctx:
+            for obj in objects:
+                try:
+                    obj.release()
+                except Exception:  # already released
+                    pass
         self._fbo = self._resolve = self._fbo_size = None
 
     # ------------------------------------------------------------------ internals
