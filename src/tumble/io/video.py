@@ -99,7 +99,8 @@ def render_frames(
 
     n = frame_count(duration, fps)
     width, height = parse_size(size)
-    if renderer is None:
+    own = renderer is None
+    if own:
         renderer = Renderer(create_context(), width, height, samples=4)
     else:
         renderer.resize(width, height)
@@ -109,12 +110,18 @@ def render_frames(
         camera = Camera.from_dict(camera)
     start = float(world.time)
     dt = float(world.dt)
-    for k in range(n):
-        # step until the world reaches this frame's time (within half a step)
-        target = start + k / float(fps)
-        while world.time < target - 0.5 * dt:
-            world.step()
-        yield renderer.render(world, camera)
+    try:
+        for k in range(n):
+            # step until the world reaches this frame's time (within half a step)
+            target = start + k / float(fps)
+            while world.time < target - 0.5 * dt:
+                world.step()
+            yield renderer.render(world, camera)
+    finally:
+        if own:  # the context made here goes with the renderer
+            ctx = renderer.ctx
+            renderer.release()
+            ctx.release()
 
 
 @contextlib.contextmanager
