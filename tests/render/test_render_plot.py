@@ -80,9 +80,10 @@ def test_figure_has_the_expected_panels(tmp_path):
     """A cloth recording gives five panels: energies, momentum, contacts, strain."""
     path, _, _ = _record(tmp_path)
     fig = build_figure(load_record(path))
-    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    titles = [ax.get_title(loc="left").split(" (")[0] for ax in fig.axes]
     assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count",
                       "Largest cloth strain"]
+    assert "bodies only" in fig.axes[1].get_title(loc="left")  # no cloth_mass in this recording
     assert all(ax.lines for ax in fig.axes)
 
 

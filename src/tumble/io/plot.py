@@ -70,6 +70,7 @@ class Series:
     bodies: np.ndarray | None = None
     has_cloth: bool = False
     missing: dict[str, str] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
 
 
 def _body_inertia(record, mass: np.ndarray) -> np.ndarray | None:
@@ -179,6 +180,8 @@ def compute_series(record: dict) -> Series:
     if cloth_pos is not None:
         cloth_pos = np.asarray(cloth_pos, dtype=np.float64)
         cloth_mass = record.get("cloth_mass")
+        if cloth_mass is None and s.potential is not None:
+            s.notes["potential"] = "bodies only: no cloth_mass recorded"
         if cloth_mass is not None:
             cm = np.broadcast_to(np.asarray(cloth_mass, dtype=np.float64), cloth_pos.shape[1:2])
             if s.potential is not None:
@@ -196,6 +199,7 @@ def compute_series(record: dict) -> Series:
                 k for k, v in (("cloth_triangles", tri), ("cloth_rest_position", rest)) if v is None)
         else:
             s.strain = max_strain(cloth_pos, np.asarray(tri), np.asarray(rest, dtype=np.float64))
+            s.notes["strain"] = "over triangle edges, diagonals included"
     return s
 
 
@@ -253,7 +257,7 @@ def build_figure(record: dict, *, name: str | None = None):
             ax.set_title(f"{label}: not recorded ({s.missing.get(key, 'missing')})", loc="left", fontsize=10)
             ax.text(0.5, 0.5, "not recorded", transform=ax.transAxes, ha="center", va="center", color="0.5")
             continue
-        ax.set_title(label, loc="left", fontsize=10)
+        ax.set_title(label + (f" ({s.notes[key]})" if key in s.notes else ""), loc="left", fontsize=10)
         if key == "momentum":
             for i, (axis, colour) in enumerate(zip("xyz", ("#d1495b", "#66a182", "#2e86ab"))):
                 ax.plot(t, data[:, i], color=colour, lw=1.2, label=f"p{axis}")
