@@ -264,7 +264,10 @@ def build_figure(record: dict, *, name: str | None = None):
             ax.plot(t, np.linalg.norm(data, axis=1), color="0.2", lw=1.2, ls="--", label="|p|")
             ax.legend(loc="best", fontsize=8, ncols=4, framealpha=0.8)
         elif key == "contacts":
+            from matplotlib.ticker import MaxNLocator
+
             ax.step(t, data, where="post", color="#8d6a9f", lw=1.2)
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         else:
             colour = {"kinetic": "#d1495b", "potential": "#2e86ab", "strain": "#edae49"}[key]
             ax.plot(t, data, color=colour, lw=1.4)
