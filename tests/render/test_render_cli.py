@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -101,3 +103,33 @@ def test_plot_command_missing_file_exits_2(tmp_path, cli, capsys):
     rc = cli(["plot", str(tmp_path / "nope.npz"), "-o", str(tmp_path / "p.png")])
     assert rc == 2
     assert "nope.npz" in capsys.readouterr().err
+
+
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
+
+
+def test_render_a_sample_scene_file(tmp_path, monkeypatch):
+    """tumble render on a real sample file writes a GIF with the scene's camera."""
+    from PIL import Image
+
+    monkeypatch.setattr(tumble.cli, "COMMANDS", {"render": "render"})
+    out = tmp_path / "ball.gif"
+    rc = tumble.cli.main(["render", str(SAMPLES / "bouncing_ball.toml"), "-o", str(out), "--duration", "0.3",
+                          "--fps", "10", "--size", "64x48", "--no-progress"])
+    assert rc == 0
+    with Image.open(out) as im:
+        assert im.size == (64, 48) and im.n_frames == 3
+
+
+def test_run_record_then_plot(tmp_path, monkeypatch):
+    """A recording from tumble run --record plots with every body panel filled in."""
+    from tumble.io.plot import build_figure, load_record
+
+    monkeypatch.setattr(tumble.cli, "COMMANDS", {"run": "run", "plot": "plot"})
+    record = tmp_path / "ball.npz"
+    assert tumble.cli.main(["run", str(SAMPLES / "bouncing_ball.toml"), "--duration", "0.25", "--record",
+                            str(record), "--fps", "20"]) == 0
+    assert tumble.cli.main(["plot", str(record), "-o", str(tmp_path / "ball.png")]) == 0
+    fig = build_figure(load_record(record))
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count"]
