@@ -1,0 +1,183 @@
+"""The 3D view of the window, with two backends behind one interface.
+
+- `GLSceneView`: a `QOpenGLWidget`; moderngl wraps Qt's own GL context and the shared renderer
+  draws straight into the widget's framebuffer. Used on real desktops (and under Xvfb).
+- `ImageSceneView`: a plain widget; the renderer draws with a standalone (EGL) moderngl context
+  into its own framebuffer and the pixels are painted as a QImage. Used where Qt cannot make a GL
+  window: the "offscreen" and "minimal" platforms (tests, no display), or when GL setup fails.
+
+Both draw with the one renderer, `tumble.render.Renderer`, and share this interface: `world`
+and `camera` attributes, `render_image()` for screenshots and video, `frame_count` for the fps
+counter, and the `failed(str)` signal when drawing is impossible. Mouse and keys are handled by
+the window through an event filter, the same for both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from PySide6 import QtCore, QtGui, QtWidgets
+from PySide6.QtOpenGLWidgets import QOpenGLWidget
+
+#: Qt platforms on which a QOpenGLWidget cannot work (it aborts on "offscreen")
+NO_GL_WINDOW_PLATFORMS = ("offscreen", "minimal", "vnc")
+
+
+def gl_surface_format() -> QtGui.QSurfaceFormat:
+    """OpenGL 3.3 core with a depth buffer and 4x multisampling: what the renderer needs."""
+    fmt = QtGui.QSurfaceFormat()
+    fmt.setRenderableType(QtGui.QSurfaceFormat.RenderableType.OpenGL)
+    fmt.setVersion(3, 3)
+    fmt.setProfile(QtGui.QSurfaceFormat.OpenGLContextProfile.CoreProfile)
+    fmt.setDepthBufferSize(24)
+    fmt.setSamples(4)
+    return fmt
+
+
+def gl_window_problem() -> str | None:
+    """Why a GL window cannot be made here, or None when it can (a QApplication must exist)."""
+    platform = QtGui.QGuiApplication.platformName()
+    if platform in NO_GL_WINDOW_PLATFORMS:
+        return f'the Qt platform "{platform}" has no OpenGL windows'
+    context = QtGui.QOpenGLContext()
+    context.setFormat(gl_surface_format())
+    if not context.create():
+        return f'Qt could not create an OpenGL context on the "{platform}" platform'
+    fmt = context.format()
+    if (fmt.majorVersion(), fmt.minorVersion()) < (3, 3):
+        return f"the OpenGL context is version {fmt.majorVersion()}.{fmt.minorVersion()}; 3.3 is needed"
+    return None
+
+
+def qimage_to_array(image: QtGui.QImage) -> np.ndarray:
+    """RGB pixels of a QImage as a (H, W, 3) uint8 array."""
+    image = image.convertToFormat(QtGui.QImage.Format.Format_RGB888)
+    w, h = image.width(), image.height()
+    ptr = image.constBits()
+    rows = np.frombuffer(ptr, dtype=np.uint8, count=image.bytesPerLine() * h).reshape(h, image.bytesPerLine())
+    return rows[:, : 3 * w].reshape(h, w, 3).copy()
+
+
+def array_to_qimage(pixels: np.ndarray) -> QtGui.QImage:
+    """A QImage (owning its pixels) from a (H, W, 3) uint8 array."""
+    pixels = np.ascontiguousarray(pixels, dtype=np.uint8)
+    h, w = pixels.shape[:2]
+    return QtGui.QImage(pixels.data, w, h, 3 * w, QtGui.QImage.Format.Format_RGB888).copy()
+
+
+class _SceneViewMixin:
+    """What both views share: the world and camera to draw, frame counting, a size hint."""
+
+    def _init_view(self, size: tuple[int, int]) -> None:
+        self.world = None
+        self.camera = None
+        self.frame_count = 0
+        self.renderer = None
+        self._size_hint = QtCore.QSize(*size)
+        self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
+        self.setMouseTracking(False)
+        self.setMinimumSize(160, 120)
+        self.setSizePolicy(QtWidgets.QSizePolicy.Policy.Expanding, QtWidgets.QSizePolicy.Policy.Expanding)
+
+    def sizeHint(self) -> QtCore.QSize:  # noqa: N802 (Qt name)
+        return self._size_hint
+
+    def pixel_size(self) -> tuple[int, int]:
+        """Size of the drawing in device pixels (width, height)."""
+        ratio = self.devicePixelRatioF()
+        return max(1, round(self.width() * ratio)), max(1, round(self.height() * ratio))
+
+
+class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
+    """Offscreen backend: render with a standalone EGL context, paint the pixels as a QImage.
+
+    Args:
+        context: a standalone moderngl context (`tumble.render.create_context()`).
+        size: preferred size in pixels (width, height).
+    """
+
+    failed = QtCore.Signal(str)
+    backend_name = "offscreen EGL, drawn as an image"
+
+    def __init__(self, context, *, size: tuple[int, int] = (960, 640), parent=None):
+        super().__init__(parent)
+        self._init_view(size)
+        from ..render import Renderer
+
+        self.context = context
+        self.renderer = Renderer(context)
+        self.setAttribute(QtCore.Qt.WidgetAttribute.WA_OpaquePaintEvent)
+
+    def render_image(self) -> np.ndarray:
+        """Render the current view: (H, W, 3) uint8 at the view's pixel size."""
+        width, height = self.pixel_size()
+        return self.renderer.render(self.world, self.camera, size=(width, height))
+
+    def paintEvent(self, event) -> None:  # noqa: N802 (Qt name)
+        painter = QtGui.QPainter(self)
+        if self.world is None or self.camera is None:
+            painter.fillRect(self.rect(), QtGui.QColor(40, 44, 52))
+            return
+        try:
+            image = array_to_qimage(self.render_image())
+        except Exception as exc:  # noqa: BLE001 (shown to the user, not swallowed)
+            painter.fillRect(self.rect(), QtGui.QColor(40, 44, 52))
+            painter.end()
+            self.failed.emit(f"drawing failed: {exc}")
+            return
+        image.setDevicePixelRatio(self.devicePixelRatioF())
+        painter.drawImage(0, 0, image)
+        painter.end()
+        self.frame_count += 1
+
+
+class GLSceneView(_SceneViewMixin, QOpenGLWidget):
+    """Desktop backend: moderngl wraps the widget's own GL context; draws into its framebuffer.
+
+    Args:
+        size: preferred size in pixels (width, height).
+    """
+
+    failed = QtCore.Signal(str)
+    backend_name = "OpenGL window"
+
+    def __init__(self, *, size: tuple[int, int] = (960, 640), parent=None):
+        super().__init__(parent)
+        self._init_view(size)
+        self.setFormat(gl_surface_format())
+        self.context = None
+        self.problem: str | None = None
+
+    def initializeGL(self) -> None:  # noqa: N802 (Qt name)
+        import moderngl
+
+        from ..render import Renderer
+
+        try:
+            # wrap the context Qt made current for this widget
+            self.context = moderngl.create_context()
+            self.renderer = Renderer(self.context)
+        except Exception as exc:  # noqa: BLE001 (reported; the window falls back to the image view)
+            self.problem = f"OpenGL setup failed: {exc}"
+            self.renderer = None
+            QtCore.QTimer.singleShot(0, lambda: self.failed.emit(self.problem))
+
+    def paintGL(self) -> None:  # noqa: N802 (Qt name)
+        if self.renderer is None:
+            return
+        # Qt binds its own framebuffer object for the widget; draw into exactly that one
+        framebuffer = self.context.detect_framebuffer(self.defaultFramebufferObject())
+        if self.world is None or self.camera is None:
+            framebuffer.use()
+            framebuffer.clear(0.16, 0.17, 0.2, 1.0)
+            return
+        try:
+            self.renderer.draw(self.world, self.camera, framebuffer=framebuffer)
+        except Exception as exc:  # noqa: BLE001
+            self.renderer = None
+            QtCore.QTimer.singleShot(0, lambda: self.failed.emit(f"drawing failed: {exc}"))
+            return
+        self.frame_count += 1
+
+    def render_image(self) -> np.ndarray:
+        """Render the current view: (H, W, 3) uint8 at the view's pixel size."""
+        return qimage_to_array(self.grabFramebuffer())
