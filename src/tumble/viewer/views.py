@@ -104,13 +104,15 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         from ..render import Renderer
 
         self.context = context
-        self.renderer = Renderer(context)
+        self.renderer = Renderer(context, *size)
         self.setAttribute(QtCore.Qt.WidgetAttribute.WA_OpaquePaintEvent)
 
     def render_image(self) -> np.ndarray:
         """Render the current view: (H, W, 3) uint8 at the view's pixel size."""
         width, height = self.pixel_size()
-        return self.renderer.render(self.world, self.camera, size=(width, height))
+        if (self.renderer.width, self.renderer.height) != (width, height):
+            self.renderer.resize(width, height)
+        return self.renderer.render(self.world, self.camera)
 
     def paintEvent(self, event) -> None:  # noqa: N802 (Qt name)
         painter = QtGui.QPainter(self)
@@ -155,7 +157,7 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
         try:
             # wrap the context Qt made current for this widget
             self.context = moderngl.create_context()
-            self.renderer = Renderer(self.context)
+            self.renderer = Renderer(self.context, *self.pixel_size())
         except Exception as exc:  # noqa: BLE001 (reported; the window falls back to the image view)
             self.problem = f"OpenGL setup failed: {exc}"
             self.renderer = None
@@ -170,8 +172,9 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
             framebuffer.use()
             framebuffer.clear(0.16, 0.17, 0.2, 1.0)
             return
+        width, height = self.pixel_size()
         try:
-            self.renderer.draw(self.world, self.camera, framebuffer=framebuffer)
+            self.renderer.draw(self.world, self.camera, framebuffer, viewport=(0, 0, width, height))
         except Exception as exc:  # noqa: BLE001
             self.renderer = None
             QtCore.QTimer.singleShot(0, lambda: self.failed.emit(f"drawing failed: {exc}"))
