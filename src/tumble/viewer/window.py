@@ -158,10 +158,12 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self._build_actions()
         self._build_status()
         # make the 3D view itself `size`, with the toolbar, panel and status bar around it
+        self._view_size = size
         self.resize(
             size[0] + PANEL_WIDTH + 8,
             size[1] + self.toolbar.sizeHint().height() + self.statusBar().sizeHint().height() + 4,
         )
+        self._fit_view()
 
         # one timer drives both the simulation and the repaints
         self.timer = QtCore.QTimer(self)
@@ -579,6 +581,20 @@ class ViewerWindow(QtWidgets.QMainWindow):
         old.deleteLater()
         self.backend_label.setText(view.backend_name)
         self.show_message(f"{reason}; drawing offscreen instead.", error=True)
+
+    def _fit_view(self) -> None:
+        """Resize the window so that the 3D view gets exactly the requested size."""
+        self.layout().activate()
+        w, h = self._view_size
+        dw, dh = w - self.view.width(), h - self.view.height()
+        if dw or dh:
+            self.resize(self.width() + dw, self.height() + dh)
+
+    def showEvent(self, event) -> None:  # noqa: N802 (Qt name)
+        super().showEvent(event)
+        if not getattr(self, "_shown_once", False):
+            self._shown_once = True
+            self._fit_view()
 
     def closeEvent(self, event) -> None:  # noqa: N802 (Qt name)
         self.timer.stop()

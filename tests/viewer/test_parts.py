@@ -1,0 +1,116 @@
+"""Parts of the viewer that need no window: the pacing clock, picking, the command line."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tumble.viewer import picking
+from tumble.viewer.sim import SimulationClock
+
+
+class FakeWorld:
+    """Just what the clock touches: dt, time, step_count and step()."""
+
+    def __init__(self, dt=0.01):
+        self.dt, self.time, self.step_count = dt, 0.0, 0
+
+    def step(self):
+        self.time += self.dt
+        self.step_count += 1
+
+
+class FakeClock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+def test_clock_paces_steps_by_real_time_and_time_scale():
+    """Elapsed real time x time scale becomes whole steps; the remainder carries over."""
+    world, clock = FakeWorld(dt=0.01), FakeClock()
+    sim = SimulationClock(world, clock=clock, playing=True)
+    clock.now += 0.105
+    assert sim.tick() == 10  # 0.105 s -> 10 steps, 0.005 s carried
+    clock.now += 0.005
+    assert sim.tick() == 1
+    sim.time_scale = 0.5
+    clock.now += 0.1
+    assert sim.tick() == 5
+    assert world.step_count == 16
+
+
+def test_clock_caps_a_backlog_and_drops_it():
+    """A long stall takes at most max_steps_per_tick steps, and the backlog is dropped."""
+    world, clock = FakeWorld(dt=0.01), FakeClock()
+    sim = SimulationClock(world, clock=clock, playing=True)
+    sim.max_steps_per_tick = 8
+    clock.now += 10.0
+    assert sim.tick() == 8
+    assert sim.dropped == pytest.approx(10.0 - 0.08)
+    clock.now += 0.02
+    assert sim.tick() == 2
+
+
+def test_paused_clock_does_not_step_but_step_does():
+    """tick() does nothing while paused; step() advances exactly one step and calls before_step."""
+    world, clock = FakeWorld(), FakeClock()
+    seen = []
+    sim = SimulationClock(world, clock=clock, before_step=seen.append)
+    clock.now += 1.0
+    assert sim.tick() == 0
+    sim.step()
+    assert world.step_count == 1 and seen == [world]
+
+
+def test_reset_uses_the_factory():
+    """reset() replaces the world with a fresh one from the factory; without one it refuses."""
+    sim = SimulationClock(FakeWorld(), factory=FakeWorld)
+    sim.step()
+    new = sim.reset()
+    assert new is sim.world and new.step_count == 0
+    with pytest.raises(RuntimeError, match="factory"):
+        SimulationClock(FakeWorld()).reset()
+
+
+def test_ray_sphere_hits_the_nearest_sphere():
+    """A ray down the x axis hits the nearer of two spheres at its front surface."""
+    centres = np.array([[5.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 3.0, 0.0]])
+    i, t = picking.ray_spheres(np.zeros(3), np.array([1.0, 0.0, 0.0]), centres, np.array([0.5, 0.5, 0.5]))
+    assert i == 1 and t == pytest.approx(1.5)
+    i, t = picking.ray_spheres(np.zeros(3), np.array([-1.0, 0.0, 0.0]), centres, np.full(3, 0.5))
+    assert i == -1 and math.isinf(t)
+
+
+def test_ray_points_finds_the_nearest_particle_within_reach():
+    """Particles within reach of the ray are candidates; the nearest along the ray wins."""
+    points = np.array([[3.0, 0.05, 0.0], [1.0, 0.5, 0.0], [2.0, -0.02, 0.0]])
+    i, t = picking.ray_points(np.zeros(3), np.array([1.0, 0.0, 0.0]), points, reach=0.1)
+    assert i == 2 and t == pytest.approx(2.0)
+
+
+def test_quat_rotate_turns_x_into_y_for_a_quarter_turn_about_z():
+    """Rotating +x by 90 degrees about +z gives +y."""
+    q = np.array([0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)])
+    np.testing.assert_allclose(picking.quat_rotate(q, [1.0, 0.0, 0.0]), [0.0, 1.0, 0.0], atol=1e-12)
+
+
+def test_view_command_missing_scene_exits_2(capsys, tmp_path):
+    """`tumble view` on a missing file exits 2 with one line naming it."""
+    from tumble.cli import main
+
+    missing = tmp_path / "nope.toml"
+    assert main(["view", str(missing)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope.toml" in err[0] and "no such scene file" in err[0]
+
+
+def test_view_command_rejects_a_bad_size():
+    """--size must look like WxH."""
+    from tumble.commands.view import parse_size
+
+    assert parse_size("320x240") == (320, 240)
+    with pytest.raises(Exception, match="1280x720"):
+        parse_size("big")
