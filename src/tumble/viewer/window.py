@@ -36,7 +36,7 @@ VIDEO_FPS = 30.0
 
 _STYLE = """
 QLabel#note { color: palette(mid); font-size: 9pt; font-style: italic; }
-QLabel#status-error { color: #c0392b; }
+QLabel#stats { background: #23262e; color: #e6e6e6; padding: 3px 8px; font-family: monospace; }
 QGroupBox { font-weight: bold; margin-top: 10px; }
 QGroupBox::title { subcontrol-origin: margin; left: 6px; padding: 0 3px; }
 QGroupBox QLabel { font-weight: normal; }
@@ -128,7 +128,18 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.setWindowTitle(f"{title} — Tumble viewer")
         self.setStyleSheet(_STYLE)
 
-        # the 3D view
+        # the 3D view, with the live statistics line right under it
+        self.central = QtWidgets.QWidget()
+        central_layout = QtWidgets.QVBoxLayout(self.central)
+        central_layout.setContentsMargins(0, 0, 0, 0)
+        central_layout.setSpacing(0)
+        self.status_label = QtWidgets.QLabel()
+        self.status_label.setObjectName("stats")
+        self.status_label.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
+        # a narrow window clips the line rather than growing to fit it
+        self.status_label.setSizePolicy(QtWidgets.QSizePolicy.Policy.Ignored, QtWidgets.QSizePolicy.Policy.Minimum)
+        central_layout.addWidget(self.status_label)
+        self.setCentralWidget(self.central)
         self.view = make_scene_view(view, size=size)
         self._install_view(self.view)
         aspect = size[0] / size[1]
@@ -161,7 +172,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self._view_size = size
         self.resize(
             size[0] + PANEL_WIDTH + 8,
-            size[1] + self.toolbar.sizeHint().height() + self.statusBar().sizeHint().height() + 4,
+            size[1] + self.toolbar.sizeHint().height() + 2 * self.statusBar().sizeHint().height() + 4,
         )
         self._fit_view()
 
@@ -181,7 +192,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         view.world = self.clock.world
         view.installEventFilter(self)
         view.failed.connect(self._on_view_failed)
-        self.setCentralWidget(view)
+        self.central.layout().insertWidget(0, view, 1)
         view.setFocus()
 
     def _action(self, text: str, key: str | None, slot, tip: str, *, checkable: bool = False) -> QtGui.QAction:
@@ -227,14 +238,11 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.toolbar = bar
 
     def _build_status(self) -> None:
-        self.status_label = QtWidgets.QLabel()
-        self.status_label.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
         self.message_label = QtWidgets.QLabel()
         self.backend_label = QtWidgets.QLabel(self.view.backend_name)
         self.backend_label.setObjectName("note")
         status = self.statusBar()
-        status.addWidget(self.status_label, 1)
-        status.addWidget(self.message_label, 0)
+        status.addWidget(self.message_label, 1)
         status.addPermanentWidget(self.backend_label)
 
     # ------------------------------------------------------------------ world and time
@@ -537,7 +545,6 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def show_message(self, text: str, *, error: bool = False) -> None:
         """Show a line in the status bar (red for errors)."""
-        self.message_label.setObjectName("status-error" if error else "")
         self.message_label.setStyleSheet("color: #c0392b;" if error else "")
         self.message_label.setText(text)
 
@@ -575,10 +582,13 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.show_message(f"{reason}; {exc}", error=True)
             return
         old = self.view
+        self.central.layout().removeWidget(old)
+        old.hide()
+        old.deleteLater()
         self.view = view
         view.camera = self.camera
+        self._frames_seen = 0
         self._install_view(view)
-        old.deleteLater()
         self.backend_label.setText(view.backend_name)
         self.show_message(f"{reason}; drawing offscreen instead.", error=True)
 
