@@ -231,3 +231,27 @@ def test_status_shows_counts_and_rates(window):
     text = window.status_label.text()
     for word in ("bodies", "particles", "contacts", "t = 0.004 s", "steps/s", "fps"):
         assert word in text
+
+
+def test_slow_frames_lower_the_image_resolution_and_shadows_toggle(window):
+    """The image view draws smaller while frames are slow, back up when fast; shadows can be switched off."""
+    view = window.view
+    assert view.render_scale == 1.0
+    view._adapt_scale(0.5)
+    assert view.render_scale == 0.75
+    view._adapt_scale(0.5)
+    view._adapt_scale(0.5)
+    assert view.render_scale == 0.5  # never below MIN_RENDER_SCALE
+    view._adapt_scale(0.001)
+    assert view.render_scale == 0.75
+    window.controls.shadows.setChecked(False)
+    assert view.shadows is False
+    assert window.view.render_image().shape == (240, 320, 3)  # screenshots stay full size
+
+
+def test_a_drawing_failure_pauses_with_a_message(window):
+    """When the view cannot draw, the window pauses and says why instead of crashing."""
+    window.play()
+    window._on_view_failed("drawing failed: test")
+    assert not window.clock.playing
+    assert "drawing failed: test" in window.message_label.text()

@@ -286,10 +286,12 @@ class ControlsPanel(QtWidgets.QWidget):
     Signals:
         changed(str, float): a parameter was changed by the user (key, new value).
         timeScaleChanged(float): the time scale was changed.
+        shadowsToggled(bool): sun shadows were switched on or off.
     """
 
     changed = QtCore.Signal(str, float)
     timeScaleChanged = QtCore.Signal(float)
+    shadowsToggled = QtCore.Signal(bool)
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -328,6 +330,15 @@ class ControlsPanel(QtWidgets.QWidget):
                 self._group_of[param.key] = title
             self.groups[title] = box
             layout.addWidget(box)
+
+        display = QtWidgets.QGroupBox("Display")
+        display_layout = QtWidgets.QVBoxLayout(display)
+        self.shadows = QtWidgets.QCheckBox("Sun shadows")
+        self.shadows.setChecked(True)
+        self.shadows.setToolTip("Shadows need a second drawing pass: turn them off for speed without a GPU.")
+        self.shadows.toggled.connect(self.shadowsToggled)
+        display_layout.addWidget(self.shadows)
+        layout.addWidget(display)
 
         self.defaults_button = QtWidgets.QPushButton("Scene values")
         self.defaults_button.setToolTip("Put every control back to the value the scene started with.")

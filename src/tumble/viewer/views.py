@@ -14,12 +14,21 @@ the window through an event filter, the same for both.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
 
 #: Qt platforms on which a QOpenGLWidget cannot work (it aborts on "offscreen")
 NO_GL_WINDOW_PLATFORMS = ("offscreen", "minimal", "vnc")
+
+
+#: the image view draws at a lower resolution (down to MIN_RENDER_SCALE) while a frame takes longer
+#: than SLOW_FRAME_SECONDS, and goes back up once frames take less than FAST_FRAME_SECONDS
+SLOW_FRAME_SECONDS = 0.06
+FAST_FRAME_SECONDS = 0.02
+MIN_RENDER_SCALE = 0.5
 
 
 def gl_surface_format() -> QtGui.QSurfaceFormat:
@@ -72,6 +81,7 @@ class _SceneViewMixin:
         self.camera = None
         self.frame_count = 0
         self.renderer = None
+        self.shadows = True  # sun shadows (a second pass; costly in software rendering)
         self._size_hint = QtCore.QSize(*size)
         self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
         self.setMouseTracking(False)
@@ -105,13 +115,17 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
 
         self.context = context
         self.renderer = Renderer(context, *size)
+        self.render_scale = 1.0  # drawing size / widget size, lowered while frames are slow
+        self.adaptive = True
         self.setAttribute(QtCore.Qt.WidgetAttribute.WA_OpaquePaintEvent)
 
-    def render_image(self) -> np.ndarray:
-        """Render the current view: (H, W, 3) uint8 at the view's pixel size."""
+    def render_image(self, scale: float = 1.0) -> np.ndarray:
+        """Render the current view: (H, W, 3) uint8 at the view's pixel size (times `scale`)."""
         width, height = self.pixel_size()
+        width, height = max(1, round(width * scale)), max(1, round(height * scale))
         if (self.renderer.width, self.renderer.height) != (width, height):
             self.renderer.resize(width, height)
+        self.renderer.shadows = self.shadows
         return self.renderer.render(self.world, self.camera)
 
     def paintEvent(self, event) -> None:  # noqa: N802 (Qt name)
@@ -119,17 +133,28 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         if self.world is None or self.camera is None:
             painter.fillRect(self.rect(), QtGui.QColor(40, 44, 52))
             return
+        start = time.perf_counter()
         try:
-            image = array_to_qimage(self.render_image())
+            image = array_to_qimage(self.render_image(self.render_scale))
         except Exception as exc:  # noqa: BLE001 (shown to the user, not swallowed)
             painter.fillRect(self.rect(), QtGui.QColor(40, 44, 52))
             painter.end()
             self.failed.emit(f"drawing failed: {exc}")
             return
-        image.setDevicePixelRatio(self.devicePixelRatioF())
-        painter.drawImage(0, 0, image)
+        painter.setRenderHint(QtGui.QPainter.RenderHint.SmoothPixmapTransform)
+        painter.drawImage(self.rect(), image)
         painter.end()
         self.frame_count += 1
+        self._adapt_scale(time.perf_counter() - start)
+
+    def _adapt_scale(self, seconds: float) -> None:
+        """Software rendering is slow at full size: draw smaller (scaled up) while frames are slow."""
+        if not self.adaptive:
+            return
+        if seconds > SLOW_FRAME_SECONDS and self.render_scale > MIN_RENDER_SCALE:
+            self.render_scale = max(MIN_RENDER_SCALE, self.render_scale - 0.25)
+        elif seconds < FAST_FRAME_SECONDS and self.render_scale < 1.0:
+            self.render_scale = min(1.0, self.render_scale + 0.25)
 
 
 class GLSceneView(_SceneViewMixin, QOpenGLWidget):
@@ -173,6 +198,7 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
             framebuffer.clear(0.16, 0.17, 0.2, 1.0)
             return
         width, height = self.pixel_size()
+        self.renderer.shadows = self.shadows
         try:
             self.renderer.draw(self.world, self.camera, framebuffer, viewport=(0, 0, width, height))
         except Exception as exc:  # noqa: BLE001

@@ -152,6 +152,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.controls.bind(world)
         self.controls.changed.connect(self._on_control_changed)
         self.controls.timeScaleChanged.connect(self._on_time_scale)
+        self.controls.shadowsToggled.connect(self._on_shadows)
         scroll = QtWidgets.QScrollArea()
         scroll.setWidget(self.controls)
         scroll.setWidgetResizable(True)
@@ -190,6 +191,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def _install_view(self, view) -> None:
         view.world = self.clock.world
+        if hasattr(self, "controls"):
+            view.shadows = self.controls.shadows.isChecked()
         view.installEventFilter(self)
         view.failed.connect(self._on_view_failed)
         self.central.layout().insertWidget(0, view, 1)
@@ -338,6 +341,10 @@ class ViewerWindow(QtWidgets.QMainWindow):
     # ------------------------------------------------------------------ live controls
 
     def _on_control_changed(self, key: str, value: float) -> None:
+        self._mark_dirty()
+
+    def _on_shadows(self, on: bool) -> None:
+        self.view.shadows = bool(on)
         self._mark_dirty()
 
     def _on_time_scale(self, value: float) -> None:
