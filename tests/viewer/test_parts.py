@@ -114,3 +114,15 @@ def test_view_command_rejects_a_bad_size():
     assert parse_size("320x240") == (320, 240)
     with pytest.raises(Exception, match="1280x720"):
         parse_size("big")
+
+
+def test_view_command_broken_scene_exits_2(capsys, tmp_path):
+    """`tumble view` on a malformed scene exits 2 with one line naming the file, before any window."""
+    pytest.importorskip("tumble.io.scene")  # the scene loader lives on its own branch until merged
+    from tumble.cli import main
+
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[[sphere]]\nposition = [0, 0, 1]\nradius = 'big'\n")
+    assert main(["view", str(broken)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "broken.toml" in err[0]

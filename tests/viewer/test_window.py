@@ -236,7 +236,7 @@ def test_status_shows_counts_and_rates(window):
 def test_slow_frames_lower_the_image_resolution_and_shadows_toggle(window):
     """The image view draws smaller while frames are slow, back up when fast; shadows can be switched off."""
     view = window.view
-    assert view.render_scale == 1.0
+    view.render_scale = 1.0  # (a slow first paint on a busy machine may already have lowered it)
     view._adapt_scale(0.5)
     assert view.render_scale == 0.75
     view._adapt_scale(0.5)
@@ -255,3 +255,28 @@ def test_a_drawing_failure_pauses_with_a_message(window):
     window._on_view_failed("drawing failed: test")
     assert not window.clock.playing
     assert "drawing failed: test" in window.message_label.text()
+
+
+def test_reset_with_a_broken_scene_keeps_the_old_world(qtbot, tmp_path):
+    """If the scene cannot be rebuilt (e.g. the file was broken meanwhile), Reset says so and keeps going."""
+    from tumble.errors import SceneError
+    from tumble.viewer import make_application
+    from tumble.viewer.window import ViewerWindow
+
+    calls = []
+
+    def factory():
+        calls.append(1)
+        if len(calls) > 1:
+            raise SceneError("expected a number", path="broken.toml", table="sphere[0]", key="radius")
+        return make_world()
+
+    make_application()
+    win = ViewerWindow(factory=factory, size=(320, 240), paused=True, view="image", output_dir=tmp_path)
+    qtbot.addWidget(win)
+    win.step()
+    old = win.world
+    win.reset()
+    assert win.world is old and old.step_count == 1
+    assert "broken.toml" in win.message_label.text() and "radius" in win.message_label.text()
+    win.close()
