@@ -43,6 +43,24 @@ QGroupBox QLabel { font-weight: normal; }
 """
 
 
+HELP_HTML = """
+<table cellspacing="4">
+<tr><td colspan="2"><b>Mouse on the view</b></td></tr>
+<tr><td>left drag on a body / cloth</td><td>pull it with a spring</td></tr>
+<tr><td>left drag elsewhere</td><td>orbit</td></tr>
+<tr><td>right or middle drag, shift + left drag</td><td>pan</td></tr>
+<tr><td>wheel</td><td>zoom</td></tr>
+<tr><td colspan="2"><b>Keys</b></td></tr>
+<tr><td>space</td><td>play / pause</td></tr>
+<tr><td>. (period)</td><td>one step</td></tr>
+<tr><td>R</td><td>reset: rebuild the world from the scene</td></tr>
+<tr><td>F / Home</td><td>frame the scene / starting view</td></tr>
+<tr><td>1 / 2</td><td>drop a sphere / a box</td></tr>
+<tr><td>S / V</td><td>screenshot (PNG) / record video (MP4)</td></tr>
+</table>
+"""
+
+
 class ViewerUnavailable(TumbleError):
     """Neither an OpenGL window nor an offscreen EGL context can be made on this machine."""
 
@@ -223,6 +241,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.record_action = self._action(
             "Record", "V", self.toggle_recording, "Record the view to an MP4 while playing", checkable=True
         )
+        self.help_action = self._action("Help", "F1", self.show_help, "Mouse and keyboard controls")
 
         bar = QtWidgets.QToolBar("Simulation", self)
         bar.setObjectName("toolbar")
@@ -233,6 +252,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             (self.frame_action, self.home_action),
             (self.sphere_action, self.box_action),
             (self.shot_action, self.record_action),
+            (self.help_action,),
         ):
             for action in group:
                 bar.addAction(action)
@@ -549,6 +569,16 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self._next_frame_time += period * max(1, math.floor((self.world.time - self._next_frame_time) / period) + 1)
 
     # ------------------------------------------------------------------ status and errors
+
+    def show_help(self) -> None:
+        """Show the mouse and keyboard controls (F1) in a non-blocking box."""
+        box = QtWidgets.QMessageBox(self)
+        box.setWindowTitle("Tumble viewer controls")
+        box.setTextFormat(QtCore.Qt.TextFormat.RichText)
+        box.setText(HELP_HTML)
+        box.setModal(False)
+        box.open()
+        self._help_box = box
 
     def show_message(self, text: str, *, error: bool = False) -> None:
         """Show a line in the status bar (red for errors)."""
