@@ -126,3 +126,18 @@ def test_view_command_broken_scene_exits_2(capsys, tmp_path):
     assert main(["view", str(broken)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "broken.toml" in err[0]
+
+
+def test_no_display_is_reported_plainly(monkeypatch):
+    """Without a display (and no offscreen platform asked for) the viewer says so instead of aborting."""
+    import sys
+
+    from tumble.viewer import gui_platform_problem
+
+    monkeypatch.setenv("QT_QPA_PLATFORM", "offscreen")
+    assert gui_platform_problem() is None
+    if sys.platform.startswith("linux"):
+        monkeypatch.delenv("QT_QPA_PLATFORM")
+        monkeypatch.delenv("DISPLAY", raising=False)
+        monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+        assert "no display" in gui_platform_problem()

@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from collections.abc import Callable
 
@@ -58,7 +60,8 @@ def run_viewer(
         world, factory=factory, title=title, size=size, paused=paused, view=view, output_dir=output_dir
     )
     window.show()
-    window.raise_()
+    if app.platformName() not in ("offscreen", "minimal"):
+        window.raise_()
     return int(app.exec())
 
 
@@ -74,9 +77,35 @@ def make_application():
     if app is None:
         from .views import gl_surface_format
 
+        problem = gui_platform_problem()
+        if problem:
+            raise ViewerUnavailable(problem)
         QtGui.QSurfaceFormat.setDefaultFormat(gl_surface_format())
         app = QtWidgets.QApplication(sys.argv[:1])
-        if app.platformName() == "":
-            raise ViewerUnavailable("Qt could not start a GUI platform (no display?)")
         app.setApplicationName("Tumble")
     return app
+
+
+def gui_platform_problem() -> str | None:
+    """Why Qt cannot open windows here, or None. Qt aborts the process when its platform fails to
+    start (e.g. no display), so that is tried in a child process first."""
+    platform = os.environ.get("QT_QPA_PLATFORM", "")
+    if platform.split(":")[0] in ("offscreen", "minimal"):
+        return None
+    if sys.platform.startswith("linux") and not platform:
+        if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+            return (
+                "cannot open a window: there is no display (DISPLAY and WAYLAND_DISPLAY are unset); "
+                "run it on a desktop or under xvfb-run, or use `tumble render` for headless video"
+            )
+    probe = "from PySide6.QtWidgets import QApplication; QApplication([]).platformName()"
+    try:
+        result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"cannot open a window: starting Qt failed ({exc})"
+    if result.returncode != 0:
+        lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
+        reason = next((line for line in lines if "could not" in line.lower() or "needed" in line), None)
+        reason = reason or (lines[-1] if lines else f"exit status {result.returncode}")
+        return f"cannot open a window: Qt's platform plugin did not start ({reason})"
+    return None
