@@ -75,15 +75,6 @@ def test_reset_uses_the_factory():
         SimulationClock(FakeWorld()).reset()
 
 
-def test_ray_sphere_hits_the_nearest_sphere():
-    """A ray down the x axis hits the nearer of two spheres at its front surface."""
-    centres = np.array([[5.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 3.0, 0.0]])
-    i, t = picking.ray_spheres(np.zeros(3), np.array([1.0, 0.0, 0.0]), centres, np.array([0.5, 0.5, 0.5]))
-    assert i == 1 and t == pytest.approx(1.5)
-    i, t = picking.ray_spheres(np.zeros(3), np.array([-1.0, 0.0, 0.0]), centres, np.full(3, 0.5))
-    assert i == -1 and math.isinf(t)
-
-
 def test_ray_points_finds_the_nearest_particle_within_reach():
     """Particles within reach of the ray are candidates; the nearest along the ray wins."""
     points = np.array([[3.0, 0.05, 0.0], [1.0, 0.5, 0.0], [2.0, -0.02, 0.0]])
@@ -141,3 +132,12 @@ def test_no_display_is_reported_plainly(monkeypatch):
         monkeypatch.delenv("DISPLAY", raising=False)
         monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
         assert "no display" in gui_platform_problem()
+
+
+def test_ray_box_hits_the_face_of_a_turned_box():
+    """A ray along +x meets a unit cube turned 45 degrees about z at its edge, sqrt(2)/2 from the centre."""
+    q = np.array([0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8)])
+    t = picking.ray_box(np.array([-5.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), q, np.full(3, 0.5))
+    assert t == pytest.approx(5.0 - math.sqrt(0.5))
+    miss = picking.ray_box(np.array([-5.0, 0.9, 0.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), q, np.full(3, 0.5))
+    assert math.isinf(miss)

@@ -175,18 +175,22 @@ def _material(name: str) -> tuple[Callable, Callable]:
 
 
 def wind_state(world) -> dict | None:
-    """The cloth wind as a dict of velocity (3,), turbulence, scale, seed; None without cloth."""
+    """The cloth's wind as `world.set_wind` keywords (velocity (3,), turbulence, scale, seed, and the
+    face coefficients when the wind has them); None without cloth."""
     cloth = cloth_of(world)
     if cloth is None:
         return None
     wind = getattr(cloth, "wind", None)
-    velocity = np.asarray(getattr(wind, "velocity", (0.0, 0.0, 0.0)), dtype=np.float64)
-    return {
-        "velocity": velocity,
+    state = {
+        "velocity": np.asarray(getattr(wind, "velocity", (0.0, 0.0, 0.0)), dtype=np.float64).copy(),
         "turbulence": float(getattr(wind, "turbulence", 0.0)),
         "scale": float(getattr(wind, "scale", 1.0)),
         "seed": int(getattr(wind, "seed", 0)),
     }
+    for name in ("drag", "lift", "air_density"):  # keep the scene's coefficients
+        if hasattr(wind, name):
+            state[name] = float(getattr(wind, name))
+    return state
 
 
 def _set_wind(world, **changes) -> None:
@@ -255,11 +259,12 @@ def default_params() -> list[tuple[str, list[Param]]]:
             "Wind",
             [
                 Param("wind_speed", "Wind speed", "m/s", 0.0, 30.0, 1, _wind_read("speed"),
-                      lambda w, v: _set_wind(w, speed=v), note="acts on cloth only"),
+                      lambda w, v: _set_wind(w, speed=v), note="horizontal wind; acts on cloth only"),
                 Param("wind_heading", "Wind direction", "°", 0.0, 360.0, 0, _wind_read("heading"),
                       lambda w, v: _set_wind(w, heading=v), tooltip="0° blows towards +x, 90° towards +y."),
-                Param("wind_turbulence", "Turbulence", "", 0.0, 1.0, 2, _wind_read("turbulence"),
-                      lambda w, v: _set_wind(w, turbulence=v), tooltip="Gust strength relative to the wind speed."),
+                Param("wind_turbulence", "Turbulence", "m/s", 0.0, 10.0, 2, _wind_read("turbulence"),
+                      lambda w, v: _set_wind(w, turbulence=v),
+                      tooltip="RMS speed of the gusts added to the mean wind, per component."),
             ],
         ),
         (

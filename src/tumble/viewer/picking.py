@@ -9,6 +9,8 @@ that faces the camera, by a damped spring scaled by mass, so every body follows 
 
 with k = (2 pi f)^2 and c = 2 zeta (2 pi f): a critically damped spring of frequency f [Hz]. The
 `- m g` term holds the weight, so a held body hangs at the cursor instead of sagging below it.
+Cloth particles get the same force through `cloth.apply_force`; a pinned particle is not pulled
+but moved: its pin follows the cursor (`cloth.set_pin_target`).
 """
 
 from __future__ import annotations
@@ -23,33 +25,6 @@ DRAG_FREQUENCY = 2.0
 DRAG_DAMPING = 1.0
 #: a force larger than this many g times the mass is clipped, so a fast flick cannot blow up a stack
 MAX_DRAG_ACCELERATION = 200.0
-
-
-def ray_spheres(origin, direction, centres, radii) -> tuple[int, float]:
-    """First hit of a ray with a set of spheres.
-
-    Args:
-        origin, direction: the ray, shape (3,) each, direction unit length.
-        centres: sphere centres [m], shape (n, 3).
-        radii: sphere radii [m], shape (n,).
-
-    Returns:
-        (index, distance) of the nearest sphere hit in front of the origin, or (-1, inf).
-    """
-    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
-    if len(centres) == 0:
-        return -1, math.inf
-    # |o + t d - c|^2 = r^2  ->  t^2 + 2 b t + c0 = 0 with b = d.(o - c), c0 = |o - c|^2 - r^2
-    oc = np.asarray(origin, dtype=np.float64) - centres
-    b = oc @ np.asarray(direction, dtype=np.float64)
-    c0 = np.einsum("ij,ij->i", oc, oc) - np.asarray(radii, dtype=np.float64) ** 2
-    disc = b * b - c0
-    hit = disc >= 0.0
-    root = np.sqrt(np.where(hit, disc, 0.0))
-    t = np.where(-b - root > 0.0, -b - root, -b + root)  # the far root when the origin is inside
-    t = np.where(hit & (t > 0.0), t, np.inf)
-    i = int(np.argmin(t))
-    return (i, float(t[i])) if math.isfinite(t[i]) else (-1, math.inf)
 
 
 def ray_points(origin, direction, points, reach: float) -> tuple[int, float]:
@@ -90,7 +65,7 @@ class Grab:
     """What the mouse holds: a body (with the grabbed point in its frame) or a cloth particle.
 
     Attributes:
-        kind: "body" or "particle".
+        kind: "body", "particle" (pulled by the spring) or "pin" (a pinned particle, moved to the cursor).
         index: body index or particle index.
         local_point: grabbed point in the body frame [m], shape (3,) (zero for particles).
         distance: distance from the camera to the grab point along the click ray [m].
@@ -119,19 +94,19 @@ def pick(world, origin, direction, view_forward=None) -> Grab | None:
         inv_mass = np.asarray(world.body_inv_mass)
         movable = np.nonzero(inv_mass > 0.0)[0]
         if len(movable):
-            radii = _bound_radii(world)[movable]
-            i, t = ray_spheres(origin, direction, np.asarray(world.body_position)[movable], radii)
-            if i >= 0:
-                body = int(movable[i])
+            body, t = _pick_body(world, origin, direction, movable)
+            if body >= 0:
                 hit = origin + t * direction
                 local = quat_rotate(quat_conjugate(world.body_orientation[body]), hit - world.body_position[body])
                 best = Grab("body", body, local, t, hit)
     cloth = cloth_of(world)
-    if cloth is not None and hasattr(cloth, "apply_force") and cloth.particle_count:
+    if cloth is not None and hasattr(cloth, "apply_force"):
         points = np.asarray(cloth.particle_position)
         j, t = ray_points(origin, direction, points, _particle_reach(points))
         if j >= 0 and (best is None or t < best.distance):
-            best = Grab("particle", j, np.zeros(3), t, np.asarray(points[j], dtype=np.float64).copy())
+            # a pinned particle (inverse mass 0) is moved, pin and all; a free one is pulled
+            pinned = hasattr(cloth, "set_pin_target") and float(np.asarray(cloth.particle_inv_mass)[j]) == 0.0
+            best = Grab("pin" if pinned else "particle", j, np.zeros(3), t, np.asarray(points[j], dtype=np.float64).copy())
     if best is not None:
         forward = direction if view_forward is None else np.asarray(view_forward, dtype=np.float64)
         best.depth = best.distance * float(direction @ forward)
@@ -164,6 +139,9 @@ def apply_drag(world, grab: Grab) -> None:
         cloth = cloth_of(world)
         if cloth is None or grab.index >= cloth.particle_count:
             return
+        if grab.kind == "pin":
+            cloth.set_pin_target(grab.index, grab.target)
+            return
         point = np.asarray(cloth.particle_position[grab.index], dtype=np.float64)
         velocity = np.asarray(cloth.particle_velocity[grab.index], dtype=np.float64)
         mass = _particle_mass(cloth, grab.index)
@@ -177,6 +155,44 @@ def cloth_of(world):
     if cloth is None or not getattr(cloth, "particle_count", 0):
         return None
     return cloth
+
+
+def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
+    """Nearest body hit by the ray: spheres exactly, boxes by a slab test inside their bounding sphere."""
+    centres = np.asarray(world.body_position)[candidates]
+    radii = _bound_radii(world)[candidates]
+    # bounding-sphere hits, nearest first; a sphere's bound is the sphere itself
+    oc = origin - centres
+    b = oc @ direction
+    disc = b * b - (np.einsum("ij,ij->i", oc, oc) - radii**2)
+    order = [k for k in np.argsort(np.where(disc >= 0.0, -b, np.inf)) if disc[k] >= 0.0]
+    best_body, best_t = -1, math.inf
+    for k in order:
+        body = int(candidates[k])
+        if world.body_shape[body] == 2:  # ShapeType.BOX
+            t = ray_box(origin, direction, centres[k], world.body_orientation[body], world.body_half_extents[body])
+        else:
+            root = math.sqrt(disc[k])
+            t = -b[k] - root if -b[k] - root > 0.0 else -b[k] + root
+        if 0.0 < t < best_t:
+            best_body, best_t = body, t
+    return best_body, best_t
+
+
+def ray_box(origin, direction, centre, orientation, half_extents) -> float:
+    """Distance along a ray to an oriented box (slab test in the box frame), or inf if missed."""
+    inv_q = quat_conjugate(orientation)
+    o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
+    d = quat_rotate(inv_q, direction)
+    h = np.asarray(half_extents, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-h - o) / d, (h - o) / d
+    t1 = np.where(np.abs(d) < 1e-12, np.where(np.abs(o) <= h, -np.inf, np.inf), t1)
+    t2 = np.where(np.abs(d) < 1e-12, np.where(np.abs(o) <= h, np.inf, -np.inf), t2)
+    near, far = float(np.max(np.minimum(t1, t2))), float(np.min(np.maximum(t1, t2)))
+    if near > far or far <= 0.0:
+        return math.inf
+    return near if near > 0.0 else far
 
 
 def _bound_radii(world) -> np.ndarray:
@@ -194,13 +210,8 @@ def _particle_reach(points: np.ndarray) -> float:
 
 
 def _particle_mass(cloth, index: int) -> float:
-    for name in ("particle_mass",):
-        masses = getattr(cloth, name, None)
-        if masses is not None:
-            m = float(np.asarray(masses)[index])
-            if m > 0.0:
-                return m
-    return 1.0
+    mass = float(np.asarray(cloth.particle_mass)[index])
+    return mass if mass > 0.0 else 1.0
 
 
 def _clip(v: np.ndarray, limit: float) -> np.ndarray:

@@ -419,7 +419,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             if grab is not None:
                 self.held = grab
                 self._mouse_mode = "drag"
-                what = "cloth particle" if grab.kind == "particle" else "body"
+                what = {"body": "body", "particle": "cloth particle", "pin": "pinned cloth particle"}[grab.kind]
                 hint = "" if self.clock.playing else " (paused: press space to let it move)"
                 self.show_message(f"Pulling {what} {grab.index}{hint}")
                 return True
