@@ -141,3 +141,58 @@ def test_ray_box_hits_the_face_of_a_turned_box():
     assert t == pytest.approx(5.0 - math.sqrt(0.5))
     miss = picking.ray_box(np.array([-5.0, 0.9, 0.0]), np.array([1.0, 0.0, 0.0]), np.zeros(3), q, np.full(3, 0.5))
     assert math.isinf(miss)
+
+
+class FakeCloth:
+    """The ClothSystem surface the viewer uses: positions, velocities, masses, forces, pins."""
+
+    def __init__(self):
+        self.particle_position = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [2.0, 0.0, 1.0]])
+        self.particle_velocity = np.zeros((3, 3))
+        self.particle_mass = np.full(3, 0.5)
+        self.particle_inv_mass = np.array([2.0, 2.0, 0.0])  # the last one is pinned
+        self.particle_count = 3
+        self.forces, self.pins = [], []
+
+    def apply_force(self, i, force):
+        self.forces.append((i, np.asarray(force)))
+
+    def set_pin_target(self, i, position):
+        self.pins.append((i, np.asarray(position)))
+
+
+class FakeClothWorld:
+    body_count = 0
+    gravity = np.array([0.0, 0.0, -9.81])
+
+    def __init__(self):
+        self._cloth = FakeCloth()
+
+
+def test_drag_pulls_a_free_cloth_particle_and_moves_a_pinned_one():
+    """A ray through a free particle grabs it (spring force, weight held); through a pin, moves the pin."""
+    world = FakeClothWorld()
+    down = np.array([0.0, 0.0, -1.0])
+    grab = picking.pick(world, np.array([1.0, 0.0, 5.0]), down)
+    assert grab.kind == "particle" and grab.index == 1 and grab.distance == pytest.approx(4.0)
+    grab.target = np.array([1.0, 0.0, 1.0])  # at the particle: only the weight is carried
+    picking.apply_drag(world, grab)
+    i, force = world._cloth.forces[-1]
+    assert i == 1
+    np.testing.assert_allclose(force, [0.0, 0.0, 0.5 * 9.81], atol=1e-9)
+
+    pin = picking.pick(world, np.array([2.0, 0.0, 5.0]), down)
+    assert pin.kind == "pin" and pin.index == 2
+    pin.target = np.array([2.0, 0.5, 1.5])
+    picking.apply_drag(world, pin)
+    assert world._cloth.pins[-1][0] == 2
+    np.testing.assert_allclose(world._cloth.pins[-1][1], [2.0, 0.5, 1.5])
+
+
+def test_drag_target_stays_in_the_camera_facing_plane():
+    """Moving the cursor keeps the target at the grab depth along the view axis."""
+    grab = picking.Grab("body", 0, np.zeros(3), distance=5.0, target=np.zeros(3), depth=5.0)
+    forward = np.array([0.0, 1.0, 0.0])
+    d = np.array([0.6, 0.8, 0.0])
+    target = picking.drag_target(grab, np.zeros(3), d, forward)
+    assert target @ forward == pytest.approx(5.0)
