@@ -127,7 +127,6 @@ class ViewerWindow(QtWidgets.QMainWindow):
             world = factory()
         from ..render import Camera
 
-        self._camera_type = Camera
         self.title = title
         self.output_dir = Path(output_dir)
         self.clock = SimulationClock(world, factory=factory, before_step=self._before_step)
