@@ -88,9 +88,17 @@ def test_quat_rotate_turns_x_into_y_for_a_quarter_turn_about_z():
     np.testing.assert_allclose(picking.quat_rotate(q, [1.0, 0.0, 0.0]), [0.0, 1.0, 0.0], atol=1e-12)
 
 
-def test_view_command_missing_scene_exits_2(capsys, tmp_path):
+def _view_only(monkeypatch):
+    """The CLI with just the view command (other commands live on other branches until merged)."""
+    from tumble import cli
+
+    monkeypatch.setattr(cli, "COMMANDS", {"view": "view"})
+    return cli.main
+
+
+def test_view_command_missing_scene_exits_2(capsys, tmp_path, monkeypatch):
     """`tumble view` on a missing file exits 2 with one line naming it."""
-    from tumble.cli import main
+    main = _view_only(monkeypatch)
 
     missing = tmp_path / "nope.toml"
     assert main(["view", str(missing)]) == 2
@@ -107,10 +115,10 @@ def test_view_command_rejects_a_bad_size():
         parse_size("big")
 
 
-def test_view_command_broken_scene_exits_2(capsys, tmp_path):
+def test_view_command_broken_scene_exits_2(capsys, tmp_path, monkeypatch):
     """`tumble view` on a malformed scene exits 2 with one line naming the file, before any window."""
     pytest.importorskip("tumble.io.scene")  # the scene loader lives on its own branch until merged
-    from tumble.cli import main
+    main = _view_only(monkeypatch)
 
     broken = tmp_path / "broken.toml"
     broken.write_text("[[sphere]]\nposition = [0, 0, 1]\nradius = 'big'\n")
