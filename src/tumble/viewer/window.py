@@ -36,7 +36,7 @@ VIDEO_FPS = 30.0
 
 _STYLE = """
 QLabel#note { color: palette(mid); font-size: 9pt; font-style: italic; }
-QLabel#stats { background: #23262e; color: #e6e6e6; padding: 3px 8px; font-family: monospace; }
+QLabel#stats { background: #23262e; color: #e6e6e6; padding: 3px 8px; }
 QGroupBox { font-weight: bold; margin-top: 10px; }
 QGroupBox::title { subcontrol-origin: margin; left: 6px; padding: 0 3px; }
 QGroupBox QLabel { font-weight: normal; }
@@ -140,6 +140,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self._fps = 0.0
         self._frames_seen = 0
         self._stats_time = time.perf_counter()
+        self._sim_seen = world.time
+        self._realtime = 0.0  # simulated seconds per real second over the last statistics period
         self.last_saved: Path | None = None
 
         self.setWindowTitle(f"{title} — Tumble viewer")
@@ -309,6 +311,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.view.world = world
         self.controls.bind(world, keep_user_values=True)
         self._next_frame_time = 0.0
+        self._sim_seen = world.time
         self.show_message("World reset.")
         self._mark_dirty()
 
@@ -339,8 +342,10 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self._dirty = False
         now = time.perf_counter()
         if now - self._stats_time >= 0.5:
-            self._fps = (self.view.frame_count - self._frames_seen) / (now - self._stats_time)
-            self._frames_seen = self.view.frame_count
+            period = now - self._stats_time
+            self._fps = (self.view.frame_count - self._frames_seen) / period
+            self._realtime = max(0.0, self.world.time - self._sim_seen) / period
+            self._frames_seen, self._sim_seen = self.view.frame_count, self.world.time
             self._stats_time = now
             self._update_status()
 
@@ -589,14 +594,22 @@ class ViewerWindow(QtWidgets.QMainWindow):
         world = self.world
         cloth = picking.cloth_of(world)
         particles = cloth.particle_count if cloth is not None else 0
-        state = "playing" if self.clock.playing else "paused"
-        scale = self.clock.time_scale
-        return (
-            f"bodies {world.body_count:,}   particles {particles:,}   contacts {world.contact_count:,}   "
-            f"t = {world.time:.3f} s (step {world.step_count:,})   "
-            f"{self.clock.steps_per_second():.0f} steps/s   {self._fps:.0f} fps   "
-            f"{state}{'' if scale == 1.0 else f' ×{scale:g}'}"
-        )
+        if self.clock.playing:
+            # how fast simulated time actually runs, against the time scale asked for
+            state = f"playing, {self._realtime:.2f}× real time"
+            if self.clock.time_scale != 1.0:
+                state += f" (asked {self.clock.time_scale:g}×)"
+        else:
+            state = "paused"
+        return "   ".join([
+            f"bodies {world.body_count:,}",
+            f"particles {particles:,}",
+            f"contacts {world.contact_count:,}",
+            f"t = {world.time:.3f} s (step {world.step_count:,})",
+            f"{self.clock.steps_per_second():.0f} steps/s",
+            f"{self._fps:.0f} fps",
+            state,
+        ])
 
     def _update_status(self) -> None:
         self.status_label.setText(self.status_text())
