@@ -412,6 +412,19 @@ class World:
         self.time += dt
         self.step_count += 1
 
+    def collide(self, dt: float | None = None) -> int:
+        """Find contacts for the current state without stepping (broad + narrow phase only).
+
+        Contacts within the speculative distance of one step of `dt` are included, as in `step`.
+
+        Returns:
+            The number of contacts; read them with `contact_point`, `contact_normal`, ...
+        """
+        dt = self.dt if dt is None else _positive(dt, "dt")
+        pairs = self.broadphase.find_pairs(self.bodies, dt)
+        narrowphase.collide(self.bodies, pairs, self.contacts, dt)
+        return self.contacts.count
+
     def run(self, duration: float, *, callback: Callable[[World], None] | None = None) -> int:
         """Step for `duration` seconds of simulated time; call `callback(world)` after each step.
 

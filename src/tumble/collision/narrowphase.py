@@ -174,32 +174,43 @@ def _box_projection(q: quat, h: vec3, axis: vec3):
     )
 
 
+@wp.struct
+class Polygon:
+    """Up to eight points in reference-face coordinates: (u, v) in the face, d along its normal."""
+
+    u: vec8
+    v: vec8
+    d: vec8
+    count: int
+
+
 @wp.func
-def _clip(u: vec8, v: vec8, d: vec8, count: int, axis: int, sign: float_t, limit: float_t,
-          ou: vec8, ov: vec8, od: vec8):
-    """Clip a polygon (u, v, depth) against sign * coord(axis) <= limit; returns the new count."""
+def _clip(p: Polygon, axis: int, sign: float_t, limit: float_t):
+    """Clip polygon p against sign * coordinate(axis) <= limit (Sutherland-Hodgman)."""
+    out = Polygon()
     m = int(0)
-    for k in range(count):
-        k2 = (k + 1) % count
-        c1 = sign * u[k]
-        c2 = sign * u[k2]
+    for k in range(p.count):
+        k2 = (k + 1) % p.count
+        c1 = sign * p.u[k]
+        c2 = sign * p.u[k2]
         if axis == 1:
-            c1 = sign * v[k]
-            c2 = sign * v[k2]
+            c1 = sign * p.v[k]
+            c2 = sign * p.v[k2]
         in1 = c1 <= limit
         in2 = c2 <= limit
         if in1:
-            ou[m] = u[k]
-            ov[m] = v[k]
-            od[m] = d[k]
+            out.u[m] = p.u[k]
+            out.v[m] = p.v[k]
+            out.d[m] = p.d[k]
             m += 1
         if in1 != in2:
             t = (limit - c1) / (c2 - c1)
-            ou[m] = u[k] + t * (u[k2] - u[k])
-            ov[m] = v[k] + t * (v[k2] - v[k])
-            od[m] = d[k] + t * (d[k2] - d[k])
+            out.u[m] = p.u[k] + t * (p.u[k2] - p.u[k])
+            out.v[m] = p.v[k] + t * (p.v[k2] - p.v[k])
+            out.d[m] = p.d[k] + t * (p.d[k2] - p.d[k])
             m += 1
-    return m
+    out.count = m
+    return out
 
 
 @wp.func
@@ -240,9 +251,7 @@ def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3,
     e2 = _axis(I.q, j2) * hi[j2]
     centre = I.x + out * hi[best]
     # the incident quad in reference-face coordinates (u, v, depth along n)
-    u = vec8()
-    v = vec8()
-    d = vec8()
+    quad = Polygon()
     for k in range(4):
         s1 = _ONE
         s2 = _ONE
@@ -251,17 +260,22 @@ def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3,
         if k >= 2:
             s2 = -_ONE
         p = centre + e1 * s1 + e2 * s2 - face
-        u[k] = wp.dot(p, U)
-        v[k] = wp.dot(p, V)
-        d[k] = wp.dot(p, n)
+        quad.u[k] = wp.dot(p, U)
+        quad.v[k] = wp.dot(p, V)
+        quad.d[k] = wp.dot(p, n)
+    quad.count = 4
     # clip against the four sides of the reference face
+    poly = _clip(quad, 0, _ONE, hr[iu])
+    poly = _clip(poly, 0, -_ONE, hr[iu])
+    poly = _clip(poly, 1, _ONE, hr[iv])
+    poly = _clip(poly, 1, -_ONE, hr[iv])
+    count = poly.count
+    u = poly.u
+    v = poly.v
+    d = poly.d
     u2 = vec8()
     v2 = vec8()
     d2 = vec8()
-    count = _clip(u, v, d, 4, 0, _ONE, hr[iu], u2, v2, d2)
-    count = _clip(u2, v2, d2, count, 0, -_ONE, hr[iu], u, v, d)
-    count = _clip(u, v, d, count, 1, _ONE, hr[iv], u2, v2, d2)
-    count = _clip(u2, v2, d2, count, 1, -_ONE, hr[iv], u, v, d)
     # keep the points within the speculative distance, merging near-duplicates (nearly aligned
     # faces clip to pairs of almost equal corners; merging keeps the manifold the same each step)
     merge = float_t(0.02) * wp.min(hr[iu], hr[iv])
