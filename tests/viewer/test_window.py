@@ -280,3 +280,33 @@ def test_reset_with_a_broken_scene_keeps_the_old_world(qtbot, tmp_path):
     assert win.world is old and old.step_count == 1
     assert "broken.toml" in win.message_label.text() and "radius" in win.message_label.text()
     win.close()
+
+
+def test_emission_rate_control_sets_every_emitter(qtbot, tmp_path):
+    """The emission-rate control writes emitter.rate; at 0 no more bodies appear."""
+    from tumble.viewer import make_application
+    from tumble.viewer.window import ViewerWindow
+
+    def build():
+        world = make_world()
+        world.add_emitter(shape="sphere", rate=240.0, count=50, position=(0.0, 0.0, 1.5), radius=0.03)
+        world.add_emitter(shape="box", rate=120.0, count=50, position=(1.0, 0.0, 1.5), half_extents=0.03)
+        return world
+
+    make_application()
+    win = ViewerWindow(factory=build, size=(320, 240), paused=True, view="image", output_dir=tmp_path)
+    qtbot.addWidget(win)
+    control = win.controls.controls["emission_rate"]
+    assert win.controls.groups["Emitters"].isEnabled()
+    assert control.value() == 240.0
+    control.spin.setValue(0.0)
+    assert [e.rate for e in win.world.emitters] == [0.0, 0.0]
+    n = win.world.body_count
+    for _ in range(10):
+        win.step()
+    assert win.world.body_count == n
+    control.spin.setValue(480.0)
+    for _ in range(10):
+        win.step()
+    assert win.world.body_count > n
+    win.close()
