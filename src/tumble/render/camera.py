@@ -274,11 +274,8 @@ class Camera:
         self.position = centre + d * max(dist, 1e-3)
 
 
-def scene_bounds(world) -> tuple[np.ndarray, float]:
-    """Centre [m] and radius [m] of a sphere around all non-plane bodies, cloth and emitters.
-
-    Returns ((0, 0, 0.5), 1.5) for an empty scene.
-    """
+def scene_box(world) -> tuple[np.ndarray, np.ndarray] | None:
+    """Axis-aligned box (lo, hi) [m] around all non-plane bodies, cloth and emitter regions; None if empty."""
     lo, hi = [], []
     if world is not None and world.body_count:
         shape = np.asarray(world.body_shape)
@@ -302,15 +299,26 @@ def scene_bounds(world) -> tuple[np.ndarray, float]:
             continue
         try:
             pos = np.asarray(pos, dtype=np.float64).reshape(3)
+            ext = np.abs(np.asarray(getattr(emitter, "extent", 0.0) or 0.0, dtype=np.float64)).reshape(-1)
         except (TypeError, ValueError):
             continue
-        ext = np.abs(np.asarray(getattr(emitter, "extent", 0.0) or 0.0, dtype=np.float64))
-        ext = np.broadcast_to(ext.reshape(-1)[:3] if ext.size >= 3 else ext.reshape(-1)[:1], (3,))
+        ext = np.broadcast_to(ext[:3] if ext.size >= 3 else ext[:1], (3,))
         lo.append(pos - ext)
         hi.append(pos + ext)
     if not lo:
+        return None
+    return np.min(lo, axis=0), np.max(hi, axis=0)
+
+
+def scene_bounds(world) -> tuple[np.ndarray, float]:
+    """Centre [m] and radius [m] of a sphere around all non-plane bodies, cloth and emitters.
+
+    Returns ((0, 0, 0.5), 1.5) for an empty scene.
+    """
+    box = scene_box(world)
+    if box is None:
         return np.array([0.0, 0.0, 0.5]), 1.5
-    lo, hi = np.min(lo, axis=0), np.max(hi, axis=0)
+    lo, hi = box
     centre = 0.5 * (lo + hi)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
     return centre, radius

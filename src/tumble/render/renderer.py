@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import TumbleError
 from ..shapes import ShapeType
 from . import shaders
-from .camera import Camera, scene_bounds
+from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
 
 #: floats per instance: centre 3, radius 1, orientation 4, colour 3
@@ -217,6 +217,10 @@ class Renderer:
         self.cloth_color = CLOTH_COLOR
         self._fbo = self._resolve = None
         self._fbo_size = None
+        # box that walls are cut to: the union of the scene's bounds over the frames drawn of
+        # one world, so walls keep their size while bodies fall or fly out
+        self._wall_world = None
+        self._wall_box = None
 
         prog = ctx.program
         self._sky = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.SKY_FRAGMENT)
@@ -360,13 +364,12 @@ class Renderer:
             self._set_mat(p, "u_vp", vp)
             self._set(p, "u_cell", float(self.ground_cell_size))
             self._set(p, "u_fade", max(40.0 * camera.distance, 10.0))
-            for plane in arrays.planes:
-                n = plane[:3]
-                t, b = _perpendicular(n)
-                self._set(p, "u_normal", n)
-                self._set(p, "u_offset", float(plane[3]))
-                self._set(p, "u_tangent", t)
-                self._set(p, "u_bitangent", b)
+            clip_min, clip_max = self._wall_clip_box(world, arrays.planes)
+            self._set(p, "u_clip_min", clip_min)
+            self._set(p, "u_clip_max", clip_max)
+            self._set(p, "u_glass", 0.0)
+            for k, plane in enumerate(arrays.planes):
+                self._set_plane(arrays.planes, k, wall=self._is_wall(plane, camera))
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
 
         if len(arrays.spheres):
@@ -388,6 +391,20 @@ class Renderer:
             self._set(c, "u_front", self.cloth_color)
             self._set(c, "u_back", np.clip(np.asarray(self.cloth_color) * 0.6 + 0.4, 0, 1))
             self._cloth_vao.render(mgl.TRIANGLES, vertices=n_cloth_idx)
+
+        # glass: walls seen from behind (a container's near walls), blended over everything
+        near_walls = [k for k, plane in enumerate(arrays.planes)
+                      if self._is_wall(plane, camera) and float(np.dot(plane[:3], camera.position)) < plane[3]]
+        if near_walls:
+            p = self._plane
+            self._set(p, "u_glass", 1.0)
+            ctx.enable(mgl.BLEND)
+            ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
+            for k in near_walls:
+                self._set_plane(arrays.planes, k)
+                self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            ctx.disable(mgl.BLEND)
+            self._set(p, "u_glass", 0.0)
 
     def release(self) -> None:
         """Free the GL objects this renderer made (not the context)."""
@@ -453,6 +470,52 @@ class Renderer:
             self._cloth_tris = np.array(tri, copy=True)
             self._upload(self._cloth_ibo, np.ascontiguousarray(tri, dtype=np.uint32))
         return tri.size
+
+    @staticmethod
+    def _is_wall(plane: np.ndarray, camera: Camera) -> bool:
+        """Only level planes facing up stretch to the horizon; walls and ramps are cut."""
+        return float(np.dot(plane[:3], camera.up)) < 0.99
+
+    def _set_plane(self, planes: np.ndarray, k: int, *, wall: bool = True) -> None:
+        """Uniforms of the plane pass for plane k (normal, offset, tangents; the others for walls)."""
+        p = self._plane
+        n = planes[k, :3]
+        t, b = _perpendicular(n)
+        self._set(p, "u_wall", 1.0 if wall else 0.0)
+        if wall:
+            others = np.zeros((8, 4), dtype=np.float32)
+            rest = np.delete(planes, k, axis=0)[:8]
+            others[: len(rest)] = rest
+            if "u_others" in p:
+                p["u_others"].write(others.tobytes())
+            self._set(p, "u_other_count", len(rest))
+        self._set(p, "u_normal", n)
+        self._set(p, "u_offset", float(planes[k, 3]))
+        self._set(p, "u_tangent", t)
+        self._set(p, "u_bitangent", b)
+
+    def _wall_clip_box(self, world, planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Box [m] that walls and ramps are cut to: the scene's bounds (grown over the frames drawn),
+        widened sideways, a little higher on top, and down to the highest level floor."""
+        box = scene_box(world)
+        if self._wall_world is not world:
+            self._wall_world, self._wall_box = world, None
+        if box is not None:
+            if self._wall_box is None:
+                self._wall_box = (box[0].copy(), box[1].copy())
+            else:
+                self._wall_box = (np.minimum(self._wall_box[0], box[0]), np.maximum(self._wall_box[1], box[1]))
+        if self._wall_box is None:
+            return np.full(3, -1.0), np.full(3, 1.0)
+        lo, hi = self._wall_box
+        size = float(np.linalg.norm(hi - lo))
+        side, top = 0.2 * size + 0.3, 0.05 * size + 0.05
+        lo = lo - np.array([side, side, top])
+        hi = hi + np.array([side, side, top])
+        floors = planes[planes[:, 2] > 0.99]  # level floors: z = offset
+        if len(floors):
+            lo[2] = min(lo[2], float(floors[:, 3].max()) - 1e-3)
+        return lo, hi
 
     def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int) -> np.ndarray:
         """Render depth from the sun into the shadow map; return the world -> sun clip matrix."""

@@ -13,7 +13,7 @@ uniform sampler2D u_shadow_map;
 uniform mat4 u_light_vp;   // world -> sun clip space
 uniform float u_shadow_on; // 1 when the shadow map is valid
 
-const vec3 SUN = vec3(1.00, 0.95, 0.88) * 1.6;
+const vec3 SUN = vec3(1.00, 0.96, 0.90) * 1.25;
 const vec3 SKY_ZENITH = vec3(0.30, 0.50, 0.80);
 const vec3 SKY_HORIZON = vec3(0.84, 0.89, 0.95);
 const vec3 SKY_BELOW = vec3(0.60, 0.64, 0.69);
@@ -59,7 +59,7 @@ vec3 shade(vec3 albedo, vec3 p, vec3 n, float shininess, float specular) {
     float vis = ndl > 0.0 ? sun_visibility(p, n) : 0.0;
     // hemisphere ambient: sky from above, a warm bounce from the ground below
     float up = dot(n, u_up) * 0.5 + 0.5;
-    vec3 ambient = mix(vec3(0.10, 0.09, 0.08), vec3(0.30, 0.34, 0.42), up);
+    vec3 ambient = mix(vec3(0.09, 0.08, 0.07), vec3(0.26, 0.29, 0.35), up);
     vec3 h = normalize(u_light_dir + v);
     float spec = specular * pow(max(dot(n, h), 0.0), shininess) * vis * step(0.0, ndl);
     return a * (SUN * ndl * vis + ambient) + SUN * spec;
@@ -108,6 +108,14 @@ uniform vec3 u_tangent;
 uniform vec3 u_bitangent;
 uniform float u_cell;
 uniform float u_fade;
+// walls and ramps (planes not facing straight up) are cut to the inside of the other planes and
+// to a box around the scene, so a container of planes shows as its far walls, not endless sheets
+uniform float u_wall;
+uniform vec4 u_others[8];   // the other planes: unit normal, offset
+uniform int u_other_count;
+uniform vec3 u_clip_min;
+uniform vec3 u_clip_max;
+uniform float u_glass;
 out vec4 f_color;
 """
     + COMMON
@@ -129,11 +137,31 @@ void main() {
     vec3 dir = normalize(far_point.xyz / far_point.w - u_eye);
     float denom = dot(u_normal, dir);
     float t = (u_offset - dot(u_normal, u_eye)) / denom;
-    // seen from behind, parallel, or behind the eye: not drawn
-    if (denom >= -1e-6 || t <= 0.0) discard;
+    // the opaque pass draws a plane's front side only; the glass pass (walls seen from behind,
+    // drawn last and blended) draws the back side as faint glass with darker edges
+    if (t <= 0.0 || (u_glass < 0.5 ? denom >= -1e-6 : denom <= 1e-6)) discard;
     vec3 p = u_eye + t * dir;
+    float rim = 1.0;
+    if (u_wall > 0.5) {
+        // distance inside the clip region: the nearest other plane or box face
+        float inside = min(min(p.x - u_clip_min.x, u_clip_max.x - p.x),
+                           min(min(p.y - u_clip_min.y, u_clip_max.y - p.y), min(p.z - u_clip_min.z, u_clip_max.z - p.z)));
+        for (int i = 0; i < u_other_count; i++) {
+            inside = min(inside, dot(u_others[i].xyz, p) - u_others[i].w);
+        }
+        if (inside < 0.0) discard;
+        float w = 0.004 * t;  // edge line about a few pixels wide
+        rim = mix(0.55, 1.0, smoothstep(w, 2.0 * w, inside));
+        if (u_glass > 0.5) {
+            float edge = 1.0 - smoothstep(w, 2.0 * w, inside);
+            f_color = vec4(mix(vec3(0.80, 0.88, 0.95), vec3(0.30, 0.33, 0.36), edge), mix(0.10, 0.55, edge));
+            vec4 clip_glass = u_vp * vec4(p, 1.0);
+            gl_FragDepth = clip_glass.z / clip_glass.w * 0.5 + 0.5;
+            return;
+        }
+    }
     vec2 uv = vec2(dot(p, u_tangent), dot(p, u_bitangent)) / u_cell;
-    vec3 albedo = mix(vec3(0.80, 0.80, 0.78), vec3(0.60, 0.62, 0.64), checker(uv));
+    vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv)) * rim;
     vec3 c = to_srgb(tonemap(shade(albedo, p, u_normal, 24.0, 0.04)));
     float fog = 1.0 - exp(-pow(t / u_fade, 2.0));
     f_color = vec4(mix(c, sky_color(dir), fog), 1.0);
@@ -217,7 +245,7 @@ void main() {
     // a faint band around the body's x = 0 great circle shows the sphere rolling
     vec3 local = rotate_inv(v_quat, n);
     float band = smoothstep(0.07, 0.10, abs(local.x));
-    vec3 albedo = v_color * mix(0.78, 1.0, band);
+    vec3 albedo = v_color * mix(0.84, 1.0, band);
     f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), 1.0);
 }
 """
@@ -273,7 +301,7 @@ void main() {
     float rim = smoothstep(width - aa, width + aa, edge);
     vec3 albedo = v_color * mix(0.72, 1.0, rim);
     vec3 n = normalize(v_normal);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.2))), 1.0);
+    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.12))), 1.0);
 }
 """
 )
@@ -308,7 +336,10 @@ void main() {
     vec3 n = normalize(v_normal);
     vec3 albedo = u_front;
     if (!gl_FrontFacing) { n = -n; albedo = u_back; }
-    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 12.0, 0.06))), 1.0);
+    // thin fabric lets some sunlight through: the side facing away from the sun still glows
+    float through = 0.35 * max(-dot(n, u_light_dir), 0.0);
+    vec3 c = shade(albedo, v_world, n, 12.0, 0.06) + to_linear(albedo) * SUN * through;
+    f_color = vec4(to_srgb(tonemap(c)), 1.0);
 }
 """
 )
