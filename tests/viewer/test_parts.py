@@ -98,6 +98,7 @@ def _view_only(monkeypatch):
 
 def test_view_command_missing_scene_exits_2(capsys, tmp_path, monkeypatch):
     """`tumble view` on a missing file exits 2 with one line naming it."""
+    pytest.importorskip("tumble.io.scene")  # the scene loader lives on its own branch until merged
     main = _view_only(monkeypatch)
 
     missing = tmp_path / "nope.toml"

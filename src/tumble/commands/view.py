@@ -21,7 +21,7 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="scene file (.toml)")
+    parser.add_argument("scene", help="scene file (.toml), or the name of a bundled sample (sphere_pile)")
     parser.add_argument("--paused", action="store_true", help="start paused (space plays)")
     parser.add_argument("--size", type=parse_size, default=(1280, 720), metavar="WxH",
                         help="size of the 3D view in pixels (default 1280x720)")
@@ -34,20 +34,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     import tumble
-    from tumble.errors import SceneError
 
-    path = Path(args.scene)
-    if not path.is_file():
-        raise SceneError("no such scene file" if not path.exists() else "not a file", path=path)
-    # load once before opening any window, so a broken scene is one line on stderr, not a dialog
-    world = tumble.load_scene(path)
+    scene = args.scene
+    # load once before opening any window, so that a missing or broken scene is one line on
+    # stderr (from the CLI), not a window that opens and fails
+    world = tumble.load_scene(scene)
 
     from tumble.viewer import run_viewer
 
     return run_viewer(
         world,
-        factory=lambda: tumble.load_scene(path),
-        title=path.stem,
+        factory=lambda: tumble.load_scene(scene),
+        title=Path(scene).stem,
         size=args.size,
         paused=args.paused,
         view=args.view,
