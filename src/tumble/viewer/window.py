@@ -404,6 +404,15 @@ class ViewerWindow(QtWidgets.QMainWindow):
                 self.held = None
                 self.show_message("")
             return True
+        if kind == Type.KeyPress:
+            # shortcuts fire only in the active window; a key that reaches the view unhandled
+            # (e.g. under a bare X server without a window manager) triggers its action here
+            pressed = QtGui.QKeySequence(event.keyCombination())
+            for action in self.actions():
+                if action.isEnabled() and not action.shortcut().isEmpty() and action.shortcut() == pressed:
+                    action.trigger()
+                    return True
+            return False
         if kind == Type.Wheel:
             steps = event.angleDelta().y() / 120.0
             if steps:
