@@ -57,6 +57,12 @@ def gl_window_problem() -> str | None:
     return None
 
 
+def is_software_renderer(context) -> bool:
+    """True when a moderngl context draws on the CPU (Mesa llvmpipe/softpipe, SwiftShader)."""
+    name = str(context.info.get("GL_RENDERER", "")).lower()
+    return any(word in name for word in ("llvmpipe", "softpipe", "swiftshader", "software"))
+
+
 def qimage_to_array(image: QtGui.QImage) -> np.ndarray:
     """RGB pixels of a QImage as a (H, W, 3) uint8 array."""
     image = image.convertToFormat(QtGui.QImage.Format.Format_RGB888)
@@ -82,6 +88,7 @@ class _SceneViewMixin:
         self.frame_count = 0
         self.renderer = None
         self.shadows = True  # sun shadows (a second pass; costly in software rendering)
+        self.software = False  # drawing on the CPU (known once the GL context exists)
         self._size_hint = QtCore.QSize(*size)
         self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
         self.setMouseTracking(False)
@@ -114,6 +121,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         from ..render import Renderer
 
         self.context = context
+        self.software = is_software_renderer(context)
         self.renderer = Renderer(context, *size)
         self.render_scale = 1.0  # drawing size / widget size, lowered while frames are slow
         self.adaptive = True
@@ -165,6 +173,7 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
     """
 
     failed = QtCore.Signal(str)
+    ready = QtCore.Signal()  # the GL context exists (initializeGL ran)
     backend_name = "OpenGL window"
 
     def __init__(self, *, size: tuple[int, int] = (960, 640), parent=None):
@@ -182,7 +191,9 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
         try:
             # wrap the context Qt made current for this widget
             self.context = moderngl.create_context()
+            self.software = is_software_renderer(self.context)
             self.renderer = Renderer(self.context, *self.pixel_size())
+            QtCore.QTimer.singleShot(0, self.ready.emit)
         except Exception as exc:  # noqa: BLE001 (reported; the window falls back to the image view)
             self.problem = f"OpenGL setup failed: {exc}"
             self.renderer = None

@@ -205,6 +205,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.play()
         self._update_play_action()
         self._update_status()
+        self._view_ready()
 
     # ------------------------------------------------------------------ construction
 
@@ -214,6 +215,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
             view.shadows = self.controls.shadows.isChecked()
         view.installEventFilter(self)
         view.failed.connect(self._on_view_failed)
+        if hasattr(view, "ready"):
+            view.ready.connect(self._view_ready)
         self.central.layout().insertWidget(0, view, 1)
         view.setFocus()
 
@@ -369,7 +372,19 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def _on_shadows(self, on: bool) -> None:
         self.view.shadows = bool(on)
+        self._shadows_touched = True
         self._mark_dirty()
+
+    def _view_ready(self) -> None:
+        """Once the view's GL context exists: without a GPU, start with the cheaper settings."""
+        if not hasattr(self, "backend_label"):
+            return
+        software = self.view.software
+        self.backend_label.setText(self.view.backend_name + (" (software OpenGL)" if software else ""))
+        if software and not getattr(self, "_shadows_touched", False) and self.controls.shadows.isChecked():
+            self.controls.shadows.setChecked(False)
+            self._shadows_touched = False
+            self.show_message("Drawing in software (no GPU): sun shadows are off for speed; see Display.")
 
     def _on_time_scale(self, value: float) -> None:
         self.clock.time_scale = float(value)
