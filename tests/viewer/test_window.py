@@ -313,3 +313,19 @@ def test_emission_rate_control_sets_every_emitter(qtbot, tmp_path):
         win.step()
     assert win.world.body_count > n
     win.close()
+
+
+def test_offscreen_platform_picks_the_image_view_and_refuses_gl(qtbot):
+    """On the offscreen platform "auto" gives the EGL image view (saying why); "gl" fails in one line."""
+    from tumble.viewer import make_application
+    from tumble.viewer.window import ViewerUnavailable, make_scene_view
+
+    make_application()
+    view = make_scene_view("auto", size=(64, 48))
+    qtbot.addWidget(view)
+    assert isinstance(view, ImageSceneView)
+    assert "offscreen" in view.reason
+    with pytest.raises(ViewerUnavailable, match='platform "offscreen" has no OpenGL windows'):
+        make_scene_view("gl")
+    with pytest.raises(ValueError, match="view kind"):
+        make_scene_view("vulkan")

@@ -42,24 +42,41 @@ def gl_surface_format() -> QtGui.QSurfaceFormat:
     return fmt
 
 
-def gl_window_problem() -> str | None:
-    """Why a GL window cannot be made here, or None when it can (a QApplication must exist)."""
+def probe_gl_window() -> tuple[str | None, str]:
+    """Can Qt make OpenGL windows here? Returns (problem or None, the GL renderer's name).
+
+    A QApplication must exist. The probe makes a context with the viewer's format and reads
+    GL_RENDERER (e.g. "llvmpipe ..." when OpenGL runs on the CPU).
+    """
     platform = QtGui.QGuiApplication.platformName()
     if platform in NO_GL_WINDOW_PLATFORMS:
-        return f'the Qt platform "{platform}" has no OpenGL windows'
+        return f'the Qt platform "{platform}" has no OpenGL windows', ""
     context = QtGui.QOpenGLContext()
     context.setFormat(gl_surface_format())
     if not context.create():
-        return f'Qt could not create an OpenGL context on the "{platform}" platform'
+        return f'Qt could not create an OpenGL context on the "{platform}" platform', ""
     fmt = context.format()
     if (fmt.majorVersion(), fmt.minorVersion()) < (3, 3):
-        return f"the OpenGL context is version {fmt.majorVersion()}.{fmt.minorVersion()}; 3.3 is needed"
-    return None
+        return f"the OpenGL context is version {fmt.majorVersion()}.{fmt.minorVersion()}; 3.3 is needed", ""
+    surface = QtGui.QOffscreenSurface()
+    surface.setFormat(fmt)
+    surface.create()
+    name = ""
+    if context.makeCurrent(surface):
+        name = str(context.functions().glGetString(0x1F01) or "")  # GL_RENDERER
+        context.doneCurrent()
+    surface.destroy()
+    return None, name
 
 
 def is_software_renderer(context) -> bool:
     """True when a moderngl context draws on the CPU (Mesa llvmpipe/softpipe, SwiftShader)."""
-    name = str(context.info.get("GL_RENDERER", "")).lower()
+    return is_software_name(str(context.info.get("GL_RENDERER", "")))
+
+
+def is_software_name(renderer: str) -> bool:
+    """True for the GL_RENDERER names of CPU rasterisers."""
+    name = renderer.lower()
     return any(word in name for word in ("llvmpipe", "softpipe", "swiftshader", "software"))
 
 
@@ -125,6 +142,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         self.renderer = Renderer(context, *size)
         self.render_scale = 1.0  # drawing size / widget size, lowered while frames are slow
         self.adaptive = True
+        self.reason = ""  # why this view was chosen over an OpenGL window
         self.setAttribute(QtCore.Qt.WidgetAttribute.WA_OpaquePaintEvent)
 
     def render_image(self, scale: float = 1.0) -> np.ndarray:
