@@ -162,8 +162,12 @@ def test_drag_on_a_body_pulls_it_towards_the_cursor(window, qtbot):
     for _ in range(20):
         window.step()
     assert window.world.body_position[i, 2] > z0 + 0.01  # pulled up against gravity
+    (x0, y0), (x1, y1) = window.view.spring_line  # the spring is drawn from the body to the cursor
+    assert (x1, y1) == pytest.approx((x, y - 40), abs=2.0)
     qtbot.mouseRelease(window.view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(x, y - 40))
     assert window.held is None
+    window._on_tick()
+    assert window.view.spring_line is None
 
 
 def test_screenshot_shows_spheres_and_ground(window, tmp_path):

@@ -149,6 +149,18 @@ def apply_drag(world, grab: Grab) -> None:
         cloth.apply_force(grab.index, mass * accel)
 
 
+def held_point(world, grab: Grab) -> np.ndarray | None:
+    """Where the held point is now [m], shape (3,), or None when its body or particle is gone."""
+    if grab.kind == "body":
+        if grab.index >= world.body_count:
+            return None
+        return world.body_position[grab.index] + quat_rotate(world.body_orientation[grab.index], grab.local_point)
+    cloth = cloth_of(world)
+    if cloth is None or grab.index >= cloth.particle_count:
+        return None
+    return np.asarray(cloth.particle_position[grab.index], dtype=np.float64)
+
+
 def cloth_of(world):
     """The world's cloth system if it has one with particles, without creating one."""
     cloth = getattr(world, "_cloth", None)

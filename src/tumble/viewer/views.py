@@ -106,11 +106,27 @@ class _SceneViewMixin:
         self.renderer = None
         self.shadows = True  # sun shadows (a second pass; costly in software rendering)
         self.software = False  # drawing on the CPU (known once the GL context exists)
+        self.spring_line = None  # ((x, y) of the held point, (x, y) of the cursor), or None
         self._size_hint = QtCore.QSize(*size)
         self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
         self.setMouseTracking(False)
         self.setMinimumSize(160, 120)
         self.setSizePolicy(QtWidgets.QSizePolicy.Policy.Expanding, QtWidgets.QSizePolicy.Policy.Expanding)
+
+    def paint_overlay(self, painter: QtGui.QPainter) -> None:
+        """Draw the mouse spring, if any: a line from the held point to the cursor (widget pixels)."""
+        if self.spring_line is None:
+            return
+        (x0, y0), (x1, y1) = self.spring_line
+        painter.setRenderHint(QtGui.QPainter.RenderHint.Antialiasing)
+        pen = QtGui.QPen(QtGui.QColor(255, 255, 255, 220), 2.0, QtCore.Qt.PenStyle.DashLine)
+        painter.setPen(pen)
+        painter.drawLine(QtCore.QPointF(x0, y0), QtCore.QPointF(x1, y1))
+        painter.setPen(QtGui.QPen(QtGui.QColor(30, 30, 30, 220), 1.5))
+        painter.setBrush(QtGui.QColor(255, 214, 10))
+        painter.drawEllipse(QtCore.QPointF(x0, y0), 4.0, 4.0)
+        painter.setBrush(QtCore.Qt.BrushStyle.NoBrush)
+        painter.drawEllipse(QtCore.QPointF(x1, y1), 6.0, 6.0)
 
     def sizeHint(self) -> QtCore.QSize:  # noqa: N802 (Qt name)
         return self._size_hint
@@ -169,6 +185,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
             return
         painter.setRenderHint(QtGui.QPainter.RenderHint.SmoothPixmapTransform)
         painter.drawImage(self.rect(), image)
+        self.paint_overlay(painter)
         painter.end()
         self.frame_count += 1
         self._adapt_scale(time.perf_counter() - start)
@@ -234,6 +251,15 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
             self.renderer = None
             QtCore.QTimer.singleShot(0, lambda: self.failed.emit(f"drawing failed: {exc}"))
             return
+        if self.spring_line is not None:
+            # Qt's painter draws over the scene in the same framebuffer: hand it a plain GL state
+            # (the renderer sets all the state it needs at the start of every draw)
+            import moderngl
+
+            self.context.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+            painter = QtGui.QPainter(self)
+            self.paint_overlay(painter)
+            painter.end()
         self.frame_count += 1
 
     def render_image(self) -> np.ndarray:

@@ -349,6 +349,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if steps:
             self._after_steps(steps)
         elif self._dirty:
+            self._update_spring_line()
             self.view.update()
             self._dirty = False
         now = time.perf_counter()
@@ -360,7 +361,22 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self._stats_time = now
             self._update_status()
 
+    def _update_spring_line(self) -> None:
+        """Where the mouse spring is drawn: from the held point (as it moves) to the cursor."""
+        line = None
+        held = self.held
+        if held is not None:
+            w, h = self.view.width(), self.view.height()
+            anchor = picking.held_point(self.world, held)
+            if anchor is not None:
+                a = self.camera.project(anchor, w, h)
+                c = self.camera.project(held.target, w, h)
+                if a[2] > 0 and c[2] > 0:
+                    line = ((float(a[0]), float(a[1])), (float(c[0]), float(c[1])))
+        self.view.spring_line = line
+
     def _after_steps(self, steps: int) -> None:
+        self._update_spring_line()
         self.view.update()
         self._dirty = False
         if self.recorder is not None and self.world.time + 1e-12 >= self._next_frame_time:
@@ -427,6 +443,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             if self.held is not None:
                 self.held = None
                 self.show_message("")
+                self._mark_dirty()
             return True
         if kind == Type.KeyPress:
             # shortcuts fire only in the active window; a key that reaches the view unhandled
@@ -459,6 +476,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
                 what = {"body": "body", "particle": "cloth particle", "pin": "pinned cloth particle"}[grab.kind]
                 hint = "" if self.clock.playing else " (paused: press space to let it move)"
                 self.show_message(f"Pulling {what} {grab.index}{hint}")
+                self._mark_dirty()
                 return True
             self._mouse_mode = "orbit"
         elif event.button() in (buttons.RightButton, buttons.MiddleButton) or (
