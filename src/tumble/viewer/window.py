@@ -587,6 +587,9 @@ class ViewerWindow(QtWidgets.QMainWindow):
         path = Path(path) if path is not None else output_path(self.output_dir, self._file_stem(), ".mp4")
         self.recorder = VideoRecorder(path, fps=VIDEO_FPS)
         self._next_frame_time = self.world.time
+        if hasattr(self.view, "adaptive"):
+            # draw at full size while recording, so frames are not rendered twice at two sizes
+            self.view.adaptive, self.view.render_scale = False, 1.0
         self.record_action.setChecked(True)
         self.record_action.setText("Stop")
         self.show_message(f"Recording to {path} (frames are taken while playing)")
@@ -596,6 +599,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
         """Finish the MP4. Returns its path (None when no frame was taken)."""
         recorder, self.recorder = self.recorder, None
         self.record_action.setChecked(False)
+        if hasattr(self.view, "adaptive"):
+            self.view.adaptive = True
         self.record_action.setText("Record")
         if recorder is None:
             return None
