@@ -146,7 +146,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
     """
 
     failed = QtCore.Signal(str)
-    backend_name = "offscreen EGL, drawn as an image"
+    backend_name = "offscreen EGL image"
 
     def __init__(self, context, *, size: tuple[int, int] = (960, 640), parent=None):
         super().__init__(parent)

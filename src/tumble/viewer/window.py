@@ -404,12 +404,12 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if not hasattr(self, "backend_label"):
             return
         software = self.view.software
-        self.backend_label.setText(self.view.backend_name + (" (software OpenGL)" if software else ""))
+        self.backend_label.setText(self.view.backend_name + (", software" if software else ""))
         self.backend_label.setToolTip(getattr(self.view, "reason", ""))
         if software and not getattr(self, "_shadows_touched", False) and self.controls.shadows.isChecked():
             self.controls.shadows.setChecked(False)
             self._shadows_touched = False
-            self.show_message("Drawing in software (no GPU): sun shadows are off for speed; see Display.")
+            self.show_message("No GPU: sun shadows are off for speed (Display).")
 
     def _on_time_scale(self, value: float) -> None:
         self.clock.time_scale = float(value)
