@@ -263,5 +263,9 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
         self.frame_count += 1
 
     def render_image(self) -> np.ndarray:
-        """Render the current view: (H, W, 3) uint8 at the view's pixel size."""
-        return qimage_to_array(self.grabFramebuffer())
+        """Render the current view: (H, W, 3) uint8 at the view's pixel size (without the mouse spring)."""
+        line, self.spring_line = self.spring_line, None
+        try:
+            return qimage_to_array(self.grabFramebuffer())
+        finally:
+            self.spring_line = line
