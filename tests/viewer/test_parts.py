@@ -173,6 +173,7 @@ class FakeCloth:
 class FakeClothWorld:
     body_count = 0
     gravity = np.array([0.0, 0.0, -9.81])
+    dt = 0.25
 
     def __init__(self):
         self._cloth = FakeCloth()
@@ -192,10 +193,13 @@ def test_drag_pulls_a_free_cloth_particle_and_moves_a_pinned_one():
 
     pin = picking.pick(world, np.array([2.0, 0.0, 5.0]), down)
     assert pin.kind == "pin" and pin.index == 2
-    pin.target = np.array([2.0, 0.5, 1.5])
+    pin.target = np.array([2.0, 0.3, 1.4])  # 0.5 m away: reached in one step of 0.25 s at 3 m/s
     picking.apply_drag(world, pin)
     assert world._cloth.pins[-1][0] == 2
-    np.testing.assert_allclose(world._cloth.pins[-1][1], [2.0, 0.5, 1.5])
+    np.testing.assert_allclose(world._cloth.pins[-1][1], [2.0, 0.3, 1.4])
+    pin.target = np.array([2.0, 0.0, 3.0])  # 2 m away: moves 0.75 m towards it
+    picking.apply_drag(world, pin)
+    np.testing.assert_allclose(world._cloth.pins[-1][1], [2.0, 0.0, 1.75])
 
 
 def test_drag_target_stays_in_the_camera_facing_plane():

@@ -23,6 +23,8 @@ import numpy as np
 #: drag spring frequency [Hz] and damping ratio
 DRAG_FREQUENCY = 2.0
 DRAG_DAMPING = 1.0
+#: fastest a dragged pin moves [m/s]
+MAX_PIN_SPEED = 3.0
 #: a force larger than this many g times the mass is clipped, so a fast flick cannot blow up a stack
 MAX_DRAG_ACCELERATION = 200.0
 
@@ -140,7 +142,9 @@ def apply_drag(world, grab: Grab) -> None:
         if cloth is None or grab.index >= cloth.particle_count:
             return
         if grab.kind == "pin":
-            cloth.set_pin_target(grab.index, grab.target)
+            # move the pin towards the cursor at a bounded speed, so the cloth can follow
+            here = np.asarray(cloth.particle_position[grab.index], dtype=np.float64)
+            cloth.set_pin_target(grab.index, here + _clip(grab.target - here, MAX_PIN_SPEED * float(world.dt)))
             return
         point = np.asarray(cloth.particle_position[grab.index], dtype=np.float64)
         velocity = np.asarray(cloth.particle_velocity[grab.index], dtype=np.float64)
