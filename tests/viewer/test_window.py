@@ -333,3 +333,23 @@ def test_offscreen_platform_picks_the_image_view_and_refuses_gl(qtbot):
         make_scene_view("gl")
     with pytest.raises(ValueError, match="view kind"):
         make_scene_view("vulkan")
+
+
+def test_no_gl_window_and_no_egl_is_one_clear_error(qtbot, monkeypatch):
+    """Where neither an OpenGL window nor an EGL context can be made, the error says both reasons."""
+    import tumble.render
+    from tumble.errors import TumbleError
+    from tumble.viewer import make_application
+    from tumble.viewer.window import ViewerUnavailable, make_scene_view
+
+    def no_egl():
+        raise TumbleError("no OpenGL context: egl: eglGetDisplay failed")
+
+    make_application()
+    monkeypatch.setattr(tumble.render, "create_context", no_egl)
+    with pytest.raises(ViewerUnavailable) as info:
+        make_scene_view("auto")
+    message = str(info.value)
+    assert "\n" not in message
+    assert 'no OpenGL window (the Qt platform "offscreen" has no OpenGL windows)' in message
+    assert "eglGetDisplay failed" in message
