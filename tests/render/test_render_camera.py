@@ -107,3 +107,25 @@ def test_bad_camera_values_are_refused():
         Camera(position=(1, 2))
     with pytest.raises(ValueError, match="differ"):
         Camera(position=(0, 0, 0), target=(0, 0, 0))
+
+
+def test_scene_camera_with_position_only_looks_at_the_scene():
+    """A [camera] table with a position but no target aims at the framed scene's centre."""
+    world = tumble.World()
+    world.add_sphere(position=(2.0, 1.0, 0.5), radius=0.5)
+    world.metadata["camera"] = {"position": [6, -4, 3], "fov": 50}
+    cam = Camera.for_world(world)
+    assert np.allclose(cam.position, [6, -4, 3])
+    assert np.allclose(cam.target, [2.0, 1.0, 0.5])
+    assert cam.fov_deg == 50
+
+
+def test_frame_includes_cloth_and_emitters(make_cloth):
+    """Cloth particles and emitter regions count when framing a scene."""
+    world = tumble.World()
+    world._cloth = make_cloth(centre=(10.0, 0.0, 1.0))
+    world.add_emitter(shape="sphere", rate=10, count=5, position=(-10.0, 0.0, 2.0), radius=0.1)
+    cam = Camera()
+    cam.frame(world, aspect=1.0)
+    xy = cam.project([[10.0, 0.0, 1.0], [-10.0, 0.0, 2.0]], 100, 100)
+    assert np.all((xy[:, :2] > 0) & (xy[:, :2] < 100))

@@ -139,13 +139,14 @@ def test_same_scene_renders_identically(small_renderer, make_cloth):
 def test_draw_into_a_given_framebuffer(gl_context, small_renderer):
     """draw() into a caller's framebuffer gives the same picture as render()."""
     world, camera = _scene_one_sphere(), _camera()
-    fbo = gl_context.simple_framebuffer((W, H))
-    fbo.use()
-    small_renderer.draw(world, camera)  # the bound framebuffer
-    bound = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
-    small_renderer.draw(world, camera, fbo)
-    given = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
-    fbo.release()
+    with gl_context:  # draw() uses the current context, as a widget's paint method would
+        fbo = gl_context.simple_framebuffer((W, H))
+        fbo.use()
+        small_renderer.draw(world, camera)  # the bound framebuffer
+        bound = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
+        small_renderer.draw(world, camera, fbo)
+        given = np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(H, W, 3)[::-1]
+        fbo.release()
     assert np.array_equal(bound, small_renderer.render(world, camera))
     assert np.array_equal(given, bound)
 
@@ -256,3 +257,66 @@ def test_walls_are_cut_to_the_scene(small_renderer, chromaticity):
     behind_glass = _pixel(walled, camera, (0.0, 0.0, 0.3))
     assert _like(behind_glass, sphere, chromaticity)
     assert not np.array_equal(behind_glass, _pixel(open_, camera, (0.0, 0.0, 0.3)))
+
+
+def test_multisampling_smooths_only_the_sphere_silhouette(gl_context):
+    """With 4x MSAA, pixels change only in a thin ring at the sphere's outline (edge coverage)."""
+    from tumble.render import Renderer
+
+    world = tumble.World()
+    world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.3)
+    camera = _camera()
+    plain = Renderer(gl_context, W, H, shadows=False)
+    smooth = Renderer(gl_context, W, H, shadows=False, samples=4)
+    a = plain.render(world, camera).astype(int)
+    b = smooth.render(world, camera).astype(int)
+    plain.release()
+    smooth.release()
+    changed = np.argwhere(np.abs(a - b).max(axis=2) > 8)
+    assert len(changed) > 10  # the outline did change
+    x, y, depth = camera.project((0.0, 0.0, 0.5), W, H)
+    f = H / 2 / np.tan(np.radians(camera.fov_deg) / 2)
+    radius_px = 0.3 * f / np.sqrt(depth**2 - 0.3**2)
+    dist = np.hypot(changed[:, 1] + 0.5 - x, changed[:, 0] + 0.5 - y)
+    assert np.all(np.abs(dist - radius_px) < 2.0)
+
+
+def test_multisampled_widget_framebuffer_stays_opaque(gl_context):
+    """Drawing into a multisampled framebuffer (as a viewer widget may have) leaves alpha at 1."""
+    world = tumble.World()
+    world.add_plane(normal=(1, 0, 0), offset=-0.5)  # walls, so the glass pass runs too
+    world.add_plane(normal=(-1, 0, 0), offset=-0.5)
+    world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.3)
+    from tumble.render import Renderer
+
+    r = Renderer(gl_context, W, H, shadow_size=256)
+    with gl_context:
+        msaa = gl_context.framebuffer(
+            color_attachments=[gl_context.renderbuffer((W, H), 4, samples=4)],
+            depth_attachment=gl_context.depth_renderbuffer((W, H), samples=4),
+        )
+        plain = gl_context.simple_framebuffer((W, H), components=4)
+        r.draw(world, Camera(position=(3.0, 0.0, 1.0), target=(0.0, 0.0, 0.5)), msaa)
+        gl_context.copy_framebuffer(plain, msaa)
+        rgba = np.frombuffer(plain.read(components=4, alignment=1), np.uint8).reshape(H, W, 4)
+        for obj in (*msaa.color_attachments, msaa.depth_attachment, msaa, plain):
+            obj.release()
+    r.release()
+    assert rgba[..., 3].min() == 255
+
+
+def test_renderers_on_two_contexts_stay_apart():
+    """A renderer keeps drawing in its own context after another context is made and released."""
+    from tumble.render import Renderer, create_context
+
+    world, camera = _scene_one_sphere(), _camera()
+    first_ctx, second_ctx = create_context(), create_context()
+    first = Renderer(first_ctx, W, H, shadow_size=256)  # made while the second context is current
+    before = first.render(world, camera)
+    second = Renderer(second_ctx, W, H, shadow_size=256)
+    assert np.array_equal(second.render(world, camera), before)
+    second.release()
+    second_ctx.release()
+    assert np.array_equal(first.render(world, camera), before)
+    first.release()
+    first_ctx.release()

@@ -64,11 +64,16 @@ def main(args: argparse.Namespace) -> int:
     # cheap checks first: the output kind, the size, then an OpenGL context (TumbleError -> exit 2)
     output_kind(args.output)
     width, height = parse_size(args.size)
-    renderer = Renderer(create_context(), width, height)
-    world = tumble.load_scene(args.scene)
-    duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
-    camera = camera_for(world, args, width / height)
-    out = export(world, args.output, duration=duration, fps=args.fps, size=(width, height), camera=camera,
-                 progress=not args.no_progress, renderer=renderer)
+    ctx = create_context()
+    renderer = Renderer(ctx, width, height, samples=4)
+    try:
+        world = tumble.load_scene(args.scene)
+        duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
+        camera = camera_for(world, args, width / height)
+        out = export(world, args.output, duration=duration, fps=args.fps, size=(width, height), camera=camera,
+                     progress=not args.no_progress, renderer=renderer)
+    finally:
+        renderer.release()
+        ctx.release()
     print(f"wrote {out}", file=sys.stderr)
     return 0

@@ -90,7 +90,7 @@ def render_frames(
         camera: a `tumble.render.Camera`; default the scene's `[camera]`, else automatic framing
             of the first frame (kept fixed afterwards, so the view does not jump).
         renderer: a `tumble.render.Renderer` to reuse (its size is set to `size`); default a new
-            one on a new headless context.
+            one on a new headless context, 4x multisampled (smooth edges, ~1.3-1.8x the time).
 
     Raises:
         TumbleError: no OpenGL context could be made.
@@ -99,8 +99,9 @@ def render_frames(
 
     n = frame_count(duration, fps)
     width, height = parse_size(size)
-    if renderer is None:
-        renderer = Renderer(create_context(), width, height)
+    own = renderer is None
+    if own:
+        renderer = Renderer(create_context(), width, height, samples=4)
     else:
         renderer.resize(width, height)
     if camera is None:
@@ -109,12 +110,18 @@ def render_frames(
         camera = Camera.from_dict(camera)
     start = float(world.time)
     dt = float(world.dt)
-    for k in range(n):
-        # step until the world reaches this frame's time (within half a step)
-        target = start + k / float(fps)
-        while world.time < target - 0.5 * dt:
-            world.step()
-        yield renderer.render(world, camera)
+    try:
+        for k in range(n):
+            # step until the world reaches this frame's time (within half a step)
+            target = start + k / float(fps)
+            while world.time < target - 0.5 * dt:
+                world.step()
+            yield renderer.render(world, camera)
+    finally:
+        if own:  # the context made here goes with the renderer
+            ctx = renderer.ctx
+            renderer.release()
+            ctx.release()
 
 
 @contextlib.contextmanager

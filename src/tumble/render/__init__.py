@@ -16,6 +16,10 @@ Inside a QOpenGLWidget (the viewer), with the widget's context current::
     renderer.draw(world, camera)                # in paintGL: draws into the bound framebuffer
     renderer.draw(world, camera, ctx.detect_framebuffer(self.defaultFramebufferObject()))
 
+`render()` makes the renderer's context current for the call (and restores the previous one), so
+several standalone contexts can live in one process. `draw()` uses whatever context is current,
+as a widget's paint method expects; with a standalone context call it inside `with ctx:`.
+
 Camera moves (all in place)::
 
     camera.orbit(dx, dy)      # radians: yaw about camera.up, elevation (clamped at +-89 deg)

@@ -10,7 +10,8 @@ no Python loop runs over bodies. Passes, in order:
    fading into the sky with distance, drawn only from the front side);
 4. spheres: one quad per sphere, ray-cast against the sphere, true depth written;
 5. boxes: one instanced 36-vertex cube per box, darkened edges;
-6. cloth: one indexed, two-sided triangle mesh with per-vertex normals.
+6. cloth: one indexed, two-sided triangle mesh with per-vertex normals;
+7. glass: walls seen from behind (a container's near walls), blended, no depth written.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from . import shaders
 from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
 
+#: OpenGL enum of alpha-to-coverage (moderngl has no named flag for it)
+GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
 #: floats per instance: centre 3, radius 1, orientation 4, colour 3
 SPHERE_FLOATS = 11
 #: floats per instance: centre 3, orientation 4, half extents 3, colour 3
@@ -200,11 +203,11 @@ class Renderer:
         shadow_size: shadow map size in texels.
 
     Attributes you may change between frames: `ground_cell_size` [m] (checker square size),
-    `light_direction` (unit vector towards the sun), `shadows`.
+    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB).
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
-                 shadow_size: int = 2048):
+                 shadow_size: int = 1024):
         import moderngl
 
         self._mgl = moderngl
@@ -221,7 +224,11 @@ class Renderer:
         # one world, so walls keep their size while bodies fall or fly out
         self._wall_world = None
         self._wall_box = None
+        with ctx:  # create the GL objects in this context, whichever is current now
+            self._create_gl_objects(int(shadow_size))
 
+    def _create_gl_objects(self, shadow_size: int) -> None:
+        ctx, moderngl = self.ctx, self._mgl
         prog = ctx.program
         self._sky = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.SKY_FRAGMENT)
         self._plane = prog(vertex_shader=shaders.SKY_VERTEX, fragment_shader=shaders.PLANE_FRAGMENT)
@@ -270,7 +277,7 @@ class Renderer:
                                     index_buffer=self._cloth_ibo, index_element_size=4)
 
         # sun shadow map: a depth texture read as plain values (no hardware comparison)
-        self._shadow_tex = ctx.depth_texture((int(shadow_size), int(shadow_size)))
+        self._shadow_tex = ctx.depth_texture((shadow_size, shadow_size))
         self._shadow_tex.compare_func = ""
         self._shadow_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._shadow_tex.repeat_x = self._shadow_tex.repeat_y = False
@@ -289,21 +296,28 @@ class Renderer:
         """
         if camera is None:
             camera = Camera.for_world(world, aspect=self.width / self.height)
-        fbo = self._offscreen()
-        self.draw(world, camera, fbo)
-        if self._resolve is not None:
-            self.ctx.copy_framebuffer(self._resolve, fbo)
-            fbo = self._resolve
-        data = fbo.read(components=3, alignment=1)
+        # make this renderer's context current (another one may have been made or released
+        # since), and restore the previous one afterwards
+        with self.ctx:
+            fbo = self._offscreen()
+            self.draw(world, camera, fbo)
+            if self._resolve is not None:
+                self.ctx.copy_framebuffer(self._resolve, fbo)
+                fbo = self._resolve
+            data = fbo.read(components=3, alignment=1)
         image = np.frombuffer(data, dtype=np.uint8).reshape(self.height, self.width, 3)
         return np.ascontiguousarray(image[::-1])
 
     def draw(self, world, camera: Camera, framebuffer=None, *, viewport=None) -> None:
         """Draw `world` seen by `camera` into `framebuffer` (None: the currently bound one).
 
+        Uses the current GL context (a widget's, in its paint method); with a standalone context
+        that may not be current, call this inside `with renderer.ctx:`.
+
         Args:
-            framebuffer: a moderngl Framebuffer; None detects the one bound now (for a
-                QOpenGLWidget's `paintGL`, or pass `ctx.detect_framebuffer(widget.defaultFramebufferObject())`).
+            framebuffer: a moderngl Framebuffer; None detects the one bound now (a new wrapper
+                each call, so for a widget drawn every frame prefer passing
+                `ctx.detect_framebuffer(widget.defaultFramebufferObject())` once per resize).
             viewport: (x, y, width, height) in pixels; default the whole framebuffer.
         """
         ctx, mgl = self.ctx, self._mgl
@@ -350,14 +364,16 @@ class Renderer:
                 prog["u_shadow_map"].value = 0
         self._shadow_tex.use(location=0)
 
-        # sky: no depth test, so no depth written
-        ctx.disable(mgl.DEPTH_TEST)
-        self._set_mat(self._sky, "u_inv_vp", inv_vp)
-        self._sky_vao.render(mgl.TRIANGLES, vertices=3)
+        # sky: no depth test, so no depth written (skipped when a level floor paints it)
+        walls = [self._is_wall(plane, camera) for plane in arrays.planes]
+        first_floor = walls.index(False) if False in walls else -1
+        if first_floor < 0:
+            ctx.disable(mgl.DEPTH_TEST)
+            self._set_mat(self._sky, "u_inv_vp", inv_vp)
+            self._sky_vao.render(mgl.TRIANGLES, vertices=3)
 
         ctx.enable(mgl.DEPTH_TEST)
-        ctx.depth_func = "<"
-        # planes: a handful at most, one full-screen pass each
+        # planes: a handful at most, one full-screen pass each, the sky-painting floor first
         if len(arrays.planes):
             p = self._plane
             self._set_mat(p, "u_inv_vp", inv_vp)
@@ -368,16 +384,37 @@ class Renderer:
             self._set(p, "u_clip_min", clip_min)
             self._set(p, "u_clip_max", clip_max)
             self._set(p, "u_glass", 0.0)
-            for k, plane in enumerate(arrays.planes):
-                self._set_plane(arrays.planes, k, wall=self._is_wall(plane, camera))
+            order = list(range(len(arrays.planes)))
+            if first_floor >= 0:
+                order.remove(first_floor)
+                order.insert(0, first_floor)
+            for k in order:
+                sky = k == first_floor
+                ctx.depth_func = "<=" if sky else "<"  # the sky sits at depth 1, the cleared value
+                self._set(p, "u_sky_on_miss", 1.0 if sky else 0.0)
+                self._set_plane(arrays.planes, k, wall=walls[k])
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            self._set(p, "u_sky_on_miss", 0.0)
+        ctx.depth_func = "<"
 
         if len(arrays.spheres):
             s = self._sphere
             self._set_mat(s, "u_view", view)
             self._set_mat(s, "u_proj", proj)
             self._set_mat(s, "u_inv_view", inv_view)
+            # multisampled target: the fragment's coverage of the disc becomes its sample mask
+            msaa = int(getattr(fbo, "samples", 0) or 0) > 1
+            self._set(s, "u_coverage", 1.0 if msaa else 0.0)
+            # (alpha itself is not written: the sky left 1 everywhere, so a widget stays opaque)
+            if msaa:
+                ctx.enable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
+                fbo.color_mask = (True, True, True, False)
+                fbo.use()  # moderngl applies a framebuffer's masks when it is bound
             self._sphere_vao.render(mgl.TRIANGLE_STRIP, vertices=4, instances=len(arrays.spheres))
+            if msaa:
+                fbo.color_mask = (True, True, True, True)
+                fbo.use()
+                ctx.disable_direct(GL_SAMPLE_ALPHA_TO_COVERAGE)
 
         if len(arrays.boxes):
             ctx.enable(mgl.CULL_FACE)
@@ -400,20 +437,31 @@ class Renderer:
             self._set(p, "u_glass", 1.0)
             ctx.enable(mgl.BLEND)
             ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
+            fbo.depth_mask = False  # glass hides nothing, not even other glass
+            fbo.color_mask = (True, True, True, False)  # and leaves the target opaque
+            fbo.use()
             for k in near_walls:
                 self._set_plane(arrays.planes, k)
                 self._plane_vao.render(mgl.TRIANGLES, vertices=3)
+            fbo.depth_mask = True
+            fbo.color_mask = (True, True, True, True)
+            fbo.use()
             ctx.disable(mgl.BLEND)
             self._set(p, "u_glass", 0.0)
 
     def release(self) -> None:
-        """Free the GL objects this renderer made (not the context)."""
-        for obj in list(vars(self).values()):
-            if hasattr(obj, "release") and obj is not self.ctx and not isinstance(obj, type(self)):
+        """Free the GL objects this renderer made (not the context); the renderer is unusable after."""
+        objects = [v for k, v in vars(self).items() if k not in ("ctx", "_mgl") and hasattr(v, "release")]
+        for fbo in (self._fbo, self._resolve):
+            if fbo is not None:
+                objects += [*fbo.color_attachments, fbo.depth_attachment]
+        with self.ctx:
+            for obj in objects:
                 try:
                     obj.release()
-                except Exception:
+                except Exception:  # already released
                     pass
+        self._fbo = self._resolve = self._fbo_size = None
 
     # ------------------------------------------------------------------ internals
 

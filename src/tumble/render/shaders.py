@@ -51,18 +51,25 @@ float sun_visibility(vec3 p, vec3 n) {
     return lit / 9.0;
 }
 
-// linear colour of a surface with sRGB albedo at world point p, unit normal n
-vec3 shade(vec3 albedo, vec3 p, vec3 n, float shininess, float specular) {
-    vec3 a = to_linear(albedo);
+// linear colour of a surface with linear albedo a at world point p, unit normal n
+vec3 shade_linear(vec3 a, vec3 p, vec3 n, float shininess, float specular) {
     vec3 v = normalize(u_eye - p);
     float ndl = max(dot(n, u_light_dir), 0.0);
     float vis = ndl > 0.0 ? sun_visibility(p, n) : 0.0;
     // hemisphere ambient: sky from above, a warm bounce from the ground below
     float up = dot(n, u_up) * 0.5 + 0.5;
     vec3 ambient = mix(vec3(0.09, 0.08, 0.07), vec3(0.26, 0.29, 0.35), up);
-    vec3 h = normalize(u_light_dir + v);
-    float spec = specular * pow(max(dot(n, h), 0.0), shininess) * vis * step(0.0, ndl);
-    return a * (SUN * ndl * vis + ambient) + SUN * spec;
+    vec3 c = a * (SUN * ndl * vis + ambient);
+    if (specular > 0.0 && ndl > 0.0) {
+        vec3 h = normalize(u_light_dir + v);
+        c += SUN * (specular * pow(max(dot(n, h), 0.0), shininess) * vis);
+    }
+    return c;
+}
+
+// the same with an sRGB albedo
+vec3 shade(vec3 albedo, vec3 p, vec3 n, float shininess, float specular) {
+    return shade_linear(to_linear(albedo), p, n, shininess, specular);
 }
 """
 
@@ -116,6 +123,7 @@ uniform int u_other_count;
 uniform vec3 u_clip_min;
 uniform vec3 u_clip_max;
 uniform float u_glass;
+uniform float u_sky_on_miss;
 out vec4 f_color;
 """
     + COMMON
@@ -139,7 +147,13 @@ void main() {
     float t = (u_offset - dot(u_normal, u_eye)) / denom;
     // the opaque pass draws a plane's front side only; the glass pass (walls seen from behind,
     // drawn last and blended) draws the back side as faint glass with darker edges
-    if (t <= 0.0 || (u_glass < 0.5 ? denom >= -1e-6 : denom <= 1e-6)) discard;
+    if (t <= 0.0 || (u_glass < 0.5 ? denom >= -1e-6 : denom <= 1e-6)) {
+        // the first level floor also paints the sky where it misses (one full-screen pass less)
+        if (u_sky_on_miss < 0.5) discard;
+        f_color = vec4(sky_color(dir), 1.0);
+        gl_FragDepth = 1.0;
+        return;
+    }
     vec3 p = u_eye + t * dir;
     float rim = 1.0;
     if (u_wall > 0.5) {
@@ -161,10 +175,13 @@ void main() {
         }
     }
     vec2 uv = vec2(dot(p, u_tangent), dot(p, u_bitangent)) / u_cell;
-    vec3 albedo = mix(vec3(0.86, 0.86, 0.84), vec3(0.64, 0.66, 0.68), checker(uv)) * rim;
-    vec3 c = to_srgb(tonemap(shade(albedo, p, u_normal, 24.0, 0.04)));
-    float fog = 1.0 - exp(-pow(t / u_fade, 2.0));
-    f_color = vec4(mix(c, sky_color(dir), fog), 1.0);
+    // the two checker colours, linear: sRGB (0.86, 0.86, 0.84) and (0.64, 0.66, 0.68)
+    vec3 albedo = mix(vec3(0.717, 0.717, 0.682), vec3(0.375, 0.401, 0.428), checker(uv)) * (rim * rim);
+    vec3 c = to_srgb(tonemap(shade_linear(albedo, p, u_normal, 24.0, 0.0)));
+    float r = t / u_fade;
+    float fog = 1.0 - exp(-r * r);
+    if (fog > 0.002) c = mix(c, sky_color(dir), fog);
+    f_color = vec4(c, 1.0);
     vec4 clip = u_vp * vec4(p, 1.0);
     gl_FragDepth = min(clip.z / clip.w * 0.5 + 0.5, 0.9999999);
 }
@@ -222,6 +239,7 @@ flat in vec4 v_quat;
 flat in vec3 v_color;
 uniform mat4 u_proj;
 uniform mat4 u_inv_view;
+uniform float u_coverage;  // 1 when drawing multisampled with alpha-to-coverage: smooth edges
 out vec4 f_color;
 """
     + COMMON
@@ -234,9 +252,12 @@ void main() {
     // ray x = t d from the eye: |t d - c|^2 = r^2  ->  t^2 - 2 t (d.c) + c.c - r^2 = 0
     vec3 d = normalize(v_eye_pos);
     float b = dot(d, v_center);
-    float disc = b * b - dot(v_center, v_center) + v_radius * v_radius;
-    if (disc < 0.0) discard;
-    float t = b - sqrt(disc);
+    // distance from the centre to the ray; the pixel's share of the disc (edge antialiasing)
+    // is its distance inside the silhouette over the pixel's size there
+    float miss = sqrt(max(dot(v_center, v_center) - b * b, 0.0));
+    float alpha = clamp((v_radius - miss) / max(fwidth(miss), 1e-7) + 0.5, 0.0, 1.0);
+    if (u_coverage < 0.5 ? miss > v_radius : alpha <= 0.0) discard;
+    float t = b - sqrt(max(v_radius * v_radius - miss * miss, 0.0));
     vec3 hit = t * d;
     vec4 clip = u_proj * vec4(hit, 1.0);
     gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
@@ -246,7 +267,7 @@ void main() {
     vec3 local = rotate_inv(v_quat, n);
     float band = smoothstep(0.07, 0.10, abs(local.x));
     vec3 albedo = v_color * mix(0.84, 1.0, band);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), 1.0);
+    f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), u_coverage < 0.5 ? 1.0 : alpha);
 }
 """
 )
