@@ -147,10 +147,14 @@ def _collide_bodies(
             xp = xp - t * (lam_t * w_p)
             impulse = impulse + t * lam_t
 
-        # two-way: the body gets the opposite of the particle's impulse, lambda / h
+        # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
+        # and, as in position-based dynamics, the matching displacement lambda w_b of its centre
+        # (so that cloth held by its stretch limit can hold the body up instead of the two
+        # trading ever larger pushes over the substeps)
         if w_lin > zero:
             j = impulse / h
             wp.atomic_add(body_velocity, b, j * w_lin)
+            wp.atomic_add(body_position, b, impulse * w_lin)
             wp.atomic_add(body_angular_velocity, b, _inv_inertia_world(q, inv_i, wp.cross(r_b, j)))
     x[p] = xp
 
@@ -204,6 +208,7 @@ def _self_collide(
     particle_i: wp.array(dtype=wp.int32),
     particle_j: wp.array(dtype=wp.int32),
     reach: float_t,
+    skin: float_t,
     inv_cell: float_t,
     mask: int,
     cell_start: wp.array(dtype=wp.int32),
@@ -256,8 +261,10 @@ def _self_collide(
                             n = rel / dist
                         elif p < q:
                             n = -n
-                        # each particle of the pair takes its inverse-mass share of the push
-                        acc = acc + n * ((target - dist) * w_p / (w_p + inv_m[q]))
+                        # each particle of the pair takes its inverse-mass share of a push to
+                        # (1 + skin) target, so that layers resting on each other settle at the
+                        # thickness rather than just inside it
+                        acc = acc + n * (((float_t(1.0) + skin) * target - dist) * w_p / (w_p + inv_m[q]))
     delta[p] = acc
 
 
@@ -348,7 +355,7 @@ class SelfCollisionGrid:
         self.delta = wp.zeros(particle_count, dtype=vec3, device=device)
 
     def collide(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach: float, *,
-                cache: LaunchCache | None = None):
+                skin: float = 0.0, cache: LaunchCache | None = None):
         """Push apart particles closer than their mean thickness (grid neighbours excepted).
 
         Args:
@@ -357,6 +364,7 @@ class SelfCollisionGrid:
             thickness: [m], shape (P,).
             particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
             reach: the largest thickness [m]; hash cells are 2 reach wide, so each query visits 8 cells.
+            skin: pairs are pushed to (1 + skin) times their thickness.
             cache: recorded launches to replay.
         """
         n, dev = x.shape[0], x.device
@@ -368,7 +376,7 @@ class SelfCollisionGrid:
         wp.copy(self.cell_cursor, self.cell_start)
         launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
         # push pairs apart (Jacobi: every particle computes its own share, then all move)
-        launch(_self_collide, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach, inv_cell,
-                                  self.mask, self.cell_start, self.cell_count, self.cell_particles, self.delta],
+        launch(_self_collide, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach, skin,
+                                  inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles, self.delta],
                dev, cache)
         launch(_apply_delta, n, [x, self.delta], dev, cache)

@@ -32,8 +32,9 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 def grid_positions(size, resolution, position, orientation) -> np.ndarray:
     """World positions [m] of the grid particles, shape (nx * ny, 3), row-major with i fastest."""
     (w, h), (nx, ny) = size, resolution
-    xs = (np.arange(nx) / (nx - 1) - 0.5) * w
-    ys = (np.arange(ny) / (ny - 1) - 0.5) * h
+    # a single row or column sits on the centre line
+    xs = (np.arange(nx) / (nx - 1) - 0.5) * w if nx > 1 else np.zeros(1)
+    ys = (np.arange(ny) / (ny - 1) - 0.5) * h if ny > 1 else np.zeros(1)
     gx, gy = np.meshgrid(xs, ys)  # (ny, nx): row j, column i
     local = np.stack([gx.ravel(), gy.ravel(), np.zeros(nx * ny)], axis=1)
     return quat_rotate(np.asarray(orientation, dtype=np.float64), local) + np.asarray(position, dtype=np.float64)
@@ -41,6 +42,8 @@ def grid_positions(size, resolution, position, orientation) -> np.ndarray:
 
 def grid_triangles(nx: int, ny: int) -> np.ndarray:
     """Two triangles per grid quad, counter-clockwise seen from +z (normal +z), shape (T, 3), int32."""
+    if nx < 2 or ny < 2:
+        return np.zeros((0, 3), dtype=np.int32)
     i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
     a = (j * nx + i).ravel()
     b, c, d = a + 1, a + nx + 1, a + nx
@@ -56,7 +59,7 @@ def grid_springs(nx: int, ny: int) -> dict[str, np.ndarray]:
     idx = np.arange(nx * ny).reshape(ny, nx)
 
     def pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.stack([a.ravel(), b.ravel()], axis=1).astype(np.int32)
+        return np.stack([a.ravel(), b.ravel()], axis=1).astype(np.int32).reshape(-1, 2)
 
     structural = np.concatenate([pairs(idx[:, :-1], idx[:, 1:]), pairs(idx[:-1, :], idx[1:, :])])
     shear = np.concatenate([pairs(idx[:-1, :-1], idx[1:, 1:]), pairs(idx[:-1, 1:], idx[1:, :-1])])

@@ -106,6 +106,8 @@ class ClothSystem:
             fast folds, costs ~2x on a 64 x 64 cloth) instead of once per world step.
         internal_substeps: None (automatic, from the stable step) or a fixed number of cloth
             substeps per world substep.
+        contact_iterations: passes over stretch limit and body contacts per substep while some
+            body is near the cloth (1 pass otherwise).
 
     Args:
         world: the owning `World` (reads `gravity`, `dt`, `substeps`, `step_count`, `time`, `bodies`).
@@ -119,6 +121,7 @@ class ClothSystem:
         self.stretch_iterations = (2, 64)
         self.self_collision = True
         self.self_collision_every_substep = False
+        self.contact_iterations = 2
         self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
         self.internal_substeps: int | None = None
 
@@ -163,7 +166,7 @@ class ClothSystem:
 
         Args:
             size: (width along i, height along j) [m], both > 0.
-            resolution: (nx, ny) particles, both >= 2.
+            resolution: (nx, ny) particles (a 2 x 1 "cloth" is a single spring, handy for tests).
             position: centre [m], shape (3,).
             orientation: rotation of the cloth (x, y, z, w).
             mass: total mass [kg], spread evenly over the particles. Give `mass` or
@@ -185,8 +188,8 @@ class ClothSystem:
         if min(size) <= 0.0:
             raise ValueError(f"cloth size must be two lengths > 0 in m, got {size!r}")
         nx, ny = _pair(resolution, "resolution", int)
-        if nx < 2 or ny < 2:
-            raise ValueError(f"cloth resolution must be at least 2 x 2 particles, got {(nx, ny)!r}")
+        if nx < 1 or ny < 1 or nx * ny < 2:
+            raise ValueError(f"cloth resolution must be at least 2 particles, e.g. 2 x 1, got {(nx, ny)!r}")
         position = _vector(position, "position", 3)
         q = _vector(orientation, "orientation", 4)
         if np.linalg.norm(q) < 1e-12:
@@ -396,26 +399,33 @@ class ClothSystem:
                               a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
             self._substep_index += 1
 
-            # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
-                                  a["tether_pin"], a["tether_limit"], cache=cache)
-            lo_it, hi_it = self.stretch_iterations
-            self.last_stretch_sweeps = springs.limit_stretch(
-                a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"], self._violated,
-                min_iterations=lo_it, max_iterations=hi_it, cache=cache)
+            # constraints, solved together by repeating them while bodies are near (position-based
+            # dynamics): a stretch limit and a body contact solved once each would fight over
+            # the substeps and pump energy into a ball resting in a hammock
+            touching = self._candidates.shape[0] > 0
+            for it in range(self.contact_iterations if touching else 1):
+                # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
+                springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
+                                      a["tether_pin"], a["tether_limit"], cache=cache)
+                lo_it, hi_it = self.stretch_iterations
+                self.last_stretch_sweeps = springs.limit_stretch(
+                    a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
+                    self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
 
-            # self-collision: non-neighbouring particles at least their thickness apart
-            if self.self_collision and (self.self_collision_every_substep or remaining == 1):
-                self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                   a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, cache=cache)
+                # self-collision: non-neighbouring particles at least their thickness apart
+                if it == 0 and self.self_collision and (self.self_collision_every_substep or remaining == 1):
+                    self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                       a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
+                                       cache=cache)
 
-            # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
-            if self._candidates.shape[0]:
-                self._contacts_next.zero_()
-                collide.collide_bodies(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                                       a["particle_thickness"], a["particle_friction"], self._candidates,
-                                       world.bodies, self._contacts_prev, self._contacts_next, hi, cache=cache)
-                self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+                # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
+                if touching:
+                    self._contacts_next.zero_()
+                    collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
+                                           a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
+                                           self._candidates, world.bodies, self._contacts_prev,
+                                           self._contacts_next, hi, cache=cache)
+                    self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
             # velocities from the corrected positions
             springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
@@ -503,6 +513,25 @@ class ClothSystem:
         host[index] = value
         if self.device != "cpu":
             arr.assign(host)
+
+    def set_state(self, *, position=None, velocity=None) -> None:
+        """Overwrite particle positions [m] and/or velocities [m/s], each shape (P, 3).
+
+        Pinned particles also get `position` as their pin target.
+        """
+        p = self._particle_count
+        for name, values in (("particle_position", position), ("particle_velocity", velocity)):
+            if values is None:
+                continue
+            a = np.asarray(values, dtype=np.float64)
+            if a.shape != (p, 3) or not np.all(np.isfinite(a)):
+                raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
+            self._arrays[name].assign(a)
+            if name == "particle_position":
+                pinned = self.particle_inv_mass == 0.0
+                target = self._arrays["particle_pin_target"].numpy()[:p].copy()
+                target[pinned] = a[pinned]
+                self._arrays["particle_pin_target"].assign(target)
 
     # ------------------------------------------------------------------ views and diagnostics
 
