@@ -6,16 +6,19 @@ arrays (see `springs`, `wind` and `collide`):
 
 1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
 2. integrate: semi-implicit Euler; pinned particles move towards their targets;
-3. stretch limit: Provot's correction of structural springs stretched beyond (1 + max_stretch) l0;
-4. self-collision: particles closer than the thickness are pushed apart (spatial hash);
+3. self-collision (last substep of each world step): particles closer than the thickness are
+   pushed apart (spatial hash);
+4. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
+   beyond (1 + max_stretch) l0;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
    receive the opposite impulse;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
 
-Explicit springs are stable only for h^2 k / m small: when the world's substep is longer than
-the stable step of the stiffest spring over its lightest particle, each world substep is split
-into `internal_substeps` equal cloth substeps (see `springs.stable_substep`). Soft springs with
-the stretch limit look like stiff cloth at a fraction of the cost: that is Provot's point.
+The cloth keeps its own substep: explicit springs are stable only for h^2 k / m small, so each
+world step is split into the fewest equal cloth substeps that keep the stiffest spring on its
+lightest particle stable (see `springs.stable_substep` and `ClothSystem.substeps_for`); each
+runs during the world substep in which it ends, so bodies and cloth stay in step. Soft springs
+with the stretch limit look like stiff cloth at a fraction of the cost: that is Provot's point.
 """
 
 from __future__ import annotations
@@ -104,8 +107,8 @@ class ClothSystem:
         self_collision: push apart particles closer than their thickness.
         self_collision_every_substep: run self-collision at every cloth substep (robust against
             fast folds, costs ~2x on a 64 x 64 cloth) instead of once per world step.
-        internal_substeps: None (automatic, from the stable step) or a fixed number of cloth
-            substeps per world substep.
+        substeps: cloth substeps per world step; None (default) picks the fewest that keep the
+            springs stable, at least `min_substeps` (see `substeps_for`).
         contact_iterations: passes over stretch limit and body contacts per substep while some
             body is near the cloth (1 pass otherwise).
 
@@ -123,7 +126,8 @@ class ClothSystem:
         self.self_collision_every_substep = False
         self.contact_iterations = 2
         self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
-        self.internal_substeps: int | None = None
+        self.substeps: int | None = None
+        self.min_substeps = 1
 
         self._host: dict[str, np.ndarray] = {}  # static description, concatenated over cloths
         self._arrays: dict[str, wp.array] = {}
@@ -131,6 +135,10 @@ class ClothSystem:
         self._stable_h = math.inf
         self._step_seen = None
         self._substep_index = 0
+        self._cloth_total = 0
+        self._cloth_done = 0
+        self._cloth_h = 0.0
+        self._clock = 0.0
         self._pending_force: dict[int, np.ndarray] = {}
         self._external_active = False
         self._candidates = wp.zeros(0, dtype=wp.int32, device=self.device)
@@ -361,82 +369,101 @@ class ClothSystem:
 
     # ------------------------------------------------------------------ stepping
 
-    def substeps_for(self, h: float) -> int:
-        """Number of cloth substeps taken per world substep of length `h` [s]."""
-        if self.internal_substeps is not None:
-            return max(1, int(self.internal_substeps))
-        if not math.isfinite(self._stable_h):
-            return 1
-        return max(1, math.ceil(h / self._stable_h - 1e-9))
+    def substeps_for(self, dt: float) -> int:
+        """Number of cloth substeps per world step of `dt` seconds.
+
+        `substeps` if set, else the fewest that keep the springs stable (at least `min_substeps`).
+        """
+        if self.substeps is not None:
+            return max(1, int(self.substeps))
+        n = 1 if not math.isfinite(self._stable_h) else math.ceil(dt / self._stable_h - 1e-9)
+        return max(1, int(self.min_substeps), n)
 
     def substep(self, h: float) -> None:
-        """Advance every cloth by `h` seconds (one world substep), coupled to the world's bodies."""
+        """Advance the cloth through one world substep of `h` seconds, coupled to the world's bodies.
+
+        The cloth keeps its own clock: it takes `substeps_for(dt)` equal substeps per world step
+        (dt = h * world.substeps), each one run in the world substep during which it ends. With
+        the world at 8 substeps and a cloth stable at 4, every other world substep runs one
+        cloth substep twice as long; a cloth that needs more runs several per world substep.
+        """
         if self._particle_count == 0:
             return
         world = self.world
+        if self._step_seen != world.step_count or self._cloth_done >= self._cloth_total:
+            self._begin_step(h * max(1, int(world.substeps)))
+        self._clock += h
+        hc = self._cloth_h
+        # run the cloth substeps that end within this world substep (rounding: 1e-9 of a substep)
+        while self._cloth_done < self._cloth_total and self._clock >= (self._cloth_done + 1 - 1e-9) * hc:
+            self._cloth_substep(hc)
+            self._cloth_done += 1
+
+    def _cloth_substep(self, hi: float) -> None:
+        """One cloth substep of `hi` seconds: forces, integration, constraints, collisions, velocities."""
+        world = self.world
         a = self._arrays
-        n_inner = self.substeps_for(h)
-        hi = h / n_inner
-        if self._step_seen != world.step_count:
-            self._begin_step()
-        total = max(1, int(world.substeps)) * n_inner
-
+        total = self._cloth_total
         cache = self._cache
-        for _ in range(n_inner):
-            # forces: springs, then air on every triangle
-            springs.accumulate_spring_forces(a["particle_position"], a["particle_velocity"], a["spring_ids"],
-                                             a["spring_rest_length"], a["spring_stiffness"], a["spring_damping"],
-                                             a["particle_force"], cache=cache)
-            if self.wind is not None:
-                w = self.wind
-                accumulate_air_forces(a["particle_position"], a["particle_velocity"], a["particle_wind"],
-                                      a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
+        # forces: springs, then air on every triangle
+        springs.accumulate_spring_forces(a["particle_position"], a["particle_velocity"], a["spring_ids"],
+                                         a["spring_rest_length"], a["spring_stiffness"], a["spring_damping"],
+                                         a["particle_force"], cache=cache)
+        if self.wind is not None:
+            w = self.wind
+            accumulate_air_forces(a["particle_position"], a["particle_velocity"], a["particle_wind"],
+                                  a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
 
-            # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
-            remaining = max(1, total - self._substep_index)
-            springs.integrate(a["particle_position"], a["particle_velocity"], a["particle_position_prev"],
-                              a["particle_force"], a["particle_external_force"], a["particle_inv_mass"],
-                              a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
-            self._substep_index += 1
+        # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
+        remaining = max(1, total - self._substep_index)
+        springs.integrate(a["particle_position"], a["particle_velocity"], a["particle_position_prev"],
+                          a["particle_force"], a["particle_external_force"], a["particle_inv_mass"],
+                          a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
+        self._substep_index += 1
 
-            # constraints, solved together by repeating them while bodies are near (position-based
-            # dynamics): a stretch limit and a body contact solved once each would fight over
-            # the substeps and pump energy into a ball resting in a hammock
-            touching = self._candidates.shape[0] > 0
-            for it in range(self.contact_iterations if touching else 1):
-                # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-                springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
-                                      a["tether_pin"], a["tether_limit"], cache=cache)
-                lo_it, hi_it = self.stretch_iterations
-                self.last_stretch_sweeps = springs.limit_stretch(
-                    a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
-                    self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
+        # self-collision: non-neighbouring particles at least their thickness apart (before the
+        # stretch limit, so that pushes between crumpled layers cannot over-stretch springs)
+        if self.self_collision and (self.self_collision_every_substep or remaining == 1):
+            self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                               a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, cache=cache)
 
-                # self-collision: non-neighbouring particles at least their thickness apart
-                if it == 0 and self.self_collision and (self.self_collision_every_substep or remaining == 1):
-                    self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                       a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
-                                       cache=cache)
+        # constraints, solved together by repeating them while bodies are near (position-based
+        # dynamics): a stretch limit and a body contact solved once each would fight over
+        # the substeps and pump energy into a ball resting in a hammock
+        touching = self._candidates.shape[0] > 0
+        for it in range(self.contact_iterations if touching else 1):
+            # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
+            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
+                                  a["tether_pin"], a["tether_limit"], cache=cache)
+            lo_it, hi_it = self.stretch_iterations
+            self.last_stretch_sweeps = springs.limit_stretch(
+                a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
+                self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
 
-                # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
-                if touching:
-                    self._contacts_next.zero_()
-                    collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
-                                           a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
-                                           self._candidates, world.bodies, self._contacts_prev,
-                                           self._contacts_next, hi, cache=cache)
-                    self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
-            # velocities from the corrected positions
-            springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
-                                      hi, cache=cache)
+            # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
+            if touching:
+                self._contacts_next.zero_()
+                collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
+                                       a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
+                                       self._candidates, world.bodies, self._contacts_prev,
+                                       self._contacts_next, hi, cache=cache)
+                self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
-    def _begin_step(self) -> None:
-        """Once per world step: user forces, wind samples, candidate bodies."""
+        # velocities from the corrected positions
+        springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
+                                  hi, cache=cache)
+
+    def _begin_step(self, dt: float) -> None:
+        """Once per world step of `dt` seconds: cloth substeps, user forces, wind, candidate bodies."""
         world = self.world
         a = self._arrays
         self._step_seen = world.step_count
         self._substep_index = 0
+        self._cloth_total = self.substeps_for(dt)
+        self._cloth_h = dt / self._cloth_total
+        self._cloth_done = 0
+        self._clock = 0.0
         p = self._particle_count
 
         # user forces apply during this step only
@@ -460,8 +487,8 @@ class ClothSystem:
         lo, hi = x.min(axis=0), x.max(axis=0)
         thick = self._host["particle_thickness"]
         self._reach = float(thick.max())
-        reach = self._reach + float(world.dt) * (float(np.sqrt((v * v).sum(axis=1).max())) + 1.0)
-        candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, float(world.dt))
+        reach = self._reach + dt * (float(np.sqrt((v * v).sum(axis=1).max())) + 1.0)
+        candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
         if candidates.shape[0] != self._candidates.shape[0] or np.any(candidates != self._candidates.numpy()):
             self._candidates = wp.array(candidates, dtype=wp.int32, device=self.device)
         n_bodies = world.bodies.count
