@@ -121,7 +121,7 @@ class ClothSystem:
         self.device = world.device
         self.cloths: list[Cloth] = []
         self.wind: Wind | None = None
-        self.stretch_iterations = (2, 64)
+        self.stretch_iterations = (1, 64)
         self.self_collision = True
         self.self_collision_every_substep = False
         self.contact_iterations = 2
@@ -142,6 +142,8 @@ class ClothSystem:
         self._pending_force: dict[int, np.ndarray] = {}
         self._external_active = False
         self._candidates = wp.zeros(0, dtype=wp.int32, device=self.device)
+        self._candidates_host = np.zeros(0, dtype=np.int32)
+        self._reach = 0.0
         self._contacts_prev = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._wind_modes = None
@@ -333,6 +335,7 @@ class ClothSystem:
         self._arrays["structural_strain"] = wp.zeros(len(self._host["structural_ids"]), dtype=float_t,
                                                      device=self.device)
         self._grid = collide.SelfCollisionGrid(p, self.device)
+        self._reach = float(self._host["particle_thickness"].max())
         self._update_pins()
 
     def _update_pins(self) -> None:
@@ -482,14 +485,16 @@ class ClothSystem:
                         a["particle_wind"], cache=self._cache)
 
         # bodies that can reach the cloth during this step
-        x = a["particle_position"].numpy()[:p]
-        v = a["particle_velocity"].numpy()[:p]
-        lo, hi = x.min(axis=0), x.max(axis=0)
-        thick = self._host["particle_thickness"]
-        self._reach = float(thick.max())
-        reach = self._reach + dt * (float(np.sqrt((v * v).sum(axis=1).max())) + 1.0)
-        candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
-        if candidates.shape[0] != self._candidates.shape[0] or np.any(candidates != self._candidates.numpy()):
+        n_bodies = world.bodies.count
+        candidates = self._candidates_host[:0]
+        if n_bodies:
+            x = a["particle_position"].numpy()[:p]
+            v = a["particle_velocity"].numpy()[:p]
+            lo, hi = x.min(axis=0), x.max(axis=0)
+            reach = self._reach + dt * (float(np.sqrt(np.einsum("ij,ij->i", v, v).max())) + 1.0)
+            candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
+        if not np.array_equal(candidates, self._candidates_host):
+            self._candidates_host = candidates
             self._candidates = wp.array(candidates, dtype=wp.int32, device=self.device)
         n_bodies = world.bodies.count
         if self._contacts_prev.shape[0] < n_bodies:
