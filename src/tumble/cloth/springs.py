@@ -196,7 +196,8 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         stretch_ids: particle pairs of the limited (structural) springs, shape (s, 2) int32.
         stretch_limit: largest allowed length (1 + max_stretch) l0 [m], shape (s,).
         violated: scratch flag, shape (1,) int32.
-        min_iterations, max_iterations: bounds on the number of sweeps.
+        min_iterations, max_iterations: bounds on the number of sweeps (0: check first, sweep only
+            if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
             inside the limit rather than creeping up to it.
         cache: recorded launches to replay.
@@ -209,7 +210,7 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         return 0
     flag = violated.numpy() if violated.device.is_cpu else None
     it = 0
-    target = max(1, min_iterations)
+    target = max(0, min_iterations)
     while True:
         while it < min(target, max_iterations):
             launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, count, it % 2],

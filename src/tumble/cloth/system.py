@@ -6,10 +6,10 @@ arrays (see `springs`, `wind` and `collide`):
 
 1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
 2. integrate: semi-implicit Euler; pinned particles move towards their targets;
-3. self-collision (last substep of each world step): particles closer than the thickness are
-   pushed apart (spatial hash);
-4. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
+3. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
    beyond (1 + max_stretch) l0;
+4. self-collision (last substep of each world step): particles closer than the thickness are
+   pushed apart (spatial hash), then the stretch limit is checked again;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
    receive the opposite impulse;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
@@ -424,12 +424,6 @@ class ClothSystem:
                           a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
         self._substep_index += 1
 
-        # self-collision: non-neighbouring particles at least their thickness apart (before the
-        # stretch limit, so that pushes between crumpled layers cannot over-stretch springs)
-        if self.self_collision and (self.self_collision_every_substep or remaining == 1):
-            self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                               a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, cache=cache)
-
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over
         # the substeps and pump energy into a ball resting in a hammock
@@ -442,6 +436,16 @@ class ClothSystem:
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
                 self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
+
+            # self-collision: non-neighbouring particles at least their thickness apart; then the
+            # stretch limit again, only if those pushes over-stretched a spring
+            if self.self_collision and (self.self_collision_every_substep or remaining == 1):
+                self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                   a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
+                                   cache=cache)
+                springs.limit_stretch(a["particle_position"], a["particle_inv_mass"], a["stretch_ids"],
+                                      a["stretch_limit"], self._violated, min_iterations=0,
+                                      max_iterations=hi_it, cache=cache)
 
 
             # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
