@@ -67,6 +67,13 @@ CONTACT_FIELDS = {
     "contact_r_b": vec3,
     "contact_tangent1": vec3,
     "contact_tangent2": vec3,
+    # angular velocity change per unit impulse along n, t1, t2: I^-1 (r x d), world frame
+    "contact_angular_a_n": vec3,
+    "contact_angular_b_n": vec3,
+    "contact_angular_a_t1": vec3,
+    "contact_angular_b_t1": vec3,
+    "contact_angular_a_t2": vec3,
+    "contact_angular_b_t2": vec3,
     "contact_mass_n": float_t,  # effective masses [kg]
     "contact_mass_t1": float_t,
     "contact_mass_t2": float_t,
@@ -100,6 +107,8 @@ class Bodies:
     w: wp.array(dtype=vec3)
     inv_mass: wp.array(dtype=float_t)
     inv_inertia: wp.array(dtype=vec3)
+    dx: wp.array(dtype=vec3)  # displacement since the start of the step
+    dtheta: wp.array(dtype=vec3)  # rotation vector accumulated since the start of the step
 
 
 @wp.struct
@@ -116,6 +125,12 @@ class Contacts:
     r_b: wp.array(dtype=vec3)
     t1: wp.array(dtype=vec3)
     t2: wp.array(dtype=vec3)
+    ang_a_n: wp.array(dtype=vec3)
+    ang_b_n: wp.array(dtype=vec3)
+    ang_a_t1: wp.array(dtype=vec3)
+    ang_b_t1: wp.array(dtype=vec3)
+    ang_a_t2: wp.array(dtype=vec3)
+    ang_b_t2: wp.array(dtype=vec3)
     mass_n: wp.array(dtype=float_t)
     mass_t1: wp.array(dtype=float_t)
     mass_t2: wp.array(dtype=float_t)
@@ -150,19 +165,34 @@ def _effective_mass(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
 
 
 @wp.func
-def _relative_velocity(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3):
-    return b.v[ib] + wp.cross(b.w[ib], rb) - b.v[ia] - wp.cross(b.w[ia], ra)
+def _push(b: Bodies, ia: int, ib: int, P: vec3, dwa: vec3, dwb: vec3, serial: int):
+    """Apply linear impulse P to b and -P to a, with the given angular velocity changes.
+
+    Equal and opposite impulses conserve momentum exactly. `serial` (CPU): plain updates, one
+    contact after another (Gauss-Seidel); otherwise atomics (CUDA).
+    """
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    if serial != 0:
+        if ima > float_t(0.0):
+            b.v[ia] = b.v[ia] - P * ima
+            b.w[ia] = b.w[ia] - dwa
+        if imb > float_t(0.0):
+            b.v[ib] = b.v[ib] + P * imb
+            b.w[ib] = b.w[ib] + dwb
+    else:
+        if ima > float_t(0.0):
+            wp.atomic_sub(b.v, ia, P * ima)
+            wp.atomic_sub(b.w, ia, dwa)
+        if imb > float_t(0.0):
+            wp.atomic_add(b.v, ib, P * imb)
+            wp.atomic_add(b.w, ib, dwb)
 
 
 @wp.func
-def _apply(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, P: vec3):
-    """Apply impulse P to b at r_b and -P to a at r_a (equal and opposite: momentum is conserved)."""
-    if b.inv_mass[ia] > float_t(0.0):
-        wp.atomic_sub(b.v, ia, P * b.inv_mass[ia])
-        wp.atomic_sub(b.w, ia, inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, P)))
-    if b.inv_mass[ib] > float_t(0.0):
-        wp.atomic_add(b.v, ib, P * b.inv_mass[ib])
-        wp.atomic_add(b.w, ib, inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, P)))
+def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
+    """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
+    return wp.dot(b.v[ib] - b.v[ia], d) + wp.dot(b.w[ib], wp.cross(rb, d)) - wp.dot(b.w[ia], wp.cross(ra, d))
 
 
 # ---------------------------------------------------------------------------- warm-start matching
@@ -298,6 +328,12 @@ def _prepare(
     t2 = wp.cross(n, t1)
     c.t1[k] = t1
     c.t2[k] = t2
+    c.ang_a_n[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, n))
+    c.ang_b_n[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, n))
+    c.ang_a_t1[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t1))
+    c.ang_b_t1[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t1))
+    c.ang_a_t2[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t2))
+    c.ang_b_t2[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t2))
     c.mass_n[k] = _effective_mass(b, ia, ib, ra, rb, n)
     c.mass_t1[k] = _effective_mass(b, ia, ib, ra, rb, t1)
     c.mass_t2[k] = _effective_mass(b, ia, ib, ra, rb, t2)
@@ -306,7 +342,7 @@ def _prepare(
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
     # approach speed at impact: a gap s closed under relative acceleration g_n along n gives
     # vn_impact^2 = vn^2 - 2 g_n s, so restitution does not lose the speed gained within the step
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = _speed_along(b, ia, ib, ra, rb, n)
     s = c.separation[k]
     if s > float_t(0.0):
         ga = float_t(0.0)
@@ -331,12 +367,15 @@ def _prepare(
 
 
 @wp.kernel
-def _warm_start(c: Contacts, b: Bodies):
+def _warm_start(c: Contacts, b: Bodies, serial: int):
     k = wp.tid()
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    P = c.normal[k] * c.jn[k] + c.t1[k] * c.jt1[k] + c.t2[k] * c.jt2[k]
-    _apply(b, ia, ib, c.r_a[k], c.r_b[k], P)
+    jn = c.jn[k]
+    j1 = c.jt1[k]
+    j2 = c.jt2[k]
+    P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
+    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
+    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+    _push(b, c.body_a[k], c.body_b[k], P, dwa, dwb, serial)
 
 
 @wp.kernel
@@ -350,6 +389,7 @@ def _solve(
     impulse_scale: float_t,
     max_push: float_t,
     slop: float_t,
+    serial: int,
 ):
     k = wp.tid()
     ia = c.body_a[k]
@@ -359,14 +399,13 @@ def _solve(
     rb = c.r_b[k]
     relax = c.scale[k]
 
-    # friction: Coulomb, |jt| <= mu jn, clamped on the disc
+    # friction first: Coulomb, |jt| <= mu jn, clamped on the disc
     t1 = c.t1[k]
     t2 = c.t2[k]
-    dv = _relative_velocity(b, ia, ib, ra, rb)
     j1_old = c.jt1[k]
     j2_old = c.jt2[k]
-    j1 = j1_old - c.mass_t1[k] * wp.dot(dv, t1) * relax
-    j2 = j2_old - c.mass_t2[k] * wp.dot(dv, t2) * relax
+    j1 = j1_old - c.mass_t1[k] * _speed_along(b, ia, ib, ra, rb, t1) * relax
+    j2 = j2_old - c.mass_t2[k] * _speed_along(b, ia, ib, ra, rb, t2) * relax
     limit = c.friction[k] * c.jn[k]
     norm = wp.sqrt(j1 * j1 + j2 * j2)
     if norm > limit:
@@ -375,14 +414,18 @@ def _solve(
         j2 = j2 * f
     c.jt1[k] = j1
     c.jt2[k] = j2
-    _apply(b, ia, ib, ra, rb, t1 * (j1 - j1_old) + t2 * (j2 - j2_old))
+    d1 = j1 - j1_old
+    d2 = j2 - j2_old
+    _push(b, ia, ib, t1 * d1 + t2 * d2, c.ang_a_t1[k] * d1 + c.ang_a_t2[k] * d2,
+          c.ang_b_t1[k] * d1 + c.ang_b_t2[k] * d2, serial)
 
-    # current separation from the anchors carried along with both bodies
-    pa = b.x[ia] + wp.quat_rotate(b.q[ia], c.local_a[k])
-    pb = b.x[ib] + wp.quat_rotate(b.q[ib], c.local_b[k])
-    s = wp.dot(n, pb - pa)
+    # current separation, linearised in the motion since the step began:
+    # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
+    s = c.separation[k] + wp.dot(
+        n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
 
-    # normal: speculative (s > 0) lets the gap close in one substep; overlap pushes out softly
+    # normal: speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is
+    # pushed out softly (bias) and only in the biased pass
     bias = float_t(0.0)
     ms = float_t(1.0)
     isc = float_t(0.0)
@@ -392,17 +435,17 @@ def _solve(
         bias = wp.max(bias_rate * (s + slop), -max_push)
         ms = mass_scale
         isc = impulse_scale
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = _speed_along(b, ia, ib, ra, rb, n)
     jn_old = c.jn[k]
-    dj = (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax
-    jn = wp.max(jn_old + dj, float_t(0.0))
+    jn = wp.max(jn_old + (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
     c.jn[k] = jn
     c.jn_max[k] = wp.max(c.jn_max[k], jn)
-    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+    dj = jn - jn_old
+    _push(b, ia, ib, n * dj, c.ang_a_n[k] * dj, c.ang_b_n[k] * dj, serial)
 
 
 @wp.kernel
-def _restitution(c: Contacts, b: Bodies, threshold: float_t):
+def _restitution(c: Contacts, b: Bodies, threshold: float_t, serial: int):
     k = wp.tid()
     vrel = c.relative_velocity[k]
     if vrel > -threshold or c.jn_max[k] == float_t(0.0) or c.restitution[k] == float_t(0.0):
@@ -410,14 +453,13 @@ def _restitution(c: Contacts, b: Bodies, threshold: float_t):
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
-    ra = c.r_a[k]
-    rb = c.r_b[k]
     # drive the normal velocity to -e times the approach speed
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = _speed_along(b, ia, ib, c.r_a[k], c.r_b[k], n)
     jn_old = c.jn[k]
     jn = wp.max(jn_old - c.mass_n[k] * (vn + c.restitution[k] * vrel) * c.scale[k], float_t(0.0))
     c.jn[k] = jn
-    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+    dj = jn - jn_old
+    _push(b, ia, ib, n * dj, c.ang_a_n[k] * dj, c.ang_b_n[k] * dj, serial)
 
 
 # ---------------------------------------------------------------------------- host side
@@ -458,6 +500,9 @@ class ContactSet(ArraySet):
             a["contact_body_a"], a["contact_body_b"], a["contact_normal"], a["contact_separation"])
         c.local_a, c.local_b, c.r_a, c.r_b = a["contact_local_a"], a["contact_local_b"], a["contact_r_a"], a["contact_r_b"]
         c.t1, c.t2 = a["contact_tangent1"], a["contact_tangent2"]
+        c.ang_a_n, c.ang_b_n = a["contact_angular_a_n"], a["contact_angular_b_n"]
+        c.ang_a_t1, c.ang_b_t1 = a["contact_angular_a_t1"], a["contact_angular_b_t1"]
+        c.ang_a_t2, c.ang_b_t2 = a["contact_angular_a_t2"], a["contact_angular_b_t2"]
         c.mass_n, c.mass_t1, c.mass_t2 = a["contact_mass_n"], a["contact_mass_t1"], a["contact_mass_t2"]
         c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
         c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
@@ -511,11 +556,17 @@ class ContactSet(ArraySet):
         p.count = self.count
 
 
+def _serial(contacts: ContactSet) -> int:
+    """1 where kernels run their threads one after another (the CPU): plain Gauss-Seidel updates."""
+    return 1 if contacts.device == "cpu" else 0
+
+
 def body_struct(bodies) -> Bodies:
     a = bodies.arrays
     s = Bodies()
     s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
     s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
+    s.dx, s.dtheta = a["body_delta_position"], a["body_delta_rotation"]
     return s
 
 
@@ -552,7 +603,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
     """Apply the accumulated impulses of the last substep (or step) to the velocities."""
     if contacts.count:
         wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies)])
+                  inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
 
 
 def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
@@ -562,11 +613,11 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
     bias_rate, mass_scale, impulse_scale = softness(h)
     wp.launch(_solve, dim=contacts.count, device=contacts.device,
               inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), bias_rate, mass_scale,
-                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP])
+                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
 
 
 def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
     """Bounce the contacts that approached faster than `threshold` [m/s]."""
     if contacts.count:
         wp.launch(_restitution, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies), threshold])
+                  inputs=[contacts.struct(), body_struct(bodies), threshold, _serial(contacts)])

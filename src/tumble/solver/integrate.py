@@ -54,12 +54,16 @@ def _integrate_positions(
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
     w: wp.array(dtype=vec3),
+    dx: wp.array(dtype=vec3),
+    dtheta: wp.array(dtype=vec3),
 ):
     i = wp.tid()
     if inv_mass[i] == float_t(0.0):
         return
     x[i] = x[i] + v[i] * h
+    dx[i] = dx[i] + v[i] * h
     wi = w[i]
+    dtheta[i] = dtheta[i] + wi * h
     angle = wp.length(wi) * h
     if angle > float_t(0.0):
         # q' = exp(w h / 2) q: rotation by |w| h about w / |w|
@@ -96,7 +100,14 @@ def integrate_positions(bodies, h: float) -> None:
     a = bodies.arrays
     wp.launch(_integrate_positions, dim=bodies.count, device=bodies.device,
               inputs=[a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
-                      a["body_velocity"], a["body_angular_velocity"]])
+                      a["body_velocity"], a["body_angular_velocity"], a["body_delta_position"],
+                      a["body_delta_rotation"]])
+
+
+def begin_step(bodies) -> None:
+    """Zero the motion accumulated since the step began (read by the contact solver)."""
+    bodies.arrays["body_delta_position"].zero_()
+    bodies.arrays["body_delta_rotation"].zero_()
 
 
 def clear_forces(bodies) -> None:
