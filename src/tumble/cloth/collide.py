@@ -9,12 +9,13 @@ Stages:
   that are closer than their thickness to a plane, sphere or box surface back out, applies
   Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
   equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
-- `self_collide` builds a spatial hash of particles by counting sort (cell size = the largest
-  thickness) and pushes apart particle pairs closer than their thickness, except near
-  neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
-  Cost O(P) per substep. For cloth that does not pass through itself, choose a thickness
-  close to the grid spacing: particles farther apart than the thickness can slip between
-  each other.
+- `SelfCollisionGrid.find_pairs` (once per world step) builds a spatial hash of particles by
+  counting sort and lists the particle pairs closer than their thickness plus a margin, except
+  near neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
+  Cost O(P). `SelfCollisionGrid.separate` (every substep) pushes listed pairs closer than
+  their thickness apart; cost O(pairs), small unless the cloth is folded. For cloth that does
+  not pass through itself, choose a thickness close to the grid spacing: particles farther
+  apart than the thickness can slip between each other.
 
 Contacts are resolved on positions, as in position-based dynamics (Mueller et al. 2007), with
 inverse-mass weighting: for penetration depth d along normal n, with particle and body inverse
@@ -200,78 +201,94 @@ def _hash_fill(
 
 
 @wp.kernel
-def _self_collide(
+def _find_pairs(
     x: wp.array(dtype=vec3),
     inv_m: wp.array(dtype=float_t),
     thickness: wp.array(dtype=float_t),
     particle_cloth: wp.array(dtype=wp.int32),
     particle_i: wp.array(dtype=wp.int32),
     particle_j: wp.array(dtype=wp.int32),
+    margin: float_t,
     reach: float_t,
-    skin: float_t,
     inv_cell: float_t,
     mask: int,
     cell_start: wp.array(dtype=wp.int32),
     cell_count: wp.array(dtype=wp.int32),
     cell_particles: wp.array(dtype=wp.int32),
-    delta: wp.array(dtype=vec3),
+    pair_count: wp.array(dtype=wp.int32),
+    pairs: wp.array2d(dtype=wp.int32),
 ):
     p = wp.tid()
-    w_p = inv_m[p]
-    acc = vec3(float_t(0.0))
-    if w_p > float_t(0.0):
-        xp = x[p]
-        # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
-        # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
-        lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
-        cloth = particle_cloth[p]
-        pi = particle_i[p]
-        pj = particle_j[p]
-        for dz in range(2):
-            for dy in range(2):
-                for dx in range(2):
-                    cx = lo[0] + dx
-                    cy = lo[1] + dy
-                    cz = lo[2] + dz
-                    slot = _cell_hash(cx, cy, cz, mask)
-                    e = cell_start[slot]
-                    end = e + cell_count[slot]
-                    while e < end:
-                        q = cell_particles[e]
-                        e += 1
-                        if q == p:
+    xp = x[p]
+    # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
+    # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
+    lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
+    cloth = particle_cloth[p]
+    pi = particle_i[p]
+    pj = particle_j[p]
+    capacity = pairs.shape[0]
+    for dz in range(2):
+        for dy in range(2):
+            for dx in range(2):
+                cx = lo[0] + dx
+                cy = lo[1] + dy
+                cz = lo[2] + dz
+                slot = _cell_hash(cx, cy, cz, mask)
+                e = cell_start[slot]
+                end = e + cell_count[slot]
+                while e < end:
+                    q = cell_particles[e]
+                    e += 1
+                    # each pair once (p < q); pairs of two pins never move
+                    if q <= p or (inv_m[p] + inv_m[q]) <= float_t(0.0):
+                        continue
+                    xq = x[q]
+                    rel = xp - xq
+                    near = float_t(0.5) * (thickness[p] + thickness[q]) + margin
+                    if wp.dot(rel, rel) >= near * near:
+                        continue
+                    # the slot may hold other cells too (hash collisions): count each pair once
+                    cq = _cell_of(xq, inv_cell)
+                    if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                        continue
+                    # grid neighbours are held apart by springs, not by collisions
+                    if particle_cloth[q] == cloth:
+                        if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
                             continue
-                        xq = x[q]
-                        rel = xp - xq
-                        dist2 = wp.dot(rel, rel)
-                        target = float_t(0.5) * (thickness[p] + thickness[q])
-                        if dist2 >= target * target:
-                            continue
-                        # the slot may hold other cells too (hash collisions): count each pair once
-                        cq = _cell_of(xq, inv_cell)
-                        if cq[0] != cx or cq[1] != cy or cq[2] != cz:
-                            continue
-                        # grid neighbours are held apart by springs, not by collisions
-                        if particle_cloth[q] == cloth:
-                            if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
-                                continue
-                        dist = wp.sqrt(dist2)
-                        n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
-                        if dist > float_t(1.0e-12):
-                            n = rel / dist
-                        elif p < q:
-                            n = -n
-                        # each particle of the pair takes its inverse-mass share of a push to
-                        # (1 + skin) target, so that layers resting on each other settle at the
-                        # thickness rather than just inside it
-                        acc = acc + n * (((float_t(1.0) + skin) * target - dist) * w_p / (w_p + inv_m[q]))
-    delta[p] = acc
+                    k = wp.atomic_add(pair_count, 0, 1)
+                    if k < capacity:
+                        pairs[k, 0] = p
+                        pairs[k, 1] = q
 
 
 @wp.kernel
-def _apply_delta(x: wp.array(dtype=vec3), delta: wp.array(dtype=vec3)):
-    p = wp.tid()
-    x[p] = x[p] + delta[p]
+def _separate_pairs(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    thickness: wp.array(dtype=float_t),
+    pairs: wp.array2d(dtype=wp.int32),
+    count: int,
+):
+    k = wp.tid()
+    if k >= count:
+        return
+    p = pairs[k, 0]
+    q = pairs[k, 1]
+    rel = x[p] - x[q]
+    dist = wp.length(rel)
+    target = float_t(0.5) * (thickness[p] + thickness[q])
+    if dist >= target:
+        return
+    w_p = inv_m[p]
+    w_q = inv_m[q]
+    n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
+    if dist > float_t(1.0e-12):
+        n = rel / dist
+    # push both to distance `target`, in proportion to their inverse masses (Gauss-Seidel on
+    # the CPU, where kernels run serially)
+    c = n * ((target - dist) / (w_p + w_q))
+    wp.atomic_add(x, p, c * w_p)
+    wp.atomic_sub(x, q, c * w_q)
 
 
 def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float, dt: float) -> np.ndarray:
@@ -337,7 +354,7 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies,
 
 
 class SelfCollisionGrid:
-    """Preallocated buffers of the particle spatial hash (counting sort into hashed cells).
+    """Preallocated buffers of the particle spatial hash and of the candidate pair list.
 
     Args:
         particle_count: P.
@@ -352,31 +369,63 @@ class SelfCollisionGrid:
         self.cell_cursor = wp.zeros(self.table_size, dtype=wp.int32, device=device)
         self.particle_cell = wp.zeros(particle_count, dtype=wp.int32, device=device)
         self.cell_particles = wp.zeros(particle_count, dtype=wp.int32, device=device)
-        self.delta = wp.zeros(particle_count, dtype=vec3, device=device)
+        self.pair_count = wp.zeros(1, dtype=wp.int32, device=device)
+        self.pairs = wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
+        self.count = 0  # pairs found by the last `find_pairs`
+        self.overflow = 0  # pairs that did not fit (the buffer grows for the next step)
 
-    def collide(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach: float, *,
-                skin: float = 0.0, cache: LaunchCache | None = None):
-        """Push apart particles closer than their mean thickness (grid neighbours excepted).
+    def find_pairs(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, max_thickness: float,
+                   margin: float, *, cache: LaunchCache | None = None) -> int:
+        """Once per world step: every non-neighbour pair within its mean thickness + `margin`.
 
         Args:
-            x: positions [m], shape (P,) vec3 (corrected in place).
+            x: positions [m], shape (P,) vec3.
             inv_mass: [1/kg], shape (P,).
             thickness: [m], shape (P,).
             particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
-            reach: the largest thickness [m]; hash cells are 2 reach wide, so each query visits 8 cells.
-            skin: pairs are pushed to (1 + skin) times their thickness.
+            max_thickness: the largest thickness [m].
+            margin: how much closer two particles may come during the step [m].
             cache: recorded launches to replay.
+
+        Returns:
+            The number of pairs kept in `pairs`.
         """
         n, dev = x.shape[0], x.device
-        inv_cell = 0.5 / reach
+        reach = max_thickness + margin
+        inv_cell = 0.5 / reach  # cells 2 reach wide: each query visits 2 x 2 x 2 cells
         # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
         self.cell_count.zero_()
         launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.cell_count], dev, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
         wp.copy(self.cell_cursor, self.cell_start)
         launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
-        # push pairs apart (Jacobi: every particle computes its own share, then all move)
-        launch(_self_collide, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach, skin,
-                                  inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles, self.delta],
-               dev, cache)
-        launch(_apply_delta, n, [x, self.delta], dev, cache)
+        # candidate pairs
+        self.pair_count.zero_()
+        launch(_find_pairs, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, margin, reach,
+                                inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles,
+                                self.pair_count, self.pairs], dev, cache)
+        found = int(self.pair_count.numpy()[0])
+        capacity = self.pairs.shape[0]
+        self.count = min(found, capacity)
+        self.overflow = max(0, found - capacity)
+        if self.overflow:
+            # keep this step's truncated list; make room for the next step
+            kept = self.pairs.numpy()[: self.count].copy()
+            self.pairs = wp.zeros((2 * found, 2), dtype=wp.int32, device=dev)
+            self.pairs.assign(np.concatenate([kept, np.zeros((2 * found - self.count, 2), np.int32)]))
+        return self.count
+
+    def separate(self, x, inv_mass, thickness, *, cache: LaunchCache | None = None) -> None:
+        """Every substep: push the listed pairs that are closer than their mean thickness apart.
+
+        Args:
+            x: positions [m], shape (P,) vec3 (corrected in place).
+            inv_mass: [1/kg], shape (P,).
+            thickness: [m], shape (P,).
+            cache: recorded launches to replay.
+        """
+        if self.count:
+            # launched over the whole buffer (threads past `count` return), so the recorded
+            # launch is reused whatever the count
+            launch(_separate_pairs, self.pairs.shape[0], [x, inv_mass, thickness, self.pairs, self.count],
+                   x.device, cache)

@@ -8,8 +8,9 @@ arrays (see `springs`, `wind` and `collide`):
 2. integrate: semi-implicit Euler; pinned particles move towards their targets;
 3. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
    beyond (1 + max_stretch) l0;
-4. self-collision (last substep of each world step): particles closer than the thickness are
-   pushed apart (spatial hash), then the stretch limit is checked again;
+4. self-collision: listed particle pairs closer than their thickness are pushed apart (the
+   pairs come from a spatial hash built once per world step), then the stretch limit is
+   checked again;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
    receive the opposite impulse;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
@@ -104,9 +105,8 @@ class ClothSystem:
     Tuning attributes (change at any time):
         stretch_iterations: (min, max) Provot sweeps per substep; sweeps stop after the minimum
             as soon as one finds no structural spring over its limit.
-        self_collision: push apart particles closer than their thickness.
-        self_collision_every_substep: run self-collision at every cloth substep (robust against
-            fast folds, costs ~2x on a 64 x 64 cloth) instead of once per world step.
+        self_collision: push apart particles closer than their thickness (pairs found once per
+            world step, separated at every substep).
         substeps: cloth substeps per world step; None (default) picks the fewest that keep the
             springs stable, at least `min_substeps` (see `substeps_for`).
         contact_iterations: passes over stretch limit and body contacts per substep while some
@@ -123,7 +123,6 @@ class ClothSystem:
         self.wind: Wind | None = None
         self.stretch_iterations = (1, 64)
         self.self_collision = True
-        self.self_collision_every_substep = False
         self.contact_iterations = 2
         self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
         self.substeps: int | None = None
@@ -437,16 +436,14 @@ class ClothSystem:
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
                 self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
 
-            # self-collision: non-neighbouring particles at least their thickness apart; then the
-            # stretch limit again, only if those pushes over-stretched a spring
-            if self.self_collision and (self.self_collision_every_substep or remaining == 1):
-                self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                   a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
-                                   cache=cache)
+            # self-collision: pairs listed at the start of the step pushed to their thickness; then
+            # the stretch limit again, only if those pushes over-stretched a spring
+            if self.self_collision and self._grid.count:
+                self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                    cache=cache)
                 springs.limit_stretch(a["particle_position"], a["particle_inv_mass"], a["stretch_ids"],
                                       a["stretch_limit"], self._violated, min_iterations=0,
                                       max_iterations=hi_it, cache=cache)
-
 
             # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
             if touching:
@@ -488,14 +485,26 @@ class ClothSystem:
             sample_wind(a["particle_position"], self.wind.velocity, wave, amplitude, omega, phase, world.time,
                         a["particle_wind"], cache=self._cache)
 
+        v = a["particle_velocity"].numpy()[:p]
+        speed = float(np.sqrt(np.einsum("ij,ij->i", v, v).max()))
+
+        # self-collision: the pairs that can come within their thickness during this step (they
+        # close in at most 2 v_max dt; the margin is kept between 1 and 4 thicknesses)
+        if self.self_collision:
+            margin = min(max(self._reach, 2.0 * speed * dt), 4.0 * self._reach)
+            self._grid.find_pairs(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                  a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, margin,
+                                  cache=self._cache)
+        else:
+            self._grid.count = 0
+
         # bodies that can reach the cloth during this step
         n_bodies = world.bodies.count
         candidates = self._candidates_host[:0]
         if n_bodies:
             x = a["particle_position"].numpy()[:p]
-            v = a["particle_velocity"].numpy()[:p]
             lo, hi = x.min(axis=0), x.max(axis=0)
-            reach = self._reach + dt * (float(np.sqrt(np.einsum("ij,ij->i", v, v).max())) + 1.0)
+            reach = self._reach + dt * (speed + 1.0)
             candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
         if not np.array_equal(candidates, self._candidates_host):
             self._candidates_host = candidates
