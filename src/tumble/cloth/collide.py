@@ -53,6 +53,10 @@ def _collide_bodies(
     inv_m: wp.array(dtype=float_t),
     thickness: wp.array(dtype=float_t),
     friction: wp.array(dtype=float_t),
+    tether_first: wp.array(dtype=wp.int32),
+    tether_count: wp.array(dtype=wp.int32),
+    tether_pin: wp.array(dtype=wp.int32),
+    tether_limit: wp.array(dtype=float_t),
     candidates: wp.array(dtype=wp.int32),
     candidate_count: int,
     body_shape: wp.array(dtype=wp.int32),
@@ -68,6 +72,7 @@ def _collide_bodies(
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
+    taut: float_t,
 ):
     p = wp.tid()
     w_p = inv_m[p]
@@ -129,8 +134,22 @@ def _collide_bodies(
         inv_i = body_inv_inertia[b]
         rn = wp.cross(r_b, n)
         w_b = w_lin + wp.dot(rn, _inv_inertia_world(q, inv_i, rn))
-        lam = depth / (w_p + split * w_b)
-        xp = xp + n * (lam * w_p)
+        # a particle whose tether to a pin is taut and would be stretched by the push cannot
+        # give way: against a dynamic body it acts as fixed, so a taut hammock stops a ball at
+        # once instead of trading pushes with it over many substeps (which pumps energy)
+        w_c = w_p
+        if w_b > zero:
+            t = tether_first[p]
+            t_end = t + tether_count[p]
+            while t < t_end:
+                arm = xp - x[tether_pin[t]]
+                if wp.dot(arm, n) > zero and wp.length(arm) >= tether_limit[t] * taut:
+                    w_c = zero
+                t += 1
+        if w_c + w_b <= zero:
+            continue
+        lam = depth / (w_c + split * w_b)
+        xp = xp + n * (lam * w_c)
 
         # friction: tangential motion of the particle relative to the body surface this substep,
         # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
@@ -141,12 +160,13 @@ def _collide_bodies(
         slip = wp.length(dxt)
         impulse = n * (-lam)
         if slip > float_t(1.0e-14) and mu > zero:
-            t = dxt / slip
-            rt = wp.cross(r_b, t)
+            tdir = dxt / slip
+            rt = wp.cross(r_b, tdir)
             w_bt = w_lin + wp.dot(rt, _inv_inertia_world(q, inv_i, rt))
-            lam_t = wp.min(slip / (w_p + split * w_bt), mu * lam)
-            xp = xp - t * (lam_t * w_p)
-            impulse = impulse + t * lam_t
+            if w_c + split * w_bt > zero:
+                lam_t = wp.min(slip / (w_c + split * w_bt), mu * lam)
+                xp = xp - tdir * (lam_t * w_c)
+                impulse = impulse + tdir * lam_t
 
         # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
         # and, as in position-based dynamics, the matching displacement lambda w_b of its centre
@@ -326,8 +346,9 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies, contact_count_prev,
-                   contact_count_next, h, *, cache: LaunchCache | None = None):
+def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
+                   candidates, bodies, contact_count_prev, contact_count_next, h, *, taut: float = 0.985,
+                   cache: LaunchCache | None = None):
     """Push particles out of the candidate bodies, with friction, and push the bodies back.
 
     Args:
@@ -336,21 +357,26 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies,
         inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
         thickness: distance particles keep from surfaces [m], shape (P,).
         friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
+        tether_first, tether_count: each particle's tethers, shape (P,) int32 (see `grid.tethers`).
+        tether_pin, tether_limit: pin index, shape (m,) int32, and largest length [m], shape (m,).
         candidates: body indices to test, shape (k,) int32.
         bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
         contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.
         contact_count_next: zeroed; receives this substep's counts, shape (n,) int32.
         h: substep [s].
+        taut: a tether longer than taut x its limit counts as taut (the stretch limit keeps
+            tethers within 0.99 of their limit).
     """
     k = candidates.shape[0]
     if k == 0:
         return
     a = bodies.arrays
     launch(_collide_bodies, x.shape[0], [
-        x, x_prev, inv_mass, thickness, friction, candidates, k,
+        x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
+        candidates, k,
         a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"], a["body_half_extents"],
         a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
-        a["body_angular_velocity"], contact_count_prev, contact_count_next, float(h)], x.device, cache)
+        a["body_angular_velocity"], contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:

@@ -355,6 +355,13 @@ class ClothSystem:
         self._arrays["tether_particle"] = wp.array(cat(parts, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
+        # per particle: its first tether and how many (tethers are sorted by particle)
+        owner = cat(parts, np.int32)
+        p = self._particle_count
+        count = np.bincount(owner, minlength=p).astype(np.int32)
+        first = (np.cumsum(count) - count).astype(np.int32)
+        self._arrays["particle_tether_first"] = wp.array(first, dtype=wp.int32, device=self.device)
+        self._arrays["particle_tether_count"] = wp.array(count, dtype=wp.int32, device=self.device)
         self._cache.clear()
         self._update_stable_step()
 
@@ -450,7 +457,8 @@ class ClothSystem:
                 self._contacts_next.zero_()
                 collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
                                        a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
-                                       self._candidates, world.bodies, self._contacts_prev,
+                                       a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
+                                       a["tether_limit"], self._candidates, world.bodies, self._contacts_prev,
                                        self._contacts_next, hi, cache=cache)
                 self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
