@@ -69,6 +69,8 @@ def _collide_bodies(
     body_friction: wp.array(dtype=float_t),
     body_velocity: wp.array(dtype=vec3),
     body_angular_velocity: wp.array(dtype=vec3),
+    body_delta_position: wp.array(dtype=vec3),
+    body_delta_rotation: wp.array(dtype=vec3),
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
@@ -169,14 +171,21 @@ def _collide_bodies(
                 impulse = impulse + tdir * lam_t
 
         # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
-        # and, as in position-based dynamics, the matching displacement lambda w_b of its centre
-        # (so that cloth held by its stretch limit can hold the body up instead of the two
-        # trading ever larger pushes over the substeps)
+        # and, as in position-based dynamics, the matching displacement and rotation (so that
+        # cloth held by its stretch limit can hold the body up instead of the two trading ever
+        # larger pushes over the substeps)
         if w_lin > zero:
-            j = impulse / h
-            wp.atomic_add(body_velocity, b, j * w_lin)
-            wp.atomic_add(body_position, b, impulse * w_lin)
-            wp.atomic_add(body_angular_velocity, b, _inv_inertia_world(q, inv_i, wp.cross(r_b, j)))
+            dx_b = impulse * w_lin
+            dtheta = _inv_inertia_world(q, inv_i, wp.cross(r_b, impulse))
+            wp.atomic_add(body_position, b, dx_b)
+            wp.atomic_add(body_velocity, b, dx_b / h)
+            # rotate by dtheta too: q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator
+            # renormalises), else the rotational part of the overlap is never undone
+            wp.atomic_add(body_orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], zero) * q))
+            wp.atomic_add(body_angular_velocity, b, dtheta / h)
+            # the rigid contact solver tracks each body's motion over the step
+            wp.atomic_add(body_delta_position, b, dx_b)
+            wp.atomic_add(body_delta_rotation, b, dtheta)
     x[p] = xp
 
 
@@ -376,7 +385,8 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tethe
         candidates, k,
         a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"], a["body_half_extents"],
         a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
-        a["body_angular_velocity"], contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
+        a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
+        contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:
