@@ -9,8 +9,8 @@ arrays (see `springs`, `wind` and `collide`):
 3. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
    beyond (1 + max_stretch) l0;
 4. self-collision: listed particle pairs closer than their thickness are pushed apart (the
-   pairs come from a spatial hash built once per world step), then the stretch limit is
-   checked again;
+   list comes from a spatial hash and is rebuilt at a step start when particles may have
+   moved past its margin), then the stretch limit is checked again;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
    receive the opposite impulse;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
@@ -105,8 +105,9 @@ class ClothSystem:
     Tuning attributes (change at any time):
         stretch_iterations: (min, max) Provot sweeps per substep; sweeps stop after the minimum
             as soon as one finds no structural spring over its limit.
-        self_collision: push apart particles closer than their thickness (pairs found once per
-            world step, separated at every substep).
+        self_collision: push apart particles closer than their thickness (candidate pairs from a
+            spatial hash, rebuilt when particles may have moved past its margin; separated at
+            every substep).
         substeps: cloth substeps per world step; None (default) picks the fewest that keep the
             springs stable, at least `min_substeps` (see `substeps_for`).
         contact_iterations: passes over stretch limit and body contacts per substep while some
@@ -143,6 +144,8 @@ class ClothSystem:
         self._candidates = wp.zeros(0, dtype=wp.int32, device=self.device)
         self._candidates_host = np.zeros(0, dtype=np.int32)
         self._reach = 0.0
+        self._pair_margin = 0.0  # margin of the self-collision pair list [m]
+        self._pair_travel = math.inf  # how much closer particles may have come since it was built [m]
         self._contacts_prev = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._wind_modes = None
@@ -334,11 +337,13 @@ class ClothSystem:
         self._arrays["structural_strain"] = wp.zeros(len(self._host["structural_ids"]), dtype=float_t,
                                                      device=self.device)
         self._grid = collide.SelfCollisionGrid(p, self.device)
+        self._pair_travel = math.inf
         self._reach = float(self._host["particle_thickness"].max())
         self._update_pins()
 
     def _update_pins(self) -> None:
         """After pins changed: rebuild the tethers to the pins and the stable substep."""
+        self._pair_travel = math.inf
         inv_m = self._arrays["particle_inv_mass"].numpy()[: self._particle_count]
         rest = self._host["particle_rest_position"]
         parts, pins, limits = [], [], []
@@ -496,17 +501,20 @@ class ClothSystem:
         v = a["particle_velocity"].numpy()[:p]
         speed = float(np.sqrt(np.einsum("ij,ij->i", v, v).max()))
 
-        # self-collision: the pairs that can come within their thickness during this step; cloth
-        # mostly moves as a whole, so pairs close in far slower than the fastest particle moves:
-        # margin v_max dt, kept between 1/4 and 2 thicknesses (a pair closing in faster is caught
-        # at the next step)
+        # self-collision, a Verlet list: the pairs closer than their thickness + margin; two
+        # particles close in by at most 2 v_max dt per step, so the list stays valid until that
+        # sum reaches the margin, then it is rebuilt (rarely, once the cloth has settled)
         if self.self_collision:
-            margin = min(max(0.25 * self._reach, speed * dt), 2.0 * self._reach)
-            self._grid.find_pairs(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                  a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, margin,
-                                  cache=self._cache)
+            self._pair_travel += 2.0 * speed * dt
+            if self._pair_travel >= self._pair_margin:
+                self._pair_margin = min(max(0.25 * self._reach, 2.0 * speed * dt), self._reach)
+                self._pair_travel = 2.0 * speed * dt
+                self._grid.find_pairs(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                      a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
+                                      self._pair_margin, cache=self._cache)
         else:
             self._grid.count = 0
+            self._pair_travel = math.inf
 
         # bodies that can reach the cloth during this step
         n_bodies = world.bodies.count
@@ -582,6 +590,7 @@ class ClothSystem:
             if a.shape != (p, 3) or not np.all(np.isfinite(a)):
                 raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
             self._arrays[name].assign(a)
+            self._pair_travel = math.inf  # rebuild the self-collision pairs
             if name == "particle_position":
                 pinned = self.particle_inv_mass == 0.0
                 target = self._arrays["particle_pin_target"].numpy()[:p].copy()
