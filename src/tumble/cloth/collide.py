@@ -209,12 +209,14 @@ def _hash_count(
     inv_cell: float_t,
     mask: int,
     particle_cell: wp.array(dtype=wp.int32),
+    particle_cell_coord: wp.array(dtype=wp.vec3i),
     cell_count: wp.array(dtype=wp.int32),
 ):
     p = wp.tid()
     c = _cell_of(x[p], inv_cell)
     slot = _cell_hash(c[0], c[1], c[2], mask)
     particle_cell[p] = slot
+    particle_cell_coord[p] = c
     wp.atomic_add(cell_count, slot, 1)
 
 
@@ -244,6 +246,7 @@ def _find_pairs(
     cell_start: wp.array(dtype=wp.int32),
     cell_count: wp.array(dtype=wp.int32),
     cell_particles: wp.array(dtype=wp.int32),
+    particle_cell_coord: wp.array(dtype=wp.vec3i),
     pair_count: wp.array(dtype=wp.int32),
     pairs: wp.array2d(dtype=wp.int32),
 ):
@@ -268,22 +271,24 @@ def _find_pairs(
                 while e < end:
                     q = cell_particles[e]
                     e += 1
-                    # each pair once (p < q); pairs of two pins never move
-                    if q <= p or (inv_m[p] + inv_m[q]) <= float_t(0.0):
-                        continue
-                    xq = x[q]
-                    rel = xp - xq
-                    near = float_t(0.5) * (thickness[p] + thickness[q]) + margin
-                    if wp.dot(rel, rel) >= near * near:
-                        continue
-                    # the slot may hold other cells too (hash collisions): count each pair once
-                    cq = _cell_of(xq, inv_cell)
-                    if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                    # each pair once (p < q)
+                    if q <= p:
                         continue
                     # grid neighbours are held apart by springs, not by collisions
                     if particle_cloth[q] == cloth:
                         if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
                             continue
+                    rel = xp - x[q]
+                    near = float_t(0.5) * (thickness[p] + thickness[q]) + margin
+                    if wp.dot(rel, rel) >= near * near:
+                        continue
+                    # the slot may hold other cells too (hash collisions): count each pair once;
+                    # pairs of two pins never move
+                    cq = particle_cell_coord[q]
+                    if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                        continue
+                    if inv_m[p] + inv_m[q] <= float_t(0.0):
+                        continue
                     k = wp.atomic_add(pair_count, 0, 1)
                     if k < capacity:
                         pairs[k, 0] = p
@@ -404,6 +409,7 @@ class SelfCollisionGrid:
         self.cell_start = wp.zeros(self.table_size, dtype=wp.int32, device=device)
         self.cell_cursor = wp.zeros(self.table_size, dtype=wp.int32, device=device)
         self.particle_cell = wp.zeros(particle_count, dtype=wp.int32, device=device)
+        self.particle_cell_coord = wp.zeros(particle_count, dtype=wp.vec3i, device=device)
         self.cell_particles = wp.zeros(particle_count, dtype=wp.int32, device=device)
         self.pair_count = wp.zeros(1, dtype=wp.int32, device=device)
         self.pairs = wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
@@ -431,7 +437,8 @@ class SelfCollisionGrid:
         inv_cell = 0.5 / reach  # cells 2 reach wide: each query visits 2 x 2 x 2 cells
         # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
         self.cell_count.zero_()
-        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.cell_count], dev, cache)
+        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.particle_cell_coord,
+                                self.cell_count], dev, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
         wp.copy(self.cell_cursor, self.cell_start)
         launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
@@ -439,7 +446,7 @@ class SelfCollisionGrid:
         self.pair_count.zero_()
         launch(_find_pairs, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, margin, reach,
                                 inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles,
-                                self.pair_count, self.pairs], dev, cache)
+                                self.particle_cell_coord, self.pair_count, self.pairs], dev, cache)
         found = int(self.pair_count.numpy()[0])
         capacity = self.pairs.shape[0]
         self.count = min(found, capacity)
