@@ -123,7 +123,6 @@ class World:
         device: str = "cpu",
         restitution_threshold: float = 0.5,
     ):
-        wp.config.quiet = True
         wp.init()
         self.device = str(wp.get_device(device))
         self.gravity = _vec(gravity, "gravity")

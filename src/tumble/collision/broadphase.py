@@ -26,25 +26,12 @@ import warp as wp
 
 from ..shapes import ShapeType
 from ..state import float_t, vec3
+from .hashgrid import HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
 MARGIN = 0.002
 #: cells scanned each way before a body switches to testing all bodies
 MAX_RANGE = 6
-
-
-@wp.func
-def _cell_of(x: vec3, inv_cell: float_t):
-    return wp.vec3i(
-        int(wp.floor(x[0] * inv_cell)), int(wp.floor(x[1] * inv_cell)), int(wp.floor(x[2] * inv_cell))
-    )
-
-
-@wp.func
-def _hash(c: wp.vec3i, mask: int):
-    # large odd primes, XOR-folded (Teschner et al. 2003)
-    h = (c[0] * 92837111) ^ (c[1] * 689287499) ^ (c[2] * 283923481)
-    return h & mask
 
 
 @wp.kernel
@@ -62,41 +49,6 @@ def _swept_radius(
         radius[i] = bound[i]  # inf
     else:
         radius[i] = bound[i] + dt * (wp.length(v[i]) + wp.length(w[i]) * bound[i]) + margin
-
-
-@wp.kernel
-def _count_cells(
-    x: wp.array(dtype=vec3),
-    radius: wp.array(dtype=float_t),
-    inv_cell: float_t,
-    mask: int,
-    max_radius: float_t,
-    body_cell: wp.array(dtype=wp.int32),
-    body_cell_coord: wp.array(dtype=wp.vec3i),
-    cell_count: wp.array(dtype=wp.int32),
-):
-    i = wp.tid()
-    if radius[i] > max_radius:
-        body_cell[i] = -1  # scans everything itself, nobody needs to find it in the grid
-        return
-    c = _cell_of(x[i], inv_cell)
-    body_cell_coord[i] = c
-    h = _hash(c, mask)
-    body_cell[i] = h
-    wp.atomic_add(cell_count, h, 1)
-
-
-@wp.kernel
-def _scatter_cells(
-    body_cell: wp.array(dtype=wp.int32),
-    cell_start: wp.array(dtype=wp.int32),
-    cell_fill: wp.array(dtype=wp.int32),
-    cell_entries: wp.array(dtype=wp.int32),
-):
-    i = wp.tid()
-    h = body_cell[i]
-    if h >= 0:
-        cell_entries[cell_start[h] + wp.atomic_add(cell_fill, h, 1)] = i
 
 
 @wp.func
@@ -126,7 +78,6 @@ def _query(
     radius: wp.array(dtype=float_t),
     inv_mass: wp.array(dtype=float_t),
     inv_cell: float_t,
-    cell: float_t,
     mask: int,
     max_radius: float_t,
     cell_start: wp.array(dtype=wp.int32),
@@ -156,12 +107,12 @@ def _query(
     # scan the cells the swept bound can reach
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
     reach = vec3(float_t(2.0) * ri, float_t(2.0) * ri, float_t(2.0) * ri)
-    lo = _cell_of(xi - reach, inv_cell)
-    hi = _cell_of(xi + reach, inv_cell)
+    lo = cell_of(xi - reach, inv_cell)
+    hi = cell_of(xi + reach, inv_cell)
     for cz in range(lo[2], hi[2] + 1):
         for cy in range(lo[1], hi[1] + 1):
             for cx in range(lo[0], hi[0] + 1):
-                h = _hash(wp.vec3i(cx, cy, cz), mask)
+                h = cell_hash(wp.vec3i(cx, cy, cz), mask)
                 start = cell_start[h]
                 for e in range(start, start + cell_count[h]):
                     j = cell_entries[e]
@@ -185,6 +136,7 @@ class BroadPhase:
 
     def __init__(self, device: str):
         self.device = device
+        self.grid = HashGrid(device)
         self.pair_capacity = 1024
         self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
@@ -192,11 +144,11 @@ class BroadPhase:
         self.pair_count = 0
         self.cell_size = 1.0
         self._sized_for = -1
-        self._table = 0
         self._body_capacity = 0
+        self._ordinary_limit = np.inf
 
     def _resize(self, bodies) -> None:
-        """Choose the cell size and table size when the body count changed (not every step)."""
+        """Size the buffers and find the ordinary bodies when the body count changed (not every step)."""
         n = bodies.count
         shape = bodies.numpy("body_shape")
         bound = bodies.numpy("body_bound_radius")
@@ -207,18 +159,9 @@ class BroadPhase:
             self.cell_size = 2.0 * float(ordinary.max()) + 2.0 * MARGIN
             # swept radii up to this size set the cell; faster or bigger bodies scan more cells
             self._ordinary_limit = 1.5 * float(ordinary.max()) + MARGIN
-        table = 1 << max(10, int(np.ceil(np.log2(max(2 * n, 1)))))
-        if table != self._table:
-            self._table = table
-            self.cell_count = wp.zeros(table, dtype=wp.int32, device=self.device)
-            self.cell_start = wp.zeros(table, dtype=wp.int32, device=self.device)
-            self.cell_fill = wp.zeros(table, dtype=wp.int32, device=self.device)
         if bodies.capacity != self._body_capacity:
             self._body_capacity = bodies.capacity
             self.swept_radius = wp.zeros(bodies.capacity, dtype=float_t, device=self.device)
-            self.body_cell = wp.zeros(bodies.capacity, dtype=wp.int32, device=self.device)
-            self.body_cell_coord = wp.zeros(bodies.capacity, dtype=wp.vec3i, device=self.device)
-            self.cell_entries = wp.zeros(bodies.capacity, dtype=wp.int32, device=self.device)
         self._sized_for = n
 
     def find_pairs(self, bodies, dt: float) -> BroadPhase:
@@ -238,27 +181,18 @@ class BroadPhase:
         swept = self.swept_radius.numpy()[:n]
         ordinary = swept[swept <= self._ordinary_limit]
         cell = 2.0 * float(ordinary.max()) if len(ordinary) else self.cell_size
-        inv_cell = 1.0 / cell
         max_radius = 0.5 * MAX_RANGE * cell
-        mask = self._table - 1
 
-        # counting sort of bodies into hashed cells
-        self.cell_count.zero_()
-        self.cell_fill.zero_()
-        wp.launch(_count_cells, dim=n, device=dev,
-                  inputs=[b["body_position"], self.swept_radius, inv_cell, mask, max_radius, self.body_cell,
-                          self.body_cell_coord, self.cell_count])
-        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        wp.launch(_scatter_cells, dim=n, device=dev,
-                  inputs=[self.body_cell, self.cell_start, self.cell_fill, self.cell_entries])
+        # counting sort of bodies into hashed cells; the biggest stay out and test everything
+        grid = self.grid.build(b["body_position"], n, cell, radius=self.swept_radius, max_radius=max_radius)
 
         # query; grow the pair buffers and query again if they overflowed
         while True:
             self.pair_count_array.zero_()
             wp.launch(_query, dim=n, device=dev,
                       inputs=[n, b["body_shape"], b["body_position"], b["body_orientation"], self.swept_radius,
-                              b["body_inv_mass"], inv_cell, cell, mask, max_radius, self.cell_start,
-                              self.cell_count, self.cell_entries, self.body_cell_coord, self.pair_count_array,
+                              b["body_inv_mass"], grid.inv_cell, grid.mask, max_radius, grid.cell_start,
+                              grid.cell_count, grid.entries, grid.point_cell_coord, self.pair_count_array,
                               self.pair_a, self.pair_b])
             count = int(self.pair_count_array.numpy()[0])
             if count <= self.pair_capacity:

@@ -152,13 +152,14 @@ def inv_inertia_times(q: quat, inv_i: vec3, x: vec3):
 
 
 @wp.func
-def _effective_mass(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
-    # k = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + (r_b x d) . I_b^-1 (r_b x d)
-    ca = wp.cross(ra, d)
-    cb = wp.cross(rb, d)
-    k = b.inv_mass[ia] + b.inv_mass[ib]
-    k += wp.dot(ca, inv_inertia_times(b.q[ia], b.inv_inertia[ia], ca))
-    k += wp.dot(cb, inv_inertia_times(b.q[ib], b.inv_inertia[ib], cb))
+def _inv_inertia_world(q: quat, inv_i: vec3):
+    """World-frame inverse inertia tensor R diag(inv_i) R^T."""
+    R = wp.quat_to_matrix(q)
+    return R * wp.diag(inv_i) * wp.transpose(R)
+
+
+@wp.func
+def _inverse(k: float_t):
     if k > float_t(0.0):
         return float_t(1.0) / k
     return float_t(0.0)
@@ -328,15 +329,26 @@ def _prepare(
     t2 = wp.cross(n, t1)
     c.t1[k] = t1
     c.t2[k] = t2
-    c.ang_a_n[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, n))
-    c.ang_b_n[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, n))
-    c.ang_a_t1[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t1))
-    c.ang_b_t1[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t1))
-    c.ang_a_t2[k] = inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, t2))
-    c.ang_b_t2[k] = inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, t2))
-    c.mass_n[k] = _effective_mass(b, ia, ib, ra, rb, n)
-    c.mass_t1[k] = _effective_mass(b, ia, ib, ra, rb, t1)
-    c.mass_t2[k] = _effective_mass(b, ia, ib, ra, rb, t2)
+    # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
+    # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
+    Ia = _inv_inertia_world(b.q[ia], b.inv_inertia[ia])
+    Ib = _inv_inertia_world(b.q[ib], b.inv_inertia[ib])
+    im = b.inv_mass[ia] + b.inv_mass[ib]
+    ca = wp.cross(ra, n)
+    cb = wp.cross(rb, n)
+    c.ang_a_n[k] = Ia * ca
+    c.ang_b_n[k] = Ib * cb
+    c.mass_n[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t1)
+    cb = wp.cross(rb, t1)
+    c.ang_a_t1[k] = Ia * ca
+    c.ang_b_t1[k] = Ib * cb
+    c.mass_t1[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t2)
+    cb = wp.cross(rb, t2)
+    c.ang_a_t2[k] = Ia * ca
+    c.ang_b_t2[k] = Ib * cb
+    c.mass_t2[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
@@ -378,6 +390,25 @@ def _warm_start(c: Contacts, b: Bodies, serial: int):
     _push(b, c.body_a[k], c.body_b[k], P, dwa, dwb, serial)
 
 
+@wp.func
+def _store_velocities(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    """Add one contact's velocity changes to its two bodies (static bodies never change)."""
+    if serial != 0:
+        if b.inv_mass[ia] > float_t(0.0):
+            b.v[ia] = b.v[ia] + dva
+            b.w[ia] = b.w[ia] + dwa
+        if b.inv_mass[ib] > float_t(0.0):
+            b.v[ib] = b.v[ib] + dvb
+            b.w[ib] = b.w[ib] + dwb
+    else:
+        if b.inv_mass[ia] > float_t(0.0):
+            wp.atomic_add(b.v, ia, dva)
+            wp.atomic_add(b.w, ia, dwa)
+        if b.inv_mass[ib] > float_t(0.0):
+            wp.atomic_add(b.v, ib, dvb)
+            wp.atomic_add(b.w, ib, dwb)
+
+
 @wp.kernel
 def _solve(
     c: Contacts,
@@ -398,14 +429,28 @@ def _solve(
     ra = c.r_a[k]
     rb = c.r_b[k]
     relax = c.scale[k]
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    # the two bodies' velocity changes from this contact, accumulated locally, stored once
+    dva = vec3()
+    dwa = vec3()
+    dvb = vec3()
+    dwb = vec3()
+    va = b.v[ia]
+    wa = b.w[ia]
+    vb = b.v[ib]
+    wb = b.w[ib]
 
     # friction first: Coulomb, |jt| <= mu jn, clamped on the disc
     t1 = c.t1[k]
     t2 = c.t2[k]
+    dv = vb - va
     j1_old = c.jt1[k]
     j2_old = c.jt2[k]
-    j1 = j1_old - c.mass_t1[k] * _speed_along(b, ia, ib, ra, rb, t1) * relax
-    j2 = j2_old - c.mass_t2[k] * _speed_along(b, ia, ib, ra, rb, t2) * relax
+    vt1 = wp.dot(dv, t1) + wp.dot(wb, wp.cross(rb, t1)) - wp.dot(wa, wp.cross(ra, t1))
+    vt2 = wp.dot(dv, t2) + wp.dot(wb, wp.cross(rb, t2)) - wp.dot(wa, wp.cross(ra, t2))
+    j1 = j1_old - c.mass_t1[k] * vt1 * relax
+    j2 = j2_old - c.mass_t2[k] * vt2 * relax
     limit = c.friction[k] * c.jn[k]
     norm = wp.sqrt(j1 * j1 + j2 * j2)
     if norm > limit:
@@ -416,8 +461,11 @@ def _solve(
     c.jt2[k] = j2
     d1 = j1 - j1_old
     d2 = j2 - j2_old
-    _push(b, ia, ib, t1 * d1 + t2 * d2, c.ang_a_t1[k] * d1 + c.ang_a_t2[k] * d2,
-          c.ang_b_t1[k] * d1 + c.ang_b_t2[k] * d2, serial)
+    P = t1 * d1 + t2 * d2
+    dva = dva - P * ima
+    dvb = dvb + P * imb
+    dwa = dwa - c.ang_a_t1[k] * d1 - c.ang_a_t2[k] * d2
+    dwb = dwb + c.ang_b_t1[k] * d1 + c.ang_b_t2[k] * d2
 
     # current separation, linearised in the motion since the step began:
     # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
@@ -435,13 +483,18 @@ def _solve(
         bias = wp.max(bias_rate * (s + slop), -max_push)
         ms = mass_scale
         isc = impulse_scale
-    vn = _speed_along(b, ia, ib, ra, rb, n)
+    vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
+          - wp.dot(wa + dwa, wp.cross(ra, n)))
     jn_old = c.jn[k]
     jn = wp.max(jn_old + (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
     c.jn[k] = jn
     c.jn_max[k] = wp.max(c.jn_max[k], jn)
     dj = jn - jn_old
-    _push(b, ia, ib, n * dj, c.ang_a_n[k] * dj, c.ang_b_n[k] * dj, serial)
+    dva = dva - n * (dj * ima)
+    dvb = dvb + n * (dj * imb)
+    dwa = dwa - c.ang_a_n[k] * dj
+    dwb = dwb + c.ang_b_n[k] * dj
+    _store_velocities(b, ia, ib, dva, dwa, dvb, dwb, serial)
 
 
 @wp.kernel

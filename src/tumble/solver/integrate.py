@@ -36,7 +36,9 @@ def _integrate_velocities(
     if im == float_t(0.0):
         return
     v[i] = v[i] + (gravity + force[i] * im) * h
-    w[i] = w[i] + inv_inertia_times(q[i], inv_inertia[i], torque[i]) * h
+    tau = torque[i]
+    if tau[0] != float_t(0.0) or tau[1] != float_t(0.0) or tau[2] != float_t(0.0):
+        w[i] = w[i] + inv_inertia_times(q[i], inv_inertia[i], tau) * h
 
 
 @wp.func
@@ -64,10 +66,11 @@ def _integrate_positions(
     dx[i] = dx[i] + v[i] * h
     wi = w[i]
     dtheta[i] = dtheta[i] + wi * h
-    angle = wp.length(wi) * h
-    if angle > float_t(0.0):
+    speed = wp.length(wi)
+    if speed > float_t(0.0):
         # q' = exp(w h / 2) q: rotation by |w| h about w / |w|
-        axis = wi / wp.length(wi)
+        angle = speed * h
+        axis = wi / speed
         half = float_t(0.5) * angle
         s = wp.sin(half)
         dq = quat(axis[0] * s, axis[1] * s, axis[2] * s, wp.cos(half))
