@@ -81,6 +81,7 @@ def _limit_stretch(
     ids: wp.array2d(dtype=wp.int32),
     limit: wp.array(dtype=float_t),
     margin: float_t,
+    relax: float_t,
     count: int,
     reverse: int,
 ):
@@ -103,7 +104,7 @@ def _limit_stretch(
     target = limit[s] * margin
     excess = length - target
     if excess > float_t(0.0):
-        c = d * (excess / (length * w))
+        c = d * (excess * relax / (length * w))
         wp.atomic_add(x, i, c * wi)
         wp.atomic_sub(x, j, c * wj)
 
@@ -182,7 +183,8 @@ def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity
 
 
 def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iterations: int = 2,
-                  max_iterations: int = 32, margin: float = 0.99, cache: LaunchCache | None = None) -> int:
+                  max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0,
+                  cache: LaunchCache | None = None) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
 
     Gauss-Seidel sweeps over the springs, alternating direction: `min_iterations` sweeps, then
@@ -200,6 +202,7 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
             if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
             inside the limit rather than creeping up to it.
+        relax: successive over-relaxation factor of each correction (1 = exact projection).
         cache: recorded launches to replay.
 
     Returns:
@@ -213,7 +216,7 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
     target = max(0, min_iterations)
     while True:
         while it < min(target, max_iterations):
-            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, count, it % 2],
+            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, relax, count, it % 2],
                    x.device, cache)
             it += 1
         if it >= max_iterations:

@@ -105,6 +105,8 @@ class ClothSystem:
     Tuning attributes (change at any time):
         stretch_iterations: (min, max) Provot sweeps per substep; sweeps stop after the minimum
             as soon as one finds no structural spring over its limit.
+        stretch_relaxation: over-relaxation of each Provot correction (1 = exact projection;
+            1.5 converges about twice as fast on cloth pulled taut everywhere, e.g. by wind).
         self_collision: push apart particles closer than their thickness (candidate pairs from a
             spatial hash, rebuilt when particles may have moved past its margin; separated at
             every substep).
@@ -123,6 +125,7 @@ class ClothSystem:
         self.cloths: list[Cloth] = []
         self.wind: Wind | None = None
         self.stretch_iterations = (1, 64)
+        self.stretch_relaxation = 1.5
         self.self_collision = True
         self.contact_iterations = 2
         self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
@@ -446,7 +449,8 @@ class ClothSystem:
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
-                self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
+                self._violated, min_iterations=lo_it, max_iterations=hi_it, relax=self.stretch_relaxation,
+                cache=cache)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
