@@ -109,6 +109,8 @@ class Bodies:
     inv_inertia: wp.array(dtype=vec3)
     dx: wp.array(dtype=vec3)  # displacement since the start of the step
     dtheta: wp.array(dtype=vec3)  # rotation vector accumulated since the start of the step
+    warm_v: wp.array(dtype=vec3)  # next substep's warm start, summed per body by the relax pass
+    warm_w: wp.array(dtype=vec3)
 
 
 @wp.struct
@@ -409,6 +411,24 @@ def _store_velocities(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: ve
             wp.atomic_add(b.w, ib, dwb)
 
 
+@wp.func
+def _add_warm(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    if serial != 0:
+        if b.inv_mass[ia] > float_t(0.0):
+            b.warm_v[ia] = b.warm_v[ia] + dva
+            b.warm_w[ia] = b.warm_w[ia] + dwa
+        if b.inv_mass[ib] > float_t(0.0):
+            b.warm_v[ib] = b.warm_v[ib] + dvb
+            b.warm_w[ib] = b.warm_w[ib] + dwb
+    else:
+        if b.inv_mass[ia] > float_t(0.0):
+            wp.atomic_add(b.warm_v, ia, dva)
+            wp.atomic_add(b.warm_w, ia, dwa)
+        if b.inv_mass[ib] > float_t(0.0):
+            wp.atomic_add(b.warm_v, ib, dvb)
+            wp.atomic_add(b.warm_w, ib, dwb)
+
+
 @wp.kernel
 def _solve(
     c: Contacts,
@@ -495,6 +515,15 @@ def _solve(
     dwa = dwa - c.ang_a_n[k] * dj
     dwb = dwb + c.ang_b_n[k] * dj
     _store_velocities(b, ia, ib, dva, dwa, dvb, dwb, serial)
+    if use_bias == 0:
+        # relax: these impulses are final for this substep, and the next substep starts from them
+        # (warm start), so sum their velocity changes per body now instead of in another pass
+        j1 = c.jt1[k]
+        j2 = c.jt2[k]
+        P = n * jn + t1 * j1 + t2 * j2
+        wa_ = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
+        wb_ = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+        _add_warm(b, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
 @wp.kernel
@@ -620,6 +649,7 @@ def body_struct(bodies) -> Bodies:
     s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
     s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
     s.dx, s.dtheta = a["body_delta_position"], a["body_delta_rotation"]
+    s.warm_v, s.warm_w = a["body_warm_velocity"], a["body_warm_angular_velocity"]
     return s
 
 
@@ -653,7 +683,8 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
 
 
 def warm_start(bodies, contacts: ContactSet) -> None:
-    """Apply the accumulated impulses of the last substep (or step) to the velocities."""
+    """Apply last step's impulses of the matched contacts to the velocities (first substep only;
+    later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
         wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
                   inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
