@@ -183,7 +183,7 @@ def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity
 
 
 def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iterations: int = 2,
-                  max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0,
+                  max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0, plain: int = 2,
                   cache: LaunchCache | None = None) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
 
@@ -202,7 +202,8 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
             if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
             inside the limit rather than creeping up to it.
-        relax: successive over-relaxation factor of each correction (1 = exact projection).
+        relax: successive over-relaxation factor of the corrections (1 = exact projection) from
+            sweep `plain` on.
         cache: recorded launches to replay.
 
     Returns:
@@ -216,7 +217,10 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
     target = max(0, min_iterations)
     while True:
         while it < min(target, max_iterations):
-            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, relax, count, it % 2],
+            # plain projections first (enough for cloth that is barely over its limit), then
+            # over-relaxed ones, which converge much faster where the whole cloth is taut
+            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin,
+                                           1.0 if it < plain else relax, count, it % 2],
                    x.device, cache)
             it += 1
         if it >= max_iterations:
