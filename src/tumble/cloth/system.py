@@ -107,8 +107,9 @@ class ClothSystem:
             as soon as one finds no structural spring over its limit.
         stretch_relaxation: over-relaxation of the Provot corrections from the third sweep on
             (1 = exact projection; 1.5 converges several times faster on cloth pulled taut
-            everywhere, by wind or a hard swing, where plain sweeps can stall above the limit;
-            1.8 holds the limit better still but lets balls through a hammock).
+            everywhere, by wind or a hard swing, where plain sweeps can stall above the limit).
+            Not used while bodies are near the cloth: there it keeps a hammock and its balls
+            from settling (1.8 even let a ball through).
         self_collision: push apart particles closer than their thickness (candidate pairs from a
             spatial hash, rebuilt when particles may have moved past its margin; separated at
             every substep).
@@ -451,8 +452,8 @@ class ClothSystem:
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
-                self._violated, min_iterations=lo_it, max_iterations=hi_it, relax=self.stretch_relaxation,
-                cache=cache)
+                self._violated, min_iterations=lo_it, max_iterations=hi_it,
+                relax=1.0 if touching else self.stretch_relaxation, cache=cache)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
