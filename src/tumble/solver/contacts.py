@@ -42,7 +42,8 @@ import warp as wp
 from ..collision.narrowphase import ContactWriter
 from ..state import ArraySet, float_t, quat, vec3
 
-#: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks),
+#: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
+#: contacts with static bodies, which carry whole piles, are twice as stiff, as in Box2D),
 #: and the damping ratio of the soft constraint
 CONTACT_HERTZ_PER_SUBSTEP_RATE = 0.125
 CONTACT_DAMPING_RATIO = 10.0
@@ -438,6 +439,9 @@ def _solve(
     bias_rate: float_t,
     mass_scale: float_t,
     impulse_scale: float_t,
+    static_bias_rate: float_t,
+    static_mass_scale: float_t,
+    static_impulse_scale: float_t,
     max_push: float_t,
     slop: float_t,
     serial: int,
@@ -503,6 +507,11 @@ def _solve(
         bias = wp.max(bias_rate * (s + slop), -max_push)
         ms = mass_scale
         isc = impulse_scale
+        if ima == float_t(0.0) or imb == float_t(0.0):
+            # against a static body: twice as stiff (it carries the whole pile)
+            bias = wp.max(static_bias_rate * (s + slop), -max_push)
+            ms = static_mass_scale
+            isc = static_impulse_scale
     vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
           - wp.dot(wa + dwa, wp.cross(ra, n)))
     jn_old = c.jn[k]
@@ -653,13 +662,13 @@ def body_struct(bodies) -> Bodies:
     return s
 
 
-def softness(h: float) -> tuple[float, float, float]:
+def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:
     """(bias rate [1/s], mass scale, impulse scale) of the soft contact at substep h [s].
 
     A resting contact settles at an overlap of about g / omega^2 per body it carries
     (4 micrometres per body at the default 8 substeps of 1/240 s).
     """
-    hertz = CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+    hertz = stiffness * CONTACT_HERTZ_PER_SUBSTEP_RATE / h
     omega = 2.0 * math.pi * hertz
     a1 = 2.0 * CONTACT_DAMPING_RATIO + h * omega
     a2 = h * omega * a1
@@ -694,10 +703,11 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
     """One sweep of normal and friction impulses over all contacts at substep `h`."""
     if contacts.count == 0:
         return
-    bias_rate, mass_scale, impulse_scale = softness(h)
+    soft = softness(h)
+    soft_static = softness(h, stiffness=2.0)
     wp.launch(_solve, dim=contacts.count, device=contacts.device,
-              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), bias_rate, mass_scale,
-                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
+              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), *soft, *soft_static,
+                      MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
 
 
 def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
