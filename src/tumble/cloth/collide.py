@@ -82,10 +82,16 @@ def _collide_bodies(
         return
     xp = x[p]
     zero = float_t(0.0)
+    # static bodies first (pass 0), then dynamic ones (pass 1), so that a particle pressed
+    # against a static body by a dynamic one knows it cannot give way
+    support = vec3(zero, zero, zero)
     k = int(0)
-    while k < candidate_count:
-        b = candidates[k]
+    while k < 2 * candidate_count:
+        b = candidates[k % candidate_count]
+        dynamic_pass = k >= candidate_count
         k += 1
+        if (body_inv_mass[b] > zero) != dynamic_pass:
+            continue
         shape = body_shape[b]
         c = body_position[b]
         q = body_orientation[b]
@@ -136,11 +142,16 @@ def _collide_bodies(
         inv_i = body_inv_inertia[b]
         rn = wp.cross(r_b, n)
         w_b = w_lin + wp.dot(rn, _inv_inertia_world(q, inv_i, rn))
-        # a particle whose tether to a pin is taut and would be stretched by the push cannot
-        # give way: against a dynamic body it acts as fixed, so a taut hammock stops a ball at
-        # once instead of trading pushes with it over many substeps (which pumps energy)
+        # a particle whose tether to a pin is taut and would be stretched by the push, or which
+        # a static body holds from that side, cannot give way: against a dynamic body it acts as
+        # fixed, so a taut hammock stops a ball at once instead of trading pushes with it over
+        # many substeps (which pumps energy), and a ball cannot press cloth into the ground
         w_c = w_p
-        if w_b > zero:
+        if w_b == zero:
+            support = support + n
+        elif wp.dot(support, n) < zero:
+            w_c = zero
+        if w_b > zero and w_c > zero:
             t = tether_first[p]
             t_end = t + tether_count[p]
             while t < t_end:
