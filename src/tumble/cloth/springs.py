@@ -7,7 +7,7 @@ Stage functions over particle and spring arrays:
   serially, so the sum order and the result are deterministic). Cost O(springs).
 - `integrate` turns forces into velocities and positions (semi-implicit Euler), moves pins.
 - `limit_stretch` pulls over-stretched structural springs back to (1 + max_stretch) l0,
-  Gauss-Seidel style, alternating the sweep direction. Cost O(structural springs x iterations).
+  Gauss-Seidel style, over-relaxed after two sweeps. Cost O(structural springs x iterations).
 - `update_velocities` sets v = (x - x_prev) / h so position corrections show in velocities.
 
 Explicit springs are stable only while h^2 k / m is small; `stable_substep` gives the largest
@@ -82,13 +82,11 @@ def _limit_stretch(
     limit: wp.array(dtype=float_t),
     margin: float_t,
     relax: float_t,
-    count: int,
     reverse: int,
 ):
-    t = wp.tid()
-    s = t
+    s = wp.tid()
     if reverse != 0:
-        s = count - 1 - t
+        s = ids.shape[0] - 1 - s
     i = ids[s, 0]
     j = ids[s, 1]
     wi = inv_m[i]
@@ -187,8 +185,9 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
                   cache: LaunchCache | None = None) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
 
-    Gauss-Seidel sweeps over the springs, alternating direction: `min_iterations` sweeps, then
-    a check, then two more sweeps while some spring is still over its limit, at most
+    Gauss-Seidel sweeps over the springs (plain ones alternate direction, over-relaxed ones keep
+    one order: alternating made them cycle above the limit on a hard swing): `min_iterations`
+    sweeps, then a check, then two more sweeps while some spring is still over its limit, at most
     `max_iterations` sweeps. (A flag raised inside a sweep would not do: every sweep briefly
     over-stretches springs it corrects later in the same sweep.)
 
@@ -220,7 +219,7 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
             # plain projections first (enough for cloth that is barely over its limit), then
             # over-relaxed ones, which converge much faster where the whole cloth is taut
             launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin,
-                                           1.0 if it < plain else relax, count, it % 2],
+                                           1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0],
                    x.device, cache)
             it += 1
         if it >= max_iterations:
