@@ -319,3 +319,13 @@ def test_energies_and_strain():
     assert cloth.potential_energy() == pytest.approx(2.0 * 9.81 * 3.0)
     assert cloth.max_strain() == pytest.approx(0.2)
     assert world.kinetic_energy() == pytest.approx(12.5)
+
+
+def test_diverging_cloth_raises_simulation_error():
+    """Springs far too stiff for forced substeps blow up: a SimulationError names the particle."""
+    world = make_world()
+    world.add_cloth(resolution=(8, 8), stiffness=1.0e7, max_stretch=None, pins="top-edge")
+    world.cloth.substeps = 1
+    world.cloth.self_collision = False
+    with pytest.raises(tumble.SimulationError, match="cloth 0 particle"):
+        world.run(2.0)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..errors import SimulationError
 from ..state import float_t, readonly, vec3
 from . import collide, grid, springs
 from ._launch import LaunchCache
@@ -506,7 +507,19 @@ class ClothSystem:
                         a["particle_wind"], cache=self._cache)
 
         v = a["particle_velocity"].numpy()[:p]
-        speed = float(np.sqrt(np.einsum("ij,ij->i", v, v).max()))
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed2 = np.einsum("ij,ij->i", v, v)
+        speed = float(np.sqrt(speed2.max()))
+        if not math.isfinite(speed):
+            # report where the cloth blew up rather than let NaNs spread into the bodies
+            bad = int(np.nonzero(~np.isfinite(speed2))[0][0])
+            cloth = next(c for c in self.cloths if c.particle_start <= bad < c.particle_start + c.particle_count)
+            j, i = divmod(bad - cloth.particle_start, cloth.nx)
+            raise SimulationError(
+                f"velocity of cloth {cloth.index} particle {bad} (grid point i = {i}, j = {j}) is not finite at "
+                f"t = {world.time:.6g} s (step {world.step_count}); the cloth diverged: lower its stiffness "
+                f"or set world.cloth.substeps higher"
+            )
 
         # self-collision, a Verlet list: the pairs closer than their thickness + margin; two
         # particles close in by at most 2 v_max dt per step, so the list stays valid until that
