@@ -9,8 +9,8 @@ Stages:
   that are closer than their thickness to a plane, sphere or box surface back out, applies
   Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
   equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
-- `SelfCollisionGrid.find_pairs` (once per world step) builds a spatial hash of particles by
-  counting sort and lists the particle pairs closer than their thickness plus a margin, except
+- `SelfCollisionGrid.find_pairs` (once per world step) sorts particles into the counting-sort
+  spatial hash shared with the bodies' broad phase (`collision/hashgrid.py`) and lists the particle pairs closer than their thickness plus a margin, except
   near neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
   Cost O(P). `SelfCollisionGrid.separate` (every substep) pushes listed pairs closer than
   their thickness apart; cost O(pairs), small unless the cloth is folded. For cloth that does
@@ -31,19 +31,14 @@ import numpy as np
 import warp as wp
 
 from ..shapes import ShapeType
+from ..collision.hashgrid import HashGrid, cell_hash, cell_of
+from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
 from ._launch import LaunchCache, launch
 
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))
-
-
-@wp.func
-def _inv_inertia_world(q: quat, inv_inertia: vec3, a: vec3):
-    # I_world^-1 a = R diag(I_body^-1) R^T a
-    b = wp.quat_rotate_inv(q, a)
-    return wp.quat_rotate(q, vec3(b[0] * inv_inertia[0], b[1] * inv_inertia[1], b[2] * inv_inertia[2]))
 
 
 @wp.kernel
@@ -141,7 +136,7 @@ def _collide_bodies(
         w_lin = body_inv_mass[b]
         inv_i = body_inv_inertia[b]
         rn = wp.cross(r_b, n)
-        w_b = w_lin + wp.dot(rn, _inv_inertia_world(q, inv_i, rn))
+        w_b = w_lin + wp.dot(rn, inv_inertia_times(q, inv_i, rn))
         # a particle whose tether to a pin is taut and would be stretched by the push, or which
         # a static body holds from that side, cannot give way: against a dynamic body it acts as
         # fixed, so a taut hammock stops a ball at once instead of trading pushes with it over
@@ -175,7 +170,7 @@ def _collide_bodies(
         if slip > float_t(1.0e-14) and mu > zero:
             tdir = dxt / slip
             rt = wp.cross(r_b, tdir)
-            w_bt = w_lin + wp.dot(rt, _inv_inertia_world(q, inv_i, rt))
+            w_bt = w_lin + wp.dot(rt, inv_inertia_times(q, inv_i, rt))
             if w_c + split * w_bt > zero:
                 lam_t = wp.min(slip / (w_c + split * w_bt), mu * lam)
                 xp = xp - tdir * (lam_t * w_c)
@@ -187,7 +182,7 @@ def _collide_bodies(
         # larger pushes over the substeps)
         if w_lin > zero:
             dx_b = impulse * w_lin
-            dtheta = _inv_inertia_world(q, inv_i, wp.cross(r_b, impulse))
+            dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
             wp.atomic_add(body_position, b, dx_b)
             wp.atomic_add(body_velocity, b, dx_b / h)
             # rotate by dtheta too: q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator
@@ -198,48 +193,6 @@ def _collide_bodies(
             wp.atomic_add(body_delta_position, b, dx_b)
             wp.atomic_add(body_delta_rotation, b, dtheta)
     x[p] = xp
-
-
-@wp.func
-def _cell_hash(ix: int, iy: int, iz: int, mask: int):
-    # table size is a power of two: the low bits of the mixed coordinates pick the slot
-    hx = wp.uint32(ix) * wp.uint32(73856093)
-    hy = wp.uint32(iy) * wp.uint32(19349663)
-    hz = wp.uint32(iz) * wp.uint32(83492791)
-    return int((hx ^ hy ^ hz) & wp.uint32(mask))
-
-
-@wp.func
-def _cell_of(x: vec3, inv_cell: float_t):
-    return wp.vec3i(int(wp.floor(x[0] * inv_cell)), int(wp.floor(x[1] * inv_cell)), int(wp.floor(x[2] * inv_cell)))
-
-
-@wp.kernel
-def _hash_count(
-    x: wp.array(dtype=vec3),
-    inv_cell: float_t,
-    mask: int,
-    particle_cell: wp.array(dtype=wp.int32),
-    particle_cell_coord: wp.array(dtype=wp.vec3i),
-    cell_count: wp.array(dtype=wp.int32),
-):
-    p = wp.tid()
-    c = _cell_of(x[p], inv_cell)
-    slot = _cell_hash(c[0], c[1], c[2], mask)
-    particle_cell[p] = slot
-    particle_cell_coord[p] = c
-    wp.atomic_add(cell_count, slot, 1)
-
-
-@wp.kernel
-def _hash_fill(
-    particle_cell: wp.array(dtype=wp.int32),
-    cell_cursor: wp.array(dtype=wp.int32),
-    cell_particles: wp.array(dtype=wp.int32),
-):
-    p = wp.tid()
-    slot = wp.atomic_add(cell_cursor, particle_cell[p], 1)
-    cell_particles[slot] = p
 
 
 @wp.kernel
@@ -265,7 +218,7 @@ def _find_pairs(
     xp = x[p]
     # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
     # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
-    lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
+    lo = cell_of(xp - vec3(reach, reach, reach), inv_cell)
     cloth = particle_cloth[p]
     pi = particle_i[p]
     pj = particle_j[p]
@@ -276,7 +229,7 @@ def _find_pairs(
                 cx = lo[0] + dx
                 cy = lo[1] + dy
                 cz = lo[2] + dz
-                slot = _cell_hash(cx, cy, cz, mask)
+                slot = cell_hash(wp.vec3i(cx, cy, cz), mask)
                 e = cell_start[slot]
                 end = e + cell_count[slot]
                 while e < end:
@@ -414,14 +367,7 @@ class SelfCollisionGrid:
     """
 
     def __init__(self, particle_count: int, device: str):
-        self.table_size = max(64, 1 << int(np.ceil(np.log2(max(2 * particle_count, 1)))))
-        self.mask = self.table_size - 1
-        self.cell_count = wp.zeros(self.table_size, dtype=wp.int32, device=device)
-        self.cell_start = wp.zeros(self.table_size, dtype=wp.int32, device=device)
-        self.cell_cursor = wp.zeros(self.table_size, dtype=wp.int32, device=device)
-        self.particle_cell = wp.zeros(particle_count, dtype=wp.int32, device=device)
-        self.particle_cell_coord = wp.zeros(particle_count, dtype=wp.vec3i, device=device)
-        self.cell_particles = wp.zeros(particle_count, dtype=wp.int32, device=device)
+        self.grid = HashGrid(device)
         self.pair_count = wp.zeros(1, dtype=wp.int32, device=device)
         self.pairs = wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
         self.count = 0  # pairs found by the last `find_pairs`
@@ -446,18 +392,13 @@ class SelfCollisionGrid:
         n, dev = x.shape[0], x.device
         reach = max_thickness + margin
         inv_cell = 0.5 / reach  # cells 2 reach wide: each query visits 2 x 2 x 2 cells
-        # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
-        self.cell_count.zero_()
-        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.particle_cell_coord,
-                                self.cell_count], dev, cache)
-        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        wp.copy(self.cell_cursor, self.cell_start)
-        launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
+        # counting sort of the particles into hashed cells (shared with the bodies' broad phase)
+        grid = self.grid.build(x, n, 1.0 / inv_cell)
         # candidate pairs
         self.pair_count.zero_()
         launch(_find_pairs, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, margin, reach,
-                                inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles,
-                                self.particle_cell_coord, self.pair_count, self.pairs], dev, cache)
+                                grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count, grid.entries,
+                                grid.point_cell_coord, self.pair_count, self.pairs], dev, cache)
         found = int(self.pair_count.numpy()[0])
         capacity = self.pairs.shape[0]
         self.count = min(found, capacity)
