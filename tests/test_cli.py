@@ -154,7 +154,7 @@ CLOTH_READY = importlib.util.find_spec("tumble.cloth") is not None
 
 @pytest.mark.skipif(not CLOTH_READY, reason="the cloth engine (tumble.cloth) is not merged yet")
 def test_record_writes_cloth_arrays(write_scene, tmp_path):
-    """Add cloth_position, cloth_triangles and cloth_rest_position to recordings of cloth."""
+    """Add cloth_position, cloth_triangles, cloth_rest_position, cloth_mass and strain to cloth recordings."""
     out = tmp_path / "cloth.npz"
     scene = write_scene(
         "[[plane]]\n[[cloth]]\nsize = [1, 0.5]\nresolution = [6, 4]\nposition = [0, 0, 1]\npins = 'top-edge'\n"
@@ -170,6 +170,11 @@ def test_record_writes_cloth_arrays(write_scene, tmp_path):
     # the pinned top edge (j = 3) stays; the rest falls
     np.testing.assert_allclose(rec["cloth_position"][-1, 18:, 2], 1.0, atol=1e-9)
     assert rec["cloth_position"][-1, :6, 2].max() < 1.0
+    # masses add up to the cloth's; strain starts at zero and stays within the 10 % limit
+    assert rec["cloth_mass"].shape == (p,) and rec["cloth_mass"].sum() > 0
+    assert rec["cloth_max_strain"].shape == (f,)
+    assert rec["cloth_max_strain"][0] == 0.0
+    assert 0.0 < rec["cloth_max_strain"].max() <= 0.1 + 1e-6
 
 
 def test_recorder_samples_at_the_nearest_step(write_scene):

@@ -13,7 +13,8 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     angular_velocity (F, N, 3), shape (N,) int32 indexing shape_names, shape_names (3,),
     radius (N,), half_extents (N, 3), mass (N,), gravity (3,), dt (), fps (),
     contact_count (F,) int32, kinetic_energy (F,)
-    with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3)
+    with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3),
+    cloth_mass (P,) [kg], cloth_max_strain (F,) (largest structural-spring strain per frame)
 
 Cost: one host copy of the body state per frame (~100 bytes per body per frame in memory).
 """
@@ -80,6 +81,7 @@ class Recorder:
         cloth = getattr(w, "_cloth", None)
         if cloth is not None:
             frame["cloth_position"] = np.array(cloth.particle_position, dtype=np.float64)
+            frame["cloth_max_strain"] = np.float64(cloth.max_strain())
         self.frames.append(frame)
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -119,6 +121,8 @@ class Recorder:
                     a[k, : len(rows)] = rows
             out["cloth_position"] = a
             out["cloth_triangles"] = np.array(cloth.triangles, dtype=np.int32)
+            out["cloth_mass"] = np.array(cloth.particle_mass, dtype=np.float64)
+            out["cloth_max_strain"] = np.array([fr.get("cloth_max_strain", np.nan) for fr in self.frames])
             rest = getattr(cloth, "rest_position", getattr(cloth, "particle_rest_position", None))
             if rest is not None:
                 out["cloth_rest_position"] = np.array(rest, dtype=np.float64)
