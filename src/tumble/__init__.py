@@ -10,6 +10,10 @@ Public API::
     world = tumble.load_scene("samples/sphere_pile.toml")
 """
 
+import warp as _wp
+
+_wp.config.quiet = True  # no banner; the CLI says when kernels compile
+
 from .errors import SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
 from .state import BodyId

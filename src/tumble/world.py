@@ -118,7 +118,7 @@ class World:
         *,
         gravity: Sequence[float] = (0.0, 0.0, -9.81),
         dt: float = 1.0 / 240.0,
-        substeps: int = 4,
+        substeps: int = 8,
         seed: int = 0,
         device: str = "cpu",
         restitution_threshold: float = 0.5,
@@ -386,14 +386,14 @@ class World:
         # contact prepare: match last step's contacts for warm starting, effective masses
         with self._timer("solver"):
             contacts.match_previous(bodies)
-            contact_solver.prepare(bodies, contacts, self.restitution_threshold)
-            integrate.store_start_pose(bodies)
+            contact_solver.prepare(bodies, contacts, self.gravity)
 
-        # substeps: integrate velocities -> solve contacts -> integrate positions -> relax -> cloth
+        # substeps: integrate velocities -> warm start, solve -> integrate positions -> relax -> cloth
         for _ in range(self.substeps):
             with self._timer("integrate"):
                 integrate.integrate_velocities(bodies, self.gravity, h)
             with self._timer("solver"):
+                contact_solver.warm_start(bodies, contacts)
                 contact_solver.solve(bodies, contacts, h, use_bias=True)
             with self._timer("integrate"):
                 integrate.integrate_positions(bodies, h)
@@ -405,12 +405,25 @@ class World:
 
         # restitution: bounce contacts that approached faster than the threshold; keep impulses
         with self._timer("solver"):
-            contact_solver.restitution(bodies, contacts)
-            contacts.store_impulses()
+            contact_solver.restitution(bodies, contacts, self.restitution_threshold)
+            contacts.store_impulses(bodies)
             integrate.clear_forces(bodies)
 
         self.time += dt
         self.step_count += 1
+
+    def collide(self, dt: float | None = None) -> int:
+        """Find contacts for the current state without stepping (broad + narrow phase only).
+
+        Contacts within the speculative distance of one step of `dt` are included, as in `step`.
+
+        Returns:
+            The number of contacts; read them with `contact_point`, `contact_normal`, ...
+        """
+        dt = self.dt if dt is None else _positive(dt, "dt")
+        pairs = self.broadphase.find_pairs(self.bodies, dt)
+        narrowphase.collide(self.bodies, pairs, self.contacts, dt)
+        return self.contacts.count
 
     def run(self, duration: float, *, callback: Callable[[World], None] | None = None) -> int:
         """Step for `duration` seconds of simulated time; call `callback(world)` after each step.

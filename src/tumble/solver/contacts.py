@@ -1,0 +1,572 @@
+"""Contact solver: sequential impulses with soft contacts, Coulomb friction and restitution.
+
+Reads contacts from the narrow phase and body poses and velocities; writes body velocities and
+the per-contact accumulated impulses. One pass costs O(contacts).
+
+The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
+- per step, `prepare` fixes each contact's anchors r_a, r_b, tangents, effective masses
+  m_n = 1 / (1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + (r_b x n) . I_b^-1 (r_b x n)),
+  the combined friction mu = sqrt(mu_a mu_b) and restitution e = max(e_a, e_b), and the
+  approach speed used for restitution;
+- per substep: warm start (apply last impulses), `solve` (friction first, then the normal,
+  since non-penetration matters more) with bias (soft constraint pushes
+  overlapping bodies apart at a bounded speed), integrate positions, then `solve` again without
+  bias ("relax"), which removes the push-out velocity again, so penetration recovery adds no
+  kinetic energy -- the role split impulses play in older solvers;
+- the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
+- overlaps up to `LINEAR_SLOP` are held rigidly (no push-out), so resting stacks do not jitter;
+- after the substeps, `restitution` sets the normal velocity to -e times the approach speed for
+  contacts that approached faster than the threshold, so resting contacts never bounce.
+
+Soft constraint coefficients for stiffness f [Hz] and damping ratio zeta at substep h:
+omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1, a3 = 1 / (1 + a2);
+bias rate = omega / a1, mass scale = a2 a3, impulse scale = a3.
+
+On the CPU, Warp runs a kernel's threads in order, so each pass is a true Gauss-Seidel sweep
+and the result is deterministic. On CUDA the sweep becomes a Jacobi iteration; each contact's
+impulse is then scaled by 1 / (largest contact count of its two bodies) so that a body touched
+by many contacts is not over-corrected.
+
+Warm starting: contacts are matched to the previous step's by body pair and by the distance
+between their anchors on the pair's first dynamic body (the "owner"); previous contacts are
+bucketed per owner by counting sort, so matching costs O(contacts x contacts per body).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from ..collision.narrowphase import ContactWriter
+from ..state import ArraySet, float_t, quat, vec3
+
+#: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks),
+#: and the damping ratio of the soft constraint
+CONTACT_HERTZ_PER_SUBSTEP_RATE = 0.125
+CONTACT_DAMPING_RATIO = 10.0
+#: overlap [m] tolerated without push-out: resting contacts stay rigid and still
+LINEAR_SLOP = 2.0e-5
+#: largest speed [m/s] at which overlapping bodies are pushed apart
+MAX_PUSH_VELOCITY = 3.0
+#: anchors on the owner closer than this fraction of its bound radius are the same contact
+MATCH_TOLERANCE = 0.5
+
+CONTACT_FIELDS = {
+    # from the narrow phase
+    "contact_body_a": wp.int32,
+    "contact_body_b": wp.int32,
+    "contact_normal": vec3,  # unit, a -> b
+    "contact_point": vec3,  # [m]
+    "contact_separation": float_t,  # [m], negative when overlapping
+    "contact_local_a": vec3,  # surface point on a, body frame [m]
+    "contact_local_b": vec3,
+    # from prepare
+    "contact_r_a": vec3,  # anchor offsets from the centres, world frame at step start [m]
+    "contact_r_b": vec3,
+    "contact_tangent1": vec3,
+    "contact_tangent2": vec3,
+    "contact_mass_n": float_t,  # effective masses [kg]
+    "contact_mass_t1": float_t,
+    "contact_mass_t2": float_t,
+    "contact_friction": float_t,
+    "contact_restitution": float_t,
+    "contact_relative_velocity": float_t,  # approach speed along n at impact [m/s]
+    "contact_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
+    # accumulated impulses of one substep [N s]
+    "contact_impulse_n": float_t,
+    "contact_impulse_t1": float_t,
+    "contact_impulse_t2": float_t,
+    "contact_max_impulse_n": float_t,
+}
+
+PREVIOUS_FIELDS = {
+    "previous_body_a": wp.int32,
+    "previous_body_b": wp.int32,
+    "previous_local_owner": vec3,
+    "previous_impulse_n": float_t,
+    "previous_impulse_t": vec3,  # friction impulse as a world vector (tangents change)
+}
+
+
+@wp.struct
+class Bodies:
+    """Body arrays the solver reads and writes."""
+
+    x: wp.array(dtype=vec3)
+    q: wp.array(dtype=quat)
+    v: wp.array(dtype=vec3)
+    w: wp.array(dtype=vec3)
+    inv_mass: wp.array(dtype=float_t)
+    inv_inertia: wp.array(dtype=vec3)
+
+
+@wp.struct
+class Contacts:
+    """Contact arrays the solver reads and writes."""
+
+    body_a: wp.array(dtype=wp.int32)
+    body_b: wp.array(dtype=wp.int32)
+    normal: wp.array(dtype=vec3)
+    separation: wp.array(dtype=float_t)
+    local_a: wp.array(dtype=vec3)
+    local_b: wp.array(dtype=vec3)
+    r_a: wp.array(dtype=vec3)
+    r_b: wp.array(dtype=vec3)
+    t1: wp.array(dtype=vec3)
+    t2: wp.array(dtype=vec3)
+    mass_n: wp.array(dtype=float_t)
+    mass_t1: wp.array(dtype=float_t)
+    mass_t2: wp.array(dtype=float_t)
+    friction: wp.array(dtype=float_t)
+    restitution: wp.array(dtype=float_t)
+    relative_velocity: wp.array(dtype=float_t)
+    scale: wp.array(dtype=float_t)
+    jn: wp.array(dtype=float_t)
+    jt1: wp.array(dtype=float_t)
+    jt2: wp.array(dtype=float_t)
+    jn_max: wp.array(dtype=float_t)
+
+
+@wp.func
+def inv_inertia_times(q: quat, inv_i: vec3, x: vec3):
+    """World-frame I^-1 x = R diag(inv_i) R^T x."""
+    local = wp.quat_rotate_inv(q, x)
+    return wp.quat_rotate(q, vec3(local[0] * inv_i[0], local[1] * inv_i[1], local[2] * inv_i[2]))
+
+
+@wp.func
+def _effective_mass(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
+    # k = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + (r_b x d) . I_b^-1 (r_b x d)
+    ca = wp.cross(ra, d)
+    cb = wp.cross(rb, d)
+    k = b.inv_mass[ia] + b.inv_mass[ib]
+    k += wp.dot(ca, inv_inertia_times(b.q[ia], b.inv_inertia[ia], ca))
+    k += wp.dot(cb, inv_inertia_times(b.q[ib], b.inv_inertia[ib], cb))
+    if k > float_t(0.0):
+        return float_t(1.0) / k
+    return float_t(0.0)
+
+
+@wp.func
+def _relative_velocity(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3):
+    return b.v[ib] + wp.cross(b.w[ib], rb) - b.v[ia] - wp.cross(b.w[ia], ra)
+
+
+@wp.func
+def _apply(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, P: vec3):
+    """Apply impulse P to b at r_b and -P to a at r_a (equal and opposite: momentum is conserved)."""
+    if b.inv_mass[ia] > float_t(0.0):
+        wp.atomic_sub(b.v, ia, P * b.inv_mass[ia])
+        wp.atomic_sub(b.w, ia, inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, P)))
+    if b.inv_mass[ib] > float_t(0.0):
+        wp.atomic_add(b.v, ib, P * b.inv_mass[ib])
+        wp.atomic_add(b.w, ib, inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, P)))
+
+
+# ---------------------------------------------------------------------------- warm-start matching
+
+
+@wp.kernel
+def _owner_count(
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    inv_mass: wp.array(dtype=float_t),
+    owner_count: wp.array(dtype=wp.int32),
+):
+    c = wp.tid()
+    o = body_a[c]
+    if inv_mass[o] == float_t(0.0):
+        o = body_b[c]
+    wp.atomic_add(owner_count, o, 1)
+
+
+@wp.kernel
+def _owner_scatter(
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    inv_mass: wp.array(dtype=float_t),
+    owner_start: wp.array(dtype=wp.int32),
+    owner_fill: wp.array(dtype=wp.int32),
+    owner_entries: wp.array(dtype=wp.int32),
+):
+    c = wp.tid()
+    o = body_a[c]
+    if inv_mass[o] == float_t(0.0):
+        o = body_b[c]
+    owner_entries[owner_start[o] + wp.atomic_add(owner_fill, o, 1)] = c
+
+
+@wp.kernel
+def _match(
+    c: Contacts,
+    inv_mass: wp.array(dtype=float_t),
+    bound: wp.array(dtype=float_t),
+    tolerance: float_t,
+    owner_start: wp.array(dtype=wp.int32),
+    owner_count: wp.array(dtype=wp.int32),
+    owner_entries: wp.array(dtype=wp.int32),
+    prev_a: wp.array(dtype=wp.int32),
+    prev_b: wp.array(dtype=wp.int32),
+    prev_local: wp.array(dtype=vec3),
+    prev_jn: wp.array(dtype=float_t),
+    prev_jt: wp.array(dtype=vec3),
+    jt_world: wp.array(dtype=vec3),
+):
+    k = wp.tid()
+    a = c.body_a[k]
+    b = c.body_b[k]
+    o = a
+    local = c.local_a[k]
+    if inv_mass[a] == float_t(0.0):
+        o = b
+        local = c.local_b[k]
+    best = int(-1)
+    best_d = (tolerance * bound[o]) * (tolerance * bound[o])
+    start = owner_start[o]
+    for e in range(start, start + owner_count[o]):
+        p = owner_entries[e]
+        if prev_a[p] == a and prev_b[p] == b:
+            d = wp.length_sq(prev_local[p] - local)
+            if d < best_d:
+                best_d = d
+                best = p
+    if best >= 0:
+        c.jn[k] = prev_jn[best]
+        jt_world[k] = prev_jt[best]
+    else:
+        c.jn[k] = float_t(0.0)
+        jt_world[k] = vec3()
+
+
+@wp.kernel
+def _store(
+    c: Contacts,
+    inv_mass: wp.array(dtype=float_t),
+    prev_a: wp.array(dtype=wp.int32),
+    prev_b: wp.array(dtype=wp.int32),
+    prev_local: wp.array(dtype=vec3),
+    prev_jn: wp.array(dtype=float_t),
+    prev_jt: wp.array(dtype=vec3),
+):
+    k = wp.tid()
+    prev_a[k] = c.body_a[k]
+    prev_b[k] = c.body_b[k]
+    if inv_mass[c.body_a[k]] == float_t(0.0):
+        prev_local[k] = c.local_b[k]
+    else:
+        prev_local[k] = c.local_a[k]
+    prev_jn[k] = c.jn[k]
+    prev_jt[k] = c.t1[k] * c.jt1[k] + c.t2[k] * c.jt2[k]
+
+
+# ---------------------------------------------------------------------------- prepare / solve
+
+
+@wp.kernel
+def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32)):
+    k = wp.tid()
+    wp.atomic_add(count, c.body_a[k], 1)
+    wp.atomic_add(count, c.body_b[k], 1)
+
+
+@wp.kernel
+def _prepare(
+    c: Contacts,
+    b: Bodies,
+    body_friction: wp.array(dtype=float_t),
+    body_restitution: wp.array(dtype=float_t),
+    jt_world: wp.array(dtype=vec3),
+    gravity: vec3,
+    jacobi: int,
+    body_count: wp.array(dtype=wp.int32),
+):
+    k = wp.tid()
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    n = c.normal[k]
+    ra = wp.quat_rotate(b.q[ia], c.local_a[k])
+    rb = wp.quat_rotate(b.q[ib], c.local_b[k])
+    c.r_a[k] = ra
+    c.r_b[k] = rb
+    # tangent basis orthogonal to n
+    t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
+    if wp.length_sq(t1) < float_t(0.01):
+        t1 = wp.cross(n, vec3(float_t(0.0), float_t(1.0), float_t(0.0)))
+    t1 = wp.normalize(t1)
+    t2 = wp.cross(n, t1)
+    c.t1[k] = t1
+    c.t2[k] = t2
+    c.mass_n[k] = _effective_mass(b, ia, ib, ra, rb, n)
+    c.mass_t1[k] = _effective_mass(b, ia, ib, ra, rb, t1)
+    c.mass_t2[k] = _effective_mass(b, ia, ib, ra, rb, t2)
+    # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
+    c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
+    c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
+    # approach speed at impact: a gap s closed under relative acceleration g_n along n gives
+    # vn_impact^2 = vn^2 - 2 g_n s, so restitution does not lose the speed gained within the step
+    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    s = c.separation[k]
+    if s > float_t(0.0):
+        ga = float_t(0.0)
+        gb = float_t(0.0)
+        if b.inv_mass[ia] > float_t(0.0):
+            ga = float_t(1.0)
+        if b.inv_mass[ib] > float_t(0.0):
+            gb = float_t(1.0)
+        gn = (gb - ga) * wp.dot(gravity, n)
+        v2 = vn * vn - float_t(2.0) * gn * s
+        if (vn < float_t(0.0) or gn < float_t(0.0)) and v2 > float_t(0.0):
+            vn = -wp.sqrt(v2)
+    c.relative_velocity[k] = vn
+    # warm start values arrive as a world friction vector; project on the new tangents
+    jt = jt_world[k]
+    c.jt1[k] = wp.dot(jt, t1)
+    c.jt2[k] = wp.dot(jt, t2)
+    c.jn_max[k] = float_t(0.0)
+    c.scale[k] = float_t(1.0)
+    if jacobi != 0:
+        c.scale[k] = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
+
+
+@wp.kernel
+def _warm_start(c: Contacts, b: Bodies):
+    k = wp.tid()
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    P = c.normal[k] * c.jn[k] + c.t1[k] * c.jt1[k] + c.t2[k] * c.jt2[k]
+    _apply(b, ia, ib, c.r_a[k], c.r_b[k], P)
+
+
+@wp.kernel
+def _solve(
+    c: Contacts,
+    b: Bodies,
+    inv_h: float_t,
+    use_bias: int,
+    bias_rate: float_t,
+    mass_scale: float_t,
+    impulse_scale: float_t,
+    max_push: float_t,
+    slop: float_t,
+):
+    k = wp.tid()
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    n = c.normal[k]
+    ra = c.r_a[k]
+    rb = c.r_b[k]
+    relax = c.scale[k]
+
+    # friction: Coulomb, |jt| <= mu jn, clamped on the disc
+    t1 = c.t1[k]
+    t2 = c.t2[k]
+    dv = _relative_velocity(b, ia, ib, ra, rb)
+    j1_old = c.jt1[k]
+    j2_old = c.jt2[k]
+    j1 = j1_old - c.mass_t1[k] * wp.dot(dv, t1) * relax
+    j2 = j2_old - c.mass_t2[k] * wp.dot(dv, t2) * relax
+    limit = c.friction[k] * c.jn[k]
+    norm = wp.sqrt(j1 * j1 + j2 * j2)
+    if norm > limit:
+        f = limit / norm
+        j1 = j1 * f
+        j2 = j2 * f
+    c.jt1[k] = j1
+    c.jt2[k] = j2
+    _apply(b, ia, ib, ra, rb, t1 * (j1 - j1_old) + t2 * (j2 - j2_old))
+
+    # current separation from the anchors carried along with both bodies
+    pa = b.x[ia] + wp.quat_rotate(b.q[ia], c.local_a[k])
+    pb = b.x[ib] + wp.quat_rotate(b.q[ib], c.local_b[k])
+    s = wp.dot(n, pb - pa)
+
+    # normal: speculative (s > 0) lets the gap close in one substep; overlap pushes out softly
+    bias = float_t(0.0)
+    ms = float_t(1.0)
+    isc = float_t(0.0)
+    if s > float_t(0.0):
+        bias = s * inv_h
+    elif use_bias != 0 and s < -slop:
+        bias = wp.max(bias_rate * (s + slop), -max_push)
+        ms = mass_scale
+        isc = impulse_scale
+    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    jn_old = c.jn[k]
+    dj = (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax
+    jn = wp.max(jn_old + dj, float_t(0.0))
+    c.jn[k] = jn
+    c.jn_max[k] = wp.max(c.jn_max[k], jn)
+    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+
+
+@wp.kernel
+def _restitution(c: Contacts, b: Bodies, threshold: float_t):
+    k = wp.tid()
+    vrel = c.relative_velocity[k]
+    if vrel > -threshold or c.jn_max[k] == float_t(0.0) or c.restitution[k] == float_t(0.0):
+        return
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    n = c.normal[k]
+    ra = c.r_a[k]
+    rb = c.r_b[k]
+    # drive the normal velocity to -e times the approach speed
+    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    jn_old = c.jn[k]
+    jn = wp.max(jn_old - c.mass_n[k] * (vn + c.restitution[k] * vrel) * c.scale[k], float_t(0.0))
+    c.jn[k] = jn
+    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+
+
+# ---------------------------------------------------------------------------- host side
+
+
+class ContactSet(ArraySet):
+    """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting."""
+
+    def __init__(self, device: str):
+        super().__init__(CONTACT_FIELDS, device=device, capacity=1024)
+        self.count_array = wp.zeros(1, dtype=wp.int32, device=device)
+        self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=1024)
+        self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=device)
+        self._owner_capacity = 0
+
+    def grow(self, count: int) -> None:
+        self.count = 0
+        self.reserve(count)
+        self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=self.device)
+
+    def begin_step(self) -> None:
+        self.count_array.zero_()
+
+    def writer(self) -> ContactWriter:
+        a = self.arrays
+        w = ContactWriter()
+        w.count = self.count_array
+        self.count_array.zero_()
+        w.body_a, w.body_b = a["contact_body_a"], a["contact_body_b"]
+        w.normal, w.point, w.separation = a["contact_normal"], a["contact_point"], a["contact_separation"]
+        w.local_a, w.local_b = a["contact_local_a"], a["contact_local_b"]
+        return w
+
+    def struct(self) -> Contacts:
+        a = self.arrays
+        c = Contacts()
+        c.body_a, c.body_b, c.normal, c.separation = (
+            a["contact_body_a"], a["contact_body_b"], a["contact_normal"], a["contact_separation"])
+        c.local_a, c.local_b, c.r_a, c.r_b = a["contact_local_a"], a["contact_local_b"], a["contact_r_a"], a["contact_r_b"]
+        c.t1, c.t2 = a["contact_tangent1"], a["contact_tangent2"]
+        c.mass_n, c.mass_t1, c.mass_t2 = a["contact_mass_n"], a["contact_mass_t1"], a["contact_mass_t2"]
+        c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
+        c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
+        c.jn, c.jt1, c.jt2, c.jn_max = (
+            a["contact_impulse_n"], a["contact_impulse_t1"], a["contact_impulse_t2"], a["contact_max_impulse_n"])
+        return c
+
+    def _owner_buffers(self, body_capacity: int) -> None:
+        if body_capacity != self._owner_capacity:
+            self._owner_capacity = body_capacity
+            self.owner_count = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
+            self.owner_start = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
+            self.owner_fill = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
+            self.body_count = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
+
+    def match_previous(self, bodies) -> None:
+        """Carry last step's impulses over to the contacts that persist (warm starting)."""
+        self._owner_buffers(bodies.capacity)
+        if self.count == 0:
+            return
+        p, b = self.previous, bodies.arrays
+        dev = self.device
+        self.owner_count.zero_()
+        self.owner_fill.zero_()
+        if p.count:
+            wp.launch(_owner_count, dim=p.count, device=dev,
+                      inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count])
+            wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
+            self.owner_entries = wp.zeros(p.count, dtype=wp.int32, device=dev)
+            wp.launch(_owner_scatter, dim=p.count, device=dev,
+                      inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_start,
+                              self.owner_fill, self.owner_entries])
+        else:
+            self.owner_entries = wp.zeros(1, dtype=wp.int32, device=dev)
+        wp.launch(_match, dim=self.count, device=dev,
+                  inputs=[self.struct(), b["body_inv_mass"], b["body_bound_radius"], MATCH_TOLERANCE,
+                          self.owner_start, self.owner_count, self.owner_entries, p.previous_body_a,
+                          p.previous_body_b, p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t,
+                          self.jt_world])
+
+    def store_impulses(self, bodies) -> None:
+        """Keep this step's contacts and impulses for the next step's warm start."""
+        p = self.previous
+        p.count = 0
+        if self.count == 0:
+            return
+        p.reserve(self.count)
+        wp.launch(_store, dim=self.count, device=self.device,
+                  inputs=[self.struct(), bodies.arrays["body_inv_mass"], p.previous_body_a, p.previous_body_b,
+                          p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t])
+        p.count = self.count
+
+
+def body_struct(bodies) -> Bodies:
+    a = bodies.arrays
+    s = Bodies()
+    s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
+    s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
+    return s
+
+
+def softness(h: float) -> tuple[float, float, float]:
+    """(bias rate [1/s], mass scale, impulse scale) of the soft contact at substep h [s].
+
+    A resting contact settles at an overlap of about g / omega^2 per body it carries
+    (4 micrometres per body at the default 8 substeps of 1/240 s).
+    """
+    hertz = CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+    omega = 2.0 * math.pi * hertz
+    a1 = 2.0 * CONTACT_DAMPING_RATIO + h * omega
+    a2 = h * omega * a1
+    a3 = 1.0 / (1.0 + a2)
+    return omega / a1, a2 * a3, a3
+
+
+def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
+    """Anchors, tangents, effective masses, combined materials and approach speeds, once per step."""
+    if contacts.count == 0:
+        return
+    jacobi = 0 if contacts.device == "cpu" else 1
+    if jacobi:
+        contacts.body_count.zero_()
+        wp.launch(_body_contact_count, dim=contacts.count, device=contacts.device,
+                  inputs=[contacts.struct(), contacts.body_count])
+    b = bodies.arrays
+    wp.launch(_prepare, dim=contacts.count, device=contacts.device,
+              inputs=[contacts.struct(), body_struct(bodies), b["body_friction"], b["body_restitution"],
+                      contacts.jt_world, vec3(*gravity), jacobi, contacts.body_count])
+
+
+def warm_start(bodies, contacts: ContactSet) -> None:
+    """Apply the accumulated impulses of the last substep (or step) to the velocities."""
+    if contacts.count:
+        wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
+                  inputs=[contacts.struct(), body_struct(bodies)])
+
+
+def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
+    """One sweep of normal and friction impulses over all contacts at substep `h`."""
+    if contacts.count == 0:
+        return
+    bias_rate, mass_scale, impulse_scale = softness(h)
+    wp.launch(_solve, dim=contacts.count, device=contacts.device,
+              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), bias_rate, mass_scale,
+                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP])
+
+
+def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
+    """Bounce the contacts that approached faster than `threshold` [m/s]."""
+    if contacts.count:
+        wp.launch(_restitution, dim=contacts.count, device=contacts.device,
+                  inputs=[contacts.struct(), body_struct(bodies), threshold])

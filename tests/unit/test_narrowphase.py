@@ -1,0 +1,230 @@
+"""Narrow phase, per shape pair: separated, touching, overlapping, deep, coincident, swapped."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import tumble
+
+DT = 1.0 / 240.0
+# contacts are reported up to the speculative margin when bodies are at rest
+MARGIN = 0.002
+
+
+def contacts(world):
+    """Run broad + narrow phase and return (pairs, normals, depths, points)."""
+    world.collide()
+    return world.contact_pair, world.contact_normal, world.contact_depth, world.contact_point
+
+
+def quat_axis_angle(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
+
+
+def rotate(q, v):
+    x, y, z, w = q
+    u = np.array([x, y, z])
+    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
+
+
+# ------------------------------------------------------------------ sphere-sphere
+
+
+@pytest.mark.parametrize(
+    "gap, expect",
+    [(0.5, 0), (MARGIN / 2, 1), (0.0, 1), (-0.01, 1), (-0.15, 1)],
+    ids=["separated", "speculative", "touching", "overlapping", "deep"],
+)
+@pytest.mark.parametrize("swapped", [False, True])
+def test_sphere_sphere_depth_and_normal(gap, expect, swapped):
+    """Report depth r1 + r2 - |d| along the centre line, normal from the first body to the second."""
+    w = tumble.World(gravity=(0, 0, 0))
+    r1, r2 = 0.1, 0.2
+    p1, p2 = np.zeros(3), np.array([r1 + r2 + gap, 0, 0])
+    if swapped:
+        w.add_sphere(position=p2, radius=r2, mass=1)
+        w.add_sphere(position=p1, radius=r1, mass=1)
+    else:
+        w.add_sphere(position=p1, radius=r1, mass=1)
+        w.add_sphere(position=p2, radius=r2, mass=1)
+    pairs, normals, depths, _ = contacts(w)
+    assert len(depths) == expect
+    if expect:
+        assert depths[0] == pytest.approx(-gap, abs=1e-12)
+        a = pairs[0, 0]
+        # normal points from body a to body b
+        expected = np.array([1.0, 0, 0]) if (a == 0) != swapped else np.array([-1.0, 0, 0])
+        np.testing.assert_allclose(normals[0], expected, atol=1e-12)
+
+
+def test_sphere_sphere_coincident_centres():
+    """Give coincident spheres a valid unit normal and full depth."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_sphere(position=(0, 0, 0), radius=0.1, mass=1)
+    w.add_sphere(position=(0, 0, 0), radius=0.1, mass=1)
+    _, normals, depths, _ = contacts(w)
+    assert len(depths) == 1
+    assert np.linalg.norm(normals[0]) == pytest.approx(1.0)
+    assert depths[0] == pytest.approx(0.2)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(-1, 1), min_size=3, max_size=3),
+    st.floats(0.01, 0.5),
+    st.floats(0.01, 0.5),
+)
+def test_sphere_sphere_matches_distance(offset, r1, r2):
+    """Depth equals r1 + r2 - |x2 - x1| for any placement that is near enough to report."""
+    d = np.asarray(offset)
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_sphere(position=(0, 0, 0), radius=r1, mass=1)
+    w.add_sphere(position=d, radius=r2, mass=1)
+    _, normals, depths, _ = contacts(w)
+    depth = r1 + r2 - np.linalg.norm(d)
+    if depth < -MARGIN - 1e-9:
+        assert len(depths) == 0
+    elif depth > -MARGIN + 1e-9 and np.linalg.norm(d) > 1e-9:
+        assert len(depths) == 1
+        assert depths[0] == pytest.approx(depth, abs=1e-12)
+        np.testing.assert_allclose(normals[0], d / np.linalg.norm(d), atol=1e-12)
+
+
+# ------------------------------------------------------------------ plane-sphere, plane-box
+
+
+@pytest.mark.parametrize("height, expect", [(1.0, 0), (0.1, 1), (0.05, 1), (-0.2, 1)],
+                         ids=["separated", "touching", "overlapping", "deep"])
+def test_plane_sphere(height, expect):
+    """Depth of a sphere on a tilted plane is r - signed distance of its centre."""
+    n = np.array([0.0, 0.6, 0.8])
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_plane(normal=n, offset=0.5)
+    w.add_sphere(position=n * (0.5 + height), radius=0.1, mass=1)
+    _, normals, depths, points = contacts(w)
+    assert len(depths) == expect
+    if expect:
+        assert depths[0] == pytest.approx(0.1 - height, abs=1e-12)
+        np.testing.assert_allclose(normals[0], n, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
+       st.floats(-0.1, 0.3))
+def test_plane_box_deepest_corners(q, z):
+    """Report up to four corners, the deepest ones, each at its true depth below the plane."""
+    q = np.asarray(q) / np.linalg.norm(q)
+    h = np.array([0.1, 0.2, 0.05])
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_plane()
+    w.add_box(position=(0, 0, z), half_extents=h, orientation=q, mass=1)
+    _, normals, depths, _ = contacts(w)
+    corners = np.array([[sx, sy, sz] for sz in (1, -1) for sy in (1, -1) for sx in (1, -1)]) * h
+    heights = np.sort([z + rotate(q, c)[2] for c in corners])
+    expected = -heights[heights <= MARGIN][:4]
+    assert len(depths) == len(expected)
+    np.testing.assert_allclose(np.sort(depths)[::-1], np.sort(expected)[::-1], atol=1e-12)
+    if len(depths):
+        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (len(depths), 1)), atol=1e-12)
+
+
+# ------------------------------------------------------------------ sphere-box
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3),
+       st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1))
+def test_sphere_box_closest_point(centre, q):
+    """Depth is r minus the distance to the box's closest point (or plus the depth inside)."""
+    q = np.asarray(q) / np.linalg.norm(q)
+    h = np.array([0.2, 0.1, 0.15])
+    r = 0.1
+    c = np.asarray(centre)
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_box(position=(0, 0, 0), half_extents=h, orientation=q, mass=1)
+    w.add_sphere(position=c, radius=r, mass=1)
+    pairs, normals, depths, _ = contacts(w)
+    local = rotate(q * [-1, -1, -1, 1], c)
+    inside = np.all(np.abs(local) <= h)
+    if inside:
+        expected = r + np.min(h - np.abs(local))
+    else:
+        expected = r - np.linalg.norm(local - np.clip(local, -h, h))
+    if expected < -MARGIN - 1e-9:
+        assert len(depths) == 0
+        return
+    if expected > -MARGIN + 1e-9:
+        assert len(depths) == 1
+        assert depths[0] == pytest.approx(expected, abs=1e-9)
+        # sphere is body a (SPHERE < BOX): the normal points from the sphere into the box
+        assert tuple(pairs[0]) == (1, 0)
+        if not inside:
+            out = local - np.clip(local, -h, h)
+            np.testing.assert_allclose(normals[0], -rotate(q, out / np.linalg.norm(out)), atol=1e-9)
+
+
+# ------------------------------------------------------------------ box-box
+
+
+@pytest.mark.parametrize("gap, expect", [(0.3, 0), (0.0, 4), (-0.01, 4), (-0.08, 4)],
+                         ids=["separated", "touching", "overlapping", "deep"])
+def test_box_box_face_manifold(gap, expect):
+    """Stacked boxes give a four-point manifold at the overlap depth with an upward normal."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_box(position=(0, 0, 0), half_extents=(0.2, 0.2, 0.1), mass=1)
+    w.add_box(position=(0.05, 0.02, 0.2 + gap), half_extents=(0.1, 0.1, 0.1), mass=1)
+    pairs, normals, depths, points = contacts(w)
+    assert len(depths) == expect
+    if expect:
+        np.testing.assert_allclose(depths, -gap, atol=1e-12)
+        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (4, 1)), atol=1e-12)
+        # the manifold spans the upper box's bottom face
+        np.testing.assert_allclose(np.sort(points[:, 0]), [-0.05, -0.05, 0.15, 0.15], atol=1e-12)
+
+
+def test_box_box_clipped_manifold_inside_both_faces():
+    """A box turned 45 degrees on a larger box: contact points lie on both faces' overlap."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_box(position=(0, 0, 0), half_extents=(0.12, 0.12, 0.1), mass=1)
+    q = quat_axis_angle((0, 0, 1), np.pi / 4)
+    w.add_box(position=(0, 0, 0.199), half_extents=(0.1, 0.1, 0.1), orientation=q, mass=1)
+    _, normals, depths, points = contacts(w)
+    assert 1 <= len(depths) <= 4
+    np.testing.assert_allclose(depths, 0.001, atol=1e-9)
+    assert np.all(np.abs(points[:, :2]) <= 0.12 + 1e-9)
+    local = np.array([rotate(q * [-1, -1, -1, 1], p - [0, 0, 0.199]) for p in points])
+    assert np.all(np.abs(local[:, :2]) <= 0.1 + 1e-9)
+
+
+def test_box_box_edge_edge():
+    """Two boxes crossed edge to edge touch at one point, normal along the cross axis."""
+    w = tumble.World(gravity=(0, 0, 0))
+    qa = quat_axis_angle((1, 0, 0), np.pi / 4)  # edge along x on top
+    qb = quat_axis_angle((0, 1, 0), np.pi / 4)  # edge along y at the bottom
+    e = 0.1 * np.sqrt(2)
+    w.add_box(position=(0, 0, 0), half_extents=(0.1, 0.1, 0.1), orientation=qa, mass=1)
+    w.add_box(position=(0, 0, 2 * e - 0.004), half_extents=(0.1, 0.1, 0.1), orientation=qb, mass=1)
+    _, normals, depths, points = contacts(w)
+    assert len(depths) == 1
+    assert depths[0] == pytest.approx(0.004, abs=1e-9)
+    np.testing.assert_allclose(np.abs(normals[0]), [0, 0, 1], atol=1e-9)
+    np.testing.assert_allclose(points[0], [0, 0, e - 0.002], atol=1e-9)
+
+
+@pytest.mark.parametrize("swapped", [False, True])
+def test_box_box_normal_points_from_a_to_b(swapped):
+    """Whichever body comes first, the normal points from body a to body b."""
+    w = tumble.World(gravity=(0, 0, 0))
+    lower, upper = dict(position=(0, 0, 0)), dict(position=(0.19, 0.03, 0.02))
+    for kw in ((upper, lower) if swapped else (lower, upper)):
+        w.add_box(half_extents=(0.1, 0.1, 0.1), mass=1, **kw)
+    pairs, normals, depths, _ = contacts(w)
+    assert len(depths) == 4
+    np.testing.assert_allclose(depths, 0.01, atol=1e-12)
+    x = w.body_position
+    for (a, b), n in zip(pairs, normals):
+        assert np.dot(n, x[b] - x[a]) > 0
