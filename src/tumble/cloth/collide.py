@@ -1,0 +1,382 @@
+"""Cloth collisions: particles against the world's bodies (two-way) and against each other.
+
+Stages:
+
+- `candidate_bodies` (host, once per world step) keeps only the bodies whose bounding sphere,
+  or plane, comes within reach of the cloth's bounding box this step, so a cloth next to a
+  pile of 10,000 spheres does not test every particle against every sphere. Cost O(bodies).
+- `collide_bodies` (one thread per particle, looping over the candidates) pushes particles
+  that are closer than their thickness to a plane, sphere or box surface back out, applies
+  Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
+  equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
+- `self_collide` builds a spatial hash of particles by counting sort (cell size = the largest
+  thickness) and pushes apart particle pairs closer than their thickness, except near
+  neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
+  Cost O(P) per substep. For cloth that does not pass through itself, choose a thickness
+  close to the grid spacing: particles farther apart than the thickness can slip between
+  each other.
+
+Contacts are resolved on positions, as in position-based dynamics (Mueller et al. 2007), with
+inverse-mass weighting: for penetration depth d along normal n, with particle and body inverse
+masses w_p and w_b (w_b = 1/m + (r x n) . I^-1 (r x n) at the contact point), the particle
+moves by lambda w_p n with lambda = d / (w_p + c w_b) and the body receives the impulse
+-lambda n / h. c is the number of particles that touched this body in the previous substep
+("mass splitting"), so that many particles pressing on one light body do not overshoot.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..shapes import ShapeType
+from ..state import float_t, quat, vec3
+from ._launch import LaunchCache, launch
+
+PLANE = wp.constant(int(ShapeType.PLANE))
+SPHERE = wp.constant(int(ShapeType.SPHERE))
+BOX = wp.constant(int(ShapeType.BOX))
+
+
+@wp.func
+def _inv_inertia_world(q: quat, inv_inertia: vec3, a: vec3):
+    # I_world^-1 a = R diag(I_body^-1) R^T a
+    b = wp.quat_rotate_inv(q, a)
+    return wp.quat_rotate(q, vec3(b[0] * inv_inertia[0], b[1] * inv_inertia[1], b[2] * inv_inertia[2]))
+
+
+@wp.kernel
+def _collide_bodies(
+    x: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    thickness: wp.array(dtype=float_t),
+    friction: wp.array(dtype=float_t),
+    candidates: wp.array(dtype=wp.int32),
+    candidate_count: int,
+    body_shape: wp.array(dtype=wp.int32),
+    body_position: wp.array(dtype=vec3),
+    body_orientation: wp.array(dtype=quat),
+    body_radius: wp.array(dtype=float_t),
+    body_half_extents: wp.array(dtype=vec3),
+    body_inv_mass: wp.array(dtype=float_t),
+    body_inv_inertia: wp.array(dtype=vec3),
+    body_friction: wp.array(dtype=float_t),
+    body_velocity: wp.array(dtype=vec3),
+    body_angular_velocity: wp.array(dtype=vec3),
+    contact_count_prev: wp.array(dtype=wp.int32),
+    contact_count_next: wp.array(dtype=wp.int32),
+    h: float_t,
+):
+    p = wp.tid()
+    w_p = inv_m[p]
+    if w_p <= float_t(0.0):
+        return
+    xp = x[p]
+    zero = float_t(0.0)
+    k = int(0)
+    while k < candidate_count:
+        b = candidates[k]
+        k += 1
+        shape = body_shape[b]
+        c = body_position[b]
+        q = body_orientation[b]
+        # signed distance d from the body's surface and outward normal n
+        d = zero
+        n = vec3(zero, zero, float_t(1.0))
+        if shape == PLANE:
+            n = wp.quat_rotate(q, vec3(zero, zero, float_t(1.0)))
+            d = wp.dot(xp - c, n)
+        elif shape == SPHERE:
+            r = xp - c
+            length = wp.length(r)
+            d = length - body_radius[b]
+            if length > float_t(1.0e-12):
+                n = r / length
+        else:
+            he = body_half_extents[b]
+            pl = wp.quat_rotate_inv(q, xp - c)
+            excess = vec3(wp.abs(pl[0]) - he[0], wp.abs(pl[1]) - he[1], wp.abs(pl[2]) - he[2])
+            outside = vec3(wp.max(excess[0], zero), wp.max(excess[1], zero), wp.max(excess[2], zero))
+            dist_out = wp.length(outside)
+            nl = vec3(zero, zero, zero)
+            if dist_out > zero:
+                d = dist_out
+                nl = (pl - vec3(wp.clamp(pl[0], -he[0], he[0]), wp.clamp(pl[1], -he[1], he[1]),
+                                wp.clamp(pl[2], -he[2], he[2]))) / dist_out
+            else:
+                # inside: leave through the nearest face
+                axis = int(0)
+                d = excess[0]
+                if excess[1] > d:
+                    axis = 1
+                    d = excess[1]
+                if excess[2] > d:
+                    axis = 2
+                    d = excess[2]
+                nl[axis] = wp.sign(pl[axis])
+            n = wp.quat_rotate(q, nl)
+        depth = thickness[p] - d
+        if depth <= zero:
+            continue
+
+        # normal: lambda = depth / (w_p + c w_b), particle moves lambda w_p n, body gets -lambda n / h
+        split = float_t(wp.max(contact_count_prev[b], 1))
+        wp.atomic_add(contact_count_next, b, 1)
+        r_b = (xp - n * d) - c
+        w_lin = body_inv_mass[b]
+        inv_i = body_inv_inertia[b]
+        rn = wp.cross(r_b, n)
+        w_b = w_lin + wp.dot(rn, _inv_inertia_world(q, inv_i, rn))
+        lam = depth / (w_p + split * w_b)
+        xp = xp + n * (lam * w_p)
+
+        # friction: tangential motion of the particle relative to the body surface this substep,
+        # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
+        mu = wp.sqrt(friction[p] * body_friction[b])
+        vb = body_velocity[b] + wp.cross(body_angular_velocity[b], r_b)
+        dx = (xp - x_prev[p]) - vb * h
+        dxt = dx - n * wp.dot(dx, n)
+        slip = wp.length(dxt)
+        impulse = n * (-lam)
+        if slip > float_t(1.0e-14) and mu > zero:
+            t = dxt / slip
+            rt = wp.cross(r_b, t)
+            w_bt = w_lin + wp.dot(rt, _inv_inertia_world(q, inv_i, rt))
+            lam_t = wp.min(slip / (w_p + split * w_bt), mu * lam)
+            xp = xp - t * (lam_t * w_p)
+            impulse = impulse + t * lam_t
+
+        # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
+        # and, as in position-based dynamics, the matching displacement lambda w_b of its centre
+        # (so that cloth held by its stretch limit can hold the body up instead of the two
+        # trading ever larger pushes over the substeps)
+        if w_lin > zero:
+            j = impulse / h
+            wp.atomic_add(body_velocity, b, j * w_lin)
+            wp.atomic_add(body_position, b, impulse * w_lin)
+            wp.atomic_add(body_angular_velocity, b, _inv_inertia_world(q, inv_i, wp.cross(r_b, j)))
+    x[p] = xp
+
+
+@wp.func
+def _cell_hash(ix: int, iy: int, iz: int, mask: int):
+    # table size is a power of two: the low bits of the mixed coordinates pick the slot
+    hx = wp.uint32(ix) * wp.uint32(73856093)
+    hy = wp.uint32(iy) * wp.uint32(19349663)
+    hz = wp.uint32(iz) * wp.uint32(83492791)
+    return int((hx ^ hy ^ hz) & wp.uint32(mask))
+
+
+@wp.func
+def _cell_of(x: vec3, inv_cell: float_t):
+    return wp.vec3i(int(wp.floor(x[0] * inv_cell)), int(wp.floor(x[1] * inv_cell)), int(wp.floor(x[2] * inv_cell)))
+
+
+@wp.kernel
+def _hash_count(
+    x: wp.array(dtype=vec3),
+    inv_cell: float_t,
+    mask: int,
+    particle_cell: wp.array(dtype=wp.int32),
+    cell_count: wp.array(dtype=wp.int32),
+):
+    p = wp.tid()
+    c = _cell_of(x[p], inv_cell)
+    slot = _cell_hash(c[0], c[1], c[2], mask)
+    particle_cell[p] = slot
+    wp.atomic_add(cell_count, slot, 1)
+
+
+@wp.kernel
+def _hash_fill(
+    particle_cell: wp.array(dtype=wp.int32),
+    cell_cursor: wp.array(dtype=wp.int32),
+    cell_particles: wp.array(dtype=wp.int32),
+):
+    p = wp.tid()
+    slot = wp.atomic_add(cell_cursor, particle_cell[p], 1)
+    cell_particles[slot] = p
+
+
+@wp.kernel
+def _self_collide(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    thickness: wp.array(dtype=float_t),
+    particle_cloth: wp.array(dtype=wp.int32),
+    particle_i: wp.array(dtype=wp.int32),
+    particle_j: wp.array(dtype=wp.int32),
+    reach: float_t,
+    skin: float_t,
+    inv_cell: float_t,
+    mask: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_count: wp.array(dtype=wp.int32),
+    cell_particles: wp.array(dtype=wp.int32),
+    delta: wp.array(dtype=vec3),
+):
+    p = wp.tid()
+    w_p = inv_m[p]
+    acc = vec3(float_t(0.0))
+    if w_p > float_t(0.0):
+        xp = x[p]
+        # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
+        # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
+        lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
+        cloth = particle_cloth[p]
+        pi = particle_i[p]
+        pj = particle_j[p]
+        for dz in range(2):
+            for dy in range(2):
+                for dx in range(2):
+                    cx = lo[0] + dx
+                    cy = lo[1] + dy
+                    cz = lo[2] + dz
+                    slot = _cell_hash(cx, cy, cz, mask)
+                    e = cell_start[slot]
+                    end = e + cell_count[slot]
+                    while e < end:
+                        q = cell_particles[e]
+                        e += 1
+                        if q == p:
+                            continue
+                        xq = x[q]
+                        rel = xp - xq
+                        dist2 = wp.dot(rel, rel)
+                        target = float_t(0.5) * (thickness[p] + thickness[q])
+                        if dist2 >= target * target:
+                            continue
+                        # the slot may hold other cells too (hash collisions): count each pair once
+                        cq = _cell_of(xq, inv_cell)
+                        if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                            continue
+                        # grid neighbours are held apart by springs, not by collisions
+                        if particle_cloth[q] == cloth:
+                            if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
+                                continue
+                        dist = wp.sqrt(dist2)
+                        n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
+                        if dist > float_t(1.0e-12):
+                            n = rel / dist
+                        elif p < q:
+                            n = -n
+                        # each particle of the pair takes its inverse-mass share of a push to
+                        # (1 + skin) target, so that layers resting on each other settle at the
+                        # thickness rather than just inside it
+                        acc = acc + n * (((float_t(1.0) + skin) * target - dist) * w_p / (w_p + inv_m[q]))
+    delta[p] = acc
+
+
+@wp.kernel
+def _apply_delta(x: wp.array(dtype=vec3), delta: wp.array(dtype=vec3)):
+    p = wp.tid()
+    x[p] = x[p] + delta[p]
+
+
+def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float, dt: float) -> np.ndarray:
+    """Indices of the bodies that can touch the cloth's bounding box [lo, hi] this step, int32.
+
+    Args:
+        world_bodies: the world's body `ArraySet`.
+        lo, hi: corners of the cloth's bounding box [m], shape (3,).
+        reach: largest particle thickness plus the distance particles can travel this step [m].
+        dt: step [s], for the distance bodies can travel.
+    """
+    n = world_bodies.count
+    if n == 0:
+        return np.zeros(0, dtype=np.int32)
+    shape = world_bodies.numpy("body_shape")
+    pos = world_bodies.numpy("body_position")
+    bound = world_bodies.numpy("body_bound_radius")
+    speed = np.linalg.norm(world_bodies.numpy("body_velocity"), axis=1)
+    spin = np.linalg.norm(world_bodies.numpy("body_angular_velocity"), axis=1)
+    finite = np.isfinite(bound)
+    bound_f = np.where(finite, bound, 0.0)
+    margin = reach + dt * (speed + spin * bound_f)
+    # solids: distance from the centre to the box <= bounding radius + margin
+    gap = np.linalg.norm(np.maximum(0.0, np.maximum(lo - pos, pos - hi)), axis=1)
+    near = gap <= bound_f + margin
+    # planes: the box's lowest corner along the normal is within margin of the plane
+    planes = shape == int(ShapeType.PLANE)
+    if np.any(planes):
+        q = world_bodies.numpy("body_orientation")[planes]
+        x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        normal = np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)], axis=1)
+        lowest = np.where(normal > 0.0, lo, hi)  # corner minimising n . x
+        dist = np.einsum("ij,ij->i", lowest - pos[planes], normal)
+        near[planes] = dist <= margin[planes]
+    return np.nonzero(near)[0].astype(np.int32)
+
+
+def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies, contact_count_prev,
+                   contact_count_next, h, *, cache: LaunchCache | None = None):
+    """Push particles out of the candidate bodies, with friction, and push the bodies back.
+
+    Args:
+        x: particle positions after integration [m], shape (P,) vec3 (corrected in place).
+        x_prev: particle positions at the start of the substep [m], shape (P,) vec3.
+        inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
+        thickness: distance particles keep from surfaces [m], shape (P,).
+        friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
+        candidates: body indices to test, shape (k,) int32.
+        bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
+        contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.
+        contact_count_next: zeroed; receives this substep's counts, shape (n,) int32.
+        h: substep [s].
+    """
+    k = candidates.shape[0]
+    if k == 0:
+        return
+    a = bodies.arrays
+    launch(_collide_bodies, x.shape[0], [
+        x, x_prev, inv_mass, thickness, friction, candidates, k,
+        a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"], a["body_half_extents"],
+        a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
+        a["body_angular_velocity"], contact_count_prev, contact_count_next, float(h)], x.device, cache)
+
+
+class SelfCollisionGrid:
+    """Preallocated buffers of the particle spatial hash (counting sort into hashed cells).
+
+    Args:
+        particle_count: P.
+        device: Warp device.
+    """
+
+    def __init__(self, particle_count: int, device: str):
+        self.table_size = max(64, 1 << int(np.ceil(np.log2(max(2 * particle_count, 1)))))
+        self.mask = self.table_size - 1
+        self.cell_count = wp.zeros(self.table_size, dtype=wp.int32, device=device)
+        self.cell_start = wp.zeros(self.table_size, dtype=wp.int32, device=device)
+        self.cell_cursor = wp.zeros(self.table_size, dtype=wp.int32, device=device)
+        self.particle_cell = wp.zeros(particle_count, dtype=wp.int32, device=device)
+        self.cell_particles = wp.zeros(particle_count, dtype=wp.int32, device=device)
+        self.delta = wp.zeros(particle_count, dtype=vec3, device=device)
+
+    def collide(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach: float, *,
+                skin: float = 0.0, cache: LaunchCache | None = None):
+        """Push apart particles closer than their mean thickness (grid neighbours excepted).
+
+        Args:
+            x: positions [m], shape (P,) vec3 (corrected in place).
+            inv_mass: [1/kg], shape (P,).
+            thickness: [m], shape (P,).
+            particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
+            reach: the largest thickness [m]; hash cells are 2 reach wide, so each query visits 8 cells.
+            skin: pairs are pushed to (1 + skin) times their thickness.
+            cache: recorded launches to replay.
+        """
+        n, dev = x.shape[0], x.device
+        inv_cell = 0.5 / reach
+        # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
+        self.cell_count.zero_()
+        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.cell_count], dev, cache)
+        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
+        wp.copy(self.cell_cursor, self.cell_start)
+        launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
+        # push pairs apart (Jacobi: every particle computes its own share, then all move)
+        launch(_self_collide, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach, skin,
+                                  inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles, self.delta],
+               dev, cache)
+        launch(_apply_delta, n, [x, self.delta], dev, cache)

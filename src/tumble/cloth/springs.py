@@ -1,0 +1,299 @@
+"""Spring forces, semi-implicit Euler integration and Provot's stretch limit for cloth particles.
+
+Stage functions over particle and spring arrays:
+
+- `accumulate_spring_forces` reads positions and velocities, adds every spring's force into
+  `particle_force` (one thread per spring, scattered with atomics; on the CPU kernels run
+  serially, so the sum order and the result are deterministic). Cost O(springs).
+- `integrate` turns forces into velocities and positions (semi-implicit Euler), moves pins.
+- `limit_stretch` pulls over-stretched structural springs back to (1 + max_stretch) l0,
+  Gauss-Seidel style, alternating the sweep direction. Cost O(structural springs x iterations).
+- `update_velocities` sets v = (x - x_prev) / h so position corrections show in velocities.
+
+Explicit springs are stable only while h^2 k / m is small; `stable_substep` gives the largest
+stable step for given stiffness and mass, from which `ClothSystem` picks its internal substeps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..state import float_t, vec3
+from ._launch import LaunchCache, launch
+
+
+@wp.kernel
+def _spring_forces(
+    x: wp.array(dtype=vec3),
+    v: wp.array(dtype=vec3),
+    ids: wp.array2d(dtype=wp.int32),
+    rest: wp.array(dtype=float_t),
+    ks: wp.array(dtype=float_t),
+    kd: wp.array(dtype=float_t),
+    f: wp.array(dtype=vec3),
+):
+    s = wp.tid()
+    i = ids[s, 0]
+    j = ids[s, 1]
+    d = x[j] - x[i]
+    length = wp.length(d)
+    if length > float_t(1.0e-12):
+        n = d / length
+        # f_i = n [ks (|xj - xi| - l0) + kd (vj - vi) . n],  f_j = -f_i
+        fs = n * (ks[s] * (length - rest[s]) + kd[s] * wp.dot(v[j] - v[i], n))
+        wp.atomic_add(f, i, fs)
+        wp.atomic_sub(f, j, fs)
+
+
+@wp.kernel
+def _integrate(
+    x: wp.array(dtype=vec3),
+    v: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    f: wp.array(dtype=vec3),
+    f_ext: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    pin_target: wp.array(dtype=vec3),
+    gravity: vec3,
+    h: float_t,
+    pin_alpha: float_t,
+):
+    p = wp.tid()
+    xp = x[p]
+    x_prev[p] = xp
+    w = inv_m[p]
+    if w > float_t(0.0):
+        # semi-implicit Euler: v += h (g + w f); x += h v
+        vp = v[p] + h * (gravity + w * (f[p] + f_ext[p]))
+        v[p] = vp
+        x[p] = xp + h * vp
+    else:
+        # pinned: move a fraction of the way to the target, reaching it at the end of the step
+        x[p] = xp + pin_alpha * (pin_target[p] - xp)
+    f[p] = vec3(float_t(0.0))
+
+
+@wp.kernel
+def _limit_stretch(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    ids: wp.array2d(dtype=wp.int32),
+    limit: wp.array(dtype=float_t),
+    margin: float_t,
+    count: int,
+    reverse: int,
+):
+    t = wp.tid()
+    s = t
+    if reverse != 0:
+        s = count - 1 - t
+    i = ids[s, 0]
+    j = ids[s, 1]
+    wi = inv_m[i]
+    wj = inv_m[j]
+    w = wi + wj
+    if w <= float_t(0.0):
+        return
+    d = x[j] - x[i]
+    length = wp.length(d)
+    # Provot: a spring longer than its limit is shortened to margin * limit (slightly inside, so
+    # that the sweeps converge to "no spring over the limit"), both ends moving along the spring
+    # in proportion to their inverse masses
+    target = limit[s] * margin
+    excess = length - target
+    if excess > float_t(0.0):
+        c = d * (excess / (length * w))
+        wp.atomic_add(x, i, c * wi)
+        wp.atomic_sub(x, j, c * wj)
+
+
+@wp.kernel
+def _over_limit(
+    x: wp.array(dtype=vec3),
+    ids: wp.array2d(dtype=wp.int32),
+    limit: wp.array(dtype=float_t),
+    violated: wp.array(dtype=wp.int32),
+):
+    s = wp.tid()
+    if wp.length(x[ids[s, 1]] - x[ids[s, 0]]) > limit[s]:
+        violated[0] = 1
+
+
+@wp.kernel
+def _update_velocities(
+    x: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    v: wp.array(dtype=vec3),
+    inv_h: float_t,
+):
+    p = wp.tid()
+    v[p] = (x[p] - x_prev[p]) * inv_h
+
+
+@wp.kernel
+def _strain(
+    x: wp.array(dtype=vec3),
+    ids: wp.array2d(dtype=wp.int32),
+    rest: wp.array(dtype=float_t),
+    strain: wp.array(dtype=float_t),
+):
+    s = wp.tid()
+    strain[s] = wp.length(x[ids[s, 1]] - x[ids[s, 0]]) / rest[s] - float_t(1.0)
+
+
+def accumulate_spring_forces(x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force, *,
+                             cache: LaunchCache | None = None):
+    """Add spring forces into `force`.
+
+    Args:
+        x: particle positions [m], shape (P,) vec3.
+        v: particle velocities [m/s], shape (P,) vec3.
+        spring_ids: particle pairs (i, j), shape (m, 2) int32.
+        spring_rest_length: rest lengths l0 [m], shape (m,).
+        spring_stiffness: ks [N/m], shape (m,).
+        spring_damping: kd [N s/m], shape (m,).
+        force: per-particle force accumulator [N], shape (P,) vec3 (added to).
+    """
+    m = spring_ids.shape[0]
+    if m:
+        launch(_spring_forces, m, [x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force],
+               x.device, cache)
+
+
+def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity, h, pin_alpha, *,
+              cache: LaunchCache | None = None):
+    """Semi-implicit Euler for free particles; pinned ones (inverse mass 0) move towards their target.
+
+    Stores the start positions in `x_prev` and clears `force` for the next substep.
+
+    Args:
+        x, v, x_prev: positions [m], velocities [m/s], start positions [m], shape (P,) vec3.
+        force: accumulated spring and wind forces [N], shape (P,) vec3.
+        external_force: user forces for this step [N], shape (P,) vec3.
+        inv_mass: inverse masses [1/kg], shape (P,); 0 = pinned.
+        pin_target: where pinned particles should be at the end of the step [m], shape (P,) vec3.
+        gravity: [m/s^2], shape (3,).
+        h: substep [s].
+        pin_alpha: fraction of the remaining way to the pin target covered by this substep.
+    """
+    launch(_integrate, x.shape[0], [x, v, x_prev, force, external_force, inv_mass, pin_target, vec3(*gravity),
+                                    float(h), float(pin_alpha)], x.device, cache)
+
+
+def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iterations: int = 2,
+                  max_iterations: int = 32, margin: float = 0.99, cache: LaunchCache | None = None) -> int:
+    """Provot's deformation constraint: springs longer than their limit are shortened to it.
+
+    Gauss-Seidel sweeps over the springs, alternating direction: `min_iterations` sweeps, then
+    a check, then two more sweeps while some spring is still over its limit, at most
+    `max_iterations` sweeps. (A flag raised inside a sweep would not do: every sweep briefly
+    over-stretches springs it corrects later in the same sweep.)
+
+    Args:
+        x: particle positions [m], shape (P,) vec3 (corrected in place).
+        inv_mass: inverse masses [1/kg], shape (P,).
+        stretch_ids: particle pairs of the limited (structural) springs, shape (s, 2) int32.
+        stretch_limit: largest allowed length (1 + max_stretch) l0 [m], shape (s,).
+        violated: scratch flag, shape (1,) int32.
+        min_iterations, max_iterations: bounds on the number of sweeps.
+        margin: over-long springs are shortened to margin * limit, so that the sweeps end
+            inside the limit rather than creeping up to it.
+        cache: recorded launches to replay.
+
+    Returns:
+        The number of sweeps taken.
+    """
+    count = stretch_ids.shape[0]
+    if count == 0 or max_iterations <= 0:
+        return 0
+    flag = violated.numpy() if violated.device.is_cpu else None
+    it = 0
+    target = max(1, min_iterations)
+    while True:
+        while it < min(target, max_iterations):
+            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, count, it % 2],
+                   x.device, cache)
+            it += 1
+        if it >= max_iterations:
+            return it
+        violated.zero_()
+        launch(_over_limit, count, [x, stretch_ids, stretch_limit, violated], x.device, cache)
+        if int((flag if flag is not None else violated.numpy())[0]) == 0:
+            return it
+        target = it + 2
+
+
+def update_velocities(x, x_prev, v, h, *, cache: LaunchCache | None = None):
+    """Velocities from the corrected positions: v = (x - x_prev) / h."""
+    launch(_update_velocities, x.shape[0], [x, x_prev, v, 1.0 / h], x.device, cache)
+
+
+def strain(x, ids, rest, out) -> np.ndarray:
+    """Strain (|xj - xi| - l0) / l0 of each spring, shape (m,), written into `out` and returned."""
+    if ids.shape[0]:
+        wp.launch(_strain, dim=ids.shape[0], inputs=[x, ids, rest, out], device=x.device)
+    return out.numpy()[: ids.shape[0]]
+
+
+def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray, inv_mass: np.ndarray) -> float:
+    """Largest substep [s] for which explicit springs stay stable, with a 0.9 safety factor.
+
+    By Gershgorin, the largest eigenvalues of the stiffness and damping terms of particle p are
+    bounded by a = 2 K_p w_p and b = 2 D_p w_p, with K_p, D_p the sums of its springs' ks and kd.
+    Symplectic Euler is stable for h^2 a <= 4 (undamped) and h b <= 2 (pure damping); we ask
+    h^2 a / 4 + h b / 2 <= 1, whose positive root is h = (-b/2 + sqrt(b^2/4 + a)) / (a/2).
+
+    Args:
+        particle_stiffness: K_p [N/m], shape (P,).
+        particle_damping: D_p [N s/m], shape (P,).
+        inv_mass: w_p [1/kg], shape (P,).
+    """
+    a = 2.0 * particle_stiffness * inv_mass
+    b = 2.0 * particle_damping * inv_mass
+    active = (a > 0.0) | (b > 0.0)
+    if not np.any(active):
+        return np.inf
+    a, b = a[active], b[active]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = np.where(a > 0.0, (-0.5 * b + np.sqrt(0.25 * b * b + a)) / (0.5 * a), 2.0 / np.where(b > 0, b, 1.0))
+    return 0.9 * float(np.min(h))
+
+
+@wp.kernel
+def _limit_tethers(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    particle: wp.array(dtype=wp.int32),
+    pin: wp.array(dtype=wp.int32),
+    limit: wp.array(dtype=float_t),
+    margin: float_t,
+):
+    t = wp.tid()
+    p = particle[t]
+    a = pin[t]
+    if inv_m[p] <= float_t(0.0) or inv_m[a] > float_t(0.0):
+        return
+    d = x[p] - x[a]
+    length = wp.length(d)
+    excess = length - limit[t] * margin
+    if excess > float_t(0.0):
+        # the pin does not move: pull the particle back onto the sphere of radius `limit`
+        wp.atomic_sub(x, p, d * (excess / length))
+
+
+def limit_tethers(x, inv_mass, tether_particle, tether_pin, tether_limit, *, margin: float = 0.99,
+                  cache: LaunchCache | None = None):
+    """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
+
+    Args:
+        x: particle positions [m], shape (P,) vec3 (corrected in place).
+        inv_mass: inverse masses [1/kg], shape (P,); a tether acts only while its pin is pinned.
+        tether_particle, tether_pin: particle and pin indices, shape (m,) int32.
+        tether_limit: largest particle-pin distance [m], shape (m,).
+        margin: particles are kept within margin * limit, the same margin as `limit_stretch`, so
+            that a taut chain of springs between a particle and its pin fits inside both limits.
+    """
+    m = tether_particle.shape[0]
+    if m:
+        launch(_limit_tethers, m, [x, inv_mass, tether_particle, tether_pin, tether_limit, margin], x.device, cache)

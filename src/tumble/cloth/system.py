@@ -1,0 +1,687 @@
+"""ClothSystem: every cloth of a world, as flat particle, spring and triangle arrays.
+
+`World.step` calls `ClothSystem.substep(h)` once per substep, after the rigid bodies' positions
+were integrated and relaxed. One cloth substep runs these stages, each a plain function over
+arrays (see `springs`, `wind` and `collide`):
+
+1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
+2. integrate: semi-implicit Euler; pinned particles move towards their targets;
+3. self-collision (last substep of each world step): particles closer than the thickness are
+   pushed apart (spatial hash);
+4. stretch limit: tethers to the pins, then Provot's correction of structural springs stretched
+   beyond (1 + max_stretch) l0;
+5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
+   receive the opposite impulse;
+6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
+
+The cloth keeps its own substep: explicit springs are stable only for h^2 k / m small, so each
+world step is split into the fewest equal cloth substeps that keep the stiffest spring on its
+lightest particle stable (see `springs.stable_substep` and `ClothSystem.substeps_for`); each
+runs during the world substep in which it ends, so bodies and cloth stay in step. Soft springs
+with the stretch limit look like stiff cloth at a fraction of the cost: that is Provot's point.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..state import float_t, readonly, vec3
+from . import collide, grid, springs
+from ._launch import LaunchCache
+from .wind import Wind, accumulate_air_forces, sample_wind
+
+#: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution
+DEFAULT_STIFFNESS = {"structural": 12.0, "shear": 1.2, "bend": 0.3}
+#: default spring damping [N s/m] per kind
+DEFAULT_DAMPING = {"structural": 0.002, "shear": 0.0005, "bend": 0.0001}
+#: default areal density [kg/m^2] when neither mass nor areal_density is given (light cotton)
+DEFAULT_AREAL_DENSITY = 0.2
+
+_PARTICLE_FIELDS = {
+    # model
+    "particle_mass": float_t,  # [kg]
+    "particle_inv_mass": float_t,  # [1/kg], 0 = pinned
+    "particle_thickness": float_t,  # [m]
+    "particle_friction": float_t,
+    "particle_cloth": wp.int32,  # index of the cloth in creation order
+    "particle_i": wp.int32,  # grid coordinates in its cloth
+    "particle_j": wp.int32,
+    "particle_rest_position": vec3,  # [m]
+    # state
+    "particle_position": vec3,  # [m]
+    "particle_velocity": vec3,  # [m/s]
+    "particle_pin_target": vec3,  # [m], where a pinned particle should be at the end of the step
+    # scratch
+    "particle_position_prev": vec3,  # [m], start of the substep
+    "particle_force": vec3,  # [N], accumulated per substep
+    "particle_external_force": vec3,  # [N], user force for the current step
+    "particle_wind": vec3,  # [m/s], wind velocity at the particle this step
+}
+_STATE_FIELDS = ("particle_position", "particle_velocity", "particle_pin_target", "particle_inv_mass")
+
+
+@dataclass(frozen=True)
+class Cloth:
+    """Where one cloth lives in the flat arrays.
+
+    Attributes:
+        index: creation order.
+        particle_start: first particle; the cloth's particles are [start, start + nx * ny).
+        nx, ny: resolution.
+        size: (width, height) [m].
+        triangle_start: first triangle row.
+        triangle_count: 2 (nx - 1) (ny - 1).
+        max_stretch: strain limit of its structural springs and tethers (None: unlimited).
+    """
+
+    index: int
+    particle_start: int
+    nx: int
+    ny: int
+    size: tuple[float, float]
+    triangle_start: int
+    triangle_count: int
+    max_stretch: float | None = 0.1
+
+    @property
+    def particle_count(self) -> int:
+        """nx * ny."""
+        return self.nx * self.ny
+
+    def particle(self, i: int, j: int) -> int:
+        """Global particle index of grid point (i, j)."""
+        return self.particle_start + j * self.nx + i
+
+
+class ClothSystem:
+    """All cloth of one world.
+
+    Tuning attributes (change at any time):
+        stretch_iterations: (min, max) Provot sweeps per substep; sweeps stop after the minimum
+            as soon as one finds no structural spring over its limit.
+        self_collision: push apart particles closer than their thickness.
+        self_collision_every_substep: run self-collision at every cloth substep (robust against
+            fast folds, costs ~2x on a 64 x 64 cloth) instead of once per world step.
+        substeps: cloth substeps per world step; None (default) picks the fewest that keep the
+            springs stable, at least `min_substeps` (see `substeps_for`).
+        contact_iterations: passes over stretch limit and body contacts per substep while some
+            body is near the cloth (1 pass otherwise).
+
+    Args:
+        world: the owning `World` (reads `gravity`, `dt`, `substeps`, `step_count`, `time`, `bodies`).
+    """
+
+    def __init__(self, world):
+        self.world = world
+        self.device = world.device
+        self.cloths: list[Cloth] = []
+        self.wind: Wind | None = None
+        self.stretch_iterations = (1, 64)
+        self.self_collision = True
+        self.self_collision_every_substep = False
+        self.contact_iterations = 2
+        self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
+        self.substeps: int | None = None
+        self.min_substeps = 1
+
+        self._host: dict[str, np.ndarray] = {}  # static description, concatenated over cloths
+        self._arrays: dict[str, wp.array] = {}
+        self._particle_count = 0
+        self._stable_h = math.inf
+        self._step_seen = None
+        self._substep_index = 0
+        self._cloth_total = 0
+        self._cloth_done = 0
+        self._cloth_h = 0.0
+        self._clock = 0.0
+        self._pending_force: dict[int, np.ndarray] = {}
+        self._external_active = False
+        self._candidates = wp.zeros(0, dtype=wp.int32, device=self.device)
+        self._candidates_host = np.zeros(0, dtype=np.int32)
+        self._reach = 0.0
+        self._contacts_prev = wp.zeros(16, dtype=wp.int32, device=self.device)
+        self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
+        self._wind_modes = None
+        self._grid: collide.SelfCollisionGrid | None = None
+        self._cache = LaunchCache()
+        self._violated = wp.zeros(1, dtype=wp.int32, device=self.device)
+
+    # ------------------------------------------------------------------ building
+
+    def add_cloth(
+        self,
+        *,
+        size: Sequence[float] = (1.0, 1.0),
+        resolution: Sequence[int] = (32, 32),
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        mass: float | None = None,
+        areal_density: float | None = None,
+        stiffness: float | dict | None = None,
+        damping: float | dict | None = None,
+        max_stretch: float | None = 0.1,
+        pins=None,
+        thickness: float = 0.01,
+        friction: float = 0.3,
+    ) -> int:
+        """Add a rectangular cloth; returns its index (creation order).
+
+        Unrotated, the cloth lies in the xy-plane with normal +z, centred on `position`, with grid
+        index i along x and j along y; particle j * nx + i of the cloth sits at grid point (i, j).
+
+        Args:
+            size: (width along i, height along j) [m], both > 0.
+            resolution: (nx, ny) particles (a 2 x 1 "cloth" is a single spring, handy for tests).
+            position: centre [m], shape (3,).
+            orientation: rotation of the cloth (x, y, z, w).
+            mass: total mass [kg], spread evenly over the particles. Give `mass` or
+                `areal_density`; with neither, the areal density is 0.2 kg/m^2.
+            areal_density: [kg/m^2].
+            stiffness: spring stiffness ks [N/m], one number for every kind or a mapping with keys
+                structural, shear, bend (missing kinds get no springs). Default 12 / 1.2 / 0.3.
+            damping: spring damping kd [N s/m], as `stiffness`. Default 0.002 / 0.0005 / 0.0001.
+            max_stretch: largest strain of structural springs kept by the stretch limit (0.1 = 10 %);
+                None for no limit.
+            pins: None, "corners", "top-corners", "top-edge" or a list of [i, j] grid points.
+            thickness: distance kept from bodies and between non-neighbouring particles [m], > 0.
+            friction: Coulomb friction coefficient against bodies (>= 0).
+
+        Raises:
+            ValueError: naming the bad argument.
+        """
+        size = _pair(size, "size", float)
+        if min(size) <= 0.0:
+            raise ValueError(f"cloth size must be two lengths > 0 in m, got {size!r}")
+        nx, ny = _pair(resolution, "resolution", int)
+        if nx < 1 or ny < 1 or nx * ny < 2:
+            raise ValueError(f"cloth resolution must be at least 2 particles, e.g. 2 x 1, got {(nx, ny)!r}")
+        position = _vector(position, "position", 3)
+        q = _vector(orientation, "orientation", 4)
+        if np.linalg.norm(q) < 1e-12:
+            raise ValueError(f"cloth orientation must be a non-zero quaternion (x, y, z, w), got {orientation!r}")
+        q = q / np.linalg.norm(q)
+        if mass is not None and areal_density is not None:
+            raise ValueError("give the cloth's mass or areal_density, not both")
+        if mass is not None:
+            total = _positive(mass, "mass")
+        else:
+            density = DEFAULT_AREAL_DENSITY if areal_density is None else _positive(areal_density, "areal_density")
+            total = density * size[0] * size[1]
+        ks = grid.per_kind(DEFAULT_STIFFNESS if stiffness is None else stiffness, "stiffness")
+        kd = grid.per_kind(DEFAULT_DAMPING if damping is None else damping, "damping")
+        if max_stretch is not None:
+            max_stretch = float(max_stretch)
+            if not math.isfinite(max_stretch) or max_stretch < 0.0:
+                raise ValueError(f"max_stretch must be a finite number >= 0 (0.1 = 10 %), got {max_stretch!r}")
+        thickness = _positive(thickness, "thickness")
+        friction = float(friction)
+        if not math.isfinite(friction) or friction < 0.0:
+            raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        pinned = grid.pin_indices(pins, nx, ny)
+
+        # particles
+        count = nx * ny
+        start = self._particle_count
+        x = grid.grid_positions(size, (nx, ny), position, q)
+        m = np.full(count, total / count)
+        inv_m = 1.0 / m
+        inv_m[pinned] = 0.0
+        jj, ii = np.divmod(np.arange(count), nx)
+        new = {
+            "particle_mass": m,
+            "particle_inv_mass": inv_m,
+            "particle_thickness": np.full(count, thickness),
+            "particle_friction": np.full(count, friction),
+            "particle_cloth": np.full(count, len(self.cloths), dtype=np.int32),
+            "particle_i": ii.astype(np.int32),
+            "particle_j": jj.astype(np.int32),
+            "particle_rest_position": x,
+            "particle_position": x,
+            "particle_velocity": np.zeros((count, 3)),
+            "particle_pin_target": x,
+        }
+
+        # springs: every kind with ks > 0 or kd > 0; structural ones also get the stretch limit
+        kinds = grid.grid_springs(nx, ny)
+        ids, rest, stiff, damp = [], [], [], []
+        for kind, pairs in kinds.items():
+            if ks[kind] == 0.0 and kd[kind] == 0.0:
+                continue
+            length = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+            ids.append(pairs + start)
+            rest.append(length)
+            stiff.append(np.full(len(pairs), ks[kind]))
+            damp.append(np.full(len(pairs), kd[kind]))
+        structural = kinds["structural"]
+        structural_rest = np.linalg.norm(x[structural[:, 1]] - x[structural[:, 0]], axis=1)
+        limited = structural if max_stretch is not None else structural[:0]
+        triangles = grid.grid_triangles(nx, ny) + start
+
+        cloth = Cloth(index=len(self.cloths), particle_start=start, nx=nx, ny=ny, size=size,
+                      triangle_start=len(self._host.get("triangles", ())), triangle_count=len(triangles),
+                      max_stretch=max_stretch)
+        self.cloths.append(cloth)
+        self._append({
+            **new,
+            "spring_ids": np.concatenate(ids) if ids else np.zeros((0, 2), np.int32),
+            "spring_rest_length": np.concatenate(rest) if rest else np.zeros(0),
+            "spring_stiffness": np.concatenate(stiff) if stiff else np.zeros(0),
+            "spring_damping": np.concatenate(damp) if damp else np.zeros(0),
+            "structural_ids": structural + start,
+            "structural_rest_length": structural_rest,
+            "stretch_ids": limited + start,
+            "stretch_limit": (1.0 + (max_stretch or 0.0)) * structural_rest[: len(limited)],
+            "triangles": triangles,
+        })
+        return cloth.index
+
+    def set_wind(
+        self,
+        *,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        turbulence: float = 0.0,
+        scale: float = 1.0,
+        seed: int = 0,
+        drag: float = 1.2,
+        lift: float = 0.3,
+        air_density: float = 1.2,
+    ) -> None:
+        """Set the wind acting on every cloth; see `tumble.cloth.wind.Wind` for the model.
+
+        Args:
+            velocity: mean wind velocity [m/s], shape (3,).
+            turbulence: RMS strength of the turbulent part per component [m/s].
+            scale: size of the gusts [m].
+            seed: seed of the turbulence field.
+            drag, lift: aerodynamic coefficients of a cloth face.
+            air_density: [kg/m^3].
+        """
+        self.wind = Wind(velocity=velocity, turbulence=turbulence, scale=scale, seed=seed, drag=drag, lift=lift,
+                         air_density=air_density)
+        wave, amplitude, omega, phase = self.wind.mode_arrays()
+        self._wind_modes = (
+            wp.array(wave, dtype=vec3, device=self.device),
+            wp.array(amplitude, dtype=vec3, device=self.device),
+            wp.array(omega, dtype=float_t, device=self.device),
+            wp.array(phase, dtype=float_t, device=self.device),
+        )
+        self._step_seen = None  # resample the wind at the next substep
+
+    def _append(self, rows: dict[str, np.ndarray]) -> None:
+        """Concatenate a new cloth's rows onto the host description and the device state; re-upload."""
+        state = {name: self._arrays[name].numpy()[: self._particle_count] for name in _STATE_FIELDS if self._arrays}
+        for name, values in rows.items():
+            old = self._host.get(name)
+            if name in state:
+                old = state[name]
+            self._host[name] = values if old is None else np.concatenate([old, values])
+        p = len(self._host["particle_mass"])
+        self._particle_count = p
+        for name, dtype in _PARTICLE_FIELDS.items():
+            values = self._host.get(name)
+            self._arrays[name] = (wp.zeros(p, dtype=dtype, device=self.device) if values is None
+                                  else wp.array(np.ascontiguousarray(values), dtype=dtype, device=self.device))
+        for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
+            self._arrays[name] = wp.array(np.ascontiguousarray(self._host[name], dtype=np.int32), dtype=wp.int32,
+                                          device=self.device)
+        for name in ("spring_rest_length", "spring_stiffness", "spring_damping", "structural_rest_length",
+                     "stretch_limit"):
+            self._arrays[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
+        self._arrays["structural_strain"] = wp.zeros(len(self._host["structural_ids"]), dtype=float_t,
+                                                     device=self.device)
+        self._grid = collide.SelfCollisionGrid(p, self.device)
+        self._reach = float(self._host["particle_thickness"].max())
+        self._update_pins()
+
+    def _update_pins(self) -> None:
+        """After pins changed: rebuild the tethers to the pins and the stable substep."""
+        inv_m = self._arrays["particle_inv_mass"].numpy()[: self._particle_count]
+        rest = self._host["particle_rest_position"]
+        parts, pins, limits = [], [], []
+        for cloth in self.cloths:
+            if cloth.max_stretch is None:
+                continue
+            sl = slice(cloth.particle_start, cloth.particle_start + cloth.particle_count)
+            pinned = np.nonzero(inv_m[sl] == 0.0)[0]
+            particle, pin, limit = grid.tethers(rest[sl], pinned, cloth.max_stretch)
+            parts.append(particle + cloth.particle_start)
+            pins.append(pin + cloth.particle_start)
+            limits.append(limit)
+        cat = (lambda xs, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype))
+        self._arrays["tether_particle"] = wp.array(cat(parts, np.int32), dtype=wp.int32, device=self.device)
+        self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
+        self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
+        self._cache.clear()
+        self._update_stable_step()
+
+    def _update_stable_step(self) -> None:
+        """Largest stable substep for the current springs, masses and pins."""
+        h = self._host
+        p = self._particle_count
+        stiffness = np.zeros(p)
+        damping = np.zeros(p)
+        for end in (0, 1):
+            np.add.at(stiffness, h["spring_ids"][:, end], h["spring_stiffness"])
+            np.add.at(damping, h["spring_ids"][:, end], h["spring_damping"])
+        self._stable_h = springs.stable_substep(stiffness, damping, self._arrays["particle_inv_mass"].numpy()[:p])
+
+    # ------------------------------------------------------------------ stepping
+
+    def substeps_for(self, dt: float) -> int:
+        """Number of cloth substeps per world step of `dt` seconds.
+
+        `substeps` if set, else the fewest that keep the springs stable (at least `min_substeps`).
+        """
+        if self.substeps is not None:
+            return max(1, int(self.substeps))
+        n = 1 if not math.isfinite(self._stable_h) else math.ceil(dt / self._stable_h - 1e-9)
+        return max(1, int(self.min_substeps), n)
+
+    def substep(self, h: float) -> None:
+        """Advance the cloth through one world substep of `h` seconds, coupled to the world's bodies.
+
+        The cloth keeps its own clock: it takes `substeps_for(dt)` equal substeps per world step
+        (dt = h * world.substeps), each one run in the world substep during which it ends. With
+        the world at 8 substeps and a cloth stable at 4, every other world substep runs one
+        cloth substep twice as long; a cloth that needs more runs several per world substep.
+        """
+        if self._particle_count == 0:
+            return
+        world = self.world
+        if self._step_seen != world.step_count or self._cloth_done >= self._cloth_total:
+            self._begin_step(h * max(1, int(world.substeps)))
+        self._clock += h
+        hc = self._cloth_h
+        # run the cloth substeps that end within this world substep (rounding: 1e-9 of a substep)
+        while self._cloth_done < self._cloth_total and self._clock >= (self._cloth_done + 1 - 1e-9) * hc:
+            self._cloth_substep(hc)
+            self._cloth_done += 1
+
+    def _cloth_substep(self, hi: float) -> None:
+        """One cloth substep of `hi` seconds: forces, integration, constraints, collisions, velocities."""
+        world = self.world
+        a = self._arrays
+        total = self._cloth_total
+        cache = self._cache
+        # forces: springs, then air on every triangle
+        springs.accumulate_spring_forces(a["particle_position"], a["particle_velocity"], a["spring_ids"],
+                                         a["spring_rest_length"], a["spring_stiffness"], a["spring_damping"],
+                                         a["particle_force"], cache=cache)
+        if self.wind is not None:
+            w = self.wind
+            accumulate_air_forces(a["particle_position"], a["particle_velocity"], a["particle_wind"],
+                                  a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
+
+        # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
+        remaining = max(1, total - self._substep_index)
+        springs.integrate(a["particle_position"], a["particle_velocity"], a["particle_position_prev"],
+                          a["particle_force"], a["particle_external_force"], a["particle_inv_mass"],
+                          a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
+        self._substep_index += 1
+
+        # self-collision: non-neighbouring particles at least their thickness apart (before the
+        # stretch limit, so that pushes between crumpled layers cannot over-stretch springs)
+        if self.self_collision and (self.self_collision_every_substep or remaining == 1):
+            self._grid.collide(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                               a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach, cache=cache)
+
+        # constraints, solved together by repeating them while bodies are near (position-based
+        # dynamics): a stretch limit and a body contact solved once each would fight over
+        # the substeps and pump energy into a ball resting in a hammock
+        touching = self._candidates.shape[0] > 0
+        for it in range(self.contact_iterations if touching else 1):
+            # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
+            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
+                                  a["tether_pin"], a["tether_limit"], cache=cache)
+            lo_it, hi_it = self.stretch_iterations
+            self.last_stretch_sweeps = springs.limit_stretch(
+                a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
+                self._violated, min_iterations=lo_it, max_iterations=hi_it, cache=cache)
+
+
+            # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
+            if touching:
+                self._contacts_next.zero_()
+                collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
+                                       a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
+                                       self._candidates, world.bodies, self._contacts_prev,
+                                       self._contacts_next, hi, cache=cache)
+                self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+
+        # velocities from the corrected positions
+        springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
+                                  hi, cache=cache)
+
+    def _begin_step(self, dt: float) -> None:
+        """Once per world step of `dt` seconds: cloth substeps, user forces, wind, candidate bodies."""
+        world = self.world
+        a = self._arrays
+        self._step_seen = world.step_count
+        self._substep_index = 0
+        self._cloth_total = self.substeps_for(dt)
+        self._cloth_h = dt / self._cloth_total
+        self._cloth_done = 0
+        self._clock = 0.0
+        p = self._particle_count
+
+        # user forces apply during this step only
+        if self._pending_force or self._external_active:
+            f = np.zeros((p, 3))
+            for i, force in self._pending_force.items():
+                f[i] += force
+            a["particle_external_force"].assign(f)
+            self._external_active = bool(self._pending_force)
+            self._pending_force = {}
+
+        # wind: sample the field at every particle at the start of the step
+        if self.wind is not None:
+            wave, amplitude, omega, phase = self._wind_modes
+            sample_wind(a["particle_position"], self.wind.velocity, wave, amplitude, omega, phase, world.time,
+                        a["particle_wind"], cache=self._cache)
+
+        # bodies that can reach the cloth during this step
+        n_bodies = world.bodies.count
+        candidates = self._candidates_host[:0]
+        if n_bodies:
+            x = a["particle_position"].numpy()[:p]
+            v = a["particle_velocity"].numpy()[:p]
+            lo, hi = x.min(axis=0), x.max(axis=0)
+            reach = self._reach + dt * (float(np.sqrt(np.einsum("ij,ij->i", v, v).max())) + 1.0)
+            candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
+        if not np.array_equal(candidates, self._candidates_host):
+            self._candidates_host = candidates
+            self._candidates = wp.array(candidates, dtype=wp.int32, device=self.device)
+        n_bodies = world.bodies.count
+        if self._contacts_prev.shape[0] < n_bodies:
+            size = max(16, 2 * n_bodies)
+            prev = np.zeros(size, dtype=np.int32)
+            prev[: self._contacts_prev.shape[0]] = self._contacts_prev.numpy()
+            self._contacts_prev = wp.array(prev, dtype=wp.int32, device=self.device)
+            self._contacts_next = wp.zeros(size, dtype=wp.int32, device=self.device)
+
+    # ------------------------------------------------------------------ user interaction
+
+    def apply_force(self, particle: int, force: Sequence[float]) -> None:
+        """Apply a force [N] to one particle during the next world step only (e.g. a viewer drag)."""
+        i = self._particle(particle)
+        f = _vector(force, "force", 3)
+        self._pending_force[i] = self._pending_force.get(i, np.zeros(3)) + f
+
+    def set_pin_target(self, particle: int, position: Sequence[float]) -> None:
+        """Move a pinned particle to `position` [m] by the end of the next world step (pins it if free)."""
+        i = self._particle(particle)
+        target = _vector(position, "position", 3)
+        self._write("particle_pin_target", i, target)
+        if self._arrays["particle_inv_mass"].numpy()[i] != 0.0:
+            self._write("particle_inv_mass", i, 0.0)
+            self._update_pins()
+
+    def pin(self, particle: int) -> None:
+        """Pin a particle where it is now."""
+        i = self._particle(particle)
+        self.set_pin_target(i, self._arrays["particle_position"].numpy()[i])
+        self._write("particle_velocity", i, np.zeros(3))
+
+    def unpin(self, particle: int) -> None:
+        """Release a pinned particle; it keeps its current velocity."""
+        i = self._particle(particle)
+        self._write("particle_inv_mass", i, 1.0 / self._host["particle_mass"][i])
+        self._update_pins()
+
+    def _particle(self, particle) -> int:
+        i = int(particle)
+        if not 0 <= i < self._particle_count:
+            raise ValueError(f"particle index {particle!r} out of range 0..{self._particle_count - 1}")
+        return i
+
+    def _write(self, name: str, index: int, value) -> None:
+        arr = self._arrays[name]
+        host = arr.numpy()
+        host[index] = value
+        if self.device != "cpu":
+            arr.assign(host)
+
+    def set_state(self, *, position=None, velocity=None) -> None:
+        """Overwrite particle positions [m] and/or velocities [m/s], each shape (P, 3).
+
+        Pinned particles also get `position` as their pin target.
+        """
+        p = self._particle_count
+        for name, values in (("particle_position", position), ("particle_velocity", velocity)):
+            if values is None:
+                continue
+            a = np.asarray(values, dtype=np.float64)
+            if a.shape != (p, 3) or not np.all(np.isfinite(a)):
+                raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
+            self._arrays[name].assign(a)
+            if name == "particle_position":
+                pinned = self.particle_inv_mass == 0.0
+                target = self._arrays["particle_pin_target"].numpy()[:p].copy()
+                target[pinned] = a[pinned]
+                self._arrays["particle_pin_target"].assign(target)
+
+    # ------------------------------------------------------------------ views and diagnostics
+
+    def _view(self, name: str) -> np.ndarray:
+        if not self._arrays:
+            return readonly(np.zeros((0, 3)))
+        return readonly(self._arrays[name].numpy()[: self._particle_count])
+
+    @property
+    def particle_count(self) -> int:
+        """Number of cloth particles, P (all cloths)."""
+        return self._particle_count
+
+    @property
+    def triangle_count(self) -> int:
+        """Number of cloth triangles, T (all cloths)."""
+        return len(self._host.get("triangles", ()))
+
+    @property
+    def spring_count(self) -> int:
+        """Number of springs of every kind (all cloths)."""
+        return len(self._host.get("spring_ids", ()))
+
+    particle_position = property(lambda self: self._view("particle_position"),
+                                 doc="Particle positions [m], shape (P, 3), cloths in creation order, i fastest.")
+    particle_velocity = property(lambda self: self._view("particle_velocity"),
+                                 doc="Particle velocities [m/s], shape (P, 3).")
+    rest_position = property(lambda self: self._view("particle_rest_position"),
+                             doc="Particle positions when the cloth was added [m], shape (P, 3).")
+
+    @property
+    def particle_mass(self) -> np.ndarray:
+        """Particle masses [kg], shape (P,)."""
+        return readonly(self._host.get("particle_mass", np.zeros(0)))
+
+    @property
+    def particle_inv_mass(self) -> np.ndarray:
+        """Particle inverse masses [1/kg], shape (P,); 0 for pinned particles."""
+        if not self._arrays:
+            return readonly(np.zeros(0))
+        return readonly(self._arrays["particle_inv_mass"].numpy()[: self._particle_count])
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """Triangles as particle indices, shape (T, 3), int32, cloths in creation order."""
+        return readonly(self._host.get("triangles", np.zeros((0, 3), np.int32)))
+
+    @property
+    def structural_springs(self) -> np.ndarray:
+        """Particle pairs of the structural springs, shape (s, 2), int32."""
+        return readonly(self._host.get("structural_ids", np.zeros((0, 2), np.int32)))
+
+    def particle_position_numpy(self) -> np.ndarray:
+        """A copy of the particle positions [m], shape (P, 3)."""
+        return np.array(self._view("particle_position"))
+
+    def max_strain(self) -> float:
+        """Largest strain (|xj - xi| - l0) / l0 over the structural springs (0.1 = 10 % longer)."""
+        if not self._arrays or len(self._host["structural_ids"]) == 0:
+            return 0.0
+        a = self._arrays
+        s = springs.strain(a["particle_position"], a["structural_ids"], a["structural_rest_length"],
+                           a["structural_strain"])
+        return float(s.max())
+
+    def kinetic_energy(self) -> float:
+        """Kinetic energy of the cloth [J]: sum 1/2 m v^2."""
+        if self._particle_count == 0:
+            return 0.0
+        v = self._view("particle_velocity")
+        return 0.5 * float(np.sum(self._host["particle_mass"] * np.einsum("ij,ij->i", v, v)))
+
+    def potential_energy(self) -> float:
+        """Gravitational potential energy relative to the origin [J]: -sum m g . x."""
+        if self._particle_count == 0:
+            return 0.0
+        x = self._view("particle_position")
+        return -float(np.sum(self._host["particle_mass"] * (x @ np.asarray(self.world.gravity, dtype=np.float64))))
+
+    def center_of_mass(self) -> np.ndarray:
+        """Centre of mass of all cloth [m], shape (3,)."""
+        m = self._host["particle_mass"]
+        return (m[:, None] * self._view("particle_position")).sum(axis=0) / m.sum()
+
+
+def _pair(value, name: str, kind) -> tuple:
+    try:
+        items = list(value)
+    except TypeError:
+        raise ValueError(f"cloth {name} must be two numbers, got {value!r}") from None
+    if len(items) != 2:
+        raise ValueError(f"cloth {name} must be two numbers, got {value!r}")
+    try:
+        out = tuple(kind(v) for v in items)
+    except (TypeError, ValueError):
+        raise ValueError(f"cloth {name} must be two numbers, got {value!r}") from None
+    if kind is int and any(float(v) != int(v) for v in items):
+        raise ValueError(f"cloth {name} must be two integers, got {value!r}")
+    if kind is float and not all(math.isfinite(v) for v in out):
+        raise ValueError(f"cloth {name} must be finite, got {value!r}")
+    return out
+
+
+def _vector(value, name: str, n: int) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {n} numbers, got {value!r}") from None
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+    return a
+
+
+def _positive(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
+    if not math.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return v

@@ -1,0 +1,189 @@
+"""Wind: a mean velocity plus seeded, smooth, time-varying turbulence, and the air force on cloth.
+
+The turbulence is a sum of K random Fourier modes carried along by the mean wind (so gusts
+travel downwind), each with its own slow oscillation::
+
+    u(x, t) = U + s sqrt(6 / K) sum_k d_k sin(kappa_k . (x - U t) + omega_k t + phi_k)
+
+with unit directions d_k, wave vectors |kappa_k| in [0.5, 2] 2 pi / scale, frequencies
+omega_k in [0.5, 1.5] 2 pi max(s, 0.1 |U|) / scale and phases phi_k all drawn from `seed`.
+Each component then has an RMS of s (the turbulence strength [m/s]) and the field varies
+over distances of about `scale` [m]; it is smooth in space and time, not white noise.
+
+Stages:
+- `sample_wind` evaluates u at every particle once per world step (cost O(P K)).
+- `accumulate_air_forces` adds, per triangle, the air force of its relative velocity
+  u_rel = u - v (averaged over its three particles) to its particles (cost O(T) per substep).
+  With n the unit normal, A the area, u_n = u_rel . n and rho the air density:
+
+      drag  F_d = 1/2 rho C_d A |u_n| u_n n                 (pressure on the face)
+      lift  F_l = 1/2 rho C_l A |u_rel| u_n (n - u_n u_rel / |u_rel|^2)
+
+  Both vanish when the cloth is edge-on to the wind (u_n = 0) and are largest face-on (drag)
+  or at 45 degrees (lift); both are even in n, so the triangle winding does not matter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from ..state import float_t, vec3
+from ._launch import LaunchCache, launch
+
+AIR_DENSITY = 1.2  # [kg/m^3] at sea level, 20 C
+
+
+@dataclass
+class Wind:
+    """Wind acting on cloth.
+
+    Args:
+        velocity: mean wind velocity U [m/s], shape (3,).
+        turbulence: RMS strength s of the turbulent part per component [m/s] (0 = steady wind).
+        scale: length scale of the turbulent eddies [m], > 0.
+        seed: seed of the turbulence field.
+        drag: drag coefficient C_d of a cloth face (flat plate about 1.2).
+        lift: lift coefficient C_l.
+        air_density: rho [kg/m^3].
+        modes: number K of Fourier modes of the turbulence.
+    """
+
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    turbulence: float = 0.0
+    scale: float = 1.0
+    seed: int = 0
+    drag: float = 1.2
+    lift: float = 0.3
+    air_density: float = AIR_DENSITY
+    modes: int = 8
+
+    def __post_init__(self):
+        u = np.asarray(self.velocity, dtype=np.float64).reshape(-1)
+        if u.shape != (3,) or not np.all(np.isfinite(u)):
+            raise ValueError(f"wind velocity must be 3 finite numbers, got {self.velocity!r}")
+        self.velocity = u
+        for name in ("turbulence", "drag", "lift", "air_density"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v < 0.0:
+                raise ValueError(f"wind {name} must be a finite number >= 0, got {getattr(self, name)!r}")
+            setattr(self, name, v)
+        self.scale = float(self.scale)
+        if not np.isfinite(self.scale) or self.scale <= 0.0:
+            raise ValueError(f"wind scale must be a positive length in m, got {self.scale!r}")
+        if int(self.modes) < 1:
+            raise ValueError(f"wind modes must be >= 1, got {self.modes!r}")
+        self.modes = int(self.modes)
+        self.seed = int(self.seed)
+
+    def mode_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The seeded modes: wave vectors (K, 3) [1/m], amplitude vectors (K, 3) [m/s],
+        frequencies (K,) [rad/s], phases (K,) [rad]."""
+        rng = np.random.default_rng(self.seed)
+        k = self.modes
+
+        def unit(n):
+            a = rng.normal(size=(n, 3))
+            return a / np.linalg.norm(a, axis=1, keepdims=True)
+
+        wave = unit(k) * (rng.uniform(0.5, 2.0, size=(k, 1)) * 2.0 * np.pi / self.scale)
+        amplitude = unit(k) * (self.turbulence * np.sqrt(6.0 / k))
+        speed = max(self.turbulence, 0.1 * float(np.linalg.norm(self.velocity)), 1e-3)
+        omega = rng.uniform(0.5, 1.5, size=k) * 2.0 * np.pi * speed / self.scale
+        phase = rng.uniform(0.0, 2.0 * np.pi, size=k)
+        return wave, amplitude, omega, phase
+
+    def sample(self, points: np.ndarray, t: float) -> np.ndarray:
+        """Wind velocity [m/s] at `points` (n, 3) and time `t` [s], on the host (for tests and plots)."""
+        wave, amplitude, omega, phase = self.mode_arrays()
+        arg = (np.asarray(points) - self.velocity * t) @ wave.T + omega * t + phase
+        return self.velocity + np.sin(arg) @ amplitude
+
+
+@wp.kernel
+def _sample_wind(
+    x: wp.array(dtype=vec3),
+    mean: vec3,
+    wave: wp.array(dtype=vec3),
+    amplitude: wp.array(dtype=vec3),
+    omega: wp.array(dtype=float_t),
+    phase: wp.array(dtype=float_t),
+    t: float_t,
+    u: wp.array(dtype=vec3),
+):
+    p = wp.tid()
+    # u = U + sum_k a_k sin(kappa_k . (x - U t) + omega_k t + phi_k)
+    xt = x[p] - mean * t
+    acc = mean
+    k = int(0)
+    while k < wave.shape[0]:
+        acc = acc + amplitude[k] * wp.sin(wp.dot(wave[k], xt) + omega[k] * t + phase[k])
+        k += 1
+    u[p] = acc
+
+
+@wp.kernel
+def _air_forces(
+    x: wp.array(dtype=vec3),
+    v: wp.array(dtype=vec3),
+    u: wp.array(dtype=vec3),
+    tris: wp.array2d(dtype=wp.int32),
+    half_rho_cd: float_t,
+    half_rho_cl: float_t,
+    f: wp.array(dtype=vec3),
+):
+    t = wp.tid()
+    a = tris[t, 0]
+    b = tris[t, 1]
+    c = tris[t, 2]
+    cross = wp.cross(x[b] - x[a], x[c] - x[a])
+    twice_area = wp.length(cross)
+    if twice_area <= float_t(1.0e-15):
+        return
+    n = cross / twice_area
+    area = float_t(0.5) * twice_area
+    third = float_t(1.0) / float_t(3.0)
+    rel = (u[a] + u[b] + u[c] - v[a] - v[b] - v[c]) * third
+    un = wp.dot(rel, n)
+    speed2 = wp.dot(rel, rel)
+    # drag 1/2 rho Cd A |u_n| u_n n, lift 1/2 rho Cl A |u| u_n (n - u_n u / |u|^2)
+    force = n * (half_rho_cd * area * wp.abs(un) * un)
+    if speed2 > float_t(1.0e-20):
+        speed = wp.sqrt(speed2)
+        force = force + (n - rel * (un / speed2)) * (half_rho_cl * area * speed * un)
+    share = force * third
+    wp.atomic_add(f, a, share)
+    wp.atomic_add(f, b, share)
+    wp.atomic_add(f, c, share)
+
+
+def sample_wind(x, mean, wave, amplitude, omega, phase, t, u, *, cache: LaunchCache | None = None):
+    """Evaluate the wind field at every particle.
+
+    Args:
+        x: particle positions [m], shape (P,) vec3.
+        mean: mean wind U [m/s], shape (3,).
+        wave, amplitude: mode wave vectors [1/m] and amplitudes [m/s], shape (K,) vec3.
+        omega, phase: mode frequencies [rad/s] and phases [rad], shape (K,).
+        t: time [s].
+        u: output wind velocities [m/s], shape (P,) vec3.
+    """
+    launch(_sample_wind, x.shape[0], [x, vec3(*mean), wave, amplitude, omega, phase, float(t), u], x.device, cache)
+
+
+def accumulate_air_forces(x, v, u, triangles, drag, lift, air_density, force, *, cache: LaunchCache | None = None):
+    """Add the drag and lift of every triangle, a third to each of its particles.
+
+    Args:
+        x, v: particle positions [m] and velocities [m/s], shape (P,) vec3.
+        u: wind velocity at each particle [m/s], shape (P,) vec3.
+        triangles: particle indices, shape (T, 3) int32.
+        drag, lift: coefficients C_d, C_l.
+        air_density: rho [kg/m^3].
+        force: per-particle force accumulator [N], shape (P,) vec3 (added to).
+    """
+    if triangles.shape[0]:
+        launch(_air_forces, triangles.shape[0],
+               [x, v, u, triangles, 0.5 * air_density * drag, 0.5 * air_density * lift, force], x.device, cache)
