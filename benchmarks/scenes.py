@@ -13,7 +13,7 @@ Geometry (z up, SI units):
 * box rain: 1,000 cubes of 0.1 m edge (1 kg, e = 0.5, mu = 0.5) on a 10 x 10 x 10 grid with
   0.25 m spacing and +-6 cm jitter, axis-aligned, lowest layer at z = 0.5 m, falling onto a
   ground plane (no walls).
-* cloth: an n x n grid of particles, 1 m x 1 m, total mass 0.5 kg, horizontal at z = 1.5 m,
+* cloth: an n x n grid of particles, 1 m x 1 m, total mass 0.2 kg, horizontal at z = 1.5 m,
   pinned at the two corners of the edge y = +0.5 m, swinging down under gravity (no ground,
   no self-collision).
 """
@@ -44,7 +44,7 @@ RAIN_JITTER = 0.06  # [m], horizontal only
 RAIN_FIRST_LAYER = 0.5  # [m]
 
 CLOTH_SIZE = 1.0  # side [m]
-CLOTH_MASS = 0.5  # total [kg]
+CLOTH_MASS = 0.2  # total [kg] (0.2 kg/m^2, Tumble's default areal density)
 CLOTH_HEIGHT = 1.5  # [m]
 
 
