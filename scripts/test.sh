@@ -4,9 +4,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# system libraries for headless rendering (EGL, Mesa) and Qt offscreen; skipped when present
+# system libraries for headless rendering (EGL, Mesa), Qt offscreen, and a virtual X server for the
+# real OpenGL window test; skipped when present
 need=()
-for pkg in libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libgl1 fontconfig fonts-dejavu-core libxkbcommon0 libdbus-1-3 libglib2.0-0; do
+for pkg in libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libgl1 fontconfig fonts-dejavu-core libxkbcommon0 \
+           libdbus-1-3 libglib2.0-0 xvfb xauth libxcb-icccm4 libxcb-keysyms1 libxcb-cursor0 libxcb-image0 \
+           libxcb-render-util0 libxcb-shape0 libxcb-xkb1 libxkbcommon-x11-0 libxcb-randr0; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

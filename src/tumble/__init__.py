@@ -12,7 +12,7 @@ Public API::
 
 import warp as _wp
 
-_wp.config.quiet = True  # no banner; the CLI says when kernels compile
+_wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
 
 from .errors import SceneError, SimulationError, TumbleError
 from .shapes import ShapeType

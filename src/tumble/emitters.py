@@ -1,9 +1,9 @@
 """Emitters release bodies over time, never on top of another body.
 
 An emitter holds a rate [bodies/s] and a count; each step it owes `rate * dt` more bodies.
-Candidates are drawn from the region (a point, a box or a disc), each is jittered and retried
-a few times until its bounding sphere clears every body already in the world and every
-candidate accepted before it; a candidate that finds no free spot waits for a later step
+Candidates are drawn from the region (a point, a box or a disc) and redrawn a few times (from a
+point: scattered ever wider around it) until a candidate's bounding sphere clears every body
+already in the world and every candidate accepted before it; a candidate that finds no free spot waits for a later step
 (the emitter falls behind rather than overlap). This replaces the design report's "release
 speed" workaround: nothing overlaps at birth, so the solver never has to untangle a knot.
 
@@ -253,8 +253,9 @@ class Emitter:
         for i in range(k):
             ri = cand["bound"][i]
             for attempt in range(TRIES):
+                # a fresh spot in the region; a point region scatters its tries ever wider instead
                 p = self._sample_positions(1)[0]
-                if attempt:
+                if attempt and self.region == "point":
                     p = p + jitter * attempt * (2.0 * self.rng.random(3) - 1.0)
                 clear = np.all(np.linalg.norm(x - p, axis=1) >= r + ri + CLEARANCE) if len(x) else True
                 if clear and placed_x:

@@ -50,9 +50,9 @@ BODY_FIELDS = {
     "body_angular_velocity": vec3,  # world frame [rad/s]
     "body_force": vec3,  # user force for the next step [N]
     "body_torque": vec3,  # user torque for the next step [N m]
-    # scratch for the solver: pose at the start of the step
-    "body_position_start": vec3,
-    "body_orientation_start": quat,
+    # motion since the start of the step, for the solver's separation update
+    "body_delta_position": vec3,  # [m]
+    "body_delta_rotation": vec3,  # rotation vector [rad]
 }
 
 
@@ -123,7 +123,6 @@ class World:
         device: str = "cpu",
         restitution_threshold: float = 0.5,
     ):
-        wp.config.quiet = True
         wp.init()
         self.device = str(wp.get_device(device))
         self.gravity = _vec(gravity, "gravity")
@@ -387,6 +386,7 @@ class World:
         with self._timer("solver"):
             contacts.match_previous(bodies)
             contact_solver.prepare(bodies, contacts, self.gravity)
+            integrate.begin_step(bodies)
 
         # substeps: integrate velocities -> warm start, solve -> integrate positions -> relax -> cloth
         for _ in range(self.substeps):

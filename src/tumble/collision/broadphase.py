@@ -13,8 +13,10 @@ Rules that keep it exact and duplicate-free:
   (planes, huge static boxes, very fast bodies) tests every body directly instead;
 - pairs of two static bodies are dropped.
 
-Tuning: the cell size is twice the largest bound radius among ordinary bodies (those no more
-than 4x the median), which is the typical shape diameter.
+Tuning: the cell edge is twice the largest swept radius among ordinary bodies (bound radius no
+more than 4x the median, swept radius no more than 1.5x the largest such bound), which is the
+typical shape diameter plus its motion in one step. Outliers scan more cells rather than make
+every cell bigger.
 """
 
 from __future__ import annotations
@@ -24,25 +26,12 @@ import warp as wp
 
 from ..shapes import ShapeType
 from ..state import float_t, vec3
+from .hashgrid import HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
 MARGIN = 0.002
 #: cells scanned each way before a body switches to testing all bodies
 MAX_RANGE = 6
-
-
-@wp.func
-def _cell_of(x: vec3, inv_cell: float_t):
-    return wp.vec3i(
-        int(wp.floor(x[0] * inv_cell)), int(wp.floor(x[1] * inv_cell)), int(wp.floor(x[2] * inv_cell))
-    )
-
-
-@wp.func
-def _hash(c: wp.vec3i, mask: int):
-    # large odd primes, XOR-folded (Teschner et al. 2003)
-    h = (c[0] * 92837111) ^ (c[1] * 689287499) ^ (c[2] * 283923481)
-    return h & mask
 
 
 @wp.kernel
@@ -60,38 +49,6 @@ def _swept_radius(
         radius[i] = bound[i]  # inf
     else:
         radius[i] = bound[i] + dt * (wp.length(v[i]) + wp.length(w[i]) * bound[i]) + margin
-
-
-@wp.kernel
-def _count_cells(
-    x: wp.array(dtype=vec3),
-    radius: wp.array(dtype=float_t),
-    inv_cell: float_t,
-    mask: int,
-    max_radius: float_t,
-    body_cell: wp.array(dtype=wp.int32),
-    cell_count: wp.array(dtype=wp.int32),
-):
-    i = wp.tid()
-    if radius[i] > max_radius:
-        body_cell[i] = -1  # scans everything itself, nobody needs to find it in the grid
-        return
-    h = _hash(_cell_of(x[i], inv_cell), mask)
-    body_cell[i] = h
-    wp.atomic_add(cell_count, h, 1)
-
-
-@wp.kernel
-def _scatter_cells(
-    body_cell: wp.array(dtype=wp.int32),
-    cell_start: wp.array(dtype=wp.int32),
-    cell_fill: wp.array(dtype=wp.int32),
-    cell_entries: wp.array(dtype=wp.int32),
-):
-    i = wp.tid()
-    h = body_cell[i]
-    if h >= 0:
-        cell_entries[cell_start[h] + wp.atomic_add(cell_fill, h, 1)] = i
 
 
 @wp.func
@@ -121,12 +78,12 @@ def _query(
     radius: wp.array(dtype=float_t),
     inv_mass: wp.array(dtype=float_t),
     inv_cell: float_t,
-    cell: float_t,
     mask: int,
     max_radius: float_t,
     cell_start: wp.array(dtype=wp.int32),
     cell_count: wp.array(dtype=wp.int32),
     cell_entries: wp.array(dtype=wp.int32),
+    body_cell_coord: wp.array(dtype=wp.vec3i),
     pair_count: wp.array(dtype=wp.int32),
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
@@ -136,11 +93,11 @@ def _query(
     xi = x[i]
     if ri > max_radius:
         # too big for the grid: test every body directly (planes test signed distance)
+        nrm = wp.quat_rotate(q[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
         for j in range(n):
             if j != i and _emits(i, j, ri, radius[j], inv_mass):
                 near = False
                 if shape[i] == int(ShapeType.PLANE):
-                    nrm = wp.quat_rotate(q[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
                     near = wp.dot(nrm, x[j] - xi) < radius[j]
                 else:
                     near = wp.length(x[j] - xi) < ri + radius[j]
@@ -150,21 +107,22 @@ def _query(
     # scan the cells the swept bound can reach
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
     reach = vec3(float_t(2.0) * ri, float_t(2.0) * ri, float_t(2.0) * ri)
-    lo = _cell_of(xi - reach, inv_cell)
-    hi = _cell_of(xi + reach, inv_cell)
+    lo = cell_of(xi - reach, inv_cell)
+    hi = cell_of(xi + reach, inv_cell)
     for cz in range(lo[2], hi[2] + 1):
         for cy in range(lo[1], hi[1] + 1):
             for cx in range(lo[0], hi[0] + 1):
-                cc = wp.vec3i(cx, cy, cz)
-                h = _hash(cc, mask)
+                h = cell_hash(wp.vec3i(cx, cy, cz), mask)
                 start = cell_start[h]
                 for e in range(start, start + cell_count[h]):
                     j = cell_entries[e]
-                    if j != i and _emits(i, j, ri, radius[j], inv_mass):
-                        cj = _cell_of(x[j], inv_cell)
+                    rj = radius[j]
+                    reach_ij = ri + rj
+                    if wp.length_sq(x[j] - xi) < reach_ij * reach_ij:
                         # hash collisions: only take j from the cell it really lives in
-                        if cj[0] == cc[0] and cj[1] == cc[1] and cj[2] == cc[2]:
-                            if wp.length(x[j] - xi) < ri + radius[j]:
+                        cj = body_cell_coord[j]
+                        if cj[0] == cx and cj[1] == cy and cj[2] == cz and j != i:
+                            if _emits(i, j, ri, rj, inv_mass):
                                 _push_pair(i, j, pair_count, pair_a, pair_b)
 
 
@@ -178,6 +136,7 @@ class BroadPhase:
 
     def __init__(self, device: str):
         self.device = device
+        self.grid = HashGrid(device)
         self.pair_capacity = 1024
         self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
@@ -185,29 +144,24 @@ class BroadPhase:
         self.pair_count = 0
         self.cell_size = 1.0
         self._sized_for = -1
-        self._table = 0
         self._body_capacity = 0
+        self._ordinary_limit = np.inf
 
     def _resize(self, bodies) -> None:
-        """Choose the cell size and table size when the body count changed (not every step)."""
+        """Size the buffers and find the ordinary bodies when the body count changed (not every step)."""
         n = bodies.count
         shape = bodies.numpy("body_shape")
         bound = bodies.numpy("body_bound_radius")
         finite = bound[(shape != ShapeType.PLANE) & np.isfinite(bound)]
+        self._ordinary_limit = np.inf
         if len(finite):
             ordinary = finite[finite <= 4.0 * np.median(finite)]
             self.cell_size = 2.0 * float(ordinary.max()) + 2.0 * MARGIN
-        table = 1 << max(10, int(np.ceil(np.log2(max(2 * n, 1)))))
-        if table != self._table:
-            self._table = table
-            self.cell_count = wp.zeros(table, dtype=wp.int32, device=self.device)
-            self.cell_start = wp.zeros(table, dtype=wp.int32, device=self.device)
-            self.cell_fill = wp.zeros(table, dtype=wp.int32, device=self.device)
+            # swept radii up to this size set the cell; faster or bigger bodies scan more cells
+            self._ordinary_limit = 1.5 * float(ordinary.max()) + MARGIN
         if bodies.capacity != self._body_capacity:
             self._body_capacity = bodies.capacity
             self.swept_radius = wp.zeros(bodies.capacity, dtype=float_t, device=self.device)
-            self.body_cell = wp.zeros(bodies.capacity, dtype=wp.int32, device=self.device)
-            self.cell_entries = wp.zeros(bodies.capacity, dtype=wp.int32, device=self.device)
         self._sized_for = n
 
     def find_pairs(self, bodies, dt: float) -> BroadPhase:
@@ -223,27 +177,23 @@ class BroadPhase:
         wp.launch(_swept_radius, dim=n, device=dev,
                   inputs=[b["body_shape"], b["body_bound_radius"], b["body_velocity"], b["body_angular_velocity"],
                           dt, MARGIN, self.swept_radius])
-        inv_cell = 1.0 / self.cell_size
-        max_radius = 0.5 * MAX_RANGE * self.cell_size
-        mask = self._table - 1
+        # cell edge: twice the largest swept radius among ordinary bodies, so most scan 2-3 cells a side
+        swept = self.swept_radius.numpy()[:n]
+        ordinary = swept[swept <= self._ordinary_limit]
+        cell = 2.0 * float(ordinary.max()) if len(ordinary) else self.cell_size
+        max_radius = 0.5 * MAX_RANGE * cell
 
-        # counting sort of bodies into hashed cells
-        self.cell_count.zero_()
-        self.cell_fill.zero_()
-        wp.launch(_count_cells, dim=n, device=dev,
-                  inputs=[b["body_position"], self.swept_radius, inv_cell, mask, max_radius, self.body_cell,
-                          self.cell_count])
-        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        wp.launch(_scatter_cells, dim=n, device=dev,
-                  inputs=[self.body_cell, self.cell_start, self.cell_fill, self.cell_entries])
+        # counting sort of bodies into hashed cells; the biggest stay out and test everything
+        grid = self.grid.build(b["body_position"], n, cell, radius=self.swept_radius, max_radius=max_radius)
 
         # query; grow the pair buffers and query again if they overflowed
         while True:
             self.pair_count_array.zero_()
             wp.launch(_query, dim=n, device=dev,
                       inputs=[n, b["body_shape"], b["body_position"], b["body_orientation"], self.swept_radius,
-                              b["body_inv_mass"], inv_cell, self.cell_size, mask, max_radius, self.cell_start,
-                              self.cell_count, self.cell_entries, self.pair_count_array, self.pair_a, self.pair_b])
+                              b["body_inv_mass"], grid.inv_cell, grid.mask, max_radius, grid.cell_start,
+                              grid.cell_count, grid.entries, grid.point_cell_coord, self.pair_count_array,
+                              self.pair_a, self.pair_b])
             count = int(self.pair_count_array.numpy()[0])
             if count <= self.pair_capacity:
                 break
@@ -251,4 +201,5 @@ class BroadPhase:
             self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=dev)
             self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=dev)
         self.pair_count = count
+        self.cell_size = cell
         return self

@@ -67,6 +67,13 @@ CONTACT_FIELDS = {
     "contact_r_b": vec3,
     "contact_tangent1": vec3,
     "contact_tangent2": vec3,
+    # angular velocity change per unit impulse along n, t1, t2: I^-1 (r x d), world frame
+    "contact_angular_a_n": vec3,
+    "contact_angular_b_n": vec3,
+    "contact_angular_a_t1": vec3,
+    "contact_angular_b_t1": vec3,
+    "contact_angular_a_t2": vec3,
+    "contact_angular_b_t2": vec3,
     "contact_mass_n": float_t,  # effective masses [kg]
     "contact_mass_t1": float_t,
     "contact_mass_t2": float_t,
@@ -100,6 +107,8 @@ class Bodies:
     w: wp.array(dtype=vec3)
     inv_mass: wp.array(dtype=float_t)
     inv_inertia: wp.array(dtype=vec3)
+    dx: wp.array(dtype=vec3)  # displacement since the start of the step
+    dtheta: wp.array(dtype=vec3)  # rotation vector accumulated since the start of the step
 
 
 @wp.struct
@@ -116,6 +125,12 @@ class Contacts:
     r_b: wp.array(dtype=vec3)
     t1: wp.array(dtype=vec3)
     t2: wp.array(dtype=vec3)
+    ang_a_n: wp.array(dtype=vec3)
+    ang_b_n: wp.array(dtype=vec3)
+    ang_a_t1: wp.array(dtype=vec3)
+    ang_b_t1: wp.array(dtype=vec3)
+    ang_a_t2: wp.array(dtype=vec3)
+    ang_b_t2: wp.array(dtype=vec3)
     mass_n: wp.array(dtype=float_t)
     mass_t1: wp.array(dtype=float_t)
     mass_t2: wp.array(dtype=float_t)
@@ -137,32 +152,48 @@ def inv_inertia_times(q: quat, inv_i: vec3, x: vec3):
 
 
 @wp.func
-def _effective_mass(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
-    # k = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + (r_b x d) . I_b^-1 (r_b x d)
-    ca = wp.cross(ra, d)
-    cb = wp.cross(rb, d)
-    k = b.inv_mass[ia] + b.inv_mass[ib]
-    k += wp.dot(ca, inv_inertia_times(b.q[ia], b.inv_inertia[ia], ca))
-    k += wp.dot(cb, inv_inertia_times(b.q[ib], b.inv_inertia[ib], cb))
+def _inv_inertia_world(q: quat, inv_i: vec3):
+    """World-frame inverse inertia tensor R diag(inv_i) R^T."""
+    R = wp.quat_to_matrix(q)
+    return R * wp.diag(inv_i) * wp.transpose(R)
+
+
+@wp.func
+def _inverse(k: float_t):
     if k > float_t(0.0):
         return float_t(1.0) / k
     return float_t(0.0)
 
 
 @wp.func
-def _relative_velocity(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3):
-    return b.v[ib] + wp.cross(b.w[ib], rb) - b.v[ia] - wp.cross(b.w[ia], ra)
+def _push(b: Bodies, ia: int, ib: int, P: vec3, dwa: vec3, dwb: vec3, serial: int):
+    """Apply linear impulse P to b and -P to a, with the given angular velocity changes.
+
+    Equal and opposite impulses conserve momentum exactly. `serial` (CPU): plain updates, one
+    contact after another (Gauss-Seidel); otherwise atomics (CUDA).
+    """
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    if serial != 0:
+        if ima > float_t(0.0):
+            b.v[ia] = b.v[ia] - P * ima
+            b.w[ia] = b.w[ia] - dwa
+        if imb > float_t(0.0):
+            b.v[ib] = b.v[ib] + P * imb
+            b.w[ib] = b.w[ib] + dwb
+    else:
+        if ima > float_t(0.0):
+            wp.atomic_sub(b.v, ia, P * ima)
+            wp.atomic_sub(b.w, ia, dwa)
+        if imb > float_t(0.0):
+            wp.atomic_add(b.v, ib, P * imb)
+            wp.atomic_add(b.w, ib, dwb)
 
 
 @wp.func
-def _apply(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, P: vec3):
-    """Apply impulse P to b at r_b and -P to a at r_a (equal and opposite: momentum is conserved)."""
-    if b.inv_mass[ia] > float_t(0.0):
-        wp.atomic_sub(b.v, ia, P * b.inv_mass[ia])
-        wp.atomic_sub(b.w, ia, inv_inertia_times(b.q[ia], b.inv_inertia[ia], wp.cross(ra, P)))
-    if b.inv_mass[ib] > float_t(0.0):
-        wp.atomic_add(b.v, ib, P * b.inv_mass[ib])
-        wp.atomic_add(b.w, ib, inv_inertia_times(b.q[ib], b.inv_inertia[ib], wp.cross(rb, P)))
+def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
+    """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
+    return wp.dot(b.v[ib] - b.v[ia], d) + wp.dot(b.w[ib], wp.cross(rb, d)) - wp.dot(b.w[ia], wp.cross(ra, d))
 
 
 # ---------------------------------------------------------------------------- warm-start matching
@@ -298,15 +329,32 @@ def _prepare(
     t2 = wp.cross(n, t1)
     c.t1[k] = t1
     c.t2[k] = t2
-    c.mass_n[k] = _effective_mass(b, ia, ib, ra, rb, n)
-    c.mass_t1[k] = _effective_mass(b, ia, ib, ra, rb, t1)
-    c.mass_t2[k] = _effective_mass(b, ia, ib, ra, rb, t2)
+    # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
+    # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
+    Ia = _inv_inertia_world(b.q[ia], b.inv_inertia[ia])
+    Ib = _inv_inertia_world(b.q[ib], b.inv_inertia[ib])
+    im = b.inv_mass[ia] + b.inv_mass[ib]
+    ca = wp.cross(ra, n)
+    cb = wp.cross(rb, n)
+    c.ang_a_n[k] = Ia * ca
+    c.ang_b_n[k] = Ib * cb
+    c.mass_n[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t1)
+    cb = wp.cross(rb, t1)
+    c.ang_a_t1[k] = Ia * ca
+    c.ang_b_t1[k] = Ib * cb
+    c.mass_t1[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    ca = wp.cross(ra, t2)
+    cb = wp.cross(rb, t2)
+    c.ang_a_t2[k] = Ia * ca
+    c.ang_b_t2[k] = Ib * cb
+    c.mass_t2[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
     # approach speed at impact: a gap s closed under relative acceleration g_n along n gives
     # vn_impact^2 = vn^2 - 2 g_n s, so restitution does not lose the speed gained within the step
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = _speed_along(b, ia, ib, ra, rb, n)
     s = c.separation[k]
     if s > float_t(0.0):
         ga = float_t(0.0)
@@ -331,12 +379,34 @@ def _prepare(
 
 
 @wp.kernel
-def _warm_start(c: Contacts, b: Bodies):
+def _warm_start(c: Contacts, b: Bodies, serial: int):
     k = wp.tid()
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    P = c.normal[k] * c.jn[k] + c.t1[k] * c.jt1[k] + c.t2[k] * c.jt2[k]
-    _apply(b, ia, ib, c.r_a[k], c.r_b[k], P)
+    jn = c.jn[k]
+    j1 = c.jt1[k]
+    j2 = c.jt2[k]
+    P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
+    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
+    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+    _push(b, c.body_a[k], c.body_b[k], P, dwa, dwb, serial)
+
+
+@wp.func
+def _store_velocities(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    """Add one contact's velocity changes to its two bodies (static bodies never change)."""
+    if serial != 0:
+        if b.inv_mass[ia] > float_t(0.0):
+            b.v[ia] = b.v[ia] + dva
+            b.w[ia] = b.w[ia] + dwa
+        if b.inv_mass[ib] > float_t(0.0):
+            b.v[ib] = b.v[ib] + dvb
+            b.w[ib] = b.w[ib] + dwb
+    else:
+        if b.inv_mass[ia] > float_t(0.0):
+            wp.atomic_add(b.v, ia, dva)
+            wp.atomic_add(b.w, ia, dwa)
+        if b.inv_mass[ib] > float_t(0.0):
+            wp.atomic_add(b.v, ib, dvb)
+            wp.atomic_add(b.w, ib, dwb)
 
 
 @wp.kernel
@@ -350,6 +420,7 @@ def _solve(
     impulse_scale: float_t,
     max_push: float_t,
     slop: float_t,
+    serial: int,
 ):
     k = wp.tid()
     ia = c.body_a[k]
@@ -358,15 +429,28 @@ def _solve(
     ra = c.r_a[k]
     rb = c.r_b[k]
     relax = c.scale[k]
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    # the two bodies' velocity changes from this contact, accumulated locally, stored once
+    dva = vec3()
+    dwa = vec3()
+    dvb = vec3()
+    dwb = vec3()
+    va = b.v[ia]
+    wa = b.w[ia]
+    vb = b.v[ib]
+    wb = b.w[ib]
 
-    # friction: Coulomb, |jt| <= mu jn, clamped on the disc
+    # friction first: Coulomb, |jt| <= mu jn, clamped on the disc
     t1 = c.t1[k]
     t2 = c.t2[k]
-    dv = _relative_velocity(b, ia, ib, ra, rb)
+    dv = vb - va
     j1_old = c.jt1[k]
     j2_old = c.jt2[k]
-    j1 = j1_old - c.mass_t1[k] * wp.dot(dv, t1) * relax
-    j2 = j2_old - c.mass_t2[k] * wp.dot(dv, t2) * relax
+    vt1 = wp.dot(dv, t1) + wp.dot(wb, wp.cross(rb, t1)) - wp.dot(wa, wp.cross(ra, t1))
+    vt2 = wp.dot(dv, t2) + wp.dot(wb, wp.cross(rb, t2)) - wp.dot(wa, wp.cross(ra, t2))
+    j1 = j1_old - c.mass_t1[k] * vt1 * relax
+    j2 = j2_old - c.mass_t2[k] * vt2 * relax
     limit = c.friction[k] * c.jn[k]
     norm = wp.sqrt(j1 * j1 + j2 * j2)
     if norm > limit:
@@ -375,14 +459,21 @@ def _solve(
         j2 = j2 * f
     c.jt1[k] = j1
     c.jt2[k] = j2
-    _apply(b, ia, ib, ra, rb, t1 * (j1 - j1_old) + t2 * (j2 - j2_old))
+    d1 = j1 - j1_old
+    d2 = j2 - j2_old
+    P = t1 * d1 + t2 * d2
+    dva = dva - P * ima
+    dvb = dvb + P * imb
+    dwa = dwa - c.ang_a_t1[k] * d1 - c.ang_a_t2[k] * d2
+    dwb = dwb + c.ang_b_t1[k] * d1 + c.ang_b_t2[k] * d2
 
-    # current separation from the anchors carried along with both bodies
-    pa = b.x[ia] + wp.quat_rotate(b.q[ia], c.local_a[k])
-    pb = b.x[ib] + wp.quat_rotate(b.q[ib], c.local_b[k])
-    s = wp.dot(n, pb - pa)
+    # current separation, linearised in the motion since the step began:
+    # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
+    s = c.separation[k] + wp.dot(
+        n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
 
-    # normal: speculative (s > 0) lets the gap close in one substep; overlap pushes out softly
+    # normal: speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is
+    # pushed out softly (bias) and only in the biased pass
     bias = float_t(0.0)
     ms = float_t(1.0)
     isc = float_t(0.0)
@@ -392,17 +483,22 @@ def _solve(
         bias = wp.max(bias_rate * (s + slop), -max_push)
         ms = mass_scale
         isc = impulse_scale
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
+          - wp.dot(wa + dwa, wp.cross(ra, n)))
     jn_old = c.jn[k]
-    dj = (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax
-    jn = wp.max(jn_old + dj, float_t(0.0))
+    jn = wp.max(jn_old + (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
     c.jn[k] = jn
     c.jn_max[k] = wp.max(c.jn_max[k], jn)
-    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+    dj = jn - jn_old
+    dva = dva - n * (dj * ima)
+    dvb = dvb + n * (dj * imb)
+    dwa = dwa - c.ang_a_n[k] * dj
+    dwb = dwb + c.ang_b_n[k] * dj
+    _store_velocities(b, ia, ib, dva, dwa, dvb, dwb, serial)
 
 
 @wp.kernel
-def _restitution(c: Contacts, b: Bodies, threshold: float_t):
+def _restitution(c: Contacts, b: Bodies, threshold: float_t, serial: int):
     k = wp.tid()
     vrel = c.relative_velocity[k]
     if vrel > -threshold or c.jn_max[k] == float_t(0.0) or c.restitution[k] == float_t(0.0):
@@ -410,14 +506,13 @@ def _restitution(c: Contacts, b: Bodies, threshold: float_t):
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
-    ra = c.r_a[k]
-    rb = c.r_b[k]
     # drive the normal velocity to -e times the approach speed
-    vn = wp.dot(_relative_velocity(b, ia, ib, ra, rb), n)
+    vn = _speed_along(b, ia, ib, c.r_a[k], c.r_b[k], n)
     jn_old = c.jn[k]
     jn = wp.max(jn_old - c.mass_n[k] * (vn + c.restitution[k] * vrel) * c.scale[k], float_t(0.0))
     c.jn[k] = jn
-    _apply(b, ia, ib, ra, rb, n * (jn - jn_old))
+    dj = jn - jn_old
+    _push(b, ia, ib, n * dj, c.ang_a_n[k] * dj, c.ang_b_n[k] * dj, serial)
 
 
 # ---------------------------------------------------------------------------- host side
@@ -458,6 +553,9 @@ class ContactSet(ArraySet):
             a["contact_body_a"], a["contact_body_b"], a["contact_normal"], a["contact_separation"])
         c.local_a, c.local_b, c.r_a, c.r_b = a["contact_local_a"], a["contact_local_b"], a["contact_r_a"], a["contact_r_b"]
         c.t1, c.t2 = a["contact_tangent1"], a["contact_tangent2"]
+        c.ang_a_n, c.ang_b_n = a["contact_angular_a_n"], a["contact_angular_b_n"]
+        c.ang_a_t1, c.ang_b_t1 = a["contact_angular_a_t1"], a["contact_angular_b_t1"]
+        c.ang_a_t2, c.ang_b_t2 = a["contact_angular_a_t2"], a["contact_angular_b_t2"]
         c.mass_n, c.mass_t1, c.mass_t2 = a["contact_mass_n"], a["contact_mass_t1"], a["contact_mass_t2"]
         c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
         c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
@@ -511,11 +609,17 @@ class ContactSet(ArraySet):
         p.count = self.count
 
 
+def _serial(contacts: ContactSet) -> int:
+    """1 where kernels run their threads one after another (the CPU): plain Gauss-Seidel updates."""
+    return 1 if contacts.device == "cpu" else 0
+
+
 def body_struct(bodies) -> Bodies:
     a = bodies.arrays
     s = Bodies()
     s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
     s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
+    s.dx, s.dtheta = a["body_delta_position"], a["body_delta_rotation"]
     return s
 
 
@@ -552,7 +656,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
     """Apply the accumulated impulses of the last substep (or step) to the velocities."""
     if contacts.count:
         wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies)])
+                  inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
 
 
 def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
@@ -562,11 +666,11 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
     bias_rate, mass_scale, impulse_scale = softness(h)
     wp.launch(_solve, dim=contacts.count, device=contacts.device,
               inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), bias_rate, mass_scale,
-                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP])
+                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
 
 
 def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
     """Bounce the contacts that approached faster than `threshold` [m/s]."""
     if contacts.count:
         wp.launch(_restitution, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies), threshold])
+                  inputs=[contacts.struct(), body_struct(bodies), threshold, _serial(contacts)])

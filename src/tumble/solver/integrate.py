@@ -36,7 +36,9 @@ def _integrate_velocities(
     if im == float_t(0.0):
         return
     v[i] = v[i] + (gravity + force[i] * im) * h
-    w[i] = w[i] + inv_inertia_times(q[i], inv_inertia[i], torque[i]) * h
+    tau = torque[i]
+    if tau[0] != float_t(0.0) or tau[1] != float_t(0.0) or tau[2] != float_t(0.0):
+        w[i] = w[i] + inv_inertia_times(q[i], inv_inertia[i], tau) * h
 
 
 @wp.func
@@ -54,16 +56,21 @@ def _integrate_positions(
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
     w: wp.array(dtype=vec3),
+    dx: wp.array(dtype=vec3),
+    dtheta: wp.array(dtype=vec3),
 ):
     i = wp.tid()
     if inv_mass[i] == float_t(0.0):
         return
     x[i] = x[i] + v[i] * h
+    dx[i] = dx[i] + v[i] * h
     wi = w[i]
-    angle = wp.length(wi) * h
-    if angle > float_t(0.0):
+    dtheta[i] = dtheta[i] + wi * h
+    speed = wp.length(wi)
+    if speed > float_t(0.0):
         # q' = exp(w h / 2) q: rotation by |w| h about w / |w|
-        axis = wi / wp.length(wi)
+        angle = speed * h
+        axis = wi / speed
         half = float_t(0.5) * angle
         s = wp.sin(half)
         dq = quat(axis[0] * s, axis[1] * s, axis[2] * s, wp.cos(half))
@@ -96,7 +103,14 @@ def integrate_positions(bodies, h: float) -> None:
     a = bodies.arrays
     wp.launch(_integrate_positions, dim=bodies.count, device=bodies.device,
               inputs=[a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
-                      a["body_velocity"], a["body_angular_velocity"]])
+                      a["body_velocity"], a["body_angular_velocity"], a["body_delta_position"],
+                      a["body_delta_rotation"]])
+
+
+def begin_step(bodies) -> None:
+    """Zero the motion accumulated since the step began (read by the contact solver)."""
+    bodies.arrays["body_delta_position"].zero_()
+    bodies.arrays["body_delta_rotation"].zero_()
 
 
 def clear_forces(bodies) -> None:

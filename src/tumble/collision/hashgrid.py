@@ -1,0 +1,130 @@
+"""A spatial hash built by counting sort, shared by the bodies' broad phase and cloth self-collision.
+
+Reads point positions (and optionally a radius per point); writes, per hashed cell, the range
+`cell_start[h] .. cell_start[h] + cell_count[h]` of `entries`, the points sorted by cell.
+Cost O(n) per build, allocation-free once sized: count points per cell (atomic add), exclusive
+scan, scatter (Ten Minute Physics, "Spatial hashing"). On the CPU, Warp runs threads in order,
+so points within a cell stay in index order and the build is deterministic.
+
+Queries walk the cells around a point (`cell_of`, `cell_hash`) and, since different cells can
+hash to one slot, compare `point_cell_coord[j]` with the cell being walked.
+
+Tuning: a cell edge of about the largest interaction distance keeps each query to 2-3 cells a
+side; the table has at least twice as many slots as points.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from ..state import float_t, vec3
+
+
+@wp.func
+def cell_of(x: vec3, inv_cell: float_t):
+    """Integer cell coordinates of a point."""
+    return wp.vec3i(int(wp.floor(x[0] * inv_cell)), int(wp.floor(x[1] * inv_cell)), int(wp.floor(x[2] * inv_cell)))
+
+
+@wp.func
+def cell_hash(c: wp.vec3i, mask: int):
+    """Table slot of a cell: coordinates mixed by large primes (Teschner et al. 2003), low bits."""
+    hx = wp.uint32(c[0]) * wp.uint32(73856093)
+    hy = wp.uint32(c[1]) * wp.uint32(19349663)
+    hz = wp.uint32(c[2]) * wp.uint32(83492791)
+    return int((hx ^ hy ^ hz) & wp.uint32(mask))
+
+
+@wp.kernel
+def _count(
+    x: wp.array(dtype=vec3),
+    radius: wp.array(dtype=float_t),
+    max_radius: float_t,
+    inv_cell: float_t,
+    mask: int,
+    point_cell: wp.array(dtype=wp.int32),
+    point_cell_coord: wp.array(dtype=wp.vec3i),
+    cell_count: wp.array(dtype=wp.int32),
+):
+    i = wp.tid()
+    if radius[i] > max_radius:
+        point_cell[i] = -1  # left out of the grid (its owner queries it some other way)
+        return
+    c = cell_of(x[i], inv_cell)
+    h = cell_hash(c, mask)
+    point_cell[i] = h
+    point_cell_coord[i] = c
+    wp.atomic_add(cell_count, h, 1)
+
+
+@wp.kernel
+def _scatter(
+    point_cell: wp.array(dtype=wp.int32),
+    cell_start: wp.array(dtype=wp.int32),
+    cell_fill: wp.array(dtype=wp.int32),
+    entries: wp.array(dtype=wp.int32),
+):
+    i = wp.tid()
+    h = point_cell[i]
+    if h >= 0:
+        entries[cell_start[h] + wp.atomic_add(cell_fill, h, 1)] = i
+
+
+class HashGrid:
+    """Points sorted into hashed cells.
+
+    Attributes:
+        cell_size: cell edge of the last build [m]; `inv_cell` its inverse.
+        mask: table size - 1 (the table size is a power of two).
+        cell_start, cell_count: per slot, where its points start in `entries` and how many.
+        entries: point indices sorted by slot, int32.
+        point_cell: slot of each point (-1 when left out), int32.
+        point_cell_coord: integer cell coordinates of each point, vec3i.
+    """
+
+    def __init__(self, device: str):
+        self.device = device
+        self.cell_size = 1.0
+        self.inv_cell = 1.0
+        self.mask = 0
+        self._points = 0
+
+    def _reserve(self, count: int) -> None:
+        table = 1 << max(10, math.ceil(math.log2(max(2 * count, 1))))
+        if table != self.mask + 1:
+            self.mask = table - 1
+            self.cell_count = wp.zeros(table, dtype=wp.int32, device=self.device)
+            self.cell_start = wp.zeros(table, dtype=wp.int32, device=self.device)
+            self.cell_fill = wp.zeros(table, dtype=wp.int32, device=self.device)
+        if count > self._points:
+            self._points = max(count, 2 * self._points)
+            self.point_cell = wp.zeros(self._points, dtype=wp.int32, device=self.device)
+            self.point_cell_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
+            self.entries = wp.zeros(self._points, dtype=wp.int32, device=self.device)
+            self._no_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
+
+    def build(self, x: wp.array, count: int, cell_size: float, radius: wp.array | None = None,
+              max_radius: float = np.inf) -> HashGrid:
+        """Sort the first `count` points of `x` into cells of edge `cell_size` [m].
+
+        Points whose `radius` exceeds `max_radius` are left out (`point_cell` = -1).
+        """
+        self._reserve(count)
+        self.cell_size = float(cell_size)
+        self.inv_cell = 1.0 / self.cell_size
+        if radius is None:
+            radius, max_radius = self._no_radius, np.inf
+        self.cell_count.zero_()
+        self.cell_fill.zero_()
+        if count == 0:
+            return self
+        wp.launch(_count, dim=count, device=self.device,
+                  inputs=[x, radius, float(max_radius), self.inv_cell, self.mask, self.point_cell,
+                          self.point_cell_coord, self.cell_count])
+        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
+        wp.launch(_scatter, dim=count, device=self.device,
+                  inputs=[self.point_cell, self.cell_start, self.cell_fill, self.entries])
+        return self

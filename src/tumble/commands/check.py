@@ -1,0 +1,19 @@
+"""`tumble check SCENE`: validate a scene file without running it."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "validate a scene file without running it"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="scene file (.toml) or the name of a bundled sample")
+
+
+def main(args: argparse.Namespace) -> int:
+    from ..io.scene import validate_scene
+
+    scene = validate_scene(args.scene)
+    print(f"{scene.path}: ok: {scene.summary()}")
+    return 0

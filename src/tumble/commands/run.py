@@ -1,0 +1,147 @@
+"""`tumble run SCENE`: simulate a scene headless, print a summary, optionally record it."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+from ..errors import TumbleError
+
+HELP = "simulate a scene headless and print a summary"
+
+DEFAULT_DURATION = 2.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="scene file (.toml) or the name of a bundled sample")
+    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, metavar="S",
+                        help=f"simulated time in seconds (default {DEFAULT_DURATION:g})")
+    parser.add_argument("--seed", type=int, default=None, metavar="N",
+                        help="replace the scene's [world] seed (emitters without their own seed follow it)")
+    parser.add_argument("--record", default=None, metavar="FILE.npz",
+                        help="write the trajectory to FILE.npz (format in docs/scenes.md)")
+    parser.add_argument("--fps", type=float, default=60.0, metavar="F",
+                        help="recorded frames per second of simulated time (default 60)")
+    parser.add_argument("--profile", action="store_true", help="print the time spent in each stage of the step")
+    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="Warp device (default cpu)")
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise TumbleError(f"--duration must be a positive number of seconds, got {args.duration:g}")
+    if not (math.isfinite(args.fps) and args.fps > 0):
+        raise TumbleError(f"--fps must be a positive number, got {args.fps:g}")
+    if args.seed is not None and args.seed < 0:
+        raise TumbleError(f"--seed must be >= 0, got {args.seed}")
+    if args.record is not None:
+        path = Path(args.record)
+        if path.suffix != ".npz":
+            raise TumbleError(f"--record {args.record}: the file name must end in .npz")
+        if not path.parent.is_dir():
+            raise TumbleError(f"--record {args.record}: no such directory {str(path.parent)!r}")
+    if args.device == "cuda":
+        import warp as wp
+
+        _quiet_warp()
+        wp.init()
+        if not wp.is_cuda_available():
+            raise TumbleError("--device cuda: Warp finds no CUDA device on this machine; use --device cpu")
+
+
+def _quiet_warp() -> None:
+    """Keep Warp's start-up banner off stdout (the summary is the output)."""
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
+
+
+def main(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from ..io.record import Recorder
+    from ..io.scene import load_scene
+
+    _check_arguments(args)
+    _quiet_warp()
+    world = load_scene(args.scene, seed=args.seed, device=args.device)
+    steps = max(1, int(round(args.duration / world.dt)))
+    recorder = Recorder(world, fps=args.fps) if args.record else None
+    err = Console(stderr=True)
+
+    # first step: Warp loads its kernels (and compiles them the first time on this machine)
+    err.print("preparing kernels (compiled on the first run only)...", highlight=False)
+    start = time.perf_counter()
+    world.step()
+    if recorder is not None:
+        recorder(world)
+    first_step = time.perf_counter() - start
+    err.print(f"first step done in {first_step:.2f} s", highlight=False)
+
+    # the remaining steps, with a progress bar when stderr is a terminal
+    start = time.perf_counter()
+    every = max(1, (steps - 1) // 200)
+    with Progress(
+        TextColumn("simulating"), BarColumn(), MofNCompleteColumn(), TextColumn("steps"), TimeRemainingColumn(),
+        console=err, transient=True, disable=not err.is_terminal,
+    ) as progress:
+        task = progress.add_task("steps", total=steps - 1)
+        for k in range(1, steps):
+            world.step()
+            if recorder is not None:
+                recorder(world)
+            if k % every == 0:
+                progress.update(task, completed=k)
+    wall = time.perf_counter() - start
+
+    if recorder is not None:
+        recorder.save(args.record)
+    _print_summary(args, world, steps, wall, first_step, recorder)
+    if args.profile:
+        _print_profile(world, steps)
+    return 0
+
+
+def _print_summary(args, world, steps: int, wall: float, first_step: float, recorder) -> None:
+    from ..shapes import ShapeType
+
+    shape = world.body_shape
+    counts = {s: int((shape == s).sum()) for s in ShapeType}
+    rate = (steps - 1) / wall if steps > 1 and wall > 0 else 1.0 / max(first_step, 1e-9)
+    lines = [
+        ("scene", str(world.metadata.get("path", args.scene))),
+        ("bodies", f"{world.body_count:,} ({_count(counts[ShapeType.PLANE], 'plane')}, "
+                   f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})"),
+    ]
+    if world._cloth is not None:
+        lines.append(("cloth", f"{world.cloth.particle_count:,} particles"))
+    lines += [
+        ("steps", f"{steps:,} ({world.time:.3f} s simulated, dt {world.dt:.6g} s, {world.substeps} substeps)"),
+        ("speed", f"{rate:,.1f} steps/s ({wall:.2f} s wall after a first step of {first_step:.2f} s)"),
+        ("kinetic energy", f"{world.kinetic_energy():.6g} J"),
+        ("contacts", f"{world.contact_count:,}"),
+    ]
+    if recorder is not None:
+        lines.append(("recorded", f"{args.record} ({recorder.frame_count} frames at {recorder.fps:g} fps)"))
+    width = max(len(name) for name, _ in lines)
+    for name, value in lines:
+        print(f"{name:<{width}}  {value}")
+    sys.stdout.flush()
+
+
+def _count(n: int, noun: str) -> str:
+    """'1 box', '3 boxes', '1,000 spheres'."""
+    return f"{n:,} {noun}" if n == 1 else f"{n:,} {noun}{'es' if noun.endswith('x') else 's'}"
+
+
+def _print_profile(world, steps: int) -> None:
+    total = sum(world.profile.values())
+    print()
+    print(f"{'stage':<14}{'seconds':>10}{'%':>8}{'ms/step':>10}")
+    for stage, seconds in sorted(world.profile.items(), key=lambda item: -item[1]):
+        share = 100.0 * seconds / total if total > 0 else 0.0
+        print(f"{stage:<14}{seconds:>10.3f}{share:>8.1f}{1000.0 * seconds / steps:>10.3f}")
+    print(f"{'total':<14}{total:>10.3f}{100.0:>8.1f}{1000.0 * total / steps:>10.3f}")

@@ -1,0 +1,53 @@
+"""`tumble view SCENE`: open a scene in the interactive viewer window."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+HELP = "Open a scene in the interactive viewer (orbit, play, tune parameters live, record)."
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """Parse "WxH" (e.g. "1280x720") into (width, height) in pixels."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
+    if not match:
+        raise argparse.ArgumentTypeError(f"size must look like 1280x720, got {text!r}")
+    w, h = int(match.group(1)), int(match.group(2))
+    if not (16 <= w <= 16384 and 16 <= h <= 16384):
+        raise argparse.ArgumentTypeError(f"size must be between 16x16 and 16384x16384, got {text!r}")
+    return w, h
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="scene file (.toml), or the name of a bundled sample (sphere_pile)")
+    parser.add_argument("--paused", action="store_true", help="start paused (space plays)")
+    parser.add_argument("--size", type=parse_size, default=(1280, 720), metavar="WxH",
+                        help="size of the 3D view in pixels (default 1280x720)")
+    parser.add_argument("--view", choices=("auto", "gl", "image"), default="auto",
+                        help="auto: an OpenGL window where possible, else offscreen rendering shown as "
+                             "an image; gl or image to force one")
+    parser.add_argument("--out-dir", default=".", metavar="DIR",
+                        help="folder for screenshots and videos (default: the current folder)")
+
+
+def main(args: argparse.Namespace) -> int:
+    import tumble
+
+    scene = args.scene
+    # load once before opening any window, so that a missing or broken scene is one line on
+    # stderr (from the CLI), not a window that opens and fails
+    world = tumble.load_scene(scene)
+
+    from tumble.viewer import run_viewer
+
+    return run_viewer(
+        world,
+        factory=lambda: tumble.load_scene(scene),
+        title=Path(scene).stem,
+        size=args.size,
+        paused=args.paused,
+        view=args.view,
+        output_dir=args.out_dir,
+    )

@@ -1,0 +1,882 @@
+"""Scene files: TOML -> validated tables -> `World`.
+
+A scene file is a TOML document with the tables described in docs/scenes.md::
+
+    [world]
+    gravity = [0, 0, -9.81]
+
+    [[plane]]
+    normal = [0, 0, 1]
+
+    [[sphere]]
+    position = [0, 0, 1]
+    radius = 0.1
+    mass = 1.0
+
+The schema is data (`SCHEMA`: one `TableSpec` per table, one `Field` per key), so the
+validator, the defaults and the reference tables in docs/scenes.md (`reference_markdown()`)
+come from one place. Every problem raises `SceneError` naming the file, the table (e.g.
+`sphere[2]` for the third `[[sphere]]`) and the key.
+
+Loading is two steps: `parse_scene(text)` checks everything and returns a `Scene` of plain
+Python values (no Warp, no World); `build_world(scene)` passes those values to the World API.
+`load_scene(path)` does both.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+
+#: directory of the bundled sample scenes (the repository's `samples/`; override with $TUMBLE_SAMPLES)
+SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES", Path(__file__).resolve().parents[3] / "samples"))
+
+REQUIRED = object()  # marks a key without a default
+
+
+class _Bad(Exception):
+    """A value failed its check; the message says why (the caller adds file, table and key)."""
+
+
+# ---------------------------------------------------------------------------------------- value checks
+# Each check takes the TOML value and returns the Python value passed to the World API, or raises
+# _Bad. `Check.kind` is the type as written in the docs.
+
+
+@dataclass(frozen=True)
+class Check:
+    kind: str
+    convert: Callable[[object], object]
+
+    def __call__(self, value):
+        return self.convert(value)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _number(value) -> float:
+    if not _is_number(value):
+        raise _Bad(f"must be a number, got {_show(value)}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise _Bad(f"must be finite, got {_show(value)}")
+    return v
+
+
+def _show(value) -> str:
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict):
+        return "a table"
+    return repr(value)
+
+
+def number(*, low: float | None = None, high: float | None = None, low_open: bool = False) -> Check:
+    """A finite float, optionally bounded: low < v (low_open) or low <= v, v <= high."""
+
+    def convert(value):
+        v = _number(value)
+        if low is not None and (v <= low if low_open else v < low):
+            raise _Bad(f"must be {'>' if low_open else '>='} {low:g}, got {_show(value)}")
+        if high is not None and v > high:
+            raise _Bad(f"must be <= {high:g}, got {_show(value)}")
+        return v
+
+    if low == 0 and low_open and high is None:
+        kind = "float > 0"
+    elif low is not None and high is not None:
+        kind = f"float in [{low:g}, {high:g}]" if not low_open else f"float in ({low:g}, {high:g}]"
+    elif low is not None:
+        kind = f"float {'>' if low_open else '>='} {low:g}"
+    else:
+        kind = "float"
+    return Check(kind, convert)
+
+
+def integer(*, low: int | None = None) -> Check:
+    """An integer, optionally >= low."""
+
+    def convert(value):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise _Bad(f"must be an integer, got {_show(value)}")
+        if low is not None and value < low:
+            raise _Bad(f"must be >= {low}, got {value}")
+        return int(value)
+
+    return Check("integer" if low is None else f"integer >= {low}", convert)
+
+
+def boolean() -> Check:
+    def convert(value):
+        if not isinstance(value, bool):
+            raise _Bad(f"must be true or false, got {_show(value)}")
+        return value
+
+    return Check("bool", convert)
+
+
+def choice(*names: str) -> Check:
+    def convert(value):
+        if not isinstance(value, str):
+            raise _Bad(f"must be a string, one of {', '.join(map(repr, names))}; got {_show(value)}")
+        if value not in names:
+            raise _Bad(f"unknown value {value!r}: expected one of {', '.join(map(repr, names))}")
+        return value
+
+    quoted = [f'"{n}"' for n in names]
+    return Check(quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " or " + quoted[-1], convert)
+
+
+def _vector(value, n: int) -> list[float]:
+    if not isinstance(value, list):
+        raise _Bad(f"must be a list of {n} numbers, got {_show(value)}")
+    if len(value) != n:
+        raise _Bad(f"must have {n} components, got {len(value)}")
+    if not all(_is_number(v) for v in value):
+        raise _Bad(f"must be a list of {n} numbers, got {_show(value)}")
+    out = [float(v) for v in value]
+    if not all(math.isfinite(v) for v in out):
+        raise _Bad(f"must be finite, got {_show(value)}")
+    return out
+
+
+def vector(n: int, *, nonzero: bool = False, positive: bool = False, nonneg: bool = False) -> Check:
+    """A list of n finite floats; optionally not all zero, or each > 0, or each >= 0."""
+
+    def convert(value):
+        v = _vector(value, n)
+        if nonzero and math.sqrt(sum(x * x for x in v)) < 1e-12:
+            raise _Bad("must not be the zero vector")
+        if positive and any(x <= 0 for x in v):
+            raise _Bad(f"components must all be > 0, got {_show(value)}")
+        if nonneg and any(x < 0 for x in v):
+            raise _Bad(f"components must all be >= 0, got {_show(value)}")
+        return v
+
+    names = {2: "[a, b]", 3: "[x, y, z]", 4: "[x, y, z, w]"}[n]
+    qual = ", non-zero" if nonzero else ", each > 0" if positive else ", each >= 0" if nonneg else ""
+    return Check(f"{names} floats{qual}", convert)
+
+
+def quaternion() -> Check:
+    """A non-zero quaternion (x, y, z, w); the World normalises it."""
+
+    def convert(value):
+        v = _vector(value, 4)
+        if math.sqrt(sum(x * x for x in v)) < 1e-12:
+            raise _Bad("must be a non-zero quaternion [x, y, z, w]")
+        return v
+
+    return Check("[x, y, z, w] floats, non-zero", convert)
+
+
+def value_or_range(*, positive: bool) -> Check:
+    """A number v or a range [min, max] with min <= max; v > 0 (positive) or v >= 0."""
+    op = ">" if positive else ">="
+
+    def one(v, value):
+        x = _number(v)
+        if x < 0 or (positive and x == 0):
+            raise _Bad(f"must be {op} 0, got {_show(value)}")
+        return x
+
+    def convert(value):
+        if isinstance(value, list):
+            if len(value) != 2:
+                raise _Bad(f"must be a number or a range [min, max], got {len(value)} values")
+            lo, hi = one(value[0], value), one(value[1], value)
+            if lo > hi:
+                raise _Bad(f"range [min, max] must have min <= max, got {_show(value)}")
+            return (lo, hi)
+        return one(value, value)
+
+    return Check(f"float or [min, max], {op} 0", convert)
+
+
+def size_or_range() -> Check:
+    """Box half extents for an emitter: h, [hx, hy, hz], [hmin, hmax] (cubes) or [[x, y, z], [x, y, z]]."""
+
+    def convert(value):
+        if isinstance(value, list) and len(value) == 2 and all(isinstance(v, list) for v in value):
+            lo = vector(3, positive=True)(value[0])
+            hi = vector(3, positive=True)(value[1])
+            if any(a > b for a, b in zip(lo, hi)):
+                raise _Bad(f"range [min, max] must have min <= max in each component, got {_show(value)}")
+            return (tuple(lo), tuple(hi))
+        if isinstance(value, list) and len(value) == 3:
+            return tuple(vector(3, positive=True)(value))
+        return value_or_range(positive=True)(value)
+
+    return Check("float, [x, y, z], [min, max] or [[x, y, z], [x, y, z]], > 0", convert)
+
+
+def extent() -> Check:
+    """Emitter region extent: a radius (disc) or half-sizes [x, y, z] (box); checked against region later."""
+
+    def convert(value):
+        if isinstance(value, list):
+            return vector(3, nonneg=True)(value)
+        return number(low=0, low_open=True)(value)
+
+    return Check("float (disc radius) or [x, y, z] (box half-sizes)", convert)
+
+
+def shape_list() -> Check:
+    names = ("sphere", "box")
+
+    def convert(value):
+        items = value if isinstance(value, list) else [value]
+        if not items:
+            raise _Bad("must name at least one shape")
+        for item in items:
+            if not isinstance(item, str):
+                raise _Bad(f"must be \"sphere\", \"box\" or a list of them, got {_show(value)}")
+            if item not in names:
+                raise _Bad(f"unknown shape {item!r}: expected \"sphere\" or \"box\"")
+        return value if isinstance(value, str) else list(items)
+
+    return Check('"sphere", "box" or a list of them', convert)
+
+
+SPRING_KINDS = ("structural", "shear", "bend")
+
+
+def per_spring() -> Check:
+    """A number >= 0 for every spring kind, or a table with some of {structural, shear, bend}."""
+    each = number(low=0)
+
+    def convert(value):
+        if isinstance(value, dict):
+            out = {}
+            for k, v in value.items():
+                if k not in SPRING_KINDS:
+                    raise _Bad(f"unknown spring kind {k!r}: expected {', '.join(SPRING_KINDS)}")
+                try:
+                    out[k] = each(v)
+                except _Bad as exc:
+                    raise _Bad(f"{k} {exc}") from None
+            return out
+        return each(value)
+
+    return Check("float >= 0 or { structural, shear, bend }", convert)
+
+
+PIN_NAMES = ("corners", "top-corners", "top-edge")
+
+
+def pins() -> Check:
+    def convert(value):
+        if isinstance(value, str):
+            return choice(*PIN_NAMES)(value)
+        if not isinstance(value, list):
+            raise _Bad(f"must be {', '.join(map(repr, PIN_NAMES))} or a list of [i, j], got {_show(value)}")
+        out = []
+        for item in value:
+            if (
+                not isinstance(item, list)
+                or len(item) != 2
+                or not all(isinstance(v, int) and not isinstance(v, bool) for v in item)
+            ):
+                raise _Bad(f"each pin must be a grid point [i, j] of two integers, got {_show(item)}")
+            out.append((int(item[0]), int(item[1])))
+        return out
+
+    return Check('"corners", "top-corners", "top-edge" or a list of [i, j]', convert)
+
+
+def resolution() -> Check:
+    def convert(value):
+        if not isinstance(value, list) or len(value) != 2:
+            raise _Bad(f"must be [nx, ny], got {_show(value)}")
+        out = [integer(low=2)(v) for v in value]
+        return out
+
+    return Check("[nx, ny] integers >= 2", convert)
+
+
+# ---------------------------------------------------------------------------------------- the schema
+
+
+@dataclass(frozen=True)
+class Field:
+    """One key of a table: its check, default (REQUIRED or None = left to the engine), units, doc."""
+
+    check: Check
+    default: object = None
+    units: str = ""
+    doc: str = ""
+    shown_default: str | None = None  # how the docs show a None default
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """One table of a scene file: `[name]` (array=False) or `[[name]]` (array=True)."""
+
+    name: str
+    array: bool
+    doc: str
+    fields: dict[str, Field]
+    rules: Callable[[dict], None] | None = None  # cross-key checks on the converted values
+
+
+def _mass_or_density(values: dict) -> None:
+    if values.get("mass") is not None and values.get("density") is not None:
+        raise _KeyBad("density", "give mass or density, not both")
+
+
+class _KeyBad(Exception):
+    """A cross-key rule failed at `key`."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
+def _emitter_rules(values: dict) -> None:
+    _mass_or_density(values)
+    shapes = [values["shape"]] if isinstance(values["shape"], str) else values["shape"]
+    if "sphere" in shapes and values.get("radius") is None:
+        raise _KeyBad("radius", "a sphere emitter needs radius (a value or [min, max])")
+    if "box" in shapes and values.get("half_extents") is None:
+        raise _KeyBad("half_extents", "a box emitter needs half_extents (a value or [min, max])")
+    region, ext = values["region"], values.get("extent")
+    if region == "box" and not isinstance(ext, list):
+        raise _KeyBad("extent", 'region "box" needs extent = [x, y, z] half-sizes')
+    if region == "disc" and not isinstance(ext, float):
+        raise _KeyBad("extent", 'region "disc" needs extent = a radius in m')
+
+
+def _cloth_rules(values: dict) -> None:
+    if values.get("mass") is not None and values.get("areal_density") is not None:
+        raise _KeyBad("areal_density", "give mass or areal_density, not both")
+    nx, ny = values["resolution"]
+    if isinstance(values.get("pins"), list):
+        for i, j in values["pins"]:
+            if not (0 <= i < nx and 0 <= j < ny):
+                raise _KeyBad("pins", f"pin [{i}, {j}] is outside the {nx} x {ny} grid")
+
+
+def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
+    return {
+        "position": Field(vector(3), REQUIRED, "m", "centre of mass"),
+        size_key: size,
+        "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "initial linear velocity"),
+        "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
+        "density": Field(number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", "1000"),
+        "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
+        "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+        "static": Field(boolean(), False, "", "immovable (inverse mass 0)"),
+        "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "initial orientation quaternion (x, y, z, w)"),
+        "angular_velocity": Field(vector(3), [0.0, 0.0, 0.0], "rad/s", "initial angular velocity, world frame"),
+    }
+
+
+SCHEMA: dict[str, TableSpec] = {
+    spec.name: spec
+    for spec in [
+        TableSpec(
+            "world",
+            False,
+            "Global settings.",
+            {
+                "gravity": Field(vector(3), [0.0, 0.0, -9.81], "m/s^2", "gravitational acceleration"),
+                "dt": Field(number(low=0, low_open=True), 1.0 / 240.0, "s", "fixed time step", "1/240"),
+                "substeps": Field(integer(low=1), 8, "", "solver substeps per step"),
+                "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
+                "restitution_threshold": Field(
+                    number(low=0), 0.5, "m/s", "approach speed below which contacts do not bounce"
+                ),
+            },
+        ),
+        TableSpec(
+            "plane",
+            True,
+            "Static infinite planes {x : dot(normal, x) = offset}; bodies stay on the +normal side.",
+            {
+                "normal": Field(vector(3, nonzero=True), [0.0, 0.0, 1.0], "", "plane normal (normalised on load)"),
+                "offset": Field(number(), 0.0, "m", "distance of the plane from the origin along the normal"),
+                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
+                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+            },
+        ),
+        TableSpec(
+            "sphere",
+            True,
+            "Solid spheres.",
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius")),
+            _mass_or_density,
+        ),
+        TableSpec(
+            "box",
+            True,
+            "Solid boxes.",
+            _body_fields(
+                "half_extents", Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes")
+            ),
+            _mass_or_density,
+        ),
+        TableSpec(
+            "emitter",
+            True,
+            "Sources releasing bodies over time; a new body never overlaps an existing one.",
+            {
+                "shape": Field(shape_list(), "sphere", "", "shape of the bodies; with a list, chosen at random"),
+                "rate": Field(number(low=0, low_open=True), REQUIRED, "1/s", "bodies released per second"),
+                "count": Field(integer(low=1), REQUIRED, "", "total number of bodies released"),
+                "position": Field(vector(3), REQUIRED, "m", "centre of the region"),
+                "region": Field(choice("point", "box", "disc"), "point", "", "where bodies appear"),
+                "extent": Field(extent(), None, "m", "half-sizes [x, y, z] for box, radius for disc", "none"),
+                "direction": Field(vector(3, nonzero=True), [0.0, 0.0, -1.0], "", "mean release direction"),
+                "cone_angle": Field(number(low=0, high=180), 0.0, "deg", "half-angle of the spread cone"),
+                "speed": Field(value_or_range(positive=False), 0.0, "m/s", "release speed, value or [min, max]"),
+                "radius": Field(value_or_range(positive=True), None, "m", "sphere radius, value or [min, max]", "none"),
+                "half_extents": Field(size_or_range(), None, "m", "box half sizes, value or [min, max]", "none"),
+                "mass": Field(value_or_range(positive=True), None, "kg", "mass, value or [min, max]", "from density"),
+                "density": Field(
+                    value_or_range(positive=True), None, "kg/m^3", "density, value or [min, max]", "1000"
+                ),
+                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
+                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+                "seed": Field(integer(low=0), None, "", "seed of this emitter's generator", "from [world] seed"),
+                "random_orientation": Field(boolean(), None, "", "uniformly random initial orientations", "false"),
+                "angular_speed": Field(
+                    value_or_range(positive=False), None, "rad/s", "spin about a random axis, value or [min, max]", "0"
+                ),
+            },
+            _emitter_rules,
+        ),
+        TableSpec(
+            "cloth",
+            True,
+            "Rectangular mass-spring cloths. Unrotated, a cloth lies in the xy-plane with normal +z, grid "
+            "index i along x and j along y.",
+            {
+                "size": Field(vector(2, positive=True), REQUIRED, "m", "[width, height]"),
+                "resolution": Field(resolution(), REQUIRED, "", "particles [nx, ny]"),
+                "position": Field(vector(3), REQUIRED, "m", "centre of the cloth"),
+                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation quaternion (x, y, z, w)"),
+                "mass": Field(number(low=0, low_open=True), None, "kg", "total mass; give mass or areal_density",
+                              "from areal_density"),
+                "areal_density": Field(number(low=0, low_open=True), None, "kg/m^2",
+                                       "mass per area; give mass or areal_density", "0.2"),
+                "stiffness": Field(per_spring(), None, "N/m",
+                                   "spring stiffness ks, one value or per kind (a missing kind has no springs)",
+                                   "{ structural = 12, shear = 1.2, bend = 0.3 }"),
+                "damping": Field(per_spring(), None, "N s/m", "spring damping kd, one value or per kind",
+                                 "{ structural = 0.002, shear = 0.0005, bend = 0.0001 }"),
+                "max_stretch": Field(number(low=0), 0.1, "", "largest strain of a structural spring (Provot)"),
+                "pins": Field(pins(), None, "", "pinned grid points", "none"),
+                "thickness": Field(number(low=0, low_open=True), None, "m",
+                                   "distance kept from bodies and between layers of cloth", "0.01"),
+                "friction": Field(number(low=0), None, "", "Coulomb friction against bodies", "0.3"),
+            },
+            _cloth_rules,
+        ),
+        TableSpec(
+            "wind",
+            False,
+            "Wind acting on cloth: a mean velocity plus smooth, seeded, time-varying turbulence.",
+            {
+                "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "mean wind velocity"),
+                "turbulence": Field(number(low=0), 0.0, "m/s", "strength of the turbulent part"),
+                "scale": Field(number(low=0, low_open=True), 1.0, "m", "length scale of the turbulence"),
+                "seed": Field(integer(low=0), 0, "", "seed of the turbulence field"),
+                "drag": Field(number(low=0), 1.2, "", "drag coefficient of a cloth face"),
+                "lift": Field(number(low=0), 0.3, "", "lift coefficient of a cloth face"),
+                "air_density": Field(number(low=0), 1.2, "kg/m^3", "density of the air"),
+            },
+        ),
+        TableSpec(
+            "camera",
+            False,
+            "Initial view for the viewer and video export (stored in world.metadata[\"camera\"]).",
+            {
+                "position": Field(vector(3), [3.0, -3.0, 2.0], "m", "eye position"),
+                "target": Field(vector(3), [0.0, 0.0, 0.5], "m", "point looked at"),
+                "fov": Field(number(low=0, high=179, low_open=True), 45.0, "deg", "vertical field of view"),
+            },
+        ),
+        TableSpec(
+            "check",
+            False,
+            "What the sample tests assert after running the scene headless (stored in world.metadata[\"check\"]). "
+            "Always checked: all values finite, no body centre behind a plane, every body within max_extent.",
+            {
+                "duration": Field(number(low=0, low_open=True), 1.0, "s", "simulated time the test runs"),
+                "min_z": Field(number(), None, "m", "lowest allowed body centre height", "none"),
+                "max_speed": Field(number(low=0, low_open=True), None, "m/s", "fastest allowed body", "none"),
+                "max_kinetic_energy": Field(
+                    number(low=0, low_open=True), None, "J", "largest allowed total kinetic energy", "none"
+                ),
+                "max_extent": Field(
+                    number(low=0, low_open=True), 100.0, "m", "largest allowed absolute value of a coordinate"
+                ),
+                "max_strain": Field(
+                    number(low=0, low_open=True), None, "", "largest allowed cloth spring strain", "none"
+                ),
+            },
+        ),
+    ]
+}
+
+# bodies are created in this order: every [[plane]], then [[sphere]], then [[box]], each in file order
+BODY_TABLES = ("plane", "sphere", "box")
+
+
+# ---------------------------------------------------------------------------------------- parsing
+
+
+@dataclass
+class Scene:
+    """A validated scene: for each table its converted values (defaults filled in).
+
+    `tables[name]` is a dict for a single table (absent tables are missing) and a list of
+    dicts for an array table (possibly empty).
+    """
+
+    path: str | None
+    tables: dict[str, object] = field(default_factory=dict)
+
+    def items(self, name: str) -> list[dict]:
+        """The entries of an array table (empty when absent)."""
+        return list(self.tables.get(name, []))
+
+    def table(self, name: str) -> dict | None:
+        """A single table's values, or None when the file does not have it."""
+        return self.tables.get(name)
+
+    def counts(self) -> dict[str, int]:
+        """Number of entries per table present in the file."""
+        return {
+            name: (len(value) if isinstance(value, list) else 1)
+            for name, value in self.tables.items()
+            if not isinstance(value, list) or value
+        }
+
+    def summary(self) -> str:
+        """One line: counts per table, e.g. "[world], 5 planes, 1 emitter (1000 bodies)"."""
+        parts = []
+        for name, n in self.counts().items():
+            label = name if n == 1 else name + ("es" if name.endswith(("x", "s")) else "s")
+            if not SCHEMA[name].array:
+                parts.append(f"[{name}]")
+                continue
+            text = f"{n} {label}"
+            if name == "emitter":
+                text += f" ({sum(e['count'] for e in self.items('emitter'))} bodies)"
+            if name == "cloth":
+                text += f" ({sum(c['resolution'][0] * c['resolution'][1] for c in self.items('cloth'))} particles)"
+            parts.append(text)
+        return ", ".join(parts) if parts else "empty scene"
+
+
+def _table_label(name: str, index: int | None) -> str:
+    return name if index is None else f"{name}[{index}]"
+
+
+def _suggest(word: str, options) -> str:
+    close = difflib.get_close_matches(word, list(options), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _parse_table(spec: TableSpec, raw, path, index: int | None) -> dict:
+    label = _table_label(spec.name, index)
+    if not isinstance(raw, dict):
+        raise SceneError(f"must be a table, got {_show(raw)}", path=path, table=label)
+    values = {}
+    for key, value in raw.items():
+        if key not in spec.fields:
+            raise SceneError(
+                f"unknown key {key!r}{_suggest(key, spec.fields)}; "
+                f"[{'[' if spec.array else ''}{spec.name}{']' if spec.array else ''}] takes: {', '.join(spec.fields)}",
+                path=path,
+                table=label,
+                key=key,
+            )
+        try:
+            values[key] = spec.fields[key].check(value)
+        except _Bad as exc:
+            raise SceneError(str(exc), path=path, table=label, key=key) from None
+    for key, f in spec.fields.items():
+        if key not in values:
+            if f.default is REQUIRED:
+                raise SceneError("missing required key", path=path, table=label, key=key)
+            values[key] = _copy(f.default)
+    if spec.rules is not None:
+        try:
+            spec.rules(values)
+        except _KeyBad as exc:
+            raise SceneError(str(exc), path=path, table=label, key=exc.key) from None
+    return values
+
+
+def _copy(value):
+    return list(value) if isinstance(value, list) else value
+
+
+def parse_scene(text: str, path=None) -> Scene:
+    """Validate scene-file text and return a `Scene` with every default filled in.
+
+    Args:
+        text: the TOML document.
+        path: the file it came from, used in error messages.
+
+    Raises:
+        SceneError: malformed TOML (with the line), an unknown table or key, a value of the
+            wrong type, length or range; the message names the file, the table and the key.
+    """
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"invalid TOML: {exc}", path=path) from None
+    scene = Scene(path=None if path is None else str(path))
+    for name, raw in doc.items():
+        spec = SCHEMA.get(name)
+        if spec is None:
+            kind = "table" if isinstance(raw, (dict, list)) else "top-level key"
+            raise SceneError(
+                f"unknown {kind} {name!r}{_suggest(name, SCHEMA)}; tables are: "
+                + ", ".join(f"[[{s.name}]]" if s.array else f"[{s.name}]" for s in SCHEMA.values()),
+                path=path,
+                table=name,
+            )
+        if spec.array:
+            if isinstance(raw, dict):
+                raise SceneError(f"write [[{name}]] (an array of tables), not [{name}]", path=path, table=name)
+            if not isinstance(raw, list):
+                raise SceneError(f"must be an array of tables [[{name}]], got {_show(raw)}", path=path, table=name)
+            scene.tables[name] = [_parse_table(spec, item, path, i) for i, item in enumerate(raw)]
+        else:
+            if isinstance(raw, list):
+                raise SceneError(f"write [{name}] (one table), not [[{name}]]", path=path, table=name)
+            scene.tables[name] = _parse_table(spec, raw, path, None)
+    return scene
+
+
+def read_scene(path) -> Scene:
+    """Read and validate a scene file (see `parse_scene`). Raises `SceneError`, or `OSError` if unreadable."""
+    path = resolve_scene_path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"not a UTF-8 text file ({exc.reason})", path=path) from None
+    return parse_scene(text, path=path)
+
+
+def validate_scene(path) -> Scene:
+    """Check a scene file without building or running it; returns the validated `Scene`."""
+    return read_scene(path)
+
+
+def resolve_scene_path(path) -> Path:
+    """`path` itself, or, for a bare name like "sphere_pile", the bundled sample of that name."""
+    p = Path(path)
+    if not p.exists() and p.parent == Path(".") and (SAMPLES_DIR / p.with_suffix(".toml").name).exists():
+        return SAMPLES_DIR / p.with_suffix(".toml").name
+    if not p.exists():
+        raise FileNotFoundError(f"{path}: no such scene file")
+    if p.is_dir():
+        raise IsADirectoryError(f"{path}: is a directory, not a scene file")
+    return p
+
+
+def list_samples() -> list[Path]:
+    """The bundled sample scenes (`SAMPLES_DIR/*.toml`), sorted by name."""
+    return sorted(SAMPLES_DIR.glob("*.toml"))
+
+
+# ---------------------------------------------------------------------------------------- building
+
+WORLD_OVERRIDES = ("gravity", "dt", "substeps", "seed", "restitution_threshold", "device")
+
+
+def build_world(scene: Scene, **overrides):
+    """Make a `World` from a validated `Scene`.
+
+    Args:
+        scene: from `parse_scene` / `read_scene`.
+        **overrides: World settings replacing the file's [world] values
+            (gravity, dt, substeps, seed, restitution_threshold, device).
+
+    Raises:
+        SceneError: when the World API rejects a value (named by table).
+    """
+    from ..world import World
+
+    unknown = set(overrides) - set(WORLD_OVERRIDES)
+    if unknown:
+        raise TypeError(f"unknown override(s) {', '.join(sorted(unknown))}; expected {', '.join(WORLD_OVERRIDES)}")
+    path = scene.path
+    settings = dict(scene.table("world") or _parse_table(SCHEMA["world"], {}, path, None))
+    settings.update({k: v for k, v in overrides.items() if v is not None})
+
+    with _api_errors(path, "world"):
+        world = World(**settings)
+    world.metadata["path"] = path
+    world.metadata["scene"] = scene
+    world.metadata["check"] = scene.table("check") or _parse_table(SCHEMA["check"], {}, path, None)
+    if scene.table("camera") is not None:
+        world.metadata["camera"] = dict(scene.table("camera"))
+
+    # bodies: planes, then spheres, then boxes, each in file order
+    for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box)):
+        for i, values in enumerate(scene.items(name)):
+            with _api_errors(path, _table_label(name, i)):
+                add(**_given(values))
+    for i, values in enumerate(scene.items("emitter")):
+        with _api_errors(path, _table_label("emitter", i)):
+            world.add_emitter(**_given(values))
+    for i, values in enumerate(scene.items("cloth")):
+        with _api_errors(path, _table_label("cloth", i)):
+            world.add_cloth(**_given(values))
+    if scene.table("wind") is not None:
+        with _api_errors(path, "wind"):
+            world.set_wind(**scene.table("wind"))
+    return world
+
+
+def load_scene(path, **overrides):
+    """Read, validate and build a scene file into a `World` (see docs/scenes.md).
+
+    Args:
+        path: the .toml file, or the name of a bundled sample ("sphere_pile").
+        **overrides: World settings replacing the file's [world] values, e.g. seed=3, device="cuda".
+    """
+    return build_world(read_scene(path), **overrides)
+
+
+def _given(values: dict) -> dict:
+    """Keyword arguments for the World API: keys left to the engine (None) are not passed."""
+    return {
+        k: (tuple(v) if isinstance(v, list) and all(_is_number(x) for x in v) else v)
+        for k, v in values.items()
+        if v is not None
+    }
+
+
+class _api_errors:
+    """Turn a ValueError/TypeError from the World API into a SceneError naming file and table."""
+
+    def __init__(self, path, table: str):
+        self.path, self.table = path, table
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if exc is not None and isinstance(exc, (ValueError, TypeError)) and not isinstance(exc, SceneError):
+            raise SceneError(str(exc), path=self.path, table=self.table) from exc
+        return False
+
+
+# ---------------------------------------------------------------------------------------- checks
+
+
+def check_world(world, check: dict | None = None) -> list[str]:
+    """Failures of a world against a sample's [check] table (empty list = pass).
+
+    Always: every body and cloth particle value finite, no dynamic body centre (or cloth particle)
+    behind a plane, every coordinate within max_extent. Then the optional limits of `check`.
+    """
+    if check is None:
+        check = world.metadata.get("check") or _parse_table(SCHEMA["check"], {}, None, None)
+    failures = []
+    from ..shapes import ShapeType
+
+    shape = np.asarray(world.body_shape)
+    position = np.asarray(world.body_position)
+    velocity = np.asarray(world.body_velocity)
+    dynamic = np.asarray(world.body_inv_mass) > 0
+    points = [position[dynamic]]
+    cloth = getattr(world, "_cloth", None)
+    if cloth is not None:
+        points.append(np.asarray(cloth.particle_position))
+    points = np.concatenate(points) if points else np.zeros((0, 3))
+
+    for name, values in (
+        ("body_position", position),
+        ("body_velocity", velocity),
+        ("body_angular_velocity", np.asarray(world.body_angular_velocity)),
+        ("cloth particle_position", points),
+    ):
+        if not np.isfinite(values).all():
+            failures.append(f"{name} is not finite")
+    if failures:
+        return failures
+
+    planes = np.nonzero(shape == ShapeType.PLANE)[0]
+    normals = np.asarray(world.body_plane_normal)
+    for p in planes:
+        distance = (points - position[p]) @ normals[p]
+        if len(distance) and distance.min() < 0.0:
+            failures.append(f"a body centre is {-distance.min():.4g} m behind plane {p}")
+    if len(points) and np.abs(points).max() > check["max_extent"]:
+        failures.append(f"a body is {np.abs(points).max():.4g} m from the origin (max_extent {check['max_extent']:g})")
+    if check.get("min_z") is not None and dynamic.any() and position[dynamic, 2].min() < check["min_z"]:
+        failures.append(f"lowest body centre z = {position[dynamic, 2].min():.4g} m < min_z {check['min_z']:g}")
+    if check.get("max_speed") is not None and dynamic.any():
+        speed = float(np.linalg.norm(velocity[dynamic], axis=1).max())
+        if speed > check["max_speed"]:
+            failures.append(f"fastest body {speed:.4g} m/s > max_speed {check['max_speed']:g}")
+    if check.get("max_kinetic_energy") is not None:
+        energy = world.kinetic_energy()
+        if energy > check["max_kinetic_energy"]:
+            failures.append(f"kinetic energy {energy:.4g} J > max_kinetic_energy {check['max_kinetic_energy']:g}")
+    if check.get("max_strain") is not None and cloth is not None:
+        strain = float(cloth.max_strain())
+        if strain > check["max_strain"]:
+            failures.append(f"cloth strain {strain:.4g} > max_strain {check['max_strain']:g}")
+    return failures
+
+
+# ---------------------------------------------------------------------------------------- docs
+
+
+def reference_markdown() -> str:
+    """The key reference of every table, as Markdown (pasted into docs/scenes.md; a test compares)."""
+    lines = []
+    for spec in SCHEMA.values():
+        header = f"[[{spec.name}]]" if spec.array else f"[{spec.name}]"
+        lines += [f"### `{header}`", "", spec.doc, "", "| key | type | default | units | meaning |",
+                  "|---|---|---|---|---|"]
+        for key, f in spec.fields.items():
+            if f.default is REQUIRED:
+                default = "required"
+            elif f.default is None:
+                default = f.shown_default or "none"
+            elif f.shown_default is not None:
+                default = f.shown_default
+            else:
+                default = _toml_value(f.default)
+            lines.append(f"| `{key}` | {f.check.kind} | {default} | {f.units} | {f.doc} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "`true`" if value else "`false`"
+    if isinstance(value, str):
+        return f'`"{value}"`'
+    if isinstance(value, list):
+        return "`[" + ", ".join(f"{v:g}" for v in value) + "]`"
+    if isinstance(value, float):
+        return f"`{value:g}`"
+    return f"`{value}`"
+
+
+if __name__ == "__main__":  # python -m tumble.io.scene > reference.md (for docs/scenes.md)
+    print(reference_markdown())

@@ -1,0 +1,194 @@
+"""Scene files: parsing, defaults, every kind of bad input, building the World, docs in sync."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.errors import SceneError
+from tumble.io import scene as scene_io
+
+BALL = """
+[[plane]]
+normal = [0, 0, 1]
+
+[[sphere]]
+position = [0, 0, 1]
+radius = 0.1
+mass = 1.0
+"""
+
+# (id, TOML text, table named in the error, key named in the error or None, fragment of the message)
+BAD_SCENES = [
+    ("unknown key", "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nraduis = 2", "sphere[0]", "raduis",
+     "did you mean 'radius'"),
+    ("wrong type", "[[sphere]]\nposition = [0, 0, 1]\nradius = \"big\"", "sphere[0]", "radius", "number"),
+    ("wrong type bool", "[world]\nsubsteps = true", "world", "substeps", "integer"),
+    ("wrong length", "[world]\ngravity = [0, -9.81]", "world", "gravity", "3 components"),
+    ("negative radius", "[[sphere]]\nposition = [0, 0, 1]\nradius = -0.1", "sphere[0]", "radius", "> 0"),
+    ("zero radius", "[[sphere]]\nposition = [0, 0, 1]\nradius = 0", "sphere[0]", "radius", "> 0"),
+    ("zero mass", "[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1, 1, 1]\nmass = 0", "box[0]", "mass", "> 0"),
+    ("negative mass", "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nmass = -2", "sphere[0]", "mass", "> 0"),
+    ("zero half extent", "[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1, 0, 1]", "box[0]", "half_extents", "> 0"),
+    ("nan", "[[sphere]]\nposition = [0, 0, nan]\nradius = 0.1", "sphere[0]", "position", "finite"),
+    ("inf", "[world]\ndt = inf", "world", "dt", "finite"),
+    ("zero normal", "[[plane]]\nnormal = [0, 0, 0]", "plane[0]", "normal", "zero"),
+    ("unknown shape", "[[emitter]]\nshape = \"cone\"\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1",
+     "emitter[0]", "shape", "unknown shape 'cone'"),
+    ("unknown shape in list", "[[emitter]]\nshape = [\"sphere\", \"cube\"]\nrate = 1\ncount = 1\n"
+     "position = [0, 0, 1]\nradius = 0.1", "emitter[0]", "shape", "unknown shape 'cube'"),
+    ("restitution above 1", "[[plane]]\nrestitution = 1.5", "plane[0]", "restitution", "<= 1"),
+    ("negative friction", "[[plane]]\nfriction = -0.1", "plane[0]", "friction", ">= 0"),
+    ("mass and density", "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nmass = 1\ndensity = 1000",
+     "sphere[0]", "density", "not both"),
+    ("missing key", "[[sphere]]\nposition = [0, 0, 1]", "sphere[0]", "radius", "missing"),
+    ("third table", "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\n" * 2
+     + "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nvelocity = [1, 2]", "sphere[2]", "velocity", "3 components"),
+    ("bad speed range", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\nspeed = [2, 1]",
+     "emitter[0]", "speed", "min <= max"),
+    ("box region without extent", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\n"
+     "region = \"box\"", "emitter[0]", "extent", "half-sizes"),
+    ("sphere emitter without radius", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]",
+     "emitter[0]", "radius", "needs radius"),
+    ("cloth pin outside grid", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+     "pins = [[0, 0], [4, 3]]", "cloth[0]", "pins", "outside"),
+    ("cloth unknown pin name", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+     "pins = \"left-edge\"", "cloth[0]", "pins", "unknown value"),
+    ("cloth unknown spring kind", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+     "stiffness = { structural = 1, twist = 2 }", "cloth[0]", "stiffness", "twist"),
+    ("cloth mass and areal density", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+     "mass = 0.2\nareal_density = 0.1", "cloth[0]", "areal_density", "not both"),
+    ("cloth tiny resolution", "[[cloth]]\nsize = [1, 1]\nresolution = [1, 4]\nposition = [0, 0, 1]",
+     "cloth[0]", "resolution", ">= 2"),
+    ("camera fov", "[camera]\nfov = 0", "camera", "fov", "> 0"),
+    ("unknown table", "[planet]\nradius = 1", "planet", None, "unknown table 'planet'"),
+    ("single table for array", "[sphere]\nposition = [0, 0, 1]\nradius = 1", "sphere", None, "[[sphere]]"),
+    ("array for single table", "[[world]]\ndt = 0.01", "world", None, "[world]"),
+]
+
+
+@pytest.mark.parametrize("text, table, key, fragment", [case[1:] for case in BAD_SCENES],
+                         ids=[case[0] for case in BAD_SCENES])
+def test_bad_scene_names_file_table_and_key(write_scene, text, table, key, fragment):
+    """Reject each malformed scene with a SceneError naming the file, the table and the key."""
+    path = write_scene(text, "bad.toml")
+    with pytest.raises(SceneError) as info:
+        scene_io.validate_scene(path)
+    exc = info.value
+    message = str(exc)
+    assert exc.path == str(path) and str(path) in message
+    assert exc.table == table and f"[{table}]" in message
+    if key is not None:
+        assert exc.key == key and key in message
+    assert fragment in message
+    assert "\n" not in message
+
+
+def test_malformed_toml_names_file_and_line(write_scene):
+    """Report a TOML syntax error with the file and the line it is on."""
+    path = write_scene("[world]\ngravity = [0, 0, -9.81]\ndt = = 0.01\n", "broken.toml")
+    with pytest.raises(SceneError) as info:
+        tumble.load_scene(path)
+    assert str(path) in str(info.value)
+    assert "line 3" in str(info.value)
+
+
+def test_missing_file_is_an_oserror(tmp_path):
+    """Raise FileNotFoundError (mapped to exit 2 by the CLI) for a missing scene file."""
+    with pytest.raises(FileNotFoundError, match="no such scene file"):
+        scene_io.validate_scene(tmp_path / "nope.toml")
+
+
+def test_defaults_are_filled_in():
+    """Fill every omitted key with its documented default."""
+    scene = scene_io.parse_scene(BALL)
+    (plane,) = scene.items("plane")
+    (ball,) = scene.items("sphere")
+    assert plane == {"normal": [0.0, 0.0, 1.0], "offset": 0.0, "restitution": 0.5, "friction": 0.5}
+    assert ball["velocity"] == [0.0, 0.0, 0.0]
+    assert ball["orientation"] == [0.0, 0.0, 0.0, 1.0]
+    assert ball["static"] is False and ball["density"] is None
+    assert scene.table("world") is None
+    assert scene.summary() == "1 plane, 1 sphere"
+
+
+def test_values_and_ranges_are_converted():
+    """Convert integers to floats, ranges to tuples and keep shape lists."""
+    scene = scene_io.parse_scene(
+        "[[emitter]]\nshape = ['sphere', 'box']\nrate = 10\ncount = 3\nposition = [0, 0, 1]\n"
+        "radius = [0.01, 0.02]\nhalf_extents = 0.05\nspeed = 2\nregion = 'disc'\nextent = 1\n"
+        "angular_speed = [0, 3]\nrandom_orientation = true\n"
+    )
+    (e,) = scene.items("emitter")
+    assert e["shape"] == ["sphere", "box"]
+    assert e["rate"] == 10.0 and isinstance(e["rate"], float)
+    assert e["radius"] == (0.01, 0.02)
+    assert e["half_extents"] == 0.05 and e["speed"] == 2.0 and e["extent"] == 1.0
+    assert e["angular_speed"] == (0.0, 3.0) and e["random_orientation"] is True
+    assert e["direction"] == [0.0, 0.0, -1.0] and e["cone_angle"] == 0.0
+
+
+def test_cloth_table_accepts_per_kind_springs_and_pin_lists():
+    """Accept stiffness as a per-kind table, damping as one number and pins as [i, j] points."""
+    scene = scene_io.parse_scene(
+        "[[cloth]]\nsize = [1, 2]\nresolution = [8, 16]\nposition = [0, 0, 1]\n"
+        "stiffness = { structural = 1000, bend = 10 }\ndamping = 0.5\npins = [[0, 15], [7, 15]]\n"
+        "[wind]\nvelocity = [3, 0, 0]\nturbulence = 1\n"
+    )
+    (c,) = scene.items("cloth")
+    assert c["stiffness"] == {"structural": 1000.0, "bend": 10.0}
+    assert c["damping"] == 0.5 and c["pins"] == [(0, 15), (7, 15)]
+    assert c["max_stretch"] == 0.1
+    assert scene.table("wind") == {"velocity": [3.0, 0.0, 0.0], "turbulence": 1.0, "scale": 1.0, "seed": 0,
+                                   "drag": 1.2, "lift": 0.3, "air_density": 1.2}
+    assert "(128 particles)" in scene.summary()
+
+
+def test_load_scene_builds_the_world(write_scene):
+    """Build planes and spheres with the file's values and keep path and camera in metadata."""
+    path = write_scene(
+        "[world]\ngravity = [0, 0, -1.62]\ndt = 0.01\nsubsteps = 2\nseed = 5\n" + BALL
+        + "\n[[box]]\nposition = [1, 0, 1]\nhalf_extents = [0.1, 0.2, 0.3]\ndensity = 500\nstatic = true\n"
+        "[camera]\nfov = 60\n"
+    )
+    world = tumble.load_scene(path)
+    assert world.body_count == 3
+    np.testing.assert_array_equal(world.gravity, [0.0, 0.0, -1.62])
+    assert world.dt == 0.01 and world.substeps == 2 and world.seed == 5
+    assert list(world.body_shape) == [tumble.ShapeType.PLANE, tumble.ShapeType.SPHERE, tumble.ShapeType.BOX]
+    assert world.body_mass[1] == 1.0
+    assert world.body_inv_mass[2] == 0.0  # static box
+    np.testing.assert_array_equal(world.body_half_extents[2], [0.1, 0.2, 0.3])
+    assert world.metadata["path"] == str(path)
+    assert world.metadata["camera"] == {"position": [3.0, -3.0, 2.0], "target": [0.0, 0.0, 0.5], "fov": 60.0}
+
+
+def test_overrides_replace_world_settings(write_scene):
+    """Let load_scene keywords (as the CLI's --seed) replace [world] values."""
+    world = tumble.load_scene(write_scene("[world]\nseed = 5\n" + BALL), seed=9, dt=0.002)
+    assert world.seed == 9 and world.dt == 0.002
+    with pytest.raises(TypeError, match="unknown override"):
+        tumble.load_scene(write_scene(BALL), colour="red")
+
+
+def test_plane_offset_follows_the_normal(write_scene):
+    """Place a plane so that dot(normal, x) = offset, with the normal normalised."""
+    world = tumble.load_scene(write_scene("[[plane]]\nnormal = [0, 0, 2]\noffset = 0.5\n"))
+    np.testing.assert_allclose(world.body_plane_normal[0], [0.0, 0.0, 1.0])
+    assert math.isclose(float(world.body_position[0] @ world.body_plane_normal[0]), 0.5)
+
+
+def test_bare_sample_name_resolves_to_the_samples_dir():
+    """Find a bundled sample by its bare name."""
+    assert scene_io.resolve_scene_path("bouncing_ball") == scene_io.SAMPLES_DIR / "bouncing_ball.toml"
+    assert scene_io.SAMPLES_DIR / "sphere_pile.toml" in scene_io.list_samples()
+
+
+def test_docs_reference_matches_the_schema():
+    """Keep docs/scenes.md's key reference identical to the schema the validator uses."""
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "scenes.md").read_text(encoding="utf-8")
+    assert scene_io.reference_markdown() in docs

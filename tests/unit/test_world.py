@@ -1,0 +1,131 @@
+"""World API: adding bodies, views, bad input, growth, state validation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.shapes import ShapeType
+
+
+def test_bodies_get_ids_and_views_in_creation_order():
+    """add_* return ids in creation order; views show shapes, sizes and masses."""
+    w = tumble.World()
+    p = w.add_plane(normal=(0, 0, 2), offset=0.5)
+    s = w.add_sphere(position=(0, 0, 1), radius=0.1, density=1000.0)
+    b = w.add_box(position=(1, 0, 1), half_extents=(0.1, 0.2, 0.3), mass=2.0)
+    f = w.add_body("sphere", position=(2, 0, 1), radius=0.2, mass=1.0)
+    assert [p.index, s.index, b.index, f.index] == [0, 1, 2, 3]
+    np.testing.assert_array_equal(w.body_shape, [ShapeType.PLANE, ShapeType.SPHERE, ShapeType.BOX, ShapeType.SPHERE])
+    np.testing.assert_allclose(w.body_plane_normal[0], [0, 0, 1])
+    np.testing.assert_allclose(w.body_position[0], [0, 0, 0.5])
+    assert w.body_mass[1] == pytest.approx(1000.0 * 4 / 3 * np.pi * 0.1**3)
+    assert w.body_mass[0] == 0.0 and w.body_inv_mass[0] == 0.0
+    np.testing.assert_allclose(w.body_half_extents[2], [0.1, 0.2, 0.3])
+
+
+def test_views_are_read_only():
+    """Writing to a state view raises instead of corrupting the engine's arrays."""
+    w = tumble.World()
+    w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    with pytest.raises(ValueError):
+        w.body_position[0, 2] = 5.0
+
+
+def test_static_bodies_do_not_move():
+    """static=True gives inverse mass 0: gravity and contacts leave the body where it is."""
+    w = tumble.World()
+    w.add_box(position=(0, 0, 0), half_extents=(1, 1, 0.1), static=True)
+    w.add_sphere(position=(0, 0, 0.5), radius=0.1, mass=1.0)
+    w.run(1.0)
+    np.testing.assert_array_equal(w.body_position[0], [0, 0, 0])
+    assert w.body_position[1, 2] == pytest.approx(0.2, abs=1e-3)
+
+
+def test_arrays_grow_past_their_capacity():
+    """Adding many bodies one by one keeps earlier ones intact."""
+    w = tumble.World(gravity=(0, 0, 0))
+    for i in range(100):
+        w.add_sphere(position=(i, 0, 0), radius=0.1, mass=1.0 + i)
+    assert w.body_count == 100
+    np.testing.assert_allclose(w.body_position[:, 0], np.arange(100))
+    np.testing.assert_allclose(w.body_mass, 1.0 + np.arange(100))
+    w.step()
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=-1.0), "radius must be a positive number"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.0), "radius"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, mass=-2.0), "mass must be a positive number"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, mass=1, density=1), "mass or density"),
+        (lambda w: w.add_sphere(position=(0, float("nan"), 0), radius=0.1), "position must be finite"),
+        (lambda w: w.add_sphere(position=(0, 0), radius=0.1), "position must have 3 components"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, restitution=1.5), "restitution must be in"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, friction=-1), "friction"),
+        (lambda w: w.add_box(position=(0, 0, 0), half_extents=(1, 0, 1)), "half_extents must all be > 0"),
+        (lambda w: w.add_box(position=(0, 0, 0), half_extents=(1, 1, 1), orientation=(0, 0, 0, 0)),
+         "non-zero quaternion"),
+        (lambda w: w.add_plane(normal=(0, 0, 0)), "normal must not be zero"),
+        (lambda w: w.add_plane(offset=float("inf")), "offset must be finite"),
+        (lambda w: w.add_body("cylinder", position=(0, 0, 0)), "unknown shape 'cylinder'"),
+    ],
+)
+def test_bad_input_is_named(call, message):
+    """Each bad argument raises a ValueError that names it, and nothing is added."""
+    w = tumble.World()
+    with pytest.raises(ValueError, match=message):
+        call(w)
+    assert w.body_count == 0
+
+
+@pytest.mark.parametrize("kwargs", [dict(dt=0), dict(dt=float("nan")), dict(substeps=0), dict(gravity=(0, 0))])
+def test_bad_world_settings(kwargs):
+    """World settings are checked when the world is made."""
+    with pytest.raises(ValueError):
+        tumble.World(**kwargs)
+
+
+def test_nan_in_state_is_reported_with_the_body():
+    """A NaN that reaches the state stops the step with a SimulationError naming the body."""
+    w = tumble.World()
+    w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    w.add_sphere(position=(1, 0, 1), radius=0.1, mass=1.0)
+    w.bodies.write("body_velocity", 1, [np.nan, 0, 0])
+    with pytest.raises(tumble.SimulationError, match="body_velocity of body 1"):
+        w.step()
+
+
+def test_apply_force_acts_for_one_step():
+    """apply_force accelerates a body by F/m for exactly one step."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_sphere(position=(0, 0, 0), radius=0.1, mass=2.0)
+    w.apply_force(0, (4.0, 0, 0))
+    w.step()
+    assert w.body_velocity[0, 0] == pytest.approx(2.0 * w.dt)
+    w.step()
+    assert w.body_velocity[0, 0] == pytest.approx(2.0 * w.dt)
+
+
+def test_set_material_changes_every_body():
+    """set_material updates restitution and friction of all bodies at once."""
+    w = tumble.World()
+    w.add_plane()
+    w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    w.set_material(restitution=0.9, friction=0.1)
+    np.testing.assert_allclose(w.body_restitution, 0.9)
+    np.testing.assert_allclose(w.body_friction, 0.1)
+    with pytest.raises(ValueError):
+        w.set_material(restitution=2.0)
+
+
+def test_profile_times_every_stage():
+    """world.profile keeps time per stage."""
+    w = tumble.World()
+    w.add_plane()
+    w.add_sphere(position=(0, 0, 0.1), radius=0.1, mass=1.0)
+    w.run(0.1)
+    assert {"broad_phase", "narrow_phase", "solver", "integrate"} <= set(w.profile)
+    assert all(v >= 0 for v in w.profile.values())
