@@ -235,24 +235,26 @@ def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wal
         except Exception as error:  # noqa: BLE001 - one engine failing must not stop the others
             result.error = f"{type(error).__name__}: {error}"
             log(f"  {engine}: could not build: {result.error}")
-    early = None  # Tumble's figures at the peers' (shorter) duration
-    peers_run = any(e != "tumble" for e in adapters)
-    if "tumble" in adapters and peers_run and scene.peer_steps < scene.steps:
-        early = Result(scene, "tumble", note=f"first {scene.peer_duration:g} s, as the peers", early=True)
+    # Tumble's figures at the step where a peer stopped, so that quality compares equal times
+    early: dict[int, Result] = {}
+    early_peers: dict[int, list[str]] = {}
+
+    def running(engine: str) -> bool:
+        r = results[engine]
+        return engine in adapters and r.steps < targets[engine] and not r.error and r.seconds < max_wall
 
     # alternate: every engine advances one chunk per round until it has done its steps
     while True:
-        active = [
-            e for e in adapters
-            if results[e].steps < targets[e] and not results[e].error and results[e].seconds < max_wall
-        ]
+        active = [e for e in adapters if running(e)]
         if not active:
             break
         for engine in active:
             adapter, result = adapters[engine], results[engine]
             k = min(chunk, targets[engine] - result.steps)
-            if early is not None and engine == "tumble" and result.steps < scene.peer_steps:
-                k = min(k, scene.peer_steps - result.steps)
+            if engine == "tumble":
+                # do not step past a peer's last step: Tumble's state there is compared with the peer's
+                ends = [targets[e] for e in adapters if e != "tumble" and targets[e] > result.steps]
+                k = min([k, *(t - result.steps for t in ends)])
             try:
                 start = time.perf_counter()
                 adapter.step(k)
@@ -268,19 +270,26 @@ def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wal
                 # the largest strain over the run, sampled after every turn (not timed)
                 strain = measure_quality(adapter, scene)["strain"]
                 result.max_strain = strain if math.isnan(result.max_strain) else max(result.max_strain, strain)
-            if early is not None and engine == "tumble" and result.steps == scene.peer_steps:
-                early.steps, early.seconds = result.steps, result.seconds
-                early.checkpoints = list(result.checkpoints)
-                early.quality = measure_quality(adapter, scene)
-                early.quality["strain"] = result.max_strain
         log(
             "  t = "
             + ", ".join(f"{e} {results[e].sim_time:.2f} s ({results[e].steps_per_s:.1f} steps/s)" for e in adapters)
         )
+        # a peer that stopped this round stopped where Tumble is now: take Tumble's figures there
+        tumble = results.get("tumble")
+        if tumble is not None and running("tumble"):
+            for engine in active:
+                peer = results[engine]
+                if engine != "tumble" and not running(engine) and peer.steps == tumble.steps and not peer.error:
+                    row = early.setdefault(tumble.steps, Result(scene, "tumble", early=True))
+                    row.steps, row.seconds, row.checkpoints = tumble.steps, tumble.seconds, list(tumble.checkpoints)
+                    early_peers.setdefault(tumble.steps, []).append(engine)
+                    row.note = f"first {row.sim_time:g} s, as {' and '.join(early_peers[tumble.steps])}"
+                    row.quality = measure_quality(adapters["tumble"], scene)
+                    row.quality["strain"] = tumble.max_strain
 
     for engine, adapter in adapters.items():
         if results[engine].steps < targets[engine] and not results[engine].error:
-            results[engine].note = f"stopped after {max_wall:g} s of wall time"
+            results[engine].note = f"stopped at the {max_wall:g} s cap"
         if not results[engine].error:
             results[engine].quality = measure_quality(adapter, scene)
             if scene.kind == "cloth":
@@ -289,9 +298,7 @@ def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wal
             results[engine].profile = dict(adapter.world.profile)
         adapter.close()
     out = list(results.values())
-    if early is not None and early.steps:
-        out.insert(1, early)
-    return out
+    return out[:1] + [early[k] for k in sorted(early)] + out[1:] if "tumble" in results else out
 
 
 def tumble_ratio(results: list[Result], peer: Result) -> float:
@@ -356,7 +363,8 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
     console = _console()
     console.print(table)
     console.print(
-        "Tumble × = Tumble's steps/s divided by the peer's, both over the peer's simulated interval. "
+        "Tumble × = Tumble's steps/s divided by the peer's, both over the steps both did. Rows 'first ... s' give "
+        "Tumble's figures where a peer stopped (its planned interval or the wall-time cap). "
         "Quality figures are taken at the end of each row's interval; cloth strain is the largest "
         "over the interval, sampled every 0.1 s."
     )
@@ -425,7 +433,7 @@ CSV_FIELDS = [
 
 
 def write_csv(path: Path, all_results: list[Result], info: dict[str, str], device: str) -> None:
-    """Write the results, keeping rows of the same file for other (device, scene, engine, time)."""
+    """Write the results, keeping the file's rows of other (device, scene, engine) triples."""
     rows = []
     for r in all_results:
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
@@ -443,7 +451,7 @@ def write_csv(path: Path, all_results: list[Result], info: dict[str, str], devic
             "kinetic_energy_J": f"{q.get('kinetic_energy', math.nan):.4g}",
             "max_strain": f"{q.get('strain', math.nan):.4g}", "error": r.error,
         })
-    key = ("device", "scene", "engine", "early")
+    key = ("device", "scene", "engine")
     fresh = {tuple(row[k] for k in key) for row in rows}
     kept = []
     if path.exists():
