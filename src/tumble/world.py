@@ -53,6 +53,9 @@ BODY_FIELDS = {
     # motion since the start of the step, for the solver's separation update
     "body_delta_position": vec3,  # [m]
     "body_delta_rotation": vec3,  # rotation vector [rad]
+    # warm start of the next substep, summed per body by the relax pass
+    "body_warm_velocity": vec3,  # [m/s]
+    "body_warm_angular_velocity": vec3,  # [rad/s]
 }
 
 
@@ -388,12 +391,13 @@ class World:
             contact_solver.prepare(bodies, contacts, self.gravity)
             integrate.begin_step(bodies)
 
-        # substeps: integrate velocities -> warm start, solve -> integrate positions -> relax -> cloth
-        for _ in range(self.substeps):
+        # substeps: integrate velocities (+ warm start) -> solve -> integrate positions -> relax -> cloth
+        for substep in range(self.substeps):
             with self._timer("integrate"):
-                integrate.integrate_velocities(bodies, self.gravity, h)
+                integrate.integrate_velocities(bodies, self.gravity, h, warm=substep > 0)
             with self._timer("solver"):
-                contact_solver.warm_start(bodies, contacts)
+                if substep == 0:
+                    contact_solver.warm_start(bodies, contacts)
                 contact_solver.solve(bodies, contacts, h, use_bias=True)
             with self._timer("integrate"):
                 integrate.integrate_positions(bodies, h)

@@ -216,7 +216,7 @@ class Renderer:
         self.samples = int(samples)
         self.shadows = bool(shadows)
         self.ground_cell_size = 1.0
-        self.light_direction = np.array([0.35, 0.25, 1.0]) / np.linalg.norm([0.35, 0.25, 1.0])
+        self.light_direction = np.array([0.6, -0.15, 1.0]) / np.linalg.norm([0.6, -0.15, 1.0])
         self.cloth_color = CLOTH_COLOR
         self._fbo = self._resolve = None
         self._fbo_size = None

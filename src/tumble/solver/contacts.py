@@ -42,7 +42,8 @@ import warp as wp
 from ..collision.narrowphase import ContactWriter
 from ..state import ArraySet, float_t, quat, vec3
 
-#: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks),
+#: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
+#: contacts with static bodies, which carry whole piles, are twice as stiff, as in Box2D),
 #: and the damping ratio of the soft constraint
 CONTACT_HERTZ_PER_SUBSTEP_RATE = 0.125
 CONTACT_DAMPING_RATIO = 10.0
@@ -109,6 +110,8 @@ class Bodies:
     inv_inertia: wp.array(dtype=vec3)
     dx: wp.array(dtype=vec3)  # displacement since the start of the step
     dtheta: wp.array(dtype=vec3)  # rotation vector accumulated since the start of the step
+    warm_v: wp.array(dtype=vec3)  # next substep's warm start, summed per body by the relax pass
+    warm_w: wp.array(dtype=vec3)
 
 
 @wp.struct
@@ -409,6 +412,24 @@ def _store_velocities(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: ve
             wp.atomic_add(b.w, ib, dwb)
 
 
+@wp.func
+def _add_warm(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    if serial != 0:
+        if b.inv_mass[ia] > float_t(0.0):
+            b.warm_v[ia] = b.warm_v[ia] + dva
+            b.warm_w[ia] = b.warm_w[ia] + dwa
+        if b.inv_mass[ib] > float_t(0.0):
+            b.warm_v[ib] = b.warm_v[ib] + dvb
+            b.warm_w[ib] = b.warm_w[ib] + dwb
+    else:
+        if b.inv_mass[ia] > float_t(0.0):
+            wp.atomic_add(b.warm_v, ia, dva)
+            wp.atomic_add(b.warm_w, ia, dwa)
+        if b.inv_mass[ib] > float_t(0.0):
+            wp.atomic_add(b.warm_v, ib, dvb)
+            wp.atomic_add(b.warm_w, ib, dwb)
+
+
 @wp.kernel
 def _solve(
     c: Contacts,
@@ -418,6 +439,9 @@ def _solve(
     bias_rate: float_t,
     mass_scale: float_t,
     impulse_scale: float_t,
+    static_bias_rate: float_t,
+    static_mass_scale: float_t,
+    static_impulse_scale: float_t,
     max_push: float_t,
     slop: float_t,
     serial: int,
@@ -483,6 +507,11 @@ def _solve(
         bias = wp.max(bias_rate * (s + slop), -max_push)
         ms = mass_scale
         isc = impulse_scale
+        if ima == float_t(0.0) or imb == float_t(0.0):
+            # against a static body: twice as stiff (it carries the whole pile)
+            bias = wp.max(static_bias_rate * (s + slop), -max_push)
+            ms = static_mass_scale
+            isc = static_impulse_scale
     vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
           - wp.dot(wa + dwa, wp.cross(ra, n)))
     jn_old = c.jn[k]
@@ -495,6 +524,15 @@ def _solve(
     dwa = dwa - c.ang_a_n[k] * dj
     dwb = dwb + c.ang_b_n[k] * dj
     _store_velocities(b, ia, ib, dva, dwa, dvb, dwb, serial)
+    if use_bias == 0:
+        # relax: these impulses are final for this substep, and the next substep starts from them
+        # (warm start), so sum their velocity changes per body now instead of in another pass
+        j1 = c.jt1[k]
+        j2 = c.jt2[k]
+        P = n * jn + t1 * j1 + t2 * j2
+        wa_ = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
+        wb_ = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+        _add_warm(b, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
 @wp.kernel
@@ -620,16 +658,17 @@ def body_struct(bodies) -> Bodies:
     s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
     s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
     s.dx, s.dtheta = a["body_delta_position"], a["body_delta_rotation"]
+    s.warm_v, s.warm_w = a["body_warm_velocity"], a["body_warm_angular_velocity"]
     return s
 
 
-def softness(h: float) -> tuple[float, float, float]:
+def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:
     """(bias rate [1/s], mass scale, impulse scale) of the soft contact at substep h [s].
 
     A resting contact settles at an overlap of about g / omega^2 per body it carries
     (4 micrometres per body at the default 8 substeps of 1/240 s).
     """
-    hertz = CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+    hertz = stiffness * CONTACT_HERTZ_PER_SUBSTEP_RATE / h
     omega = 2.0 * math.pi * hertz
     a1 = 2.0 * CONTACT_DAMPING_RATIO + h * omega
     a2 = h * omega * a1
@@ -653,7 +692,8 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
 
 
 def warm_start(bodies, contacts: ContactSet) -> None:
-    """Apply the accumulated impulses of the last substep (or step) to the velocities."""
+    """Apply last step's impulses of the matched contacts to the velocities (first substep only;
+    later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
         wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
                   inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
@@ -663,10 +703,11 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
     """One sweep of normal and friction impulses over all contacts at substep `h`."""
     if contacts.count == 0:
         return
-    bias_rate, mass_scale, impulse_scale = softness(h)
+    soft = softness(h)
+    soft_static = softness(h, stiffness=2.0)
     wp.launch(_solve, dim=contacts.count, device=contacts.device,
-              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), bias_rate, mass_scale,
-                      impulse_scale, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
+              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), *soft, *soft_static,
+                      MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
 
 
 def restitution(bodies, contacts: ContactSet, threshold: float) -> None:

@@ -28,13 +28,22 @@ def _integrate_velocities(
     torque: wp.array(dtype=vec3),
     gravity: vec3,
     h: float_t,
+    use_warm: int,
     v: wp.array(dtype=vec3),
     w: wp.array(dtype=vec3),
+    warm_v: wp.array(dtype=vec3),
+    warm_w: wp.array(dtype=vec3),
 ):
     i = wp.tid()
     im = inv_mass[i]
     if im == float_t(0.0):
         return
+    if use_warm != 0:
+        # warm start: the contact impulses of the previous substep, summed by its relax pass
+        v[i] = v[i] + warm_v[i]
+        w[i] = w[i] + warm_w[i]
+    warm_v[i] = vec3()
+    warm_w[i] = vec3()
     v[i] = v[i] + (gravity + force[i] * im) * h
     tau = torque[i]
     if tau[0] != float_t(0.0) or tau[1] != float_t(0.0) or tau[2] != float_t(0.0):
@@ -90,12 +99,16 @@ def _clear(force: wp.array(dtype=vec3), torque: wp.array(dtype=vec3)):
     torque[i] = vec3()
 
 
-def integrate_velocities(bodies, gravity, h: float) -> None:
-    """v += (g + F/m) h and w += I^-1 tau h for every dynamic body."""
+def integrate_velocities(bodies, gravity, h: float, *, warm: bool) -> None:
+    """v += (g + F/m) h and w += I^-1 tau h for every dynamic body.
+
+    With `warm`, first add the warm start the last relax pass summed per body; either way clear it.
+    """
     a = bodies.arrays
     wp.launch(_integrate_velocities, dim=bodies.count, device=bodies.device,
               inputs=[a["body_inv_mass"], a["body_inv_inertia"], a["body_orientation"], a["body_force"],
-                      a["body_torque"], vec3(*gravity), h, a["body_velocity"], a["body_angular_velocity"]])
+                      a["body_torque"], vec3(*gravity), h, int(warm), a["body_velocity"],
+                      a["body_angular_velocity"], a["body_warm_velocity"], a["body_warm_angular_velocity"]])
 
 
 def integrate_positions(bodies, h: float) -> None:
