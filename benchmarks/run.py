@@ -424,6 +424,50 @@ def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None
     return checks
 
 
+def markdown_report(all_results: list[Result], info: dict[str, str], device: str) -> str:
+    """The results table and the targets as Markdown, for docs/performance.md."""
+    lines = [
+        f"Measured {info['date']} with `benchmarks/run.py{'' if device == 'cpu' else ' --device ' + device}`: "
+        f"{info['cpu']}, {info['cores']} cores, one used"
+        + (f", GPU {info['gpu']}" if info["gpu"] else "")
+        + f"; load average {info['load']} at the end; Python {info['python']}, NumPy {info['numpy']}, "
+        f"Warp {info['warp']}, PyBullet {info['pybullet']}, MuJoCo {info['mujoco']}, Tumble {info['tumble']}.",
+        "",
+        "| scene | engine | sim s | steps/s | body-steps/s | Tumble × | overlap mm | ground mm | wall mm | KE J | strain % |",
+        "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+    ]
+    for r in all_results:
+        scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
+        engine = r.engine + (f" ({r.note})" if r.note else "")
+        if r.error:
+            lines.append(f"| {r.scene.name} | {engine} | {fmt(r.sim_time)} | failed: {r.error[:80]} | | | | | | | |")
+            continue
+        q = r.quality
+        ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
+        lines.append(
+            f"| {r.scene.name} | {engine} | {r.sim_time:.2f} | {rate(r.steps_per_s)} | {rate(r.body_steps_per_s)} "
+            f"| {ratio} | {fmt(q.get('overlap'), 1e3)} | {fmt(q.get('ground'), 1e3)} | {fmt(q.get('wall'), 1e3)} "
+            f"| {fmt(q.get('kinetic_energy'), digits=3)} | {fmt(q.get('strain'), 100, 1)} |"
+        )
+    lines += ["", "| target (issue 7) | measured | result |", "|---|---|---|"]
+    for target, measured, passed in check_targets(all_results):
+        lines.append(f"| {target} | {measured} | {'not measured' if passed is None else ('pass' if passed else 'FAIL')} |")
+    return "\n".join(lines) + "\n"
+
+
+def update_doc(path: Path, report: str, device: str) -> None:
+    """Replace the block between this device's markers in `path` (append it if missing)."""
+    device = "cuda" if device.startswith("cuda") else device
+    begin, end = f"<!-- results {device}: written by benchmarks/run.py --doc -->", f"<!-- end of results {device} -->"
+    text = path.read_text() if path.exists() else ""
+    block = f"{begin}\n{report}{end}"
+    if begin in text and end in text:
+        text = text[: text.index(begin)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(text)
+
+
 CSV_FIELDS = [
     "date", "device", "scene", "engine", "early", "note", "bodies", "sim_time_s", "steps", "wall_s", "steps_per_s",
     "body_steps_per_s", "tumble_ratio", "max_overlap_m", "max_ground_penetration_m",
@@ -499,6 +543,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--machine", default=None, help="name of the CSV file (default: from the CPU model)")
     parser.add_argument("--output", type=Path, default=HERE / "results", help="folder for the CSV")
     parser.add_argument("--no-csv", action="store_true", help="do not write the CSV")
+    parser.add_argument("--doc", type=Path, default=None,
+                        help="also write the table and targets as Markdown into this file (docs/performance.md), "
+                             "replacing the block of the same device")
     parser.add_argument("--cpu", type=int, default=None, help="CPU core to run on (default: the last one)")
     parser.add_argument("--no-pin", action="store_true", help="do not restrict the process to one core")
     args = parser.parse_args(argv)
@@ -553,6 +600,9 @@ def main(argv: list[str] | None = None) -> int:
     for target, measured, passed in check_targets(all_results):
         mark = "[yellow]not measured[/yellow]" if passed is None else ("[green]pass[/green]" if passed else "[red]FAIL[/red]")
         console.print(f"target: {target}: {measured} -> {mark}")
+    if args.doc is not None:
+        update_doc(args.doc, markdown_report(all_results, info, args.device), args.device)
+        print(f"updated {args.doc}")
     if not args.no_csv:
         path = args.output / f"{args.machine or machine_name(info)}.csv"
         write_csv(path, all_results, info, args.device)
