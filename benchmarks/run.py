@@ -122,6 +122,15 @@ def machine_description(device: str) -> dict[str, str]:
         tumble_version = tumble.__version__
     except Exception:  # noqa: BLE001 - a broken checkout still gets a machine line
         pass
+    try:  # the checkout's commit, when run from a git checkout
+        import subprocess
+
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+        if commit:
+            tumble_version += f" (git {commit})"
+    except (OSError, subprocess.SubprocessError):
+        pass
     gpu = ""
     if device.startswith("cuda"):
         import warp as wp
