@@ -241,32 +241,40 @@ class Emitter:
         cand = self._sample_bodies(k)
         bodies = world.bodies
         shape = bodies.numpy("body_shape")
-        solid = shape != ShapeType.PLANE
-        x = bodies.numpy("body_position")[solid]
-        r = bodies.numpy("body_bound_radius")[solid]
+        # what is already there: spheres by centre and radius, boxes as oriented boxes, planes
+        x_all = bodies.numpy("body_position")
+        spheres = shape == ShapeType.SPHERE
+        boxes = shape == ShapeType.BOX
         planes = shape == ShapeType.PLANE
-        plane_n = world.body_plane_normal[planes]
-        plane_x = bodies.numpy("body_position")[planes]
+        sphere_x, sphere_r = x_all[spheres], bodies.numpy("body_radius")[spheres]
+        box_x, box_h = x_all[boxes], bodies.numpy("body_half_extents")[boxes]
+        box_rot = _matrices(bodies.numpy("body_orientation")[boxes])
+        plane_n, plane_x = world.body_plane_normal[planes], x_all[planes]
         accepted = []
         placed_x, placed_r = [], []
         jitter = max(float(np.max(cand["bound"])), 1e-3)
         for i in range(k):
-            ri = cand["bound"][i]
+            ri = cand["bound"][i] + CLEARANCE
             for attempt in range(TRIES):
                 # a fresh spot in the region; a point region scatters its tries ever wider instead
                 p = self._sample_positions(1)[0]
                 if attempt and self.region == "point":
                     p = p + jitter * attempt * (2.0 * self.rng.random(3) - 1.0)
-                clear = np.all(np.linalg.norm(x - p, axis=1) >= r + ri + CLEARANCE) if len(x) else True
+                # the candidate's bounding sphere must clear everything (exactly for spheres, boxes
+                # and planes; bounding spheres among the candidates of this step)
+                clear = not np.any(np.linalg.norm(sphere_x - p, axis=1) < sphere_r + ri)
+                if clear and len(box_x):
+                    local = np.einsum("nji,nj->ni", box_rot, p - box_x)  # R^T (p - x)
+                    outside = local - np.clip(local, -box_h, box_h)
+                    clear = not np.any(np.linalg.norm(outside, axis=1) < ri)
                 if clear and placed_x:
-                    clear = np.all(np.linalg.norm(np.asarray(placed_x) - p, axis=1)
-                                   >= np.asarray(placed_r) + ri + CLEARANCE)
+                    clear = not np.any(np.linalg.norm(np.asarray(placed_x) - p, axis=1) < np.asarray(placed_r) + ri)
                 if clear and len(plane_n):
-                    clear = np.all(np.einsum("ij,ij->i", plane_n, p - plane_x) >= ri + CLEARANCE)
+                    clear = not np.any(np.einsum("ij,ij->i", plane_n, p - plane_x) < ri)
                 if clear:
                     accepted.append(i)
                     placed_x.append(p)
-                    placed_r.append(ri)
+                    placed_r.append(cand["bound"][i])
                     break
         if not accepted:
             return 0  # no room this step: wait, and try again next step
@@ -280,6 +288,13 @@ class Emitter:
         self.emitted += len(rows)
         self._owed -= len(rows)
         return len(rows)
+
+
+def _matrices(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of unit quaternions (x, y, z, w), shape (n, 4) -> (n, 3, 3)."""
+    from .world import quat_to_matrix
+
+    return quat_to_matrix(q) if len(q) else np.zeros((0, 3, 3))
 
 
 def _basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

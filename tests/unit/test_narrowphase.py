@@ -228,3 +228,14 @@ def test_box_box_normal_points_from_a_to_b(swapped):
     x = w.body_position
     for (a, b), n in zip(pairs, normals):
         assert np.dot(n, x[b] - x[a]) > 0
+
+
+def test_small_box_on_huge_box_keeps_four_corners():
+    """A 10 cm box on a 10 m box gets its four corners (near-duplicate merging scales with the small face)."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_box(position=(0, 0, -0.5), half_extents=(5, 5, 0.5), static=True)
+    w.add_box(position=(1, 2, 0.0499), half_extents=(0.05, 0.05, 0.05), mass=0.1)
+    _, normals, depths, points = contacts(w)
+    assert len(depths) == 4
+    np.testing.assert_allclose(depths, 1e-4, atol=1e-12)
+    np.testing.assert_allclose(np.sort(points[:, 0]), [0.95, 0.95, 1.05, 1.05], atol=1e-12)

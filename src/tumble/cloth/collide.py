@@ -9,12 +9,13 @@ Stages:
   that are closer than their thickness to a plane, sphere or box surface back out, applies
   Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
   equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
-- `self_collide` builds a spatial hash of particles by counting sort (cell size = the largest
-  thickness) and pushes apart particle pairs closer than their thickness, except near
-  neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
-  Cost O(P) per substep. For cloth that does not pass through itself, choose a thickness
-  close to the grid spacing: particles farther apart than the thickness can slip between
-  each other.
+- `SelfCollisionGrid.find_pairs` (once per world step) builds a spatial hash of particles by
+  counting sort and lists the particle pairs closer than their thickness plus a margin, except
+  near neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
+  Cost O(P). `SelfCollisionGrid.separate` (every substep) pushes listed pairs closer than
+  their thickness apart; cost O(pairs), small unless the cloth is folded. For cloth that does
+  not pass through itself, choose a thickness close to the grid spacing: particles farther
+  apart than the thickness can slip between each other.
 
 Contacts are resolved on positions, as in position-based dynamics (Mueller et al. 2007), with
 inverse-mass weighting: for penetration depth d along normal n, with particle and body inverse
@@ -52,6 +53,10 @@ def _collide_bodies(
     inv_m: wp.array(dtype=float_t),
     thickness: wp.array(dtype=float_t),
     friction: wp.array(dtype=float_t),
+    tether_first: wp.array(dtype=wp.int32),
+    tether_count: wp.array(dtype=wp.int32),
+    tether_pin: wp.array(dtype=wp.int32),
+    tether_limit: wp.array(dtype=float_t),
     candidates: wp.array(dtype=wp.int32),
     candidate_count: int,
     body_shape: wp.array(dtype=wp.int32),
@@ -64,9 +69,12 @@ def _collide_bodies(
     body_friction: wp.array(dtype=float_t),
     body_velocity: wp.array(dtype=vec3),
     body_angular_velocity: wp.array(dtype=vec3),
+    body_delta_position: wp.array(dtype=vec3),
+    body_delta_rotation: wp.array(dtype=vec3),
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
+    taut: float_t,
 ):
     p = wp.tid()
     w_p = inv_m[p]
@@ -74,10 +82,16 @@ def _collide_bodies(
         return
     xp = x[p]
     zero = float_t(0.0)
+    # static bodies first (pass 0), then dynamic ones (pass 1), so that a particle pressed
+    # against a static body by a dynamic one knows it cannot give way
+    support = vec3(zero, zero, zero)
     k = int(0)
-    while k < candidate_count:
-        b = candidates[k]
+    while k < 2 * candidate_count:
+        b = candidates[k % candidate_count]
+        dynamic_pass = k >= candidate_count
         k += 1
+        if (body_inv_mass[b] > zero) != dynamic_pass:
+            continue
         shape = body_shape[b]
         c = body_position[b]
         q = body_orientation[b]
@@ -128,8 +142,27 @@ def _collide_bodies(
         inv_i = body_inv_inertia[b]
         rn = wp.cross(r_b, n)
         w_b = w_lin + wp.dot(rn, _inv_inertia_world(q, inv_i, rn))
-        lam = depth / (w_p + split * w_b)
-        xp = xp + n * (lam * w_p)
+        # a particle whose tether to a pin is taut and would be stretched by the push, or which
+        # a static body holds from that side, cannot give way: against a dynamic body it acts as
+        # fixed, so a taut hammock stops a ball at once instead of trading pushes with it over
+        # many substeps (which pumps energy), and a ball cannot press cloth into the ground
+        w_c = w_p
+        if w_b == zero:
+            support = support + n
+        elif wp.dot(support, n) < zero:
+            w_c = zero
+        if w_b > zero and w_c > zero:
+            t = tether_first[p]
+            t_end = t + tether_count[p]
+            while t < t_end:
+                arm = xp - x[tether_pin[t]]
+                if wp.dot(arm, n) > zero and wp.length(arm) >= tether_limit[t] * taut:
+                    w_c = zero
+                t += 1
+        if w_c + w_b <= zero:
+            continue
+        lam = depth / (w_c + split * w_b)
+        xp = xp + n * (lam * w_c)
 
         # friction: tangential motion of the particle relative to the body surface this substep,
         # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
@@ -140,22 +173,30 @@ def _collide_bodies(
         slip = wp.length(dxt)
         impulse = n * (-lam)
         if slip > float_t(1.0e-14) and mu > zero:
-            t = dxt / slip
-            rt = wp.cross(r_b, t)
+            tdir = dxt / slip
+            rt = wp.cross(r_b, tdir)
             w_bt = w_lin + wp.dot(rt, _inv_inertia_world(q, inv_i, rt))
-            lam_t = wp.min(slip / (w_p + split * w_bt), mu * lam)
-            xp = xp - t * (lam_t * w_p)
-            impulse = impulse + t * lam_t
+            if w_c + split * w_bt > zero:
+                lam_t = wp.min(slip / (w_c + split * w_bt), mu * lam)
+                xp = xp - tdir * (lam_t * w_c)
+                impulse = impulse + tdir * lam_t
 
         # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
-        # and, as in position-based dynamics, the matching displacement lambda w_b of its centre
-        # (so that cloth held by its stretch limit can hold the body up instead of the two
-        # trading ever larger pushes over the substeps)
+        # and, as in position-based dynamics, the matching displacement and rotation (so that
+        # cloth held by its stretch limit can hold the body up instead of the two trading ever
+        # larger pushes over the substeps)
         if w_lin > zero:
-            j = impulse / h
-            wp.atomic_add(body_velocity, b, j * w_lin)
-            wp.atomic_add(body_position, b, impulse * w_lin)
-            wp.atomic_add(body_angular_velocity, b, _inv_inertia_world(q, inv_i, wp.cross(r_b, j)))
+            dx_b = impulse * w_lin
+            dtheta = _inv_inertia_world(q, inv_i, wp.cross(r_b, impulse))
+            wp.atomic_add(body_position, b, dx_b)
+            wp.atomic_add(body_velocity, b, dx_b / h)
+            # rotate by dtheta too: q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator
+            # renormalises), else the rotational part of the overlap is never undone
+            wp.atomic_add(body_orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], zero) * q))
+            wp.atomic_add(body_angular_velocity, b, dtheta / h)
+            # the rigid contact solver tracks each body's motion over the step
+            wp.atomic_add(body_delta_position, b, dx_b)
+            wp.atomic_add(body_delta_rotation, b, dtheta)
     x[p] = xp
 
 
@@ -179,12 +220,14 @@ def _hash_count(
     inv_cell: float_t,
     mask: int,
     particle_cell: wp.array(dtype=wp.int32),
+    particle_cell_coord: wp.array(dtype=wp.vec3i),
     cell_count: wp.array(dtype=wp.int32),
 ):
     p = wp.tid()
     c = _cell_of(x[p], inv_cell)
     slot = _cell_hash(c[0], c[1], c[2], mask)
     particle_cell[p] = slot
+    particle_cell_coord[p] = c
     wp.atomic_add(cell_count, slot, 1)
 
 
@@ -200,78 +243,97 @@ def _hash_fill(
 
 
 @wp.kernel
-def _self_collide(
+def _find_pairs(
     x: wp.array(dtype=vec3),
     inv_m: wp.array(dtype=float_t),
     thickness: wp.array(dtype=float_t),
     particle_cloth: wp.array(dtype=wp.int32),
     particle_i: wp.array(dtype=wp.int32),
     particle_j: wp.array(dtype=wp.int32),
+    margin: float_t,
     reach: float_t,
-    skin: float_t,
     inv_cell: float_t,
     mask: int,
     cell_start: wp.array(dtype=wp.int32),
     cell_count: wp.array(dtype=wp.int32),
     cell_particles: wp.array(dtype=wp.int32),
-    delta: wp.array(dtype=vec3),
+    particle_cell_coord: wp.array(dtype=wp.vec3i),
+    pair_count: wp.array(dtype=wp.int32),
+    pairs: wp.array2d(dtype=wp.int32),
 ):
     p = wp.tid()
-    w_p = inv_m[p]
-    acc = vec3(float_t(0.0))
-    if w_p > float_t(0.0):
-        xp = x[p]
-        # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
-        # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
-        lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
-        cloth = particle_cloth[p]
-        pi = particle_i[p]
-        pj = particle_j[p]
-        for dz in range(2):
-            for dy in range(2):
-                for dx in range(2):
-                    cx = lo[0] + dx
-                    cy = lo[1] + dy
-                    cz = lo[2] + dz
-                    slot = _cell_hash(cx, cy, cz, mask)
-                    e = cell_start[slot]
-                    end = e + cell_count[slot]
-                    while e < end:
-                        q = cell_particles[e]
-                        e += 1
-                        if q == p:
+    xp = x[p]
+    # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
+    # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
+    lo = _cell_of(xp - vec3(reach, reach, reach), inv_cell)
+    cloth = particle_cloth[p]
+    pi = particle_i[p]
+    pj = particle_j[p]
+    capacity = pairs.shape[0]
+    for dz in range(2):
+        for dy in range(2):
+            for dx in range(2):
+                cx = lo[0] + dx
+                cy = lo[1] + dy
+                cz = lo[2] + dz
+                slot = _cell_hash(cx, cy, cz, mask)
+                e = cell_start[slot]
+                end = e + cell_count[slot]
+                while e < end:
+                    q = cell_particles[e]
+                    e += 1
+                    # each pair once (p < q)
+                    if q <= p:
+                        continue
+                    # grid neighbours are held apart by springs, not by collisions
+                    if particle_cloth[q] == cloth:
+                        if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
                             continue
-                        xq = x[q]
-                        rel = xp - xq
-                        dist2 = wp.dot(rel, rel)
-                        target = float_t(0.5) * (thickness[p] + thickness[q])
-                        if dist2 >= target * target:
-                            continue
-                        # the slot may hold other cells too (hash collisions): count each pair once
-                        cq = _cell_of(xq, inv_cell)
-                        if cq[0] != cx or cq[1] != cy or cq[2] != cz:
-                            continue
-                        # grid neighbours are held apart by springs, not by collisions
-                        if particle_cloth[q] == cloth:
-                            if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
-                                continue
-                        dist = wp.sqrt(dist2)
-                        n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
-                        if dist > float_t(1.0e-12):
-                            n = rel / dist
-                        elif p < q:
-                            n = -n
-                        # each particle of the pair takes its inverse-mass share of a push to
-                        # (1 + skin) target, so that layers resting on each other settle at the
-                        # thickness rather than just inside it
-                        acc = acc + n * (((float_t(1.0) + skin) * target - dist) * w_p / (w_p + inv_m[q]))
-    delta[p] = acc
+                    rel = xp - x[q]
+                    near = float_t(0.5) * (thickness[p] + thickness[q]) + margin
+                    if wp.dot(rel, rel) >= near * near:
+                        continue
+                    # the slot may hold other cells too (hash collisions): count each pair once;
+                    # pairs of two pins never move
+                    cq = particle_cell_coord[q]
+                    if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                        continue
+                    if inv_m[p] + inv_m[q] <= float_t(0.0):
+                        continue
+                    k = wp.atomic_add(pair_count, 0, 1)
+                    if k < capacity:
+                        pairs[k, 0] = p
+                        pairs[k, 1] = q
 
 
 @wp.kernel
-def _apply_delta(x: wp.array(dtype=vec3), delta: wp.array(dtype=vec3)):
-    p = wp.tid()
-    x[p] = x[p] + delta[p]
+def _separate_pairs(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    thickness: wp.array(dtype=float_t),
+    pairs: wp.array2d(dtype=wp.int32),
+    count: int,
+):
+    k = wp.tid()
+    if k >= count:
+        return
+    p = pairs[k, 0]
+    q = pairs[k, 1]
+    rel = x[p] - x[q]
+    dist = wp.length(rel)
+    target = float_t(0.5) * (thickness[p] + thickness[q])
+    if dist >= target:
+        return
+    w_p = inv_m[p]
+    w_q = inv_m[q]
+    n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
+    if dist > float_t(1.0e-12):
+        n = rel / dist
+    # push both to distance `target`, in proportion to their inverse masses (Gauss-Seidel on
+    # the CPU, where kernels run serially)
+    c = n * ((target - dist) / (w_p + w_q))
+    wp.atomic_add(x, p, c * w_p)
+    wp.atomic_sub(x, q, c * w_q)
 
 
 def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float, dt: float) -> np.ndarray:
@@ -309,8 +371,9 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies, contact_count_prev,
-                   contact_count_next, h, *, cache: LaunchCache | None = None):
+def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
+                   candidates, bodies, contact_count_prev, contact_count_next, h, *, taut: float = 0.985,
+                   cache: LaunchCache | None = None):
     """Push particles out of the candidate bodies, with friction, and push the bodies back.
 
     Args:
@@ -319,25 +382,31 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, candidates, bodies,
         inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
         thickness: distance particles keep from surfaces [m], shape (P,).
         friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
+        tether_first, tether_count: each particle's tethers, shape (P,) int32 (see `grid.tethers`).
+        tether_pin, tether_limit: pin index, shape (m,) int32, and largest length [m], shape (m,).
         candidates: body indices to test, shape (k,) int32.
         bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
         contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.
         contact_count_next: zeroed; receives this substep's counts, shape (n,) int32.
         h: substep [s].
+        taut: a tether longer than taut x its limit counts as taut (the stretch limit keeps
+            tethers within 0.99 of their limit).
     """
     k = candidates.shape[0]
     if k == 0:
         return
     a = bodies.arrays
     launch(_collide_bodies, x.shape[0], [
-        x, x_prev, inv_mass, thickness, friction, candidates, k,
+        x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
+        candidates, k,
         a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"], a["body_half_extents"],
         a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
-        a["body_angular_velocity"], contact_count_prev, contact_count_next, float(h)], x.device, cache)
+        a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
+        contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:
-    """Preallocated buffers of the particle spatial hash (counting sort into hashed cells).
+    """Preallocated buffers of the particle spatial hash and of the candidate pair list.
 
     Args:
         particle_count: P.
@@ -351,32 +420,66 @@ class SelfCollisionGrid:
         self.cell_start = wp.zeros(self.table_size, dtype=wp.int32, device=device)
         self.cell_cursor = wp.zeros(self.table_size, dtype=wp.int32, device=device)
         self.particle_cell = wp.zeros(particle_count, dtype=wp.int32, device=device)
+        self.particle_cell_coord = wp.zeros(particle_count, dtype=wp.vec3i, device=device)
         self.cell_particles = wp.zeros(particle_count, dtype=wp.int32, device=device)
-        self.delta = wp.zeros(particle_count, dtype=vec3, device=device)
+        self.pair_count = wp.zeros(1, dtype=wp.int32, device=device)
+        self.pairs = wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
+        self.count = 0  # pairs found by the last `find_pairs`
+        self.overflow = 0  # pairs that did not fit (the buffer grows for the next step)
 
-    def collide(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach: float, *,
-                skin: float = 0.0, cache: LaunchCache | None = None):
-        """Push apart particles closer than their mean thickness (grid neighbours excepted).
+    def find_pairs(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, max_thickness: float,
+                   margin: float, *, cache: LaunchCache | None = None) -> int:
+        """Once per world step: every non-neighbour pair within its mean thickness + `margin`.
+
+        Args:
+            x: positions [m], shape (P,) vec3.
+            inv_mass: [1/kg], shape (P,).
+            thickness: [m], shape (P,).
+            particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
+            max_thickness: the largest thickness [m].
+            margin: how much closer two particles may come during the step [m].
+            cache: recorded launches to replay.
+
+        Returns:
+            The number of pairs kept in `pairs`.
+        """
+        n, dev = x.shape[0], x.device
+        reach = max_thickness + margin
+        inv_cell = 0.5 / reach  # cells 2 reach wide: each query visits 2 x 2 x 2 cells
+        # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
+        self.cell_count.zero_()
+        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.particle_cell_coord,
+                                self.cell_count], dev, cache)
+        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
+        wp.copy(self.cell_cursor, self.cell_start)
+        launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
+        # candidate pairs
+        self.pair_count.zero_()
+        launch(_find_pairs, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, margin, reach,
+                                inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles,
+                                self.particle_cell_coord, self.pair_count, self.pairs], dev, cache)
+        found = int(self.pair_count.numpy()[0])
+        capacity = self.pairs.shape[0]
+        self.count = min(found, capacity)
+        self.overflow = max(0, found - capacity)
+        if self.overflow:
+            # keep this step's truncated list; make room for the next step
+            kept = self.pairs.numpy()[: self.count].copy()
+            self.pairs = wp.zeros((2 * found, 2), dtype=wp.int32, device=dev)
+            self.pairs.assign(np.concatenate([kept, np.zeros((2 * found - self.count, 2), np.int32)]))
+        return self.count
+
+    def separate(self, x, inv_mass, thickness, *, cache: LaunchCache | None = None) -> None:
+        """Every substep: push the listed pairs that are closer than their mean thickness apart.
 
         Args:
             x: positions [m], shape (P,) vec3 (corrected in place).
             inv_mass: [1/kg], shape (P,).
             thickness: [m], shape (P,).
-            particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
-            reach: the largest thickness [m]; hash cells are 2 reach wide, so each query visits 8 cells.
-            skin: pairs are pushed to (1 + skin) times their thickness.
             cache: recorded launches to replay.
         """
-        n, dev = x.shape[0], x.device
-        inv_cell = 0.5 / reach
-        # counting sort: count per cell, exclusive prefix sum, scatter into cell_particles
-        self.cell_count.zero_()
-        launch(_hash_count, n, [x, inv_cell, self.mask, self.particle_cell, self.cell_count], dev, cache)
-        wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        wp.copy(self.cell_cursor, self.cell_start)
-        launch(_hash_fill, n, [self.particle_cell, self.cell_cursor, self.cell_particles], dev, cache)
-        # push pairs apart (Jacobi: every particle computes its own share, then all move)
-        launch(_self_collide, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, reach, skin,
-                                  inv_cell, self.mask, self.cell_start, self.cell_count, self.cell_particles, self.delta],
-               dev, cache)
-        launch(_apply_delta, n, [x, self.delta], dev, cache)
+        if self.count:
+            # launched over the whole buffer (threads past `count` return), so the recorded
+            # launch is reused whatever the count
+            launch(_separate_pairs, self.pairs.shape[0], [x, inv_mass, thickness, self.pairs, self.count],
+                   x.device, cache)

@@ -7,7 +7,7 @@ Stage functions over particle and spring arrays:
   serially, so the sum order and the result are deterministic). Cost O(springs).
 - `integrate` turns forces into velocities and positions (semi-implicit Euler), moves pins.
 - `limit_stretch` pulls over-stretched structural springs back to (1 + max_stretch) l0,
-  Gauss-Seidel style, alternating the sweep direction. Cost O(structural springs x iterations).
+  Gauss-Seidel style, over-relaxed after two sweeps. Cost O(structural springs x iterations).
 - `update_velocities` sets v = (x - x_prev) / h so position corrections show in velocities.
 
 Explicit springs are stable only while h^2 k / m is small; `stable_substep` gives the largest
@@ -81,13 +81,12 @@ def _limit_stretch(
     ids: wp.array2d(dtype=wp.int32),
     limit: wp.array(dtype=float_t),
     margin: float_t,
-    count: int,
+    relax: float_t,
     reverse: int,
 ):
-    t = wp.tid()
-    s = t
+    s = wp.tid()
     if reverse != 0:
-        s = count - 1 - t
+        s = ids.shape[0] - 1 - s
     i = ids[s, 0]
     j = ids[s, 1]
     wi = inv_m[i]
@@ -103,7 +102,7 @@ def _limit_stretch(
     target = limit[s] * margin
     excess = length - target
     if excess > float_t(0.0):
-        c = d * (excess / (length * w))
+        c = d * (excess * relax / (length * w))
         wp.atomic_add(x, i, c * wi)
         wp.atomic_sub(x, j, c * wj)
 
@@ -182,11 +181,13 @@ def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity
 
 
 def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iterations: int = 2,
-                  max_iterations: int = 32, margin: float = 0.99, cache: LaunchCache | None = None) -> int:
+                  max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0, plain: int = 2,
+                  cache: LaunchCache | None = None) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
 
-    Gauss-Seidel sweeps over the springs, alternating direction: `min_iterations` sweeps, then
-    a check, then two more sweeps while some spring is still over its limit, at most
+    Gauss-Seidel sweeps over the springs (plain ones alternate direction, over-relaxed ones keep
+    one order: alternating made them cycle above the limit on a hard swing): `min_iterations`
+    sweeps, then a check, then two more sweeps while some spring is still over its limit, at most
     `max_iterations` sweeps. (A flag raised inside a sweep would not do: every sweep briefly
     over-stretches springs it corrects later in the same sweep.)
 
@@ -196,9 +197,12 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         stretch_ids: particle pairs of the limited (structural) springs, shape (s, 2) int32.
         stretch_limit: largest allowed length (1 + max_stretch) l0 [m], shape (s,).
         violated: scratch flag, shape (1,) int32.
-        min_iterations, max_iterations: bounds on the number of sweeps.
+        min_iterations, max_iterations: bounds on the number of sweeps (0: check first, sweep only
+            if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
             inside the limit rather than creeping up to it.
+        relax: successive over-relaxation factor of the corrections (1 = exact projection) from
+            sweep `plain` on.
         cache: recorded launches to replay.
 
     Returns:
@@ -209,10 +213,13 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         return 0
     flag = violated.numpy() if violated.device.is_cpu else None
     it = 0
-    target = max(1, min_iterations)
+    target = max(0, min_iterations)
     while True:
         while it < min(target, max_iterations):
-            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin, count, it % 2],
+            # plain projections first (enough for cloth that is barely over its limit), then
+            # over-relaxed ones, which converge much faster where the whole cloth is taut
+            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin,
+                                           1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0],
                    x.device, cache)
             it += 1
         if it >= max_iterations:

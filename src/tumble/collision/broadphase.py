@@ -70,41 +70,58 @@ def _push_pair(i: int, j: int, pair_count: wp.array(dtype=wp.int32), pair_a: wp.
 
 
 @wp.kernel
-def _query(
+def _query_large(
     n: int,
+    point_cell: wp.array(dtype=wp.int32),
     shape: wp.array(dtype=wp.int32),
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=wp.quatd),
     radius: wp.array(dtype=float_t),
     inv_mass: wp.array(dtype=float_t),
-    inv_cell: float_t,
-    mask: int,
-    max_radius: float_t,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_count: wp.array(dtype=wp.int32),
-    cell_entries: wp.array(dtype=wp.int32),
-    body_cell_coord: wp.array(dtype=wp.vec3i),
     pair_count: wp.array(dtype=wp.int32),
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
 ):
+    # bodies too big for the grid (planes, huge static boxes, very fast bodies) test every body
     i = wp.tid()
+    if point_cell[i] >= 0:
+        return
     ri = radius[i]
     xi = x[i]
-    if ri > max_radius:
-        # too big for the grid: test every body directly (planes test signed distance)
-        nrm = wp.quat_rotate(q[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
-        for j in range(n):
-            if j != i and _emits(i, j, ri, radius[j], inv_mass):
-                near = False
-                if shape[i] == int(ShapeType.PLANE):
-                    near = wp.dot(nrm, x[j] - xi) < radius[j]
-                else:
-                    near = wp.length(x[j] - xi) < ri + radius[j]
-                if near:
-                    _push_pair(i, j, pair_count, pair_a, pair_b)
+    nrm = wp.quat_rotate(q[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
+    for j in range(n):
+        if j != i and _emits(i, j, ri, radius[j], inv_mass):
+            near = False
+            if shape[i] == int(ShapeType.PLANE):
+                near = wp.dot(nrm, x[j] - xi) < radius[j]  # signed distance to the plane
+            else:
+                near = wp.length(x[j] - xi) < ri + radius[j]
+            if near:
+                _push_pair(i, j, pair_count, pair_a, pair_b)
+
+
+@wp.kernel
+def _query_grid(
+    inv_mass: wp.array(dtype=float_t),
+    inv_cell: float_t,
+    mask: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_count: wp.array(dtype=wp.int32),
+    entries: wp.array(dtype=wp.int32),
+    sorted_x: wp.array(dtype=vec3),
+    sorted_radius: wp.array(dtype=float_t),
+    sorted_coord: wp.array(dtype=wp.vec3i),
+    pair_count: wp.array(dtype=wp.int32),
+    pair_a: wp.array(dtype=wp.int32),
+    pair_b: wp.array(dtype=wp.int32),
+):
+    # one thread per grid entry, in cell order: neighbouring threads scan neighbouring cells
+    t = wp.tid()
+    if t >= cell_start[mask] + cell_count[mask]:
         return
-    # scan the cells the swept bound can reach
+    i = entries[t]
+    ri = sorted_radius[t]
+    xi = sorted_x[t]
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
     reach = vec3(float_t(2.0) * ri, float_t(2.0) * ri, float_t(2.0) * ri)
     lo = cell_of(xi - reach, inv_cell)
@@ -115,14 +132,14 @@ def _query(
                 h = cell_hash(wp.vec3i(cx, cy, cz), mask)
                 start = cell_start[h]
                 for e in range(start, start + cell_count[h]):
-                    j = cell_entries[e]
-                    rj = radius[j]
+                    rj = sorted_radius[e]
                     reach_ij = ri + rj
-                    if wp.length_sq(x[j] - xi) < reach_ij * reach_ij:
+                    if wp.length_sq(sorted_x[e] - xi) < reach_ij * reach_ij:
                         # hash collisions: only take j from the cell it really lives in
-                        cj = body_cell_coord[j]
-                        if cj[0] == cx and cj[1] == cy and cj[2] == cz and j != i:
-                            if _emits(i, j, ri, rj, inv_mass):
+                        cj = sorted_coord[e]
+                        if cj[0] == cx and cj[1] == cy and cj[2] == cz:
+                            j = entries[e]
+                            if j != i and _emits(i, j, ri, rj, inv_mass):
                                 _push_pair(i, j, pair_count, pair_a, pair_b)
 
 
@@ -189,11 +206,14 @@ class BroadPhase:
         # query; grow the pair buffers and query again if they overflowed
         while True:
             self.pair_count_array.zero_()
-            wp.launch(_query, dim=n, device=dev,
-                      inputs=[n, b["body_shape"], b["body_position"], b["body_orientation"], self.swept_radius,
-                              b["body_inv_mass"], grid.inv_cell, grid.mask, max_radius, grid.cell_start,
-                              grid.cell_count, grid.entries, grid.point_cell_coord, self.pair_count_array,
-                              self.pair_a, self.pair_b])
+            wp.launch(_query_grid, dim=n, device=dev,
+                      inputs=[b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
+                              grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
+                              self.pair_count_array, self.pair_a, self.pair_b])
+            wp.launch(_query_large, dim=n, device=dev,
+                      inputs=[n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
+                              self.swept_radius, b["body_inv_mass"], self.pair_count_array, self.pair_a,
+                              self.pair_b])
             count = int(self.pair_count_array.numpy()[0])
             if count <= self.pair_capacity:
                 break

@@ -7,7 +7,9 @@ scan, scatter (Ten Minute Physics, "Spatial hashing"). On the CPU, Warp runs thr
 so points within a cell stay in index order and the build is deterministic.
 
 Queries walk the cells around a point (`cell_of`, `cell_hash`) and, since different cells can
-hash to one slot, compare `point_cell_coord[j]` with the cell being walked.
+hash to one slot, compare the entry's cell coordinates with the cell being walked. Positions,
+radii and coordinates are copied in cell order during the scatter, so each cell is one
+contiguous read.
 
 Tuning: a cell edge of about the largest interaction distance keeps each query to 2-3 cells a
 side; the table has at least twice as many slots as points.
@@ -62,15 +64,26 @@ def _count(
 
 @wp.kernel
 def _scatter(
+    x: wp.array(dtype=vec3),
+    radius: wp.array(dtype=float_t),
     point_cell: wp.array(dtype=wp.int32),
+    point_cell_coord: wp.array(dtype=wp.vec3i),
     cell_start: wp.array(dtype=wp.int32),
     cell_fill: wp.array(dtype=wp.int32),
     entries: wp.array(dtype=wp.int32),
+    sorted_x: wp.array(dtype=vec3),
+    sorted_radius: wp.array(dtype=float_t),
+    sorted_coord: wp.array(dtype=wp.vec3i),
 ):
     i = wp.tid()
     h = point_cell[i]
     if h >= 0:
-        entries[cell_start[h] + wp.atomic_add(cell_fill, h, 1)] = i
+        e = cell_start[h] + wp.atomic_add(cell_fill, h, 1)
+        entries[e] = i
+        # copies in cell order, so a query reads each cell's points from contiguous memory
+        sorted_x[e] = x[i]
+        sorted_radius[e] = radius[i]
+        sorted_coord[e] = point_cell_coord[i]
 
 
 class HashGrid:
@@ -81,6 +94,8 @@ class HashGrid:
         mask: table size - 1 (the table size is a power of two).
         cell_start, cell_count: per slot, where its points start in `entries` and how many.
         entries: point indices sorted by slot, int32.
+        sorted_x, sorted_radius, sorted_coord: position, radius and cell coordinates of
+            `entries[e]` at row e, so queries read each cell contiguously.
         point_cell: slot of each point (-1 when left out), int32.
         point_cell_coord: integer cell coordinates of each point, vec3i.
     """
@@ -105,6 +120,9 @@ class HashGrid:
             self.point_cell_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
             self.entries = wp.zeros(self._points, dtype=wp.int32, device=self.device)
             self._no_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
+            self.sorted_x = wp.zeros(self._points, dtype=vec3, device=self.device)
+            self.sorted_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
+            self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
 
     def build(self, x: wp.array, count: int, cell_size: float, radius: wp.array | None = None,
               max_radius: float = np.inf) -> HashGrid:
@@ -126,5 +144,6 @@ class HashGrid:
                           self.point_cell_coord, self.cell_count])
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
         wp.launch(_scatter, dim=count, device=self.device,
-                  inputs=[self.point_cell, self.cell_start, self.cell_fill, self.entries])
+                  inputs=[x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,
+                          self.entries, self.sorted_x, self.sorted_radius, self.sorted_coord])
         return self

@@ -278,7 +278,7 @@ def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3,
     d2 = vec8()
     # keep the points within the speculative distance, merging near-duplicates (nearly aligned
     # faces clip to pairs of almost equal corners; merging keeps the manifold the same each step)
-    merge = float_t(0.02) * wp.min(hr[iu], hr[iv])
+    merge = float_t(0.02) * wp.min(wp.min(hr[iu], hr[iv]), wp.min(hi[j1], hi[j2]))
     m = int(0)
     for k in range(count):
         if d[k] <= max_sep:

@@ -394,46 +394,63 @@ def _warm_start(c: Contacts, b: Bodies, serial: int):
 
 
 @wp.func
-def _store_velocities(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
-    """Add one contact's velocity changes to its two bodies (static bodies never change)."""
-    if serial != 0:
-        if b.inv_mass[ia] > float_t(0.0):
-            b.v[ia] = b.v[ia] + dva
-            b.w[ia] = b.w[ia] + dwa
-        if b.inv_mass[ib] > float_t(0.0):
-            b.v[ib] = b.v[ib] + dvb
-            b.w[ib] = b.w[ib] + dwb
-    else:
-        if b.inv_mass[ia] > float_t(0.0):
-            wp.atomic_add(b.v, ia, dva)
-            wp.atomic_add(b.w, ia, dwa)
-        if b.inv_mass[ib] > float_t(0.0):
-            wp.atomic_add(b.v, ib, dvb)
-            wp.atomic_add(b.w, ib, dwb)
+def _add_pair(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), ia: int, ib: int,
+              dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    """Add one contact's changes to the rows of its two bodies (static bodies never change).
 
-
-@wp.func
-def _add_warm(b: Bodies, ia: int, ib: int, dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+    `serial` (CPU): plain updates, one contact after another (Gauss-Seidel); else atomics (CUDA).
+    """
     if serial != 0:
-        if b.inv_mass[ia] > float_t(0.0):
-            b.warm_v[ia] = b.warm_v[ia] + dva
-            b.warm_w[ia] = b.warm_w[ia] + dwa
-        if b.inv_mass[ib] > float_t(0.0):
-            b.warm_v[ib] = b.warm_v[ib] + dvb
-            b.warm_w[ib] = b.warm_w[ib] + dwb
+        if inv_mass[ia] > float_t(0.0):
+            v[ia] = v[ia] + dva
+            w[ia] = w[ia] + dwa
+        if inv_mass[ib] > float_t(0.0):
+            v[ib] = v[ib] + dvb
+            w[ib] = w[ib] + dwb
     else:
-        if b.inv_mass[ia] > float_t(0.0):
-            wp.atomic_add(b.warm_v, ia, dva)
-            wp.atomic_add(b.warm_w, ia, dwa)
-        if b.inv_mass[ib] > float_t(0.0):
-            wp.atomic_add(b.warm_v, ib, dvb)
-            wp.atomic_add(b.warm_w, ib, dwb)
+        if inv_mass[ia] > float_t(0.0):
+            wp.atomic_add(v, ia, dva)
+            wp.atomic_add(w, ia, dwa)
+        if inv_mass[ib] > float_t(0.0):
+            wp.atomic_add(v, ib, dvb)
+            wp.atomic_add(w, ib, dwb)
 
 
 @wp.kernel
 def _solve(
-    c: Contacts,
-    b: Bodies,
+    # contacts (plain arrays, not a struct: Warp's CPU code indexes them as contiguous)
+    c_body_a: wp.array(dtype=wp.int32),
+    c_body_b: wp.array(dtype=wp.int32),
+    c_normal: wp.array(dtype=vec3),
+    c_separation: wp.array(dtype=float_t),
+    c_r_a: wp.array(dtype=vec3),
+    c_r_b: wp.array(dtype=vec3),
+    c_t1: wp.array(dtype=vec3),
+    c_t2: wp.array(dtype=vec3),
+    c_ang_a_n: wp.array(dtype=vec3),
+    c_ang_b_n: wp.array(dtype=vec3),
+    c_ang_a_t1: wp.array(dtype=vec3),
+    c_ang_b_t1: wp.array(dtype=vec3),
+    c_ang_a_t2: wp.array(dtype=vec3),
+    c_ang_b_t2: wp.array(dtype=vec3),
+    c_mass_n: wp.array(dtype=float_t),
+    c_mass_t1: wp.array(dtype=float_t),
+    c_mass_t2: wp.array(dtype=float_t),
+    c_friction: wp.array(dtype=float_t),
+    c_scale: wp.array(dtype=float_t),
+    c_jn: wp.array(dtype=float_t),
+    c_jt1: wp.array(dtype=float_t),
+    c_jt2: wp.array(dtype=float_t),
+    c_jn_max: wp.array(dtype=float_t),
+    # bodies
+    b_v: wp.array(dtype=vec3),
+    b_w: wp.array(dtype=vec3),
+    b_inv_mass: wp.array(dtype=float_t),
+    b_dx: wp.array(dtype=vec3),
+    b_dtheta: wp.array(dtype=vec3),
+    b_warm_v: wp.array(dtype=vec3),
+    b_warm_w: wp.array(dtype=vec3),
+    # parameters
     inv_h: float_t,
     use_bias: int,
     bias_rate: float_t,
@@ -447,54 +464,54 @@ def _solve(
     serial: int,
 ):
     k = wp.tid()
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    n = c.normal[k]
-    ra = c.r_a[k]
-    rb = c.r_b[k]
-    relax = c.scale[k]
-    ima = b.inv_mass[ia]
-    imb = b.inv_mass[ib]
+    ia = c_body_a[k]
+    ib = c_body_b[k]
+    n = c_normal[k]
+    ra = c_r_a[k]
+    rb = c_r_b[k]
+    relax = c_scale[k]
+    ima = b_inv_mass[ia]
+    imb = b_inv_mass[ib]
     # the two bodies' velocity changes from this contact, accumulated locally, stored once
     dva = vec3()
     dwa = vec3()
     dvb = vec3()
     dwb = vec3()
-    va = b.v[ia]
-    wa = b.w[ia]
-    vb = b.v[ib]
-    wb = b.w[ib]
+    va = b_v[ia]
+    wa = b_w[ia]
+    vb = b_v[ib]
+    wb = b_w[ib]
 
     # friction first: Coulomb, |jt| <= mu jn, clamped on the disc
-    t1 = c.t1[k]
-    t2 = c.t2[k]
+    t1 = c_t1[k]
+    t2 = c_t2[k]
     dv = vb - va
-    j1_old = c.jt1[k]
-    j2_old = c.jt2[k]
+    j1_old = c_jt1[k]
+    j2_old = c_jt2[k]
     vt1 = wp.dot(dv, t1) + wp.dot(wb, wp.cross(rb, t1)) - wp.dot(wa, wp.cross(ra, t1))
     vt2 = wp.dot(dv, t2) + wp.dot(wb, wp.cross(rb, t2)) - wp.dot(wa, wp.cross(ra, t2))
-    j1 = j1_old - c.mass_t1[k] * vt1 * relax
-    j2 = j2_old - c.mass_t2[k] * vt2 * relax
-    limit = c.friction[k] * c.jn[k]
+    j1 = j1_old - c_mass_t1[k] * vt1 * relax
+    j2 = j2_old - c_mass_t2[k] * vt2 * relax
+    limit = c_friction[k] * c_jn[k]
     norm = wp.sqrt(j1 * j1 + j2 * j2)
     if norm > limit:
         f = limit / norm
         j1 = j1 * f
         j2 = j2 * f
-    c.jt1[k] = j1
-    c.jt2[k] = j2
+    c_jt1[k] = j1
+    c_jt2[k] = j2
     d1 = j1 - j1_old
     d2 = j2 - j2_old
     P = t1 * d1 + t2 * d2
     dva = dva - P * ima
     dvb = dvb + P * imb
-    dwa = dwa - c.ang_a_t1[k] * d1 - c.ang_a_t2[k] * d2
-    dwb = dwb + c.ang_b_t1[k] * d1 + c.ang_b_t2[k] * d2
+    dwa = dwa - c_ang_a_t1[k] * d1 - c_ang_a_t2[k] * d2
+    dwb = dwb + c_ang_b_t1[k] * d1 + c_ang_b_t2[k] * d2
 
     # current separation, linearised in the motion since the step began:
     # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
-    s = c.separation[k] + wp.dot(
-        n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
+    s = c_separation[k] + wp.dot(
+        n, b_dx[ib] + wp.cross(b_dtheta[ib], rb) - b_dx[ia] - wp.cross(b_dtheta[ia], ra))
 
     # normal: speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is
     # pushed out softly (bias) and only in the biased pass
@@ -514,25 +531,25 @@ def _solve(
             isc = static_impulse_scale
     vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
           - wp.dot(wa + dwa, wp.cross(ra, n)))
-    jn_old = c.jn[k]
-    jn = wp.max(jn_old + (-c.mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
-    c.jn[k] = jn
-    c.jn_max[k] = wp.max(c.jn_max[k], jn)
+    jn_old = c_jn[k]
+    jn = wp.max(jn_old + (-c_mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
+    c_jn[k] = jn
+    c_jn_max[k] = wp.max(c_jn_max[k], jn)
     dj = jn - jn_old
     dva = dva - n * (dj * ima)
     dvb = dvb + n * (dj * imb)
-    dwa = dwa - c.ang_a_n[k] * dj
-    dwb = dwb + c.ang_b_n[k] * dj
-    _store_velocities(b, ia, ib, dva, dwa, dvb, dwb, serial)
+    dwa = dwa - c_ang_a_n[k] * dj
+    dwb = dwb + c_ang_b_n[k] * dj
+    _add_pair(b_v, b_w, b_inv_mass, ia, ib, dva, dwa, dvb, dwb, serial)
     if use_bias == 0:
         # relax: these impulses are final for this substep, and the next substep starts from them
         # (warm start), so sum their velocity changes per body now instead of in another pass
-        j1 = c.jt1[k]
-        j2 = c.jt2[k]
+        j1 = c_jt1[k]
+        j2 = c_jt2[k]
         P = n * jn + t1 * j1 + t2 * j2
-        wa_ = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
-        wb_ = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
-        _add_warm(b, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
+        wa_ = c_ang_a_n[k] * jn + c_ang_a_t1[k] * j1 + c_ang_a_t2[k] * j2
+        wb_ = c_ang_b_n[k] * jn + c_ang_b_t1[k] * j1 + c_ang_b_t2[k] * j2
+        _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
 @wp.kernel
@@ -705,9 +722,25 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
         return
     soft = softness(h)
     soft_static = softness(h, stiffness=2.0)
+    c, b = contacts.arrays, bodies.arrays
     wp.launch(_solve, dim=contacts.count, device=contacts.device,
-              inputs=[contacts.struct(), body_struct(bodies), 1.0 / h, int(use_bias), *soft, *soft_static,
-                      MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts)])
+              inputs=[*(c[name] for name in _SOLVE_CONTACT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
+                      1.0 / h, int(use_bias), *soft, *soft_static, MAX_PUSH_VELOCITY, LINEAR_SLOP,
+                      _serial(contacts)])
+
+
+#: the arrays `_solve` takes, in its argument order
+_SOLVE_CONTACT_ARRAYS = (
+    "contact_body_a", "contact_body_b", "contact_normal", "contact_separation", "contact_r_a", "contact_r_b",
+    "contact_tangent1", "contact_tangent2", "contact_angular_a_n", "contact_angular_b_n", "contact_angular_a_t1",
+    "contact_angular_b_t1", "contact_angular_a_t2", "contact_angular_b_t2", "contact_mass_n", "contact_mass_t1",
+    "contact_mass_t2", "contact_friction", "contact_scale", "contact_impulse_n", "contact_impulse_t1",
+    "contact_impulse_t2", "contact_max_impulse_n",
+)
+_SOLVE_BODY_ARRAYS = (
+    "body_velocity", "body_angular_velocity", "body_inv_mass", "body_delta_position", "body_delta_rotation",
+    "body_warm_velocity", "body_warm_angular_velocity",
+)
 
 
 def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
