@@ -1,0 +1,1 @@
+"""Benchmarks of Tumble against PyBullet and MuJoCo; run `python benchmarks/run.py --help`."""

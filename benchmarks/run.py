@@ -1,0 +1,623 @@
+"""Run the benchmark scenes in Tumble, PyBullet and MuJoCo, side by side, on one CPU core.
+
+    PYTHONPATH=src python benchmarks/run.py                         # everything (~15 min)
+    PYTHONPATH=src python benchmarks/run.py --scenes pile_1k,cloth_64
+    PYTHONPATH=src python benchmarks/run.py --scenes pile --engines tumble
+    PYTHONPATH=src python benchmarks/run.py --quick                 # 0.5 s per scene
+    PYTHONPATH=src python benchmarks/run.py --device cuda           # Tumble on the GPU
+
+For each scene the engines are built once and then stepped in alternating chunks (0.1 s of
+simulated time each), so that a change in machine load touches every engine alike. Warm-up
+(Tumble's kernel compilation included) happens on a small copy of the scene and is not timed.
+Figures, quality checks and the CSV columns are explained in benchmarks/README.md.
+"""
+
+from __future__ import annotations
+
+import os
+
+# one thread everywhere, set before NumPy / MuJoCo / Warp load their thread pools
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
+             "VECLIB_MAXIMUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import datetime  # noqa: E402
+import math  # noqa: E402
+import platform  # noqa: E402
+import re  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from importlib import metadata  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+# run as a script: make `benchmarks` and the checkout's `tumble` importable
+sys.path.insert(0, str(HERE.parent))
+if (HERE.parent / "src" / "tumble").is_dir():
+    sys.path.insert(0, str(HERE.parent / "src"))
+
+from benchmarks import quality  # noqa: E402
+from benchmarks.engines import ADAPTERS  # noqa: E402
+from benchmarks.scenes import CUBE_HALF, CUBE_MASS, SCENES, SPHERE_MASS, SPHERE_RADIUS, Scene, cloth_edges  # noqa: E402
+
+GROUPS = {
+    "all": list(SCENES),
+    "pile": ["pile_1k", "pile_5k", "pile_20k"],
+    "cloth": ["cloth_64", "cloth_128"],
+}
+QUICK_DURATION = 0.5  # [s] simulated per scene with --quick
+CHUNK_DURATION = 0.1  # [s] simulated per turn when alternating engines
+MAX_WALL = 180.0  # [s] of stepping per engine and scene before it stops early
+
+# targets of issue 7 (one CPU core, ratios measured in the same run)
+TARGET_PILE_RATIO = 10.0  # pile_5k body-steps/s vs PyBullet
+TARGET_CLOTH_RATIO = 10.0  # cloth_64 steps/s vs PyBullet
+TARGET_CLOTH_STRAIN = 0.10
+TARGET_PILE_100K = 10.0  # steps/s
+
+
+@dataclass
+class Result:
+    """Timing and quality of one engine on one scene over `steps` steps."""
+
+    scene: Scene
+    engine: str
+    steps: int = 0
+    seconds: float = 0.0
+    quality: dict = field(default_factory=dict)
+    error: str = ""
+    note: str = ""
+    profile: dict = field(default_factory=dict)  # Tumble's World.profile: stage -> seconds
+    max_strain: float = math.nan  # cloth: largest strain seen so far
+    early: bool = False  # Tumble's figures over the peers' shorter interval
+    checkpoints: list = field(default_factory=lambda: [(0, 0.0)])  # (steps, seconds) after each turn
+
+    def seconds_at(self, steps: int) -> float:
+        """Wall-clock seconds this engine took for its first `steps` steps (interpolated)."""
+        done, spent = zip(*self.checkpoints)
+        return float(np.interp(steps, done, spent))
+
+    @property
+    def sim_time(self) -> float:
+        return self.steps * self.scene.dt
+
+    @property
+    def steps_per_s(self) -> float:
+        return self.steps / self.seconds if self.seconds > 0 else math.nan
+
+    @property
+    def body_steps_per_s(self) -> float:
+        return self.steps_per_s * self.scene.body_count
+
+
+# ---------------------------------------------------------------------- machine
+
+
+def machine_description(device: str) -> dict[str, str]:
+    """CPU model, core count, GPU (for cuda), package versions and the date."""
+    cpu = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+
+    def version(package: str) -> str:
+        try:
+            return metadata.version(package)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    tumble_version = "unknown"
+    try:
+        import tumble
+
+        tumble_version = tumble.__version__
+    except Exception:  # noqa: BLE001 - a broken checkout still gets a machine line
+        pass
+    try:  # the checkout's commit, when run from a git checkout
+        import subprocess
+
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+        if commit:
+            tumble_version += f" (git {commit})"
+    except (OSError, subprocess.SubprocessError):
+        pass
+    gpu = ""
+    if device.startswith("cuda"):
+        import warp as wp
+
+        wp.config.quiet = True
+        wp.init()
+        gpu = wp.get_device(device).name
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "cpu": cpu,
+        "cores": str(os.cpu_count()),
+        "load": "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else "",
+        "gpu": gpu,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "warp": version("warp-lang"),
+        "pybullet": version("pybullet"),
+        "mujoco": version("mujoco"),
+        "tumble": tumble_version,
+    }
+
+
+def machine_name(info: dict[str, str]) -> str:
+    """A file-name slug for the machine: CPU model and core count (and GPU)."""
+    text = f"{info['cpu']} {info['cores']}c" + (f" {info['gpu']}" if info["gpu"] else "")
+    text = re.sub(r"\((R|TM)\)|CPU|Processor|@.*?GHz", " ", text, flags=re.IGNORECASE)
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+
+
+def pin_to_one_core(cpu: int | None) -> int | None:
+    """Restrict this process to one CPU core (default: the last allowed one); returns it."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    allowed = sorted(os.sched_getaffinity(0))
+    core = allowed[-1] if cpu is None else cpu
+    os.sched_setaffinity(0, {core})
+    return core
+
+
+# ---------------------------------------------------------------------- measuring
+
+
+def measure_quality(adapter, scene: Scene) -> dict[str, float]:
+    """Quality figures of the adapter's current state (see quality.py); NaN if not finite."""
+    nan = {"overlap": math.nan, "ground": math.nan, "wall": math.nan, "kinetic_energy": math.nan,
+           "strain": math.nan}
+    if scene.kind == "cloth":
+        x = adapter.cloth_position()
+        if not np.isfinite(x).all():
+            return nan
+        n = scene.count
+        return {**nan, "strain": quality.cloth_max_strain(x, cloth_edges(n), 1.0 / (n - 1))}
+    s = adapter.bodies()
+    if not all(np.isfinite(a).all() for a in s.values()):
+        return nan
+    planes = adapter.init.planes
+    if scene.kind == "pile":
+        overlap = quality.sphere_max_overlap(s["position"], SPHERE_RADIUS)
+        depth = quality.plane_penetration(s["position"], planes, radius=SPHERE_RADIUS)
+        inertia = 0.4 * SPHERE_MASS * SPHERE_RADIUS**2  # solid sphere: 2/5 m r^2
+        mass = SPHERE_MASS
+    else:
+        half = np.full(3, CUBE_HALF)
+        q = s["orientation"] / np.linalg.norm(s["orientation"], axis=1, keepdims=True)
+        overlap = quality.box_max_overlap(s["position"], q, half)
+        depth = quality.plane_penetration(s["position"], planes, orientation=q, half_extents=half)
+        inertia = CUBE_MASS * (2 * CUBE_HALF) ** 2 / 6.0  # cube: m a^2 / 6
+        mass = CUBE_MASS
+    return {
+        "overlap": overlap,
+        "ground": float(depth[0]),
+        "wall": float(np.max(depth[1:])) if len(depth) > 1 else math.nan,
+        "kinetic_energy": quality.kinetic_energy(s["velocity"], s["angular_velocity"], mass, inertia),
+        "strain": math.nan,
+    }
+
+
+def warm_up(engine: str, scene: Scene, device: str) -> None:
+    """Build and step a small copy of the scene, so compilation and first-use costs are not timed."""
+    small = {"pile": 64, "boxes": 27, "cloth": 8}[scene.kind]
+    tiny = Scene(f"{scene.name}_warmup", scene.kind, small, box_width=1.0, dt=scene.dt)
+    adapter = ADAPTERS[engine](tiny, device)
+    adapter.step(3)
+    adapter.sync()
+    measure_quality(adapter, tiny)
+    adapter.close()
+
+
+def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wall: float, log,
+              all_peers: bool = False) -> list[Result]:
+    """Run one scene in every engine, alternating chunks; returns the results (see `Result`).
+
+    An engine stops early, with the simulated time it reached, once it has spent `max_wall`
+    seconds stepping.
+    """
+    adapters, results, targets = {}, {}, {}
+    for engine in engines:
+        if engine != "tumble" and not scene.peers:
+            continue
+        reason = dict(scene.skip).get(engine)
+        if reason and not all_peers:
+            log(f"  {engine}: left out: {reason} (--all-peers runs it)")
+            continue
+        result = results[engine] = Result(scene, engine)
+        targets[engine] = scene.steps if engine == "tumble" else scene.peer_steps
+        try:
+            warm_up(engine, scene, device)
+            start = time.perf_counter()
+            adapters[engine] = ADAPTERS[engine](scene, device)
+            log(f"  {engine}: built in {time.perf_counter() - start:.1f} s")
+        except Exception as error:  # noqa: BLE001 - one engine failing must not stop the others
+            result.error = f"{type(error).__name__}: {error}"
+            log(f"  {engine}: could not build: {result.error}")
+    # Tumble's figures at the step where a peer stopped, so that quality compares equal times
+    early: dict[int, Result] = {}
+    early_peers: dict[int, list[str]] = {}
+
+    def running(engine: str) -> bool:
+        r = results[engine]
+        return engine in adapters and r.steps < targets[engine] and not r.error and r.seconds < max_wall
+
+    # alternate: every engine advances one chunk per round until it has done its steps
+    while True:
+        active = [e for e in adapters if running(e)]
+        if not active:
+            break
+        for engine in active:
+            adapter, result = adapters[engine], results[engine]
+            k = min(chunk, targets[engine] - result.steps)
+            if engine == "tumble":
+                # do not step past a peer's last step: Tumble's state there is compared with the peer's
+                ends = [targets[e] for e in adapters if e != "tumble" and targets[e] > result.steps]
+                k = min([k, *(t - result.steps for t in ends)])
+            try:
+                start = time.perf_counter()
+                adapter.step(k)
+                adapter.sync()
+                result.seconds += time.perf_counter() - start
+                result.steps += k
+                result.checkpoints.append((result.steps, result.seconds))
+            except Exception as error:  # noqa: BLE001
+                result.error = f"{type(error).__name__} at step {result.steps}: {error}"
+                log(f"  {engine}: {result.error}")
+                continue
+            if scene.kind == "cloth":
+                # the largest strain over the run, sampled after every turn (not timed)
+                strain = measure_quality(adapter, scene)["strain"]
+                result.max_strain = strain if math.isnan(result.max_strain) else max(result.max_strain, strain)
+        log(
+            "  t = "
+            + ", ".join(f"{e} {results[e].sim_time:.2f} s ({results[e].steps_per_s:.1f} steps/s)" for e in adapters)
+        )
+        # a peer that stopped this round stopped where Tumble is now: take Tumble's figures there
+        tumble = results.get("tumble")
+        if tumble is not None and running("tumble"):
+            for engine in active:
+                peer = results[engine]
+                if engine != "tumble" and not running(engine) and peer.steps == tumble.steps and not peer.error:
+                    row = early.setdefault(tumble.steps, Result(scene, "tumble", early=True))
+                    row.steps, row.seconds, row.checkpoints = tumble.steps, tumble.seconds, list(tumble.checkpoints)
+                    early_peers.setdefault(tumble.steps, []).append(engine)
+                    row.note = f"first {row.sim_time:g} s, as {' and '.join(early_peers[tumble.steps])}"
+                    row.quality = measure_quality(adapters["tumble"], scene)
+                    row.quality["strain"] = tumble.max_strain
+
+    for engine, adapter in adapters.items():
+        if results[engine].steps < targets[engine] and not results[engine].error:
+            results[engine].note = f"stopped at the {max_wall:g} s cap"
+        if not results[engine].error:
+            results[engine].quality = measure_quality(adapter, scene)
+            if scene.kind == "cloth":
+                results[engine].quality["strain"] = results[engine].max_strain
+        if engine == "tumble" and hasattr(adapter, "world") and adapter.world is not None:
+            results[engine].profile = dict(adapter.world.profile)
+        adapter.close()
+    out = list(results.values())
+    return out[:1] + [early[k] for k in sorted(early)] + out[1:] if "tumble" in results else out
+
+
+def tumble_ratio(results: list[Result], peer: Result) -> float:
+    """Tumble's steps per second divided by the peer's, over the steps both have done."""
+    tumble = next((r for r in results if r.engine == "tumble" and not r.error and r.steps), None)
+    if tumble is None or peer.error or not peer.steps:
+        return math.nan
+    steps = min(tumble.steps, peer.steps)
+    return peer.seconds_at(steps) / tumble.seconds_at(steps)
+
+
+# ---------------------------------------------------------------------- reporting
+
+
+def fmt(value: float, scale: float = 1.0, digits: int = 2) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value * scale:.{digits}f}"
+
+
+def rate(value: float) -> str:
+    if not math.isfinite(value):
+        return "-"
+    return f"{value:,.0f}" if value >= 100 else f"{value:.1f}"
+
+
+def _console():
+    from rich.console import Console
+
+    # wide enough for the table when the output goes to a file or pipe
+    return Console() if sys.stdout.isatty() else Console(width=160)
+
+
+def print_table(all_results: list[Result], info: dict[str, str], device: str) -> None:
+    from rich.table import Table
+
+    title = (
+        f"Tumble vs PyBullet vs MuJoCo, Tumble on {device}, {info['cpu']} ({info['cores']} cores, "
+        f"one used), {info['date']}"
+    )
+    table = Table(title=title, title_justify="left")
+    for name, justify in [("scene", "left"), ("engine", "left"), ("sim s", "right"), ("steps/s", "right"),
+                          ("body-steps/s", "right"), ("Tumble ×", "right"), ("overlap mm", "right"),
+                          ("ground mm", "right"), ("wall mm", "right"), ("KE J", "right"),
+                          ("strain %", "right")]:
+        table.add_column(name, justify=justify)
+    previous = None
+    for r in all_results:
+        scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
+        if previous is not None and previous != r.scene.name:
+            table.add_section()
+        previous = r.scene.name
+        engine = r.engine + (f" ({r.note})" if r.note else "")
+        if r.error:
+            table.add_row(r.scene.name, engine, fmt(r.sim_time), "[red]failed[/red]", *[""] * 7)
+            continue
+        q = r.quality
+        ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
+        table.add_row(
+            r.scene.name, engine, f"{r.sim_time:.2f}", rate(r.steps_per_s), rate(r.body_steps_per_s), ratio,
+            fmt(q.get("overlap"), 1e3), fmt(q.get("ground"), 1e3), fmt(q.get("wall"), 1e3),
+            fmt(q.get("kinetic_energy"), digits=3), fmt(q.get("strain"), 100, 1),
+        )
+    console = _console()
+    console.print(table)
+    console.print(
+        "Tumble × = Tumble's steps/s divided by the peer's, both over the steps both did. Rows 'first ... s' give "
+        "Tumble's figures where a peer stopped (its planned interval or the wall-time cap). "
+        "Quality figures are taken at the end of each row's interval; cloth strain is the largest "
+        "over the interval, sampled every 0.1 s."
+    )
+    for r in all_results:
+        if r.error:
+            console.print(f"[red]{r.scene.name} / {r.engine} failed:[/red] {r.error}", markup=True, highlight=False)
+
+
+def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None]]:
+    """The targets of issue 7 as (target, measured, passed); passed is None if not measured."""
+
+    def find(scene: str, engine: str, steps: int | None = None) -> Result | None:
+        for r in all_results:
+            if r.scene.name == scene and r.engine == engine and not r.error and r.steps:
+                if (steps is None and not r.early) or r.steps == steps:
+                    return r
+        return None
+
+    def scene_results(scene: str) -> list[Result]:
+        return [r for r in all_results if r.scene.name == scene and not r.early]
+
+    checks = []
+    pb = find("pile_5k", "pybullet")
+    if pb and find("pile_5k", "tumble"):
+        ratio = tumble_ratio(scene_results("pile_5k"), pb)
+        checks.append(("pile 5k: >= 10x PyBullet body-steps/s", f"{ratio:.1f}x", ratio >= TARGET_PILE_RATIO))
+    else:
+        checks.append(("pile 5k: >= 10x PyBullet body-steps/s", "not measured", None))
+    tb = find("pile_5k", "tumble", pb.steps) if pb else None
+    if pb and tb:
+        checks.append((
+            f"pile 5k: overlap and ground penetration <= PyBullet's (at {pb.sim_time:g} s)",
+            f"overlap {tb.quality['overlap'] * 1e3:.2f} vs {pb.quality['overlap'] * 1e3:.2f} mm, "
+            f"ground {tb.quality['ground'] * 1e3:.2f} vs {pb.quality['ground'] * 1e3:.2f} mm",
+            tb.quality["overlap"] <= pb.quality["overlap"] and tb.quality["ground"] <= pb.quality["ground"],
+        ))
+    else:
+        checks.append(("pile 5k: overlap and ground penetration <= PyBullet's", "not measured", None))
+    pb = find("cloth_64", "pybullet")
+    if pb and find("cloth_64", "tumble"):
+        ratio = tumble_ratio(scene_results("cloth_64"), pb)
+        checks.append(("cloth 64x64: >= 10x PyBullet steps/s", f"{ratio:.1f}x", ratio >= TARGET_CLOTH_RATIO))
+    else:
+        checks.append(("cloth 64x64: >= 10x PyBullet steps/s", "not measured", None))
+    tb = find("cloth_64", "tumble")
+    checks.append((
+        "cloth 64x64: largest strain <= 10 %",
+        f"{tb.quality['strain'] * 100:.1f} % (over {tb.sim_time:g} s)" if tb else "not measured",
+        None if tb is None else tb.quality["strain"] <= TARGET_CLOTH_STRAIN,
+    ))
+    tb = find("pile_100k", "tumble")
+    checks.append((
+        "pile 100k: >= 10 steps/s",
+        f"{tb.steps_per_s:.1f} steps/s (over {tb.sim_time:g} s)" if tb else "not measured",
+        None if tb is None else tb.steps_per_s >= TARGET_PILE_100K,
+    ))
+    return checks
+
+
+def markdown_report(all_results: list[Result], info: dict[str, str], device: str) -> str:
+    """The results table and the targets as Markdown, for docs/performance.md."""
+    lines = [
+        f"Measured {info['date']} with `benchmarks/run.py{'' if device == 'cpu' else ' --device ' + device}`: "
+        f"{info['cpu']}, {info['cores']} cores, one used"
+        + (f", GPU {info['gpu']}" if info["gpu"] else "")
+        + f"; load average {info['load']} at the end; Python {info['python']}, NumPy {info['numpy']}, "
+        f"Warp {info['warp']}, PyBullet {info['pybullet']}, MuJoCo {info['mujoco']}, Tumble {info['tumble']}.",
+        "",
+        "| scene | engine | sim s | steps/s | body-steps/s | Tumble × | overlap mm | ground mm | wall mm | KE J | strain % |",
+        "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+    ]
+    for r in all_results:
+        scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
+        engine = r.engine + (f" ({r.note})" if r.note else "")
+        if r.error:
+            lines.append(f"| {r.scene.name} | {engine} | {fmt(r.sim_time)} | failed: {r.error[:80]} | | | | | | | |")
+            continue
+        q = r.quality
+        ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
+        lines.append(
+            f"| {r.scene.name} | {engine} | {r.sim_time:.2f} | {rate(r.steps_per_s)} | {rate(r.body_steps_per_s)} "
+            f"| {ratio} | {fmt(q.get('overlap'), 1e3)} | {fmt(q.get('ground'), 1e3)} | {fmt(q.get('wall'), 1e3)} "
+            f"| {fmt(q.get('kinetic_energy'), digits=3)} | {fmt(q.get('strain'), 100, 1)} |"
+        )
+    lines += ["", "| target (issue 7) | measured | result |", "|---|---|---|"]
+    for target, measured, passed in check_targets(all_results):
+        lines.append(f"| {target} | {measured} | {'not measured' if passed is None else ('pass' if passed else 'FAIL')} |")
+    return "\n".join(lines) + "\n"
+
+
+def update_doc(path: Path, report: str, device: str) -> None:
+    """Replace the block between this device's markers in `path` (append it if missing)."""
+    device = "cuda" if device.startswith("cuda") else device
+    begin, end = f"<!-- results {device}: written by benchmarks/run.py --doc -->", f"<!-- end of results {device} -->"
+    text = path.read_text() if path.exists() else ""
+    block = f"{begin}\n{report}{end}"
+    if begin in text and end in text:
+        text = text[: text.index(begin)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(text)
+
+
+CSV_FIELDS = [
+    "date", "device", "scene", "engine", "early", "note", "bodies", "sim_time_s", "steps", "wall_s", "steps_per_s",
+    "body_steps_per_s", "tumble_ratio", "max_overlap_m", "max_ground_penetration_m",
+    "max_wall_penetration_m", "kinetic_energy_J", "max_strain", "error",
+    "cpu", "cores", "load", "gpu", "python", "numpy", "warp", "pybullet", "mujoco", "tumble",
+]
+
+
+def write_csv(path: Path, all_results: list[Result], info: dict[str, str], device: str) -> None:
+    """Write the results, keeping the file's rows of other (device, scene, engine) triples."""
+    rows = []
+    for r in all_results:
+        scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
+        q = r.quality
+        rows.append({
+            **info, "device": device, "scene": r.scene.name, "engine": r.engine, "note": r.note,
+            "early": "yes" if r.early else "",
+            "bodies": r.scene.body_count, "sim_time_s": f"{r.sim_time:.4f}", "steps": r.steps,
+            "wall_s": f"{r.seconds:.3f}", "steps_per_s": f"{r.steps_per_s:.4g}",
+            "body_steps_per_s": f"{r.body_steps_per_s:.4g}",
+            "tumble_ratio": "" if r.engine == "tumble" else f"{tumble_ratio(scene_results, r):.4g}",
+            "max_overlap_m": f"{q.get('overlap', math.nan):.4g}",
+            "max_ground_penetration_m": f"{q.get('ground', math.nan):.4g}",
+            "max_wall_penetration_m": f"{q.get('wall', math.nan):.4g}",
+            "kinetic_energy_J": f"{q.get('kinetic_energy', math.nan):.4g}",
+            "max_strain": f"{q.get('strain', math.nan):.4g}", "error": r.error,
+        })
+    key = ("device", "scene", "engine")
+    fresh = {tuple(row[k] for k in key) for row in rows}
+    kept = []
+    if path.exists():
+        with path.open(newline="") as f:
+            kept = [row for row in csv.DictReader(f) if tuple(row.get(k, "") for k in key) not in fresh]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(kept + rows)
+
+
+def print_profile(all_results: list[Result]) -> None:
+    """Tumble's time per stage (ms per step), from `World.profile`."""
+    from rich.table import Table
+
+    rows = [r for r in all_results if r.engine == "tumble" and not r.early and r.profile]
+    if not rows:
+        return
+    stages = sorted({s for r in rows for s in r.profile}, key=lambda s: -max(r.profile.get(s, 0) for r in rows))
+    table = Table(title="Tumble: milliseconds per step in each stage (World.profile)", title_justify="left")
+    table.add_column("scene")
+    for s in stages:
+        table.add_column(s, justify="right")
+    for r in rows:
+        table.add_row(r.scene.name, *[f"{1e3 * r.profile.get(s, 0.0) / max(r.steps, 1):.2f}" for s in stages])
+    _console().print(table)
+
+
+# ---------------------------------------------------------------------- command line
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenes", default="all",
+                        help=f"comma-separated scene names or groups (all, pile, cloth); scenes: {', '.join(SCENES)}")
+    parser.add_argument("--engines", default="tumble,pybullet,mujoco", help="comma-separated engines")
+    parser.add_argument("--device", default="cpu", help="Warp device for Tumble: cpu (default) or cuda")
+    parser.add_argument("--quick", action="store_true", help=f"simulate at most {QUICK_DURATION} s per scene")
+    parser.add_argument("--duration", type=float, default=None, help="simulate at most this many seconds per scene")
+    parser.add_argument("--max-wall", type=float, default=MAX_WALL,
+                        help=f"stop an engine on a scene after this many seconds of stepping (default {MAX_WALL:g})")
+    parser.add_argument("--all-peers", action="store_true",
+                        help="also run the peers a scene leaves out by default (PyBullet on cloth_128)")
+    parser.add_argument("--machine", default=None, help="name of the CSV file (default: from the CPU model)")
+    parser.add_argument("--output", type=Path, default=HERE / "results", help="folder for the CSV")
+    parser.add_argument("--no-csv", action="store_true", help="do not write the CSV")
+    parser.add_argument("--doc", type=Path, default=None,
+                        help="also write the table and targets as Markdown into this file (docs/performance.md), "
+                             "replacing the block of the same device")
+    parser.add_argument("--cpu", type=int, default=None, help="CPU core to run on (default: the last one)")
+    parser.add_argument("--no-pin", action="store_true", help="do not restrict the process to one core")
+    args = parser.parse_args(argv)
+    names = []
+    for item in filter(None, (s.strip() for s in args.scenes.split(","))):
+        if item in GROUPS:
+            names += GROUPS[item]
+        elif item in SCENES:
+            names.append(item)
+        else:
+            parser.error(f"unknown scene {item!r}; choose from {', '.join([*GROUPS, *SCENES])}")
+    args.scene_list = list(dict.fromkeys(names))
+    args.engine_list = [e.strip() for e in args.engines.split(",") if e.strip()]
+    for engine in args.engine_list:
+        if engine not in ADAPTERS:
+            parser.error(f"unknown engine {engine!r}; choose from {', '.join(ADAPTERS)}")
+    if args.quick:
+        args.duration = min(args.duration or QUICK_DURATION, QUICK_DURATION)
+    if args.duration is not None and not (args.duration > 0):
+        parser.error("--duration must be > 0")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        import warp as wp
+
+        wp.config.quiet = True  # no banner in the middle of the log
+    except ImportError:
+        pass
+    core = None if args.no_pin else pin_to_one_core(args.cpu)
+    info = machine_description(args.device)
+    print(f"{info['cpu']}, {info['cores']} cores (running on core {core}), load {info['load']}, "
+          f"python {info['python']}, warp {info['warp']}, pybullet {info['pybullet']}, mujoco {info['mujoco']}")
+
+    all_results: list[Result] = []
+    for name in args.scene_list:
+        scene = SCENES[name] if args.duration is None else SCENES[name].shortened(args.duration)
+        print(f"{scene.name}: {scene.body_count:,} bodies, {scene.duration:g} s"
+              + (f" (peers {scene.peer_duration:g} s)" if scene.peers and scene.peer_duration != scene.duration else ""),
+              flush=True)
+        chunk = max(1, int(round(CHUNK_DURATION / scene.dt)))
+        all_results += run_scene(scene, args.engine_list, args.device, chunk, args.max_wall,
+                                 lambda s: print(s, flush=True), all_peers=args.all_peers)
+
+    info["load"] = "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else ""
+    print()
+    print_table(all_results, info, args.device)
+    print_profile(all_results)
+    console = _console()
+    for target, measured, passed in check_targets(all_results):
+        mark = "[yellow]not measured[/yellow]" if passed is None else ("[green]pass[/green]" if passed else "[red]FAIL[/red]")
+        console.print(f"target: {target}: {measured} -> {mark}")
+    if args.doc is not None:
+        update_doc(args.doc, markdown_report(all_results, info, args.device), args.device)
+        print(f"updated {args.doc}")
+    if not args.no_csv:
+        path = args.output / f"{args.machine or machine_name(info)}.csv"
+        write_csv(path, all_results, info, args.device)
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""The benchmark scenes start every engine from the same, non-overlapping state (no timing here)."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from benchmarks import quality, scenes  # noqa: E402
+
+
+@pytest.mark.parametrize("name", ["pile_1k", "pile_20k", "pile_100k", "boxes_1k"])
+def test_initial_bodies_are_seeded_and_do_not_overlap(name):
+    """Build the same positions twice, inside the box, with no two bodies touching."""
+    scene = scenes.SCENES[name]
+    a, b = scenes.initial_bodies(scene), scenes.initial_bodies(scene)
+    np.testing.assert_array_equal(a.position, b.position)
+    assert a.position.shape == (scene.count, 3)
+    if a.shape == "sphere":
+        assert quality.sphere_max_overlap(a.position, a.radius) <= 0.0
+        depth = quality.plane_penetration(a.position, a.planes, radius=a.radius)
+    else:
+        q = np.tile([0.0, 0.0, 0.0, 1.0], (scene.count, 1))
+        assert quality.box_max_overlap(a.position, q, a.half_extents) <= 0.0
+        depth = quality.plane_penetration(a.position, a.planes, orientation=q, half_extents=a.half_extents)
+    assert np.all(depth <= 0.0)
+
+
+def test_pile_box_widths():
+    """Keep the 1k-20k piles in a 1 m box and the 100k pile in a 5 m box."""
+    assert scenes.SCENES["pile_5k"].box_width == 1.0
+    assert scenes.SCENES["pile_100k"].box_width == 5.0
+    walls = scenes.box_planes(1.0)
+    assert len(walls) == 5 and walls[1][1] == -0.5
+
+
+def test_cloth_grid_and_pins():
+    """Lay the cloth particles row by row with the two pins at the corners of the far edge."""
+    cloth = scenes.initial_cloth(scenes.SCENES["cloth_64"])
+    n = 64
+    assert cloth.position.shape == (n * n, 3)
+    np.testing.assert_allclose(cloth.position[1] - cloth.position[0], [cloth.spacing, 0, 0])
+    np.testing.assert_allclose(cloth.position[n] - cloth.position[0], [0, cloth.spacing, 0])
+    np.testing.assert_allclose(cloth.position[list(cloth.pins), 1], 0.5)
+    np.testing.assert_allclose(cloth.position[list(cloth.pins), 0], [-0.5, 0.5])
+    edges = scenes.cloth_edges(n)
+    assert len(edges) == 2 * n * (n - 1)
+    assert quality.cloth_max_strain(cloth.position, edges, cloth.spacing) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_quality_figures_find_known_overlaps():
+    """Report the overlap of two spheres and of two boxes, and a box corner below the ground."""
+    spheres = np.array([[0.0, 0.0, 0.0], [0.09, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    assert quality.sphere_max_overlap(spheres, 0.05) == pytest.approx(0.01)
+    half = np.full(3, 0.05)
+    s, c = np.sin(np.pi / 8), np.cos(np.pi / 8)
+    q = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, s, c]])  # second box turned 45 deg about z
+    boxes = np.array([[0.0, 0.0, 0.0], [0.11, 0.0, 0.0]])
+    # the turned box reaches 0.05 sqrt(2) towards the first: overlap 0.05 + 0.0707 - 0.11
+    assert quality.box_max_overlap(boxes, q, half) == pytest.approx(0.05 + 0.05 * np.sqrt(2) - 0.11)
+    tilted = np.array([[s, 0.0, 0.0, c]])  # 45 deg about x: lowest edge 0.05 sqrt(2) below the centre
+    ground = [(np.array([0.0, 0.0, 1.0]), 0.0)]
+    depth = quality.plane_penetration(np.array([[0.0, 0.0, 0.06]]), ground, orientation=tilted, half_extents=half)
+    assert depth[0] == pytest.approx(0.05 * np.sqrt(2) - 0.06)
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_peer_engines_start_from_the_scene_positions(engine):
+    """Build a small pile and a small cloth in a peer and read back the same initial state."""
+    pytest.importorskip(engine)
+    from benchmarks import engines
+
+    pile = scenes.Scene("pile_test", "pile", 50)
+    adapter = engines.ADAPTERS[engine](pile)
+    state = adapter.bodies()
+    np.testing.assert_allclose(state["position"], scenes.initial_bodies(pile).position, atol=1e-9)
+    np.testing.assert_allclose(np.abs(state["orientation"][:, 3]), 1.0)
+    adapter.close()
+    cloth = scenes.Scene("cloth_test", "cloth", 8)
+    adapter = engines.ADAPTERS[engine](cloth)
+    np.testing.assert_allclose(adapter.cloth_position(), scenes.initial_cloth(cloth).position, atol=1e-6)
+    adapter.close()
+
+
+@pytest.mark.parametrize("kind", ["pile", "boxes"])
+def test_tumble_bulk_add_matches_one_by_one(kind):
+    """Give the same body arrays whether the benchmark adds bodies in bulk or one by one."""
+    tumble = pytest.importorskip("tumble")
+    from benchmarks import engines
+
+    init = scenes.initial_bodies(scenes.Scene("bulk_test", kind, 30))
+    one, bulk = tumble.World(), tumble.World()
+    add = one.add_sphere if init.shape == "sphere" else one.add_box
+    size = {"radius": init.radius} if init.shape == "sphere" else {"half_extents": init.half_extents}
+    for p in init.position:
+        add(position=p, mass=init.mass, restitution=scenes.RESTITUTION, friction=scenes.FRICTION, **size)
+    engines._add_many(bulk, init)
+    assert one.body_count == bulk.body_count == 30
+    for name in one.bodies.fields:
+        np.testing.assert_array_equal(one.bodies.numpy(name), bulk.bodies.numpy(name), err_msg=name)
