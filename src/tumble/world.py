@@ -26,6 +26,7 @@ import warp as wp
 from . import shapes as _shapes
 from .collision import broadphase, narrowphase
 from .errors import SimulationError
+from .launch import LaunchCache
 from .shapes import ShapeType
 from .solver import contacts as contact_solver
 from .solver import integrate
@@ -146,6 +147,8 @@ class World:
         self.broadphase = broadphase.BroadPhase(self.device)
         self.contacts = contact_solver.ContactSet(self.device)
         self._cloth = None  # created on the first add_cloth
+        self._launches = LaunchCache()
+        self._launch_sizes = None
 
     # ------------------------------------------------------------------ bodies
 
@@ -392,17 +395,18 @@ class World:
             integrate.begin_step(bodies)
 
         # substeps: integrate velocities (+ warm start) -> solve -> integrate positions -> relax -> cloth
+        launches = self._launch_cache()
         for substep in range(self.substeps):
             with self._timer("integrate"):
-                integrate.integrate_velocities(bodies, self.gravity, h, warm=substep > 0)
+                integrate.integrate_velocities(bodies, self.gravity, h, warm=substep > 0, cache=launches)
             with self._timer("solver"):
                 if substep == 0:
                     contact_solver.warm_start(bodies, contacts)
-                contact_solver.solve(bodies, contacts, h, use_bias=True)
+                contact_solver.solve(bodies, contacts, h, use_bias=True, cache=launches)
             with self._timer("integrate"):
-                integrate.integrate_positions(bodies, h)
+                integrate.integrate_positions(bodies, h, cache=launches)
             with self._timer("solver"):
-                contact_solver.solve(bodies, contacts, h, use_bias=False)
+                contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             if cloth is not None:
                 with self._timer("cloth"):
                     cloth.substep(h)
@@ -428,6 +432,14 @@ class World:
         pairs = self.broadphase.find_pairs(self.bodies, dt)
         narrowphase.collide(self.bodies, pairs, self.contacts, dt)
         return self.contacts.count
+
+    def _launch_cache(self) -> LaunchCache:
+        """Recorded launches of the substep kernels, forgotten when an array set is reallocated."""
+        sizes = (self.bodies.capacity, self.contacts.capacity)
+        if sizes != self._launch_sizes:
+            self._launches.clear()
+            self._launch_sizes = sizes
+        return self._launches
 
     def run(self, duration: float, *, callback: Callable[[World], None] | None = None) -> int:
         """Step for `duration` seconds of simulated time; call `callback(world)` after each step.

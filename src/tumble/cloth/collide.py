@@ -34,7 +34,7 @@ from ..shapes import ShapeType
 from ..collision.hashgrid import HashGrid, cell_hash, cell_of
 from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
-from ._launch import LaunchCache, launch
+from ..launch import LaunchCache, launch
 
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))

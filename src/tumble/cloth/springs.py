@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from ..state import float_t, vec3
-from ._launch import LaunchCache, launch
+from ..launch import LaunchCache, launch
 
 
 @wp.kernel

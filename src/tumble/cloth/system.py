@@ -34,7 +34,7 @@ import warp as wp
 from ..errors import SimulationError
 from ..state import float_t, readonly, vec3
 from . import collide, grid, springs
-from ._launch import LaunchCache
+from ..launch import LaunchCache
 from .wind import Wind, accumulate_air_forces, sample_wind
 
 #: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution

@@ -31,7 +31,7 @@ import numpy as np
 import warp as wp
 
 from ..state import float_t, vec3
-from ._launch import LaunchCache, launch
+from ..launch import LaunchCache, launch
 
 AIR_DENSITY = 1.2  # [kg/m^3] at sea level, 20 C
 

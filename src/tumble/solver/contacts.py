@@ -40,6 +40,7 @@ import numpy as np
 import warp as wp
 
 from ..collision.narrowphase import ContactWriter
+from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, quat, vec3
 
 #: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
@@ -462,8 +463,11 @@ def _solve(
     max_push: float_t,
     slop: float_t,
     serial: int,
+    count: int,
 ):
     k = wp.tid()
+    if k >= count:
+        return  # launched over the capacity, so the recorded launch survives a new count
     ia = c_body_a[k]
     ib = c_body_b[k]
     n = c_normal[k]
@@ -716,17 +720,17 @@ def warm_start(bodies, contacts: ContactSet) -> None:
                   inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
 
 
-def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool) -> None:
+def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: LaunchCache | None = None) -> None:
     """One sweep of normal and friction impulses over all contacts at substep `h`."""
     if contacts.count == 0:
         return
     soft = softness(h)
     soft_static = softness(h, stiffness=2.0)
     c, b = contacts.arrays, bodies.arrays
-    wp.launch(_solve, dim=contacts.count, device=contacts.device,
-              inputs=[*(c[name] for name in _SOLVE_CONTACT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
-                      1.0 / h, int(use_bias), *soft, *soft_static, MAX_PUSH_VELOCITY, LINEAR_SLOP,
-                      _serial(contacts)])
+    launch(_solve, contacts.capacity,
+           [*(c[name] for name in _SOLVE_CONTACT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
+            1.0 / h, int(use_bias), *soft, *soft_static, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts),
+            contacts.count], contacts.device, cache)
 
 
 #: the arrays `_solve` takes, in its argument order

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ..launch import LaunchCache, launch
 from ..state import float_t, quat, vec3
 from .contacts import inv_inertia_times
 
@@ -33,8 +34,11 @@ def _integrate_velocities(
     w: wp.array(dtype=vec3),
     warm_v: wp.array(dtype=vec3),
     warm_w: wp.array(dtype=vec3),
+    count: int,
 ):
     i = wp.tid()
+    if i >= count:
+        return  # launched over the capacity (see tumble.launch)
     im = inv_mass[i]
     if im == float_t(0.0):
         return
@@ -67,9 +71,10 @@ def _integrate_positions(
     w: wp.array(dtype=vec3),
     dx: wp.array(dtype=vec3),
     dtheta: wp.array(dtype=vec3),
+    count: int,
 ):
     i = wp.tid()
-    if inv_mass[i] == float_t(0.0):
+    if i >= count or inv_mass[i] == float_t(0.0):
         return
     x[i] = x[i] + v[i] * h
     dx[i] = dx[i] + v[i] * h
@@ -99,25 +104,25 @@ def _clear(force: wp.array(dtype=vec3), torque: wp.array(dtype=vec3)):
     torque[i] = vec3()
 
 
-def integrate_velocities(bodies, gravity, h: float, *, warm: bool) -> None:
+def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: LaunchCache | None = None) -> None:
     """v += (g + F/m) h and w += I^-1 tau h for every dynamic body.
 
     With `warm`, first add the warm start the last relax pass summed per body; either way clear it.
     """
     a = bodies.arrays
-    wp.launch(_integrate_velocities, dim=bodies.count, device=bodies.device,
-              inputs=[a["body_inv_mass"], a["body_inv_inertia"], a["body_orientation"], a["body_force"],
-                      a["body_torque"], vec3(*gravity), h, int(warm), a["body_velocity"],
-                      a["body_angular_velocity"], a["body_warm_velocity"], a["body_warm_angular_velocity"]])
+    launch(_integrate_velocities, bodies.capacity,
+           [a["body_inv_mass"], a["body_inv_inertia"], a["body_orientation"], a["body_force"], a["body_torque"],
+            vec3(*gravity), h, int(warm), a["body_velocity"], a["body_angular_velocity"], a["body_warm_velocity"],
+            a["body_warm_angular_velocity"], bodies.count], bodies.device, cache)
 
 
-def integrate_positions(bodies, h: float) -> None:
+def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
     """x += v h and q' = exp(w h / 2) q for every dynamic body, conserving angular momentum."""
     a = bodies.arrays
-    wp.launch(_integrate_positions, dim=bodies.count, device=bodies.device,
-              inputs=[a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
-                      a["body_velocity"], a["body_angular_velocity"], a["body_delta_position"],
-                      a["body_delta_rotation"]])
+    launch(_integrate_positions, bodies.capacity,
+           [a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
+            a["body_velocity"], a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"],
+            bodies.count], bodies.device, cache)
 
 
 def begin_step(bodies) -> None:

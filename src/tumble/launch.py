@@ -1,8 +1,10 @@
 """Recorded kernel launches: on the CPU a `wp.launch` costs ~20 us of Python, a replay ~4 us.
 
-A cloth substep launches about ten small kernels, so the launch overhead alone would cost more
-than the arithmetic on a 64 x 64 cloth. `LaunchCache` records each launch once per set of
-arrays and replays it, updating only the scalar arguments that changed.
+A world substep launches a handful of kernels (and a cloth substep about ten), so for small
+scenes the launch overhead alone would cost more than the arithmetic. `LaunchCache` records
+each launch once per set of arrays and dimension and replays it, updating only the scalar
+arguments that changed. Callers launch over an array's capacity (which changes rarely) and
+pass the live count as a scalar, so a changing count does not record a new launch.
 """
 
 from __future__ import annotations
