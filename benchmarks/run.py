@@ -1,6 +1,6 @@
 """Run the benchmark scenes in Tumble, PyBullet and MuJoCo, side by side, on one CPU core.
 
-    PYTHONPATH=src python benchmarks/run.py                         # everything (~15 min)
+    PYTHONPATH=src python benchmarks/run.py                         # everything (~13-15 min)
     PYTHONPATH=src python benchmarks/run.py --scenes pile_1k,cloth_64
     PYTHONPATH=src python benchmarks/run.py --scenes pile --engines tumble
     PYTHONPATH=src python benchmarks/run.py --quick                 # 0.5 s per scene
@@ -613,7 +613,9 @@ def main(argv: list[str] | None = None) -> int:
         update_doc(args.doc, markdown_report(all_results, info, args.device), args.device)
         print(f"updated {args.doc}")
     if not args.no_csv:
-        path = args.output / f"{args.machine or machine_name(info)}.csv"
+        # shortened runs go to a file of their own, so they never replace the full figures
+        suffix = "" if args.duration is None else f"-{args.duration:g}s"
+        path = args.output / f"{args.machine or machine_name(info)}{suffix}.csv"
         write_csv(path, all_results, info, args.device)
         print(f"wrote {path}")
     return 0
