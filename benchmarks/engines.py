@@ -56,34 +56,6 @@ def _pixel_index(position: np.ndarray, origin: np.ndarray, spacing: float, n: in
     return index
 
 
-def _add_many(world, init) -> None:
-    """Add all bodies of `init` to a Tumble world in one call.
-
-    `add_sphere` one by one takes ~2 ms a body (42 s for 20,000), so large scenes use the
-    vectorised path the emitters use, `World._add_bodies`, with the same masses and inertias
-    as `add_sphere` / `add_box` give (tests/unit/test_bench_scenes.py checks they agree).
-    """
-    from tumble import shapes
-    from tumble.shapes import ShapeType
-
-    n = len(init.position)
-    if init.shape == "sphere":
-        shape, inertia = ShapeType.SPHERE, shapes.sphere_inertia(init.mass, init.radius)
-    else:
-        shape, inertia = ShapeType.BOX, shapes.box_inertia(init.mass, init.half_extents)
-    world._add_bodies(
-        shape=shape,
-        position=np.asarray(init.position, dtype=np.float64),
-        orientation=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
-        radius=np.full(n, init.radius if init.shape == "sphere" else 0.0),
-        half_extents=np.tile(init.half_extents if init.shape == "box" else np.zeros(3), (n, 1)),
-        mass=np.full(n, init.mass),
-        inertia=np.tile(np.asarray(inertia, dtype=np.float64), (n, 1)),
-        restitution=RESTITUTION,
-        friction=FRICTION,
-    )
-
-
 class TumbleAdapter:
     """Tumble on the CPU or a CUDA device (`World(device=...)`), default substeps.
 
@@ -122,13 +94,10 @@ class TumbleAdapter:
         for normal, offset in init.planes:
             world.add_plane(normal=normal, offset=offset, restitution=RESTITUTION, friction=FRICTION)
         first = world.body_count
-        if hasattr(world, "_add_bodies") and len(init.position) > 1000:
-            _add_many(world, init)
-        else:
-            add = world.add_sphere if init.shape == "sphere" else world.add_box
-            size = {"radius": init.radius} if init.shape == "sphere" else {"half_extents": init.half_extents}
-            for p in init.position:
-                add(position=p, mass=init.mass, restitution=RESTITUTION, friction=FRICTION, **size)
+        # all bodies in one vectorised call (add_sphere one by one costs ~2 ms a body)
+        add = world.add_spheres if init.shape == "sphere" else world.add_boxes
+        size = {"radius": init.radius} if init.shape == "sphere" else {"half_extents": init.half_extents}
+        add(position=init.position, mass=init.mass, restitution=RESTITUTION, friction=FRICTION, **size)
         self._rows = slice(first, world.body_count)
 
     def step(self, k: int) -> None:

@@ -210,7 +210,7 @@ def measure_quality(adapter, scene: Scene) -> dict[str, float]:
 
 def warm_up(engine: str, scene: Scene, device: str) -> None:
     """Build and step a small copy of the scene, so compilation and first-use costs are not timed."""
-    small = {"pile": 64, "boxes": 27, "cloth": 8}[scene.kind]
+    small = {"pile": 64, "boxes": 27, "pyramid": 6, "cloth": 8}[scene.kind]
     tiny = Scene(f"{scene.name}_warmup", scene.kind, small, box_width=1.0, dt=scene.dt)
     adapter = ADAPTERS[engine](tiny, device)
     adapter.step(3)

@@ -43,6 +43,7 @@ CUBE_MASS = 1.0  # [kg]
 RAIN_SPACING = 0.25  # [m]
 RAIN_JITTER = 0.06  # [m], horizontal only
 RAIN_FIRST_LAYER = 0.5  # [m]
+PYRAMID_GAP = 0.01  # [m] between neighbouring cubes of a row
 
 CLOTH_SIZE = 1.0  # side [m]
 CLOTH_MASS = 0.2  # total [kg] (0.2 kg/m^2, Tumble's default areal density)
@@ -55,7 +56,7 @@ class Scene:
 
     Attributes:
         name: short name used on the command line and in the results ("pile_5k").
-        kind: "pile", "boxes" or "cloth".
+        kind: "pile", "boxes", "pyramid" or "cloth".
         count: bodies (pile, boxes) or particles per side (cloth).
         box_width: inner width of the pile's box [m] (pile only).
         dt: time step [s].
@@ -109,6 +110,7 @@ SCENES: dict[str, Scene] = {
         Scene("pile_20k", "pile", 20_000, peer_duration=0.5),
         Scene("pile_100k", "pile", 100_000, box_width=5.0, peers=False),
         Scene("boxes_1k", "boxes", 1_000),
+        Scene("box_pyramid", "pyramid", 55),
         Scene("cloth_64", "cloth", 64),
         Scene(
             "cloth_128", "cloth", 128, peer_duration=0.5,
@@ -189,6 +191,18 @@ def rain_positions(count: int, seed: int) -> np.ndarray:
     return position
 
 
+def pyramid_positions(count: int) -> np.ndarray:
+    """Cube centres of a 2D pyramid, `base` cubes on the ground and one fewer each row up, 1 cm
+    apart, resting on each other; count = base (base + 1) / 2 (55 for a base of 10), shape (count, 3)."""
+    base = int(round((math.sqrt(8 * count + 1) - 1) / 2))
+    if base * (base + 1) // 2 != count:
+        raise ValueError(f"a pyramid has a triangular number of cubes, not {count}")
+    pitch = 2 * CUBE_HALF + PYRAMID_GAP
+    rows = [(i - (base - 1 - row) / 2) * pitch for row in range(base) for i in range(base - row)]
+    heights = [CUBE_HALF + 2 * CUBE_HALF * row for row in range(base) for _ in range(base - row)]
+    return np.stack([np.array(rows), np.zeros(count), np.array(heights)], axis=1)
+
+
 def initial_bodies(scene: Scene) -> Bodies:
     """The moving bodies and static planes of a pile or box-rain scene."""
     if scene.kind == "pile":
@@ -200,6 +214,10 @@ def initial_bodies(scene: Scene) -> Bodies:
         return Bodies(
             "box", rain_positions(scene.count, scene.seed), 0.0, np.full(3, CUBE_HALF), CUBE_MASS,
             box_planes(0.0)[:1],
+        )
+    if scene.kind == "pyramid":
+        return Bodies(
+            "box", pyramid_positions(scene.count), 0.0, np.full(3, CUBE_HALF), CUBE_MASS, box_planes(0.0)[:1],
         )
     raise ValueError(f"scene {scene.name!r} of kind {scene.kind!r} has no rigid bodies")
 

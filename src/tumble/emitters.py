@@ -210,11 +210,9 @@ class Emitter:
         if self.mass is not None:
             mass = self._uniform(*self.mass, k)
         else:
-            volume = np.where(is_sphere, [sphere_volume(r) for r in radius],
-                              [box_volume(h) for h in half])
+            volume = np.where(is_sphere, sphere_volume(radius), box_volume(half))
             mass = self._uniform(*self.density, k) * volume
-        inertia = np.array([sphere_inertia(m, r) if s else box_inertia(m, h)
-                            for m, r, h, s in zip(mass, radius, half, is_sphere)]).reshape(k, 3)
+        inertia = np.where(is_sphere[:, None], sphere_inertia(mass, radius), box_inertia(mass, half))
         velocity = self._sample_directions(k) * self._uniform(*self.speed, k)[:, None]
         if self.random_orientation:
             q = rng.normal(size=(k, 4))

@@ -35,26 +35,28 @@ def shape_from_name(name: str) -> ShapeType:
         raise ValueError(f"unknown shape {name!r}: expected one of {', '.join(SHAPE_NAMES)}") from None
 
 
-def sphere_volume(radius: float) -> float:
-    """Volume of a sphere [m^3]: 4/3 pi r^3."""
-    return 4.0 / 3.0 * np.pi * radius**3
+def sphere_volume(radius):
+    """Volume of spheres [m^3]: 4/3 pi r^3 (a number or an array of radii)."""
+    return 4.0 / 3.0 * np.pi * np.asarray(radius, dtype=np.float64) ** 3
 
 
-def box_volume(half_extents) -> float:
-    """Volume of a box [m^3]: 8 hx hy hz."""
+def box_volume(half_extents):
+    """Volume of boxes [m^3]: 8 hx hy hz, half extents shape (3,) or (n, 3)."""
     h = np.asarray(half_extents, dtype=np.float64)
-    return float(8.0 * h[0] * h[1] * h[2])
+    return 8.0 * h[..., 0] * h[..., 1] * h[..., 2]
 
 
-def sphere_inertia(mass: float, radius: float) -> np.ndarray:
-    """Principal moments of a solid sphere [kg m^2], shape (3,): I = 2/5 m r^2."""
-    return np.full(3, 0.4 * mass * radius * radius)
+def sphere_inertia(mass, radius) -> np.ndarray:
+    """Principal moments of solid spheres [kg m^2], shape (..., 3): I = 2/5 m r^2."""
+    i = 0.4 * np.asarray(mass, dtype=np.float64) * np.asarray(radius, dtype=np.float64) ** 2
+    return np.repeat(i[..., None], 3, axis=-1)
 
 
-def box_inertia(mass: float, half_extents) -> np.ndarray:
-    """Principal moments of a solid box [kg m^2], shape (3,).
+def box_inertia(mass, half_extents) -> np.ndarray:
+    """Principal moments of solid boxes [kg m^2], shape (..., 3).
 
     With half extents (a, b, c): Ixx = m/3 (b^2 + c^2), and so on by cycling the axes.
     """
-    a, b, c = np.asarray(half_extents, dtype=np.float64)
-    return mass / 3.0 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    h2 = np.asarray(half_extents, dtype=np.float64) ** 2
+    m = np.asarray(mass, dtype=np.float64)[..., None]
+    return m / 3.0 * (np.sum(h2, axis=-1, keepdims=True) - h2)

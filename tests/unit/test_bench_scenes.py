@@ -82,21 +82,3 @@ def test_peer_engines_start_from_the_scene_positions(engine):
     adapter = engines.ADAPTERS[engine](cloth)
     np.testing.assert_allclose(adapter.cloth_position(), scenes.initial_cloth(cloth).position, atol=1e-6)
     adapter.close()
-
-
-@pytest.mark.parametrize("kind", ["pile", "boxes"])
-def test_tumble_bulk_add_matches_one_by_one(kind):
-    """Give the same body arrays whether the benchmark adds bodies in bulk or one by one."""
-    tumble = pytest.importorskip("tumble")
-    from benchmarks import engines
-
-    init = scenes.initial_bodies(scenes.Scene("bulk_test", kind, 30))
-    one, bulk = tumble.World(), tumble.World()
-    add = one.add_sphere if init.shape == "sphere" else one.add_box
-    size = {"radius": init.radius} if init.shape == "sphere" else {"half_extents": init.half_extents}
-    for p in init.position:
-        add(position=p, mass=init.mass, restitution=scenes.RESTITUTION, friction=scenes.FRICTION, **size)
-    engines._add_many(bulk, init)
-    assert one.body_count == bulk.body_count == 30
-    for name in one.bodies.fields:
-        np.testing.assert_array_equal(one.bodies.numpy(name), bulk.bodies.numpy(name), err_msg=name)

@@ -129,3 +129,31 @@ def test_profile_times_every_stage():
     w.run(0.1)
     assert {"broad_phase", "narrow_phase", "solver", "integrate"} <= set(w.profile)
     assert all(v >= 0 for v in w.profile.values())
+
+
+@pytest.mark.parametrize("shape", ["sphere", "box"])
+def test_bulk_add_matches_one_by_one(shape):
+    """add_spheres / add_boxes give the same body arrays as adding the bodies one at a time."""
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, (20, 3))
+    size = dict(radius=rng.uniform(0.05, 0.1, 20)) if shape == "sphere" else dict(half_extents=(0.1, 0.2, 0.05))
+    q = rng.normal(size=(20, 4))
+    one, bulk = tumble.World(), tumble.World()
+    for i in range(20):
+        kw = dict(radius=size["radius"][i]) if shape == "sphere" else size
+        one.add_body(shape, position=x[i], density=700.0, orientation=q[i], restitution=0.3, **kw)
+    adder = bulk.add_spheres if shape == "sphere" else bulk.add_boxes
+    ids = adder(position=x, density=700.0, orientation=q, restitution=0.3, **size)
+    assert [b.index for b in ids] == list(range(20))
+    for name in one.bodies.fields:
+        np.testing.assert_array_equal(one.bodies.numpy(name), bulk.bodies.numpy(name), err_msg=name)
+
+
+def test_bulk_add_names_bad_rows():
+    """A wrong shape or a bad value in one row is reported with the argument's name."""
+    w = tumble.World()
+    with pytest.raises(ValueError, match="radius must be a positive number"):
+        w.add_spheres(position=np.zeros((3, 3)), radius=[0.1, -0.1, 0.1])
+    with pytest.raises(ValueError, match=r"velocity must have 3 components \(or shape \(3, 3\)\)"):
+        w.add_spheres(position=np.zeros((3, 3)), radius=0.1, velocity=np.zeros((2, 3)))
+    assert w.body_count == 0
