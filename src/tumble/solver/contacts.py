@@ -170,31 +170,6 @@ def _inverse(k: float_t):
 
 
 @wp.func
-def _push(b: Bodies, ia: int, ib: int, P: vec3, dwa: vec3, dwb: vec3, serial: int):
-    """Apply linear impulse P to b and -P to a, with the given angular velocity changes.
-
-    Equal and opposite impulses conserve momentum exactly. `serial` (CPU): plain updates, one
-    contact after another (Gauss-Seidel); otherwise atomics (CUDA).
-    """
-    ima = b.inv_mass[ia]
-    imb = b.inv_mass[ib]
-    if serial != 0:
-        if ima > float_t(0.0):
-            b.v[ia] = b.v[ia] - P * ima
-            b.w[ia] = b.w[ia] - dwa
-        if imb > float_t(0.0):
-            b.v[ib] = b.v[ib] + P * imb
-            b.w[ib] = b.w[ib] + dwb
-    else:
-        if ima > float_t(0.0):
-            wp.atomic_sub(b.v, ia, P * ima)
-            wp.atomic_sub(b.w, ia, dwa)
-        if imb > float_t(0.0):
-            wp.atomic_add(b.v, ib, P * imb)
-            wp.atomic_add(b.w, ib, dwb)
-
-
-@wp.func
 def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
     """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
     return wp.dot(b.v[ib] - b.v[ia], d) + wp.dot(b.w[ib], wp.cross(rb, d)) - wp.dot(b.w[ia], wp.cross(ra, d))
@@ -382,18 +357,6 @@ def _prepare(
         c.scale[k] = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
 
 
-@wp.kernel
-def _warm_start(c: Contacts, b: Bodies, serial: int):
-    k = wp.tid()
-    jn = c.jn[k]
-    j1 = c.jt1[k]
-    j2 = c.jt2[k]
-    P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
-    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
-    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
-    _push(b, c.body_a[k], c.body_b[k], P, dwa, dwb, serial)
-
-
 @wp.func
 def _add_pair(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), ia: int, ib: int,
               dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
@@ -415,6 +378,20 @@ def _add_pair(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), inv_mass: wp.arr
         if inv_mass[ib] > float_t(0.0):
             wp.atomic_add(v, ib, dvb)
             wp.atomic_add(w, ib, dwb)
+
+
+@wp.kernel
+def _warm_start(c: Contacts, b: Bodies, serial: int):
+    k = wp.tid()
+    jn = c.jn[k]
+    j1 = c.jt1[k]
+    j2 = c.jt2[k]
+    P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
+    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
+    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial)
 
 
 @wp.kernel
@@ -571,7 +548,9 @@ def _restitution(c: Contacts, b: Bodies, threshold: float_t, serial: int):
     jn = wp.max(jn_old - c.mass_n[k] * (vn + c.restitution[k] * vrel) * c.scale[k], float_t(0.0))
     c.jn[k] = jn
     dj = jn - jn_old
-    _push(b, ia, ib, n * dj, c.ang_a_n[k] * dj, c.ang_b_n[k] * dj, serial)
+    P = n * dj
+    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -c.ang_a_n[k] * dj, P * b.inv_mass[ib],
+              c.ang_b_n[k] * dj, serial)
 
 
 # ---------------------------------------------------------------------------- host side
