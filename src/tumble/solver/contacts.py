@@ -8,12 +8,15 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   m_n = 1 / (1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + (r_b x n) . I_b^-1 (r_b x n)),
   the combined friction mu = sqrt(mu_a mu_b) and restitution e = max(e_a, e_b), and the
   approach speed used for restitution;
-- per substep: warm start (apply last impulses), `solve` (friction first, then the normal,
-  since non-penetration matters more) with bias (soft constraint pushes
-  overlapping bodies apart at a bounded speed), integrate positions, then `solve` again without
-  bias ("relax"), which removes the push-out velocity again, so penetration recovery adds no
-  kinetic energy -- the role split impulses play in older solvers;
+- per substep: warm start (the first substep applies last step's matched impulses in a pass of
+  its own; later ones get the previous substep's, summed per body by its relax pass, through
+  `integrate_velocities`), `solve` (friction first, then the normal, since non-penetration
+  matters more) with bias (the soft constraint pushes overlapping bodies apart at a bounded
+  speed), integrate positions, then `solve` again without bias ("relax"), which removes the
+  push-out velocity again, so penetration recovery adds no kinetic energy -- the role split
+  impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
+- contacts with a static body are twice as stiff (they carry whole piles), as in Box2D;
 - overlaps up to `LINEAR_SLOP` are held rigidly (no push-out), so resting stacks do not jitter;
 - after the substeps, `restitution` sets the normal velocity to -e times the approach speed for
   contacts that approached faster than the threshold, so resting contacts never bounce.
