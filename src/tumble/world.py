@@ -151,7 +151,12 @@ class World:
         restitution_threshold: float = 0.5,
     ):
         wp.init()
-        self.device = str(wp.get_device(device))
+        if str(device).startswith("cuda") and not wp.is_cuda_available():
+            raise ValueError(f"device {device!r}: Warp finds no CUDA device on this machine; use device='cpu'")
+        try:
+            self.device = str(wp.get_device(device))
+        except (RuntimeError, ValueError) as exc:
+            raise ValueError(f"device {device!r}: {exc}") from None
         self.gravity = _vec(gravity, "gravity")
         self.dt = _positive(dt, "dt")
         self.substeps = int(substeps)

@@ -157,3 +157,14 @@ def test_bulk_add_names_bad_rows():
     with pytest.raises(ValueError, match=r"velocity must have 3 components \(or shape \(3, 3\)\)"):
         w.add_spheres(position=np.zeros((3, 3)), radius=0.1, velocity=np.zeros((2, 3)))
     assert w.body_count == 0
+
+
+def test_unknown_or_missing_device_is_named():
+    """A device Warp cannot use is a ValueError naming it, not a crash inside Warp."""
+    import warp as wp
+
+    with pytest.raises(ValueError, match="device 'gpu7'"):
+        tumble.World(device="gpu7")
+    if not wp.is_cuda_available():
+        with pytest.raises(ValueError, match="no CUDA device"):
+            tumble.World(device="cuda")
