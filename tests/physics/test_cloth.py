@@ -136,9 +136,9 @@ def test_cloth_folding_on_ground_keeps_thickness():
     # it folded: the 1 m tall cloth now lies within a few thicknesses of the ground
     assert x[:, 2].max() < 6 * thickness
     assert x[:, 2].min() >= thickness - 1e-9
-    # settled layers keep the thickness apart, to the ~1 % that the springs pulling the folds tight
-    # leave against the pushes (0.987 to 0.997 measured over several setups)
-    assert non_neighbour_min_distance(x, n) >= 0.97 * thickness
+    # settled layers keep the thickness apart, to the fraction of a percent that the springs
+    # pulling the folds tight leave against the pushes (0.9992 measured here)
+    assert non_neighbour_min_distance(x, n) >= 0.99 * thickness
 
 
 def test_wind_and_turbulence_are_deterministic():

@@ -474,6 +474,18 @@ class ClothSystem:
                                        a["tether_limit"], self._candidates, world.bodies, self._contacts_prev,
                                        self._contacts_next, hi, cache=cache)
                 self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+                # bodies pushed some particles into the layer above: part them, then push out of
+                # the bodies once more (only the part of a fold that touches a body settles here)
+                if self.self_collision and self._grid.count:
+                    self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
+                                        cache=cache)
+                    self._contacts_next.zero_()
+                    collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
+                                           a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
+                                           a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
+                                           a["tether_limit"], self._candidates, world.bodies, self._contacts_prev,
+                                           self._contacts_next, hi, cache=cache)
+                    self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
         # velocities from the corrected positions
         springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
