@@ -181,6 +181,14 @@ def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
 # ---------------------------------------------------------------------------- warm-start matching
 
 
+@wp.func
+def _owner(a: int, b: int, inv_mass: wp.array(dtype=float_t)):
+    """The contact's first dynamic body: the one whose anchor identifies the contact next step."""
+    if inv_mass[a] == float_t(0.0):
+        return b
+    return a
+
+
 @wp.kernel
 def _owner_count(
     body_a: wp.array(dtype=wp.int32),
@@ -189,10 +197,7 @@ def _owner_count(
     owner_count: wp.array(dtype=wp.int32),
 ):
     c = wp.tid()
-    o = body_a[c]
-    if inv_mass[o] == float_t(0.0):
-        o = body_b[c]
-    wp.atomic_add(owner_count, o, 1)
+    wp.atomic_add(owner_count, _owner(body_a[c], body_b[c], inv_mass), 1)
 
 
 @wp.kernel
@@ -205,9 +210,7 @@ def _owner_scatter(
     owner_entries: wp.array(dtype=wp.int32),
 ):
     c = wp.tid()
-    o = body_a[c]
-    if inv_mass[o] == float_t(0.0):
-        o = body_b[c]
+    o = _owner(body_a[c], body_b[c], inv_mass)
     owner_entries[owner_start[o] + wp.atomic_add(owner_fill, o, 1)] = c
 
 
