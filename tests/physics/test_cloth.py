@@ -185,3 +185,25 @@ def test_ball_rests_on_cloth_lying_on_ground():
     # the cloth is not pushed into the ground and the ball not through the cloth
     assert world.cloth.particle_position[:, 2].min() >= thickness - 1e-6
     assert world.body_position[ball.index, 2] == pytest.approx(radius + 2 * thickness, abs=0.1 * thickness)
+
+
+def test_box_in_hammock_settles():
+    """A box dropped into a cloth held at its corners comes to rest instead of chattering.
+
+    Regression: particles switched on and off between "held by a taut tether" and "free", and
+    the box kept moving at 0.1-0.3 m/s and spinning at 0.7-2.8 rad/s; tethers now stiffen
+    gradually near their limit.
+    """
+    world = tumble.World()
+    world.add_plane()
+    world.add_cloth(size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), pins="corners",
+                    thickness=0.03, friction=0.5)
+    box = world.add_box(position=(0.05, 0.02, 1.3), half_extents=(0.1, 0.1, 0.1), mass=0.3, friction=0.5,
+                        restitution=0.0)
+    world.run(2.5)
+    for _ in range(4):
+        world.run(0.5)
+        assert np.linalg.norm(world.body_velocity[box.index]) < 0.08
+        assert np.linalg.norm(world.body_angular_velocity[box.index]) < 0.5
+    # caught: well above the ground, below where the cloth was pinned
+    assert 0.5 < world.body_position[box.index][2] < 1.0
