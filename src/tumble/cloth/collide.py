@@ -32,6 +32,7 @@ import warp as wp
 
 from ..shapes import ShapeType
 from ..collision.hashgrid import HashGrid, cell_hash, cell_of
+from ..collision.narrowphase import box_closest
 from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
 from ..launch import LaunchCache, launch
@@ -103,27 +104,7 @@ def _collide_bodies(
             if length > float_t(1.0e-12):
                 n = r / length
         else:
-            he = body_half_extents[b]
-            pl = wp.quat_rotate_inv(q, xp - c)
-            excess = vec3(wp.abs(pl[0]) - he[0], wp.abs(pl[1]) - he[1], wp.abs(pl[2]) - he[2])
-            outside = vec3(wp.max(excess[0], zero), wp.max(excess[1], zero), wp.max(excess[2], zero))
-            dist_out = wp.length(outside)
-            nl = vec3(zero, zero, zero)
-            if dist_out > zero:
-                d = dist_out
-                nl = (pl - vec3(wp.clamp(pl[0], -he[0], he[0]), wp.clamp(pl[1], -he[1], he[1]),
-                                wp.clamp(pl[2], -he[2], he[2]))) / dist_out
-            else:
-                # inside: leave through the nearest face
-                axis = int(0)
-                d = excess[0]
-                if excess[1] > d:
-                    axis = 1
-                    d = excess[1]
-                if excess[2] > d:
-                    axis = 2
-                    d = excess[2]
-                nl[axis] = wp.sign(pl[axis])
+            _surface, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), body_half_extents[b])
             n = wp.quat_rotate(q, nl)
         depth = thickness[p] - d
         if depth <= zero:

@@ -135,31 +135,40 @@ def collide_sphere_sphere(
 
 
 @wp.func
-def collide_sphere_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
-    # closest point of the box to the sphere centre, in the box frame
-    p = wp.quat_rotate_inv(B.q, A.x - B.x)
+def box_closest(p: vec3, h: vec3):
+    """Signed distance of a point from a box's surface, box frame (half extents h).
+
+    Returns (closest surface point, outward unit normal there, signed distance d). Outside,
+    d > 0 is the distance to the clamped point; inside, d < 0 and the point leaves through the
+    nearest face.
+    """
     q = vec3(wp.clamp(p[0], -h[0], h[0]), wp.clamp(p[1], -h[1], h[1]), wp.clamp(p[2], -h[2], h[2]))
     delta = p - q
     dist = wp.length(delta)
-    out = vec3(_ZERO, _ZERO, _ONE)  # box -> sphere, box frame
     if dist > float_t(1e-12):
-        out = delta / dist
+        return q, delta / dist, dist
+    best = int(0)
+    gap = h[0] - wp.abs(p[0])
+    for k in range(1, 3):
+        g = h[k] - wp.abs(p[k])
+        if g < gap:
+            gap = g
+            best = k
+    out = vec3(_ZERO, _ZERO, _ZERO)
+    if p[best] >= _ZERO:
+        out[best] = _ONE
+        q[best] = h[best]
     else:
-        # centre inside: leave through the nearest face
-        best = int(0)
-        gap = h[0] - wp.abs(p[0])
-        for k in range(1, 3):
-            g = h[k] - wp.abs(p[k])
-            if g < gap:
-                gap = g
-                best = k
-        out = vec3(_ZERO, _ZERO, _ZERO)
-        if p[best] >= _ZERO:
-            out[best] = _ONE
-            q[best] = h[best]
-        else:
-            out[best] = -_ONE
-            q[best] = -h[best]
+        out[best] = -_ONE
+        q[best] = -h[best]
+    return q, out, -gap
+
+
+@wp.func
+def collide_sphere_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
+    # closest point of the box to the sphere centre, in the box frame
+    p = wp.quat_rotate_inv(B.q, A.x - B.x)
+    q, out, d = box_closest(p, h)  # out: box -> sphere, box frame
     n = -wp.quat_rotate(B.q, out)  # sphere (a) -> box (b)
     emit(c, a, b, A, B, n, A.x + n * r, B.x + wp.quat_rotate(B.q, q), max_sep)
 
