@@ -24,17 +24,9 @@ def make_cloth_world():
 
 
 @pytest.fixture
-def window(qtbot, tmp_path):
-    from tumble.viewer import make_application
-    from tumble.viewer.window import ViewerWindow
-
-    make_application()
-    win = ViewerWindow(factory=make_cloth_world, size=(320, 240), paused=True, view="image", output_dir=tmp_path)
-    qtbot.addWidget(win)
-    win.show()
-    qtbot.waitExposed(win)
-    yield win
-    win.close()
+def window(open_viewer):
+    """A paused 320x240 viewer on `make_cloth_world`, saving into tmp_path."""
+    return open_viewer(make_cloth_world)
 
 
 def test_wind_controls_set_the_cloth_wind(window):

@@ -24,18 +24,9 @@ def make_world():
 
 
 @pytest.fixture
-def window(qtbot, tmp_path):
+def window(open_viewer):
     """A paused 320x240 viewer on `make_world`, saving into tmp_path."""
-    from tumble.viewer import make_application
-    from tumble.viewer.window import ViewerWindow
-
-    make_application()
-    win = ViewerWindow(factory=make_world, size=(320, 240), paused=True, view="image", output_dir=tmp_path)
-    qtbot.addWidget(win)
-    win.show()
-    qtbot.waitExposed(win)
-    yield win
-    win.close()
+    return open_viewer(make_world)
 
 
 def test_window_opens_the_scene(window):
