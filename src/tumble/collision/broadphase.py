@@ -102,6 +102,9 @@ def _query_large(
 
 @wp.kernel
 def _query_grid(
+    x: wp.array(dtype=vec3),
+    radius: wp.array(dtype=float_t),
+    point_cell: wp.array(dtype=wp.int32),
     inv_mass: wp.array(dtype=float_t),
     inv_cell: float_t,
     mask: int,
@@ -115,13 +118,14 @@ def _query_grid(
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
 ):
-    # one thread per grid entry, in cell order: neighbouring threads scan neighbouring cells
-    t = wp.tid()
-    if t >= cell_start[mask] + cell_count[mask]:
+    # one thread per body, in index order, so that pairs (and the contacts made from them) come
+    # out sorted by their emitting body: the solver then walks body memory nearly in order
+    # (cell order, being hashed, would send it all over the body arrays: 3x slower at 100k)
+    i = wp.tid()
+    if point_cell[i] < 0:
         return
-    i = entries[t]
-    ri = sorted_radius[t]
-    xi = sorted_x[t]
+    ri = radius[i]
+    xi = x[i]
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
     reach = vec3(float_t(2.0) * ri, float_t(2.0) * ri, float_t(2.0) * ri)
     lo = cell_of(xi - reach, inv_cell)
@@ -207,7 +211,7 @@ class BroadPhase:
         while True:
             self.pair_count_array.zero_()
             wp.launch(_query_grid, dim=n, device=dev,
-                      inputs=[b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
+                      inputs=[b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
                               grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
                               self.pair_count_array, self.pair_a, self.pair_b])
             wp.launch(_query_large, dim=n, device=dev,
