@@ -109,6 +109,8 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
 
     With `warm`, first add the warm start the last relax pass summed per body; either way clear it.
     """
+    if bodies.count == 0:
+        return  # a cloth-only world: no launch over an empty capacity
     a = bodies.arrays
     launch(_integrate_velocities, bodies.capacity,
            [a["body_inv_mass"], a["body_inv_inertia"], a["body_orientation"], a["body_force"], a["body_torque"],
@@ -118,6 +120,8 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
     """x += v h and q' = exp(w h / 2) q for every dynamic body, conserving angular momentum."""
+    if bodies.count == 0:
+        return
     a = bodies.arrays
     launch(_integrate_positions, bodies.capacity,
            [a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
@@ -127,11 +131,15 @@ def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -
 
 def begin_step(bodies) -> None:
     """Zero the motion accumulated since the step began (read by the contact solver)."""
+    if bodies.count == 0:
+        return
     bodies.arrays["body_delta_position"].zero_()
     bodies.arrays["body_delta_rotation"].zero_()
 
 
 def clear_forces(bodies) -> None:
     """Forget the user forces and torques applied for the step just taken."""
+    if bodies.count == 0:
+        return
     a = bodies.arrays
     wp.launch(_clear, dim=bodies.count, device=bodies.device, inputs=[a["body_force"], a["body_torque"]])
