@@ -92,6 +92,14 @@ class ArraySet:
         host = arr.numpy() if n else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
         return host[:n]
 
+    def permute(self, order: np.ndarray) -> None:
+        """Reorder the first `count` rows of every array: new row k is old row `order[k]`."""
+        for name, arr in self.arrays.items():
+            host = arr.numpy()
+            host[: self.count] = host[order]
+            if self.device != "cpu":
+                arr.assign(host)
+
     def write(self, name: str, rows, values) -> None:
         """Overwrite the rows `rows` (an index array or slice) of one array from host values."""
         host = self.arrays[name].numpy()

@@ -60,13 +60,18 @@ def _emits(i: int, j: int, ri: float_t, rj: float_t, inv_mass: wp.array(dtype=fl
 
 
 @wp.func
-def _push_pair(i: int, j: int, pair_count: wp.array(dtype=wp.int32), pair_a: wp.array(dtype=wp.int32),
-               pair_b: wp.array(dtype=wp.int32)):
-    # stored lower index first, so a pair keeps its order (and its warm start) from step to step
+def _push_pair(i: int, j: int, body_id: wp.array(dtype=wp.int32), pair_count: wp.array(dtype=wp.int32),
+               pair_a: wp.array(dtype=wp.int32), pair_b: wp.array(dtype=wp.int32)):
+    # stored lower id first, so a pair keeps its order (and its warm start) from step to step,
+    # even when the world renumbers its body rows
     k = wp.atomic_add(pair_count, 0, 1)
     if k < pair_a.shape[0]:
-        pair_a[k] = wp.min(i, j)
-        pair_b[k] = wp.max(i, j)
+        if body_id[i] < body_id[j]:
+            pair_a[k] = i
+            pair_b[k] = j
+        else:
+            pair_a[k] = j
+            pair_b[k] = i
 
 
 @wp.kernel
@@ -78,6 +83,7 @@ def _query_large(
     q: wp.array(dtype=wp.quatd),
     radius: wp.array(dtype=float_t),
     inv_mass: wp.array(dtype=float_t),
+    body_id: wp.array(dtype=wp.int32),
     pair_count: wp.array(dtype=wp.int32),
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
@@ -97,7 +103,7 @@ def _query_large(
             else:
                 near = wp.length(x[j] - xi) < ri + radius[j]
             if near:
-                _push_pair(i, j, pair_count, pair_a, pair_b)
+                _push_pair(i, j, body_id, pair_count, pair_a, pair_b)
 
 
 @wp.kernel
@@ -114,6 +120,7 @@ def _query_grid(
     sorted_x: wp.array(dtype=vec3),
     sorted_radius: wp.array(dtype=float_t),
     sorted_coord: wp.array(dtype=wp.vec3i),
+    body_id: wp.array(dtype=wp.int32),
     pair_count: wp.array(dtype=wp.int32),
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
@@ -144,7 +151,7 @@ def _query_grid(
                         if cj[0] == cx and cj[1] == cy and cj[2] == cz:
                             j = entries[e]
                             if j != i and _emits(i, j, ri, rj, inv_mass):
-                                _push_pair(i, j, pair_count, pair_a, pair_b)
+                                _push_pair(i, j, body_id, pair_count, pair_a, pair_b)
 
 
 class BroadPhase:
@@ -213,10 +220,10 @@ class BroadPhase:
             wp.launch(_query_grid, dim=n, device=dev,
                       inputs=[b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
                               grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
-                              self.pair_count_array, self.pair_a, self.pair_b])
+                              b["body_id"], self.pair_count_array, self.pair_a, self.pair_b])
             wp.launch(_query_large, dim=n, device=dev,
                       inputs=[n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
-                              self.swept_radius, b["body_inv_mass"], self.pair_count_array, self.pair_a,
+                              self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
                               self.pair_b])
             count = int(self.pair_count_array.numpy()[0])
             if count <= self.pair_capacity:

@@ -157,3 +157,31 @@ class HashGrid:
                   inputs=[x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,
                           self.entries, self.sorted_x, self.sorted_radius, self.sorted_coord])
         return self
+
+
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """Spread the low 21 bits of each value so that two zero bits follow each bit."""
+    v = v & 0x1FFFFF
+    v = (v | (v << 32)) & 0x1F00000000FFFF
+    v = (v | (v << 16)) & 0x1F0000FF0000FF
+    v = (v | (v << 8)) & 0x100F00F00F00F00F
+    v = (v | (v << 4)) & 0x10C30C30C30C30C3
+    v = (v | (v << 2)) & 0x1249249249249249
+    return v
+
+
+def spatial_order(x: np.ndarray, cell_size: float) -> np.ndarray:
+    """Indices that sort points along a Morton (Z-order) curve over cells of edge `cell_size`.
+
+    Points close in space mostly end up close in the order; ties keep their index order, so
+    the result is deterministic. Cost O(n log n) on the host.
+    """
+    n = len(x)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    finite = np.isfinite(x).all(axis=1)
+    lo = x[finite].min(axis=0) if finite.any() else np.zeros(3)
+    c = np.floor((np.where(finite[:, None], x, lo) - lo) / max(float(cell_size), 1e-9))
+    c = np.clip(c, 0, (1 << 21) - 1).astype(np.int64)
+    key = _spread_bits(c[:, 0]) | (_spread_bits(c[:, 1]) << 1) | (_spread_bits(c[:, 2]) << 2)
+    return np.argsort(key, kind="stable")

@@ -640,6 +640,17 @@ class ContactSet(ArraySet):
                           p.previous_body_b, p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t,
                           self.jt_world])
 
+    def remap_bodies(self, slot: np.ndarray) -> None:
+        """The body rows were renumbered (row i is now `slot[i]`): follow them in last step's contacts.
+
+        Pairs are ordered by body id, not row, so a renumbering never swaps a pair's bodies and
+        every contact keeps its warm start.
+        """
+        p = self.previous
+        for name in ("previous_body_a", "previous_body_b"):
+            rows = p.numpy(name)
+            p.write(name, slice(0, p.count), slot[rows])
+
     def store_impulses(self, bodies) -> None:
         """Keep this step's contacts and impulses for the next step's warm start."""
         p = self.previous
