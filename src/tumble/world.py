@@ -28,6 +28,7 @@ from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
 from .errors import SimulationError
 from .launch import LaunchCache
+from .runtime import init_warp
 from .shapes import ShapeType
 from .solver import contacts as contact_solver
 from .solver import integrate
@@ -157,7 +158,7 @@ class World:
         device: str = "cpu",
         restitution_threshold: float = 0.5,
     ):
-        wp.init()
+        init_warp()
         if str(device).startswith("cuda") and not wp.is_cuda_available():
             raise ValueError(f"device {device!r}: Warp finds no CUDA device on this machine; use device='cpu'")
         try:

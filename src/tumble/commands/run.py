@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from ..errors import TumbleError
+from ..runtime import init_warp
 
 HELP = "simulate a scene headless and print a summary"
 
@@ -46,7 +47,7 @@ def _check_arguments(args: argparse.Namespace) -> None:
         import warp as wp
 
         _quiet_warp()
-        wp.init()
+        init_warp()
         if not wp.is_cuda_available():
             raise TumbleError("--device cuda: Warp finds no CUDA device on this machine; use --device cpu")
 
