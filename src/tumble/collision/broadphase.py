@@ -8,10 +8,12 @@ scatter), and each body scans the cells its swept bound can reach.
 Rules that keep it exact and duplicate-free:
 - a body's swept radius R = bound radius + dt * (|v| + |w| * bound) + margin, so fast bodies
   find their partners before they arrive (speculative contacts, no tunnelling);
-- a pair is emitted by its body with the larger R (ties: the lower index), which scans
+- a pair is emitted by its body with the larger R (ties: the lower row), which scans
   the cells overlapping its position +- 2 R; a body that would scan more than `MAX_RANGE` cells each way
   (planes, huge static boxes, very fast bodies) tests every body directly instead;
-- pairs of two static bodies are dropped.
+- pairs of two static bodies are dropped;
+- a pair is stored lower body id first, so it keeps its order (and warm start) when the world
+  renumbers its rows; pairs come out in the row order of their emitting bodies.
 
 Tuning: the cell edge is twice the largest swept radius among ordinary bodies (bound radius no
 more than 4x the median, swept radius no more than 1.5x the largest such bound), which is the
