@@ -207,3 +207,39 @@ def test_box_in_hammock_settles():
         assert np.linalg.norm(world.body_angular_velocity[box.index]) < 0.5
     # caught: well above the ground, below where the cloth was pinned
     assert 0.5 < world.body_position[box.index][2] < 1.0
+
+
+@pytest.mark.parametrize("radius", [0.01, 0.02, 0.03])
+def test_small_ball_does_not_pass_between_particles(radius):
+    """A ball narrower than the gaps of a coarse cloth (spacing 6.7 cm) lands on its triangles.
+
+    Dropped over the middle of a grid cell, where no particle is within reach, it must be held
+    by the triangles on the side it came from (before, balls up to 3 cm fell through).
+    """
+    thickness = 0.01
+    world = tumble.World(dt=DT)
+    world.add_plane()
+    world.add_cloth(size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), pins="corners", thickness=thickness)
+    spacing = 1.0 / 15
+    ball = world.add_sphere(position=(spacing / 2, spacing / 2, 1.3), radius=radius, mass=0.05)
+    heights = []
+    world.run(2.0, callback=lambda w: heights.append(w.body_position[ball.index, 2]))
+    x = world.cloth.particle_position
+    c = world.body_position[ball.index]
+    assert min(heights) > 0.5  # never near the ground
+    # kept off the mesh (no triangle closer than radius + thickness / 2, to 1 mm), on its upper side
+    distance, nearest = min((_point_triangle_distance(c, *x[t]), k) for k, t in enumerate(world.cloth.triangles))
+    assert distance > radius + thickness / 2 - 1e-3
+    a, b, d = x[world.cloth.triangles[nearest]]
+    up = np.cross(b - a, d - a)
+    up *= np.sign(up[2])
+    assert np.dot(c - a, up) > 0.0
+
+
+def _point_triangle_distance(p, a, b, c, samples: int = 24) -> float:
+    """Distance from p to triangle abc, by dense barycentric sampling (a test-side reference)."""
+    u, v = np.meshgrid(np.linspace(0, 1, samples), np.linspace(0, 1, samples))
+    keep = u + v <= 1
+    u, v = u[keep], v[keep]
+    pts = a + u[:, None] * (b - a) + v[:, None] * (c - a)
+    return float(np.linalg.norm(pts - p, axis=1).min())

@@ -9,6 +9,8 @@ Stages:
   that are closer than their thickness to a plane, sphere or box surface back out, applies
   Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
   equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
+- `catch_small_spheres` (one thread per triangle) does the same for spheres small enough to
+  pass between particles, against the closest point of each triangle. Cost O(T x candidates).
 - `SelfCollisionGrid.find_pairs` (once per world step) sorts particles into the counting-sort
   spatial hash shared with the bodies' broad phase (`collision/hashgrid.py`) and lists the particle pairs closer than their thickness plus a margin, except
   near neighbours on the same grid (|di| <= 2 and |dj| <= 2), which are held by springs.
@@ -40,6 +42,28 @@ from ..launch import LaunchCache, launch
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))
+
+
+@wp.func
+def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), tether_first: wp.array(dtype=wp.int32),
+              tether_count: wp.array(dtype=wp.int32), tether_pin: wp.array(dtype=wp.int32),
+              tether_limit: wp.array(dtype=float_t), taut: float_t):
+    """Inverse mass with which particle p at xp yields to a push along n: less the tauter its tethers.
+
+    A tether that the push would stretch holds its particle: free below taut x its limit, fixed
+    at the limit, linear in between (a sudden switch made bodies resting on cloth chatter).
+    """
+    w = w_p
+    t = tether_first[p]
+    t_end = t + tether_count[p]
+    while t < t_end:
+        arm = xp - x[tether_pin[t]]
+        if wp.dot(arm, n) > float_t(0.0):
+            lim = tether_limit[t]
+            slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - taut))
+            w = wp.min(w, w_p * wp.clamp(slack, float_t(0.0), float_t(1.0)))
+        t += 1
+    return w
 
 
 @wp.kernel
@@ -129,17 +153,7 @@ def _collide_bodies(
         elif wp.dot(support, n) < zero:
             w_c = zero
         if w_b > zero and w_c > zero:
-            t = tether_first[p]
-            t_end = t + tether_count[p]
-            while t < t_end:
-                arm = xp - x[tether_pin[t]]
-                if wp.dot(arm, n) > zero:
-                    # give way less the tauter the tether: free below taut x limit, fixed at the
-                    # limit, linear in between (a sudden switch made bodies on cloth chatter)
-                    lim = tether_limit[t]
-                    slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - taut))
-                    w_c = wp.min(w_c, w_p * wp.clamp(slack, zero, float_t(1.0)))
-                t += 1
+            w_c = wp.min(w_c, _give_way(p, xp, n, w_p, x, tether_first, tether_count, tether_pin, tether_limit, taut))
         if w_c + w_b <= zero:
             continue
         lam = depth / (w_c + split * w_b)
@@ -179,6 +193,133 @@ def _collide_bodies(
             wp.atomic_add(body_delta_position, b, dx_b)
             wp.atomic_add(body_delta_rotation, b, dtheta)
     x[p] = xp
+
+
+@wp.func
+def closest_on_triangle(p: vec3, a: vec3, b: vec3, c: vec3):
+    """Barycentric weights (of a, b, c) of the point of triangle abc closest to p (Ericson 2005, 5.1.5)."""
+    zero = float_t(0.0)
+    one = float_t(1.0)
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= zero and d2 <= zero:
+        return vec3(one, zero, zero)
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= zero and d4 <= d3:
+        return vec3(zero, one, zero)
+    vc = d1 * d4 - d3 * d2
+    if vc <= zero and d1 >= zero and d3 <= zero:
+        t = d1 / (d1 - d3)
+        return vec3(one - t, t, zero)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= zero and d5 <= d6:
+        return vec3(zero, zero, one)
+    vb = d5 * d2 - d1 * d6
+    if vb <= zero and d2 >= zero and d6 <= zero:
+        t = d2 / (d2 - d6)
+        return vec3(one - t, zero, t)
+    va = d3 * d6 - d5 * d4
+    if va <= zero and (d4 - d3) >= zero and (d5 - d6) >= zero:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return vec3(zero, one - t, t)
+    denom = one / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return vec3(one - v - w, v, w)
+
+
+@wp.kernel
+def _catch_small_spheres(
+    x: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    rest: wp.array(dtype=vec3),
+    thickness: wp.array(dtype=float_t),
+    tether_first: wp.array(dtype=wp.int32),
+    tether_count: wp.array(dtype=wp.int32),
+    tether_pin: wp.array(dtype=wp.int32),
+    tether_limit: wp.array(dtype=float_t),
+    triangles: wp.array2d(dtype=wp.int32),
+    candidates: wp.array(dtype=wp.int32),
+    candidate_count: int,
+    body_shape: wp.array(dtype=wp.int32),
+    body_position: wp.array(dtype=vec3),
+    body_radius: wp.array(dtype=float_t),
+    body_inv_mass: wp.array(dtype=float_t),
+    body_velocity: wp.array(dtype=vec3),
+    body_delta_position: wp.array(dtype=vec3),
+    contact_count_prev: wp.array(dtype=wp.int32),
+    contact_count_next: wp.array(dtype=wp.int32),
+    h: float_t,
+    taut: float_t,
+):
+    t = wp.tid()
+    i0 = triangles[t, 0]
+    i1 = triangles[t, 1]
+    i2 = triangles[t, 2]
+    w0 = inv_m[i0]
+    w1 = inv_m[i1]
+    w2 = inv_m[i2]
+    zero = float_t(0.0)
+    # spheres that fit between this triangle's particles: no wider than its longest rest edge
+    edge = wp.max(wp.length(rest[i1] - rest[i0]), wp.max(wp.length(rest[i2] - rest[i1]), wp.length(rest[i0] - rest[i2])))
+    gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
+    for k in range(candidate_count):
+        b = candidates[k]
+        r = body_radius[b]
+        if body_shape[b] != SPHERE or r >= edge:
+            continue
+        c = body_position[b]
+        a0 = x[i0]
+        a1 = x[i1]
+        a2 = x[i2]
+        beta = closest_on_triangle(c, a0, a1, a2)
+        d = c - (a0 * beta[0] + a1 * beta[1] + a2 * beta[2])
+        dist = wp.length(d)
+        if dist >= r + gap:
+            continue
+        # the side the centre was on at the start of the substep decides the normal, so a sphere
+        # that got past the triangle's plane is pushed back rather than through
+        face = wp.cross(a1 - a0, a2 - a0)
+        p_prev = x_prev[i0] * beta[0] + x_prev[i1] * beta[1] + x_prev[i2] * beta[2]
+        if wp.dot(c - body_velocity[b] * h - p_prev, face) < zero:
+            face = -face
+        face_len = wp.length(face)
+        if face_len <= float_t(1.0e-14):
+            continue  # a collapsed triangle: its particles' own contacts handle it
+        n = face / face_len
+        depth = r + gap - dist
+        if wp.dot(d, n) < zero:
+            depth = r + gap + dist  # the centre is past the triangle: all the way back
+        elif dist > float_t(1.0e-12):
+            n = d / dist
+        # lambda moves the closest point by -lambda sum(beta_i^2 w_i) n and the centre by lambda w_b n;
+        # particles held by taut tethers give way less, as against any body
+        w_b = body_inv_mass[b]
+        split = float_t(wp.max(contact_count_prev[b], 1))
+        g0 = _give_way(i0, a0, -n, w0, x, tether_first, tether_count, tether_pin, tether_limit, taut)
+        g1 = _give_way(i1, a1, -n, w1, x, tether_first, tether_count, tether_pin, tether_limit, taut)
+        g2 = _give_way(i2, a2, -n, w2, x, tether_first, tether_count, tether_pin, tether_limit, taut)
+        w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
+        if w_tri + split * w_b <= zero:
+            continue
+        wp.atomic_add(contact_count_next, b, 1)
+        lam = depth / (w_tri + split * w_b)
+        wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
+        wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
+        wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
+        if w_b > zero:
+            dx_b = n * (lam * w_b)
+            wp.atomic_add(body_position, b, dx_b)
+            wp.atomic_add(body_velocity, b, dx_b / h)
+            wp.atomic_add(body_delta_position, b, dx_b)
 
 
 @wp.kernel
@@ -343,6 +484,29 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tethe
         a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
         a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
         contact_count_next, float(h), float(taut)], x.device, cache)
+
+
+def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, tether_first, tether_count, tether_pin,
+                        tether_limit, triangles, candidates, bodies, contact_count_prev, contact_count_next, h, *,
+                        taut: float = 0.97, cache: LaunchCache | None = None):
+    """Keep spheres that fit between particles from passing through the cloth's triangles.
+
+    Particles alone stop only bodies wider than the gaps between them. For each triangle and each
+    candidate sphere narrower than the triangle's longest rest edge, the closest point of the
+    triangle is kept at least radius + thickness / 2 from the centre, on the side the centre
+    was on when the substep began: the triangle's particles and the sphere move apart, weighted
+    by inverse masses, barycentric weights and tautness of the particles' tethers
+    (position-based, like `collide_bodies`, without friction).
+    Cost O(T x candidates).
+    """
+    k = candidates.shape[0]
+    if k == 0 or triangles.shape[0] == 0:
+        return
+    a = bodies.arrays
+    launch(_catch_small_spheres, triangles.shape[0], [
+        x, x_prev, inv_mass, rest_position, thickness, tether_first, tether_count, tether_pin, tether_limit, triangles,
+        candidates, k, a["body_shape"], a["body_position"], a["body_radius"], a["body_inv_mass"], a["body_velocity"],
+        a["body_delta_position"], contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:

@@ -12,7 +12,8 @@ arrays (see `springs`, `wind` and `collide`):
    list comes from a spatial hash and is rebuilt at a step start when particles may have
    moved past its margin), then the stretch limit is checked again;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
-   receive the opposite impulse;
+   receive the opposite impulse; spheres small enough to pass between particles are kept off
+   the triangles;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
 
 The cloth keeps its own substep: explicit springs are stable only for h^2 k / m small, so each
@@ -467,29 +468,33 @@ class ClothSystem:
 
             # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
             if touching:
-                self._contacts_next.zero_()
-                collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
-                                       a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
-                                       a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
-                                       a["tether_limit"], self._candidates, world.bodies, self._contacts_prev,
-                                       self._contacts_next, hi, cache=cache)
-                self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+                self._collide_bodies(hi)
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
                 if self.self_collision and self._grid.count:
                     self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
                                         cache=cache)
-                    self._contacts_next.zero_()
-                    collide.collide_bodies(a["particle_position"], a["particle_position_prev"],
-                                           a["particle_inv_mass"], a["particle_thickness"], a["particle_friction"],
-                                           a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
-                                           a["tether_limit"], self._candidates, world.bodies, self._contacts_prev,
-                                           self._contacts_next, hi, cache=cache)
-                    self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+                    self._collide_bodies(hi)
 
         # velocities from the corrected positions
         springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
                                   hi, cache=cache)
+
+    def _collide_bodies(self, hi: float) -> None:
+        """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
+        a = self._arrays
+        bodies = self.world.bodies
+        self._contacts_next.zero_()
+        collide.collide_bodies(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
+                               a["particle_thickness"], a["particle_friction"], a["particle_tether_first"],
+                               a["particle_tether_count"], a["tether_pin"], a["tether_limit"], self._candidates,
+                               bodies, self._contacts_prev, self._contacts_next, hi, cache=self._cache)
+        collide.catch_small_spheres(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
+                                    a["particle_rest_position"], a["particle_thickness"], a["particle_tether_first"],
+                                    a["particle_tether_count"], a["tether_pin"], a["tether_limit"], a["triangles"],
+                                    self._candidates, bodies, self._contacts_prev, self._contacts_next, hi,
+                                    cache=self._cache)
+        self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
     def _begin_step(self, dt: float) -> None:
         """Once per world step of `dt` seconds: cloth substeps, user forces, wind, candidate bodies."""
