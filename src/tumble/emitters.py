@@ -188,6 +188,14 @@ class Emitter:
         phi = 2.0 * np.pi * self.rng.random(k)
         return self.position + (r * np.cos(phi))[:, None] * u + (r * np.sin(phi))[:, None] * v
 
+    def _region_half_size(self, jitter: float) -> np.ndarray:
+        """Half size of a box around `position` holding every spot `emit` may try, per axis [m]."""
+        if self.region == "box":
+            return np.asarray(self.extent, dtype=float)
+        if self.region == "disc":
+            return np.full(3, float(self.extent))
+        return np.full(3, jitter * (TRIES - 1))  # a point scatters its later tries
+
     def _sample_directions(self, k: int) -> np.ndarray:
         # uniform on the spherical cap of half-angle theta around the direction
         cos_max = math.cos(math.radians(self.cone_angle))
@@ -241,8 +249,14 @@ class Emitter:
         shape = bodies.numpy("body_shape")
         # what is already there: spheres by centre and radius, boxes as oriented boxes, planes
         x_all = bodies.numpy("body_position")
-        spheres = shape == ShapeType.SPHERE
-        boxes = shape == ShapeType.BOX
+        jitter = max(float(np.max(cand["bound"])), 1e-3)
+        # only bodies whose bounding sphere reaches the region (grown by the largest candidate)
+        # can block a spot: test those, not all n bodies n times (planes always reach)
+        half = self._region_half_size(jitter) + jitter + CLEARANCE
+        gap = np.linalg.norm(x_all - np.clip(x_all, self.position - half, self.position + half), axis=1)
+        near = gap < bodies.numpy("body_bound_radius")
+        spheres = (shape == ShapeType.SPHERE) & near
+        boxes = (shape == ShapeType.BOX) & near
         planes = shape == ShapeType.PLANE
         sphere_x, sphere_r = x_all[spheres], bodies.numpy("body_radius")[spheres]
         box_x, box_h = x_all[boxes], bodies.numpy("body_half_extents")[boxes]
@@ -250,7 +264,6 @@ class Emitter:
         plane_n, plane_x = world.body_plane_normal[planes], x_all[planes]
         accepted = []
         placed_x, placed_r = [], []
-        jitter = max(float(np.max(cand["bound"])), 1e-3)
         for i in range(k):
             ri = cand["bound"][i] + CLEARANCE
             for attempt in range(TRIES):

@@ -54,6 +54,35 @@ def test_new_bodies_clear_existing_ones():
         assert np.all(np.abs(x) <= 1.0 + 1e-12)
 
 
+@pytest.mark.parametrize("shape", ["sphere", "box"])
+def test_bodies_centred_outside_the_region_still_block_it(shape):
+    """Only bodies reaching the region are tested, and 'reaching' counts their whole extent.
+
+    A big body centred outside the emitter's box covers part of it: no new body may overlap it,
+    and far bodies (a pile below) are left out of the test without changing any outcome.
+    """
+    w = tumble.World(gravity=(0, 0, 0))
+    if shape == "sphere":
+        w.add_sphere(position=(1.1, 0, 0), radius=1.0, mass=1.0)  # surface from x = 0.1 into the region
+    else:
+        w.add_box(position=(1.1, 0, 0), half_extents=(1.0, 1.0, 1.0), mass=1.0)
+    far = np.stack(np.meshgrid(np.arange(10), np.arange(10), np.arange(3), indexing="ij"), -1).reshape(-1, 3)
+    w.add_spheres(position=far * 0.2 + (-1.0, -1.0, -5.0), radius=0.09, mass=1.0)
+    em = w.add_emitter(rate=2400, count=100, position=(0, 0, 0), region="box", extent=(0.2, 0.2, 0.2),
+                       radius=0.02, seed=3)
+    first = w.body_count
+    for _ in range(10):
+        em.emit(w, w.dt)
+    assert em.emitted > 20
+    w.collide()
+    assert np.all(w.contact_depth <= 0.0)  # nothing overlaps the big body, or anything else
+    x = w.body_position[first:]
+    if shape == "sphere":
+        assert np.all(np.linalg.norm(x - (1.1, 0, 0), axis=1) >= 1.02 - 1e-9)
+    else:
+        assert np.all(x[:, 0] <= 0.1 - 0.02 + 1e-9)
+
+
 def test_cone_speed_and_size_ranges():
     """Launch directions lie in the cone, speeds and radii in their ranges, masses from density."""
     w = tumble.World(gravity=(0, 0, 0))
