@@ -242,6 +242,7 @@ def _catch_small_spheres(
     inv_m: wp.array(dtype=float_t),
     rest: wp.array(dtype=vec3),
     thickness: wp.array(dtype=float_t),
+    friction: wp.array(dtype=float_t),
     tether_first: wp.array(dtype=wp.int32),
     tether_count: wp.array(dtype=wp.int32),
     tether_pin: wp.array(dtype=wp.int32),
@@ -251,10 +252,15 @@ def _catch_small_spheres(
     candidate_count: int,
     body_shape: wp.array(dtype=wp.int32),
     body_position: wp.array(dtype=vec3),
+    body_orientation: wp.array(dtype=quat),
     body_radius: wp.array(dtype=float_t),
     body_inv_mass: wp.array(dtype=float_t),
+    body_inv_inertia: wp.array(dtype=vec3),
+    body_friction: wp.array(dtype=float_t),
     body_velocity: wp.array(dtype=vec3),
+    body_angular_velocity: wp.array(dtype=vec3),
     body_delta_position: wp.array(dtype=vec3),
+    body_delta_rotation: wp.array(dtype=vec3),
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
@@ -315,11 +321,37 @@ def _catch_small_spheres(
         wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
         wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
         wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
+        impulse = n * lam  # on the sphere, as a displacement times mass
+
+        # friction: the sphere's surface point against the triangle's point over this substep,
+        # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
+        q = body_orientation[b]
+        inv_i = body_inv_inertia[b]
+        r_b = -n * r
+        mu = wp.sqrt((friction[i0] + friction[i1] + friction[i2]) / float_t(3.0) * body_friction[b])
+        p_moved = x[i0] * beta[0] + x[i1] * beta[1] + x[i2] * beta[2] - p_prev
+        dx = (body_velocity[b] + wp.cross(body_angular_velocity[b], r_b)) * h - p_moved
+        dxt = dx - n * wp.dot(dx, n)
+        slip = wp.length(dxt)
+        if slip > float_t(1.0e-14) and mu > zero:
+            tdir = dxt / slip
+            rt = wp.cross(r_b, tdir)
+            w_bt = w_b + wp.dot(rt, inv_inertia_times(q, inv_i, rt))
+            if w_tri + split * w_bt > zero:
+                lam_t = wp.min(slip / (w_tri + split * w_bt), mu * lam)
+                wp.atomic_add(x, i0, tdir * (lam_t * beta[0] * g0))
+                wp.atomic_add(x, i1, tdir * (lam_t * beta[1] * g1))
+                wp.atomic_add(x, i2, tdir * (lam_t * beta[2] * g2))
+                impulse = impulse - tdir * lam_t
         if w_b > zero:
-            dx_b = n * (lam * w_b)
+            dx_b = impulse * w_b
+            dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
             wp.atomic_add(body_position, b, dx_b)
             wp.atomic_add(body_velocity, b, dx_b / h)
+            wp.atomic_add(body_orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], zero) * q))
+            wp.atomic_add(body_angular_velocity, b, dtheta / h)
             wp.atomic_add(body_delta_position, b, dx_b)
+            wp.atomic_add(body_delta_rotation, b, dtheta)
 
 
 @wp.kernel
@@ -486,17 +518,17 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tethe
         contact_count_next, float(h), float(taut)], x.device, cache)
 
 
-def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, tether_first, tether_count, tether_pin,
-                        tether_limit, triangles, candidates, bodies, contact_count_prev, contact_count_next, h, *,
-                        taut: float = 0.97, cache: LaunchCache | None = None):
+def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction, tether_first, tether_count,
+                        tether_pin, tether_limit, triangles, candidates, bodies, contact_count_prev,
+                        contact_count_next, h, *, taut: float = 0.97, cache: LaunchCache | None = None):
     """Keep spheres that fit between particles from passing through the cloth's triangles.
 
     Particles alone stop only bodies wider than the gaps between them. For each triangle and each
     candidate sphere narrower than the triangle's longest rest edge, the closest point of the
     triangle is kept at least radius + thickness / 2 from the centre, on the side the centre
     was on when the substep began: the triangle's particles and the sphere move apart, weighted
-    by inverse masses, barycentric weights and tautness of the particles' tethers
-    (position-based, like `collide_bodies`, without friction).
+    by inverse masses, barycentric weights and tautness of the particles' tethers, with
+    Coulomb friction at the sphere's surface (position-based, like `collide_bodies`).
     Cost O(T x candidates).
     """
     k = candidates.shape[0]
@@ -504,9 +536,11 @@ def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, tether_fi
         return
     a = bodies.arrays
     launch(_catch_small_spheres, triangles.shape[0], [
-        x, x_prev, inv_mass, rest_position, thickness, tether_first, tether_count, tether_pin, tether_limit, triangles,
-        candidates, k, a["body_shape"], a["body_position"], a["body_radius"], a["body_inv_mass"], a["body_velocity"],
-        a["body_delta_position"], contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
+        x, x_prev, inv_mass, rest_position, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
+        triangles, candidates, k, a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"],
+        a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
+        a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
+        contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:

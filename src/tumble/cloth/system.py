@@ -490,7 +490,8 @@ class ClothSystem:
                                a["particle_tether_count"], a["tether_pin"], a["tether_limit"], self._candidates,
                                bodies, self._contacts_prev, self._contacts_next, hi, cache=self._cache)
         collide.catch_small_spheres(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                                    a["particle_rest_position"], a["particle_thickness"], a["particle_tether_first"],
+                                    a["particle_rest_position"], a["particle_thickness"], a["particle_friction"],
+                                    a["particle_tether_first"],
                                     a["particle_tether_count"], a["tether_pin"], a["tether_limit"], a["triangles"],
                                     self._candidates, bodies, self._contacts_prev, self._contacts_next, hi,
                                     cache=self._cache)
