@@ -44,26 +44,117 @@ SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))
 
 
+@wp.struct
+class BodyArrays:
+    """The world's body arrays that cloth collisions read and write (see `tumble.world.BODY_FIELDS`)."""
+
+    shape: wp.array(dtype=wp.int32)
+    position: wp.array(dtype=vec3)
+    orientation: wp.array(dtype=quat)
+    radius: wp.array(dtype=float_t)
+    half_extents: wp.array(dtype=vec3)
+    inv_mass: wp.array(dtype=float_t)
+    inv_inertia: wp.array(dtype=vec3)
+    friction: wp.array(dtype=float_t)
+    velocity: wp.array(dtype=vec3)
+    angular_velocity: wp.array(dtype=vec3)
+    delta_position: wp.array(dtype=vec3)
+    delta_rotation: wp.array(dtype=vec3)
+
+
+@wp.struct
+class Tethers:
+    """Each particle's tethers (`first`, `count`: per particle) and each tether's pin and largest length."""
+
+    first: wp.array(dtype=wp.int32)
+    count: wp.array(dtype=wp.int32)
+    pin: wp.array(dtype=wp.int32)
+    limit: wp.array(dtype=float_t)
+
+
+def body_arrays(bodies) -> BodyArrays:
+    """The struct over a body `ArraySet`'s arrays, kept on the set until its arrays are replaced
+    (so that a recorded launch sees the same struct and re-packs nothing)."""
+    arrays = [bodies.arrays["body_" + name] for name in BodyArrays.vars]
+    cached = bodies.__dict__.get("_cloth_struct")
+    if cached is None or any(x is not y for x, y in zip(cached[1], arrays)):
+        s = BodyArrays()
+        for name, array in zip(BodyArrays.vars, arrays):
+            setattr(s, name, array)
+        cached = bodies.__dict__["_cloth_struct"] = (s, arrays)
+    return cached[0]
+
+
+def tether_arrays(first, count, pin, limit) -> Tethers:
+    """The struct over the tether arrays (see `grid.tethers`)."""
+    t = Tethers()
+    t.first, t.count, t.pin, t.limit = first, count, pin, limit
+    return t
+
+
 @wp.func
-def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), tether_first: wp.array(dtype=wp.int32),
-              tether_count: wp.array(dtype=wp.int32), tether_pin: wp.array(dtype=wp.int32),
-              tether_limit: wp.array(dtype=float_t), taut: float_t):
+def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), tethers: Tethers, taut: float_t):
     """Inverse mass with which particle p at xp yields to a push along n: less the tauter its tethers.
 
     A tether that the push would stretch holds its particle: free below taut x its limit, fixed
     at the limit, linear in between (a sudden switch made bodies resting on cloth chatter).
     """
     w = w_p
-    t = tether_first[p]
-    t_end = t + tether_count[p]
+    t = tethers.first[p]
+    t_end = t + tethers.count[p]
     while t < t_end:
-        arm = xp - x[tether_pin[t]]
+        arm = xp - x[tethers.pin[t]]
         if wp.dot(arm, n) > float_t(0.0):
-            lim = tether_limit[t]
+            lim = tethers.limit[t]
             slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - taut))
             w = wp.min(w, w_p * wp.clamp(slack, float_t(0.0), float_t(1.0)))
         t += 1
     return w
+
+
+@wp.func
+def _coulomb(dx: vec3, n: vec3, r_b: vec3, w_point: float_t, w_lin: float_t, split: float_t, mu: float_t,
+             lam: float_t, q: quat, inv_i: vec3):
+    """Friction against a cloth point's tangential motion dx relative to the body surface this substep.
+
+    Returns the direction of that motion and the size lambda_t of the friction displacement:
+    all of it if a static-friction impulse <= mu lambda can stop it, else mu lambda. The cloth
+    point moves by -lambda_t w_point along the direction and the body receives +lambda_t.
+    """
+    dxt = dx - n * wp.dot(dx, n)
+    slip = wp.length(dxt)
+    tdir = vec3(float_t(0.0), float_t(0.0), float_t(0.0))
+    lam_t = float_t(0.0)
+    if slip > float_t(1.0e-14) and mu > float_t(0.0):
+        tdir = dxt / slip
+        rt = wp.cross(r_b, tdir)
+        w_bt = w_lin + wp.dot(rt, inv_inertia_times(q, inv_i, rt))
+        if w_point + split * w_bt > float_t(0.0):
+            lam_t = wp.min(slip / (w_point + split * w_bt), mu * lam)
+    return tdir, lam_t
+
+
+@wp.func
+def _push_body(b: int, impulse: vec3, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, h: float_t,
+               bodies: BodyArrays):
+    """Two-way coupling: a dynamic body gets `impulse` (a displacement times mass) at r_b from its centre.
+
+    As in position-based dynamics it moves and turns by it, and its velocities change by it / h
+    (so that cloth held by its stretch limit can hold the body up instead of the two trading
+    ever larger pushes over the substeps).
+    """
+    if w_lin > float_t(0.0):
+        dx_b = impulse * w_lin
+        dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
+        wp.atomic_add(bodies.position, b, dx_b)
+        wp.atomic_add(bodies.velocity, b, dx_b / h)
+        # q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator renormalises), else the
+        # rotational part of the overlap is never undone
+        wp.atomic_add(bodies.orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], float_t(0.0)) * q))
+        wp.atomic_add(bodies.angular_velocity, b, dtheta / h)
+        # the rigid contact solver tracks each body's motion over the step
+        wp.atomic_add(bodies.delta_position, b, dx_b)
+        wp.atomic_add(bodies.delta_rotation, b, dtheta)
 
 
 @wp.kernel
@@ -73,24 +164,10 @@ def _collide_bodies(
     inv_m: wp.array(dtype=float_t),
     thickness: wp.array(dtype=float_t),
     friction: wp.array(dtype=float_t),
-    tether_first: wp.array(dtype=wp.int32),
-    tether_count: wp.array(dtype=wp.int32),
-    tether_pin: wp.array(dtype=wp.int32),
-    tether_limit: wp.array(dtype=float_t),
+    tethers: Tethers,
     candidates: wp.array(dtype=wp.int32),
     candidate_count: int,
-    body_shape: wp.array(dtype=wp.int32),
-    body_position: wp.array(dtype=vec3),
-    body_orientation: wp.array(dtype=quat),
-    body_radius: wp.array(dtype=float_t),
-    body_half_extents: wp.array(dtype=vec3),
-    body_inv_mass: wp.array(dtype=float_t),
-    body_inv_inertia: wp.array(dtype=vec3),
-    body_friction: wp.array(dtype=float_t),
-    body_velocity: wp.array(dtype=vec3),
-    body_angular_velocity: wp.array(dtype=vec3),
-    body_delta_position: wp.array(dtype=vec3),
-    body_delta_rotation: wp.array(dtype=vec3),
+    bodies: BodyArrays,
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
@@ -110,11 +187,11 @@ def _collide_bodies(
         b = candidates[k % candidate_count]
         dynamic_pass = k >= candidate_count
         k += 1
-        if (body_inv_mass[b] > zero) != dynamic_pass:
+        if (bodies.inv_mass[b] > zero) != dynamic_pass:
             continue
-        shape = body_shape[b]
-        c = body_position[b]
-        q = body_orientation[b]
+        shape = bodies.shape[b]
+        c = bodies.position[b]
+        q = bodies.orientation[b]
         # signed distance d from the body's surface and outward normal n
         d = zero
         n = vec3(zero, zero, float_t(1.0))
@@ -124,11 +201,11 @@ def _collide_bodies(
         elif shape == SPHERE:
             r = xp - c
             length = wp.length(r)
-            d = length - body_radius[b]
+            d = length - bodies.radius[b]
             if length > float_t(1.0e-12):
                 n = r / length
         else:
-            _surface, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), body_half_extents[b])
+            _surface, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), bodies.half_extents[b])
             n = wp.quat_rotate(q, nl)
         depth = thickness[p] - d
         if depth <= zero:
@@ -138,8 +215,8 @@ def _collide_bodies(
         split = float_t(wp.max(contact_count_prev[b], 1))
         wp.atomic_add(contact_count_next, b, 1)
         r_b = (xp - n * d) - c
-        w_lin = body_inv_mass[b]
-        inv_i = body_inv_inertia[b]
+        w_lin = bodies.inv_mass[b]
+        inv_i = bodies.inv_inertia[b]
         rn = wp.cross(r_b, n)
         w_b = w_lin + wp.dot(rn, inv_inertia_times(q, inv_i, rn))
         # a particle whose tether to a pin is taut and would be stretched by the push, or which
@@ -153,45 +230,18 @@ def _collide_bodies(
         elif wp.dot(support, n) < zero:
             w_c = zero
         if w_b > zero and w_c > zero:
-            w_c = wp.min(w_c, _give_way(p, xp, n, w_p, x, tether_first, tether_count, tether_pin, tether_limit, taut))
+            w_c = wp.min(w_c, _give_way(p, xp, n, w_p, x, tethers, taut))
         if w_c + w_b <= zero:
             continue
         lam = depth / (w_c + split * w_b)
         xp = xp + n * (lam * w_c)
 
-        # friction: tangential motion of the particle relative to the body surface this substep,
-        # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
-        mu = wp.sqrt(friction[p] * body_friction[b])
-        vb = body_velocity[b] + wp.cross(body_angular_velocity[b], r_b)
-        dx = (xp - x_prev[p]) - vb * h
-        dxt = dx - n * wp.dot(dx, n)
-        slip = wp.length(dxt)
-        impulse = n * (-lam)
-        if slip > float_t(1.0e-14) and mu > zero:
-            tdir = dxt / slip
-            rt = wp.cross(r_b, tdir)
-            w_bt = w_lin + wp.dot(rt, inv_inertia_times(q, inv_i, rt))
-            if w_c + split * w_bt > zero:
-                lam_t = wp.min(slip / (w_c + split * w_bt), mu * lam)
-                xp = xp - tdir * (lam_t * w_c)
-                impulse = impulse + tdir * lam_t
-
-        # two-way: the body gets the opposite of the particle's impulse, lambda / h, on its velocity
-        # and, as in position-based dynamics, the matching displacement and rotation (so that
-        # cloth held by its stretch limit can hold the body up instead of the two trading ever
-        # larger pushes over the substeps)
-        if w_lin > zero:
-            dx_b = impulse * w_lin
-            dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
-            wp.atomic_add(body_position, b, dx_b)
-            wp.atomic_add(body_velocity, b, dx_b / h)
-            # rotate by dtheta too: q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator
-            # renormalises), else the rotational part of the overlap is never undone
-            wp.atomic_add(body_orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], zero) * q))
-            wp.atomic_add(body_angular_velocity, b, dtheta / h)
-            # the rigid contact solver tracks each body's motion over the step
-            wp.atomic_add(body_delta_position, b, dx_b)
-            wp.atomic_add(body_delta_rotation, b, dtheta)
+        # friction on the particle's tangential motion relative to the body surface this substep
+        mu = wp.sqrt(friction[p] * bodies.friction[b])
+        vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
+        tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
+        xp = xp - tdir * (lam_t * w_c)
+        _push_body(b, tdir * lam_t - n * lam, r_b, q, inv_i, w_lin, h, bodies)
     x[p] = xp
 
 
@@ -243,24 +293,11 @@ def _catch_small_spheres(
     rest: wp.array(dtype=vec3),
     thickness: wp.array(dtype=float_t),
     friction: wp.array(dtype=float_t),
-    tether_first: wp.array(dtype=wp.int32),
-    tether_count: wp.array(dtype=wp.int32),
-    tether_pin: wp.array(dtype=wp.int32),
-    tether_limit: wp.array(dtype=float_t),
+    tethers: Tethers,
     triangles: wp.array2d(dtype=wp.int32),
     candidates: wp.array(dtype=wp.int32),
     candidate_count: int,
-    body_shape: wp.array(dtype=wp.int32),
-    body_position: wp.array(dtype=vec3),
-    body_orientation: wp.array(dtype=quat),
-    body_radius: wp.array(dtype=float_t),
-    body_inv_mass: wp.array(dtype=float_t),
-    body_inv_inertia: wp.array(dtype=vec3),
-    body_friction: wp.array(dtype=float_t),
-    body_velocity: wp.array(dtype=vec3),
-    body_angular_velocity: wp.array(dtype=vec3),
-    body_delta_position: wp.array(dtype=vec3),
-    body_delta_rotation: wp.array(dtype=vec3),
+    bodies: BodyArrays,
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
@@ -279,10 +316,10 @@ def _catch_small_spheres(
     gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
     for k in range(candidate_count):
         b = candidates[k]
-        r = body_radius[b]
-        if body_shape[b] != SPHERE or r >= edge:
+        r = bodies.radius[b]
+        if bodies.shape[b] != SPHERE or r >= edge:
             continue
-        c = body_position[b]
+        c = bodies.position[b]
         a0 = x[i0]
         a1 = x[i1]
         a2 = x[i2]
@@ -295,7 +332,7 @@ def _catch_small_spheres(
         # that got past the triangle's plane is pushed back rather than through
         face = wp.cross(a1 - a0, a2 - a0)
         p_prev = x_prev[i0] * beta[0] + x_prev[i1] * beta[1] + x_prev[i2] * beta[2]
-        if wp.dot(c - body_velocity[b] * h - p_prev, face) < zero:
+        if wp.dot(c - bodies.velocity[b] * h - p_prev, face) < zero:
             face = -face
         face_len = wp.length(face)
         if face_len <= float_t(1.0e-14):
@@ -308,11 +345,11 @@ def _catch_small_spheres(
             n = d / dist
         # lambda moves the closest point by -lambda sum(beta_i^2 w_i) n and the centre by lambda w_b n;
         # particles held by taut tethers give way less, as against any body
-        w_b = body_inv_mass[b]
+        w_b = bodies.inv_mass[b]
         split = float_t(wp.max(contact_count_prev[b], 1))
-        g0 = _give_way(i0, a0, -n, w0, x, tether_first, tether_count, tether_pin, tether_limit, taut)
-        g1 = _give_way(i1, a1, -n, w1, x, tether_first, tether_count, tether_pin, tether_limit, taut)
-        g2 = _give_way(i2, a2, -n, w2, x, tether_first, tether_count, tether_pin, tether_limit, taut)
+        g0 = _give_way(i0, a0, -n, w0, x, tethers, taut)
+        g1 = _give_way(i1, a1, -n, w1, x, tethers, taut)
+        g2 = _give_way(i2, a2, -n, w2, x, tethers, taut)
         w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
         if w_tri + split * w_b <= zero:
             continue
@@ -321,37 +358,19 @@ def _catch_small_spheres(
         wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
         wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
         wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
-        impulse = n * lam  # on the sphere, as a displacement times mass
 
-        # friction: the sphere's surface point against the triangle's point over this substep,
-        # removed if a static-friction impulse <= mu lambda can do it, else reduced by mu lambda
-        q = body_orientation[b]
-        inv_i = body_inv_inertia[b]
+        # friction on the triangle point's tangential motion relative to the sphere's surface
+        q = bodies.orientation[b]
+        inv_i = bodies.inv_inertia[b]
         r_b = -n * r
-        mu = wp.sqrt((friction[i0] + friction[i1] + friction[i2]) / float_t(3.0) * body_friction[b])
+        mu = wp.sqrt((friction[i0] + friction[i1] + friction[i2]) / float_t(3.0) * bodies.friction[b])
         p_moved = x[i0] * beta[0] + x[i1] * beta[1] + x[i2] * beta[2] - p_prev
-        dx = (body_velocity[b] + wp.cross(body_angular_velocity[b], r_b)) * h - p_moved
-        dxt = dx - n * wp.dot(dx, n)
-        slip = wp.length(dxt)
-        if slip > float_t(1.0e-14) and mu > zero:
-            tdir = dxt / slip
-            rt = wp.cross(r_b, tdir)
-            w_bt = w_b + wp.dot(rt, inv_inertia_times(q, inv_i, rt))
-            if w_tri + split * w_bt > zero:
-                lam_t = wp.min(slip / (w_tri + split * w_bt), mu * lam)
-                wp.atomic_add(x, i0, tdir * (lam_t * beta[0] * g0))
-                wp.atomic_add(x, i1, tdir * (lam_t * beta[1] * g1))
-                wp.atomic_add(x, i2, tdir * (lam_t * beta[2] * g2))
-                impulse = impulse - tdir * lam_t
-        if w_b > zero:
-            dx_b = impulse * w_b
-            dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
-            wp.atomic_add(body_position, b, dx_b)
-            wp.atomic_add(body_velocity, b, dx_b / h)
-            wp.atomic_add(body_orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], zero) * q))
-            wp.atomic_add(body_angular_velocity, b, dtheta / h)
-            wp.atomic_add(body_delta_position, b, dx_b)
-            wp.atomic_add(body_delta_rotation, b, dtheta)
+        vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
+        tdir, lam_t = _coulomb(p_moved - vb * h, n, r_b, w_tri, w_b, split, mu, lam, q, inv_i)
+        wp.atomic_sub(x, i0, tdir * (lam_t * beta[0] * g0))
+        wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
+        wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
+        _push_body(b, tdir * lam_t + n * lam, r_b, q, inv_i, w_b, h, bodies)
 
 
 @wp.kernel
@@ -483,9 +502,8 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
-                   candidates, bodies, contact_count_prev, contact_count_next, h, *, taut: float = 0.97,
-                   cache: LaunchCache | None = None):
+def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, candidates, bodies, contact_count_prev,
+                   contact_count_next, h, *, taut: float = 0.97, cache: LaunchCache | None = None):
     """Push particles out of the candidate bodies, with friction, and push the bodies back.
 
     Args:
@@ -494,8 +512,7 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tethe
         inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
         thickness: distance particles keep from surfaces [m], shape (P,).
         friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
-        tether_first, tether_count: each particle's tethers, shape (P,) int32 (see `grid.tethers`).
-        tether_pin, tether_limit: pin index, shape (m,) int32, and largest length [m], shape (m,).
+        tethers: each particle's tethers and their pins and largest lengths (`tether_arrays`).
         candidates: body indices to test, shape (k,) int32.
         bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
         contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.
@@ -508,19 +525,14 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tether_first, tethe
     k = candidates.shape[0]
     if k == 0:
         return
-    a = bodies.arrays
     launch(_collide_bodies, x.shape[0], [
-        x, x_prev, inv_mass, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
-        candidates, k,
-        a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"], a["body_half_extents"],
-        a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
-        a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
+        x, x_prev, inv_mass, thickness, friction, tethers, candidates, k, body_arrays(bodies), contact_count_prev,
         contact_count_next, float(h), float(taut)], x.device, cache)
 
 
-def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction, tether_first, tether_count,
-                        tether_pin, tether_limit, triangles, candidates, bodies, contact_count_prev,
-                        contact_count_next, h, *, taut: float = 0.97, cache: LaunchCache | None = None):
+def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction, tethers: Tethers, triangles,
+                        candidates, bodies, contact_count_prev, contact_count_next, h, *, taut: float = 0.97,
+                        cache: LaunchCache | None = None):
     """Keep spheres that fit between particles from passing through the cloth's triangles.
 
     Particles alone stop only bodies wider than the gaps between them. For each triangle and each
@@ -534,13 +546,9 @@ def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction,
     k = candidates.shape[0]
     if k == 0 or triangles.shape[0] == 0:
         return
-    a = bodies.arrays
     launch(_catch_small_spheres, triangles.shape[0], [
-        x, x_prev, inv_mass, rest_position, thickness, friction, tether_first, tether_count, tether_pin, tether_limit,
-        triangles, candidates, k, a["body_shape"], a["body_position"], a["body_orientation"], a["body_radius"],
-        a["body_inv_mass"], a["body_inv_inertia"], a["body_friction"], a["body_velocity"],
-        a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"], contact_count_prev,
-        contact_count_next, float(h), float(taut)], x.device, cache)
+        x, x_prev, inv_mass, rest_position, thickness, friction, tethers, triangles, candidates, k,
+        body_arrays(bodies), contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
 
 
 class SelfCollisionGrid:

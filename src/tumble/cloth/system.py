@@ -375,6 +375,9 @@ class ClothSystem:
         first = (np.cumsum(count) - count).astype(np.int32)
         self._arrays["particle_tether_first"] = wp.array(first, dtype=wp.int32, device=self.device)
         self._arrays["particle_tether_count"] = wp.array(count, dtype=wp.int32, device=self.device)
+        a = self._arrays
+        self._tethers = collide.tether_arrays(a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
+                                              a["tether_limit"])
         self._cache.clear()
         self._update_stable_step()
 
@@ -486,15 +489,12 @@ class ClothSystem:
         bodies = self.world.bodies
         self._contacts_next.zero_()
         collide.collide_bodies(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                               a["particle_thickness"], a["particle_friction"], a["particle_tether_first"],
-                               a["particle_tether_count"], a["tether_pin"], a["tether_limit"], self._candidates,
+                               a["particle_thickness"], a["particle_friction"], self._tethers, self._candidates,
                                bodies, self._contacts_prev, self._contacts_next, hi, cache=self._cache)
         collide.catch_small_spheres(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
                                     a["particle_rest_position"], a["particle_thickness"], a["particle_friction"],
-                                    a["particle_tether_first"],
-                                    a["particle_tether_count"], a["tether_pin"], a["tether_limit"], a["triangles"],
-                                    self._candidates, bodies, self._contacts_prev, self._contacts_next, hi,
-                                    cache=self._cache)
+                                    self._tethers, a["triangles"], self._candidates, bodies, self._contacts_prev,
+                                    self._contacts_next, hi, cache=self._cache)
         self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
     def _begin_step(self, dt: float) -> None:
