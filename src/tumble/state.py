@@ -80,8 +80,12 @@ class ArraySet:
         for name, values in rows.items():
             dtype = self.fields[name]
             np_type, tail = numpy_dtype(dtype)
-            src = np.ascontiguousarray(np.asarray(values, dtype=np_type).reshape((k,) + tail))
-            wp.copy(self.arrays[name], wp.array(src, dtype=dtype, device=self.device), dest_offset=start, count=k)
+            src = np.asarray(values, dtype=np_type).reshape((k,) + tail)
+            if self.device == "cpu":
+                self.arrays[name].numpy()[start:start + k] = src  # the host view is the array
+            else:
+                src = wp.array(np.ascontiguousarray(src), dtype=dtype, device=self.device)
+                wp.copy(self.arrays[name], src, dest_offset=start, count=k)
         self.count = start + k
         return range(start, start + k)
 
