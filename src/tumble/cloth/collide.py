@@ -246,8 +246,19 @@ def _collide_bodies(
 
 
 @wp.func
+def _fraction(num: float_t, den: float_t):
+    """num / den for a point's position along an edge; 0 on an edge of zero length."""
+    if den > float_t(0.0):
+        return num / den
+    return float_t(0.0)
+
+
+@wp.func
 def closest_on_triangle(p: vec3, a: vec3, b: vec3, c: vec3):
-    """Barycentric weights (of a, b, c) of the point of triangle abc closest to p (Ericson 2005, 5.1.5)."""
+    """Barycentric weights (of a, b, c) of the point of triangle abc closest to p (Ericson 2005, 5.1.5).
+
+    For a collapsed triangle (zero area) the weights still give a point of it, not always the nearest.
+    """
     zero = float_t(0.0)
     one = float_t(1.0)
     ab = b - a
@@ -264,7 +275,7 @@ def closest_on_triangle(p: vec3, a: vec3, b: vec3, c: vec3):
         return vec3(zero, one, zero)
     vc = d1 * d4 - d3 * d2
     if vc <= zero and d1 >= zero and d3 <= zero:
-        t = d1 / (d1 - d3)
+        t = _fraction(d1, d1 - d3)
         return vec3(one - t, t, zero)
     cp = p - c
     d5 = wp.dot(ab, cp)
@@ -273,13 +284,16 @@ def closest_on_triangle(p: vec3, a: vec3, b: vec3, c: vec3):
         return vec3(zero, zero, one)
     vb = d5 * d2 - d1 * d6
     if vb <= zero and d2 >= zero and d6 <= zero:
-        t = d2 / (d2 - d6)
+        t = _fraction(d2, d2 - d6)
         return vec3(one - t, zero, t)
     va = d3 * d6 - d5 * d4
     if va <= zero and (d4 - d3) >= zero and (d5 - d6) >= zero:
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        t = _fraction(d4 - d3, (d4 - d3) + (d5 - d6))
         return vec3(zero, one - t, t)
-    denom = one / (va + vb + vc)
+    area2 = va + vb + vc  # proportional to the squared area: zero only for a collapsed triangle
+    if area2 <= zero:
+        return vec3(one, zero, zero)
+    denom = one / area2
     v = vb * denom
     w = vc * denom
     return vec3(one - v - w, v, w)
