@@ -33,7 +33,7 @@ def test_the_documented_samples_exist():
     names = {p.stem for p in SAMPLES}
     assert {
         "bouncing_ball", "sphere_pile", "rain", "friction_slide", "box_tower", "pyramid", "rolling_ball",
-        "ramp", "flag", "hammock", "cloth_drape",
+        "ramp", "flag", "hammock", "cloth_drape", "pebbles",
     } <= names
 
 
