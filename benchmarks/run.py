@@ -395,13 +395,16 @@ def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None
     def scene_results(scene: str) -> list[Result]:
         return [r for r in all_results if r.scene.name == scene and not r.early]
 
-    checks = []
+    def ratio_check(scene: str, target: str, least: float) -> tuple[str, str, bool | None]:
+        """Tumble's speed against PyBullet's on `scene`, at least `least` times."""
+        pb = find(scene, "pybullet")
+        if not (pb and find(scene, "tumble")):
+            return (target, "not measured", None)
+        ratio = tumble_ratio(scene_results(scene), pb)
+        return (target, f"{ratio:.1f}x", ratio >= least)
+
+    checks = [ratio_check("pile_5k", "pile 5k: >= 10x PyBullet body-steps/s", TARGET_PILE_RATIO)]
     pb = find("pile_5k", "pybullet")
-    if pb and find("pile_5k", "tumble"):
-        ratio = tumble_ratio(scene_results("pile_5k"), pb)
-        checks.append(("pile 5k: >= 10x PyBullet body-steps/s", f"{ratio:.1f}x", ratio >= TARGET_PILE_RATIO))
-    else:
-        checks.append(("pile 5k: >= 10x PyBullet body-steps/s", "not measured", None))
     tb = find("pile_5k", "tumble", pb.steps) if pb else None
     if pb and tb:
         checks.append((
@@ -412,12 +415,7 @@ def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None
         ))
     else:
         checks.append(("pile 5k: overlap and ground penetration <= PyBullet's", "not measured", None))
-    pb = find("cloth_64", "pybullet")
-    if pb and find("cloth_64", "tumble"):
-        ratio = tumble_ratio(scene_results("cloth_64"), pb)
-        checks.append(("cloth 64x64: >= 10x PyBullet steps/s", f"{ratio:.1f}x", ratio >= TARGET_CLOTH_RATIO))
-    else:
-        checks.append(("cloth 64x64: >= 10x PyBullet steps/s", "not measured", None))
+    checks.append(ratio_check("cloth_64", "cloth 64x64: >= 10x PyBullet steps/s", TARGET_CLOTH_RATIO))
     tb = find("cloth_64", "tumble")
     checks.append((
         "cloth 64x64: largest strain <= 10 %",

@@ -574,18 +574,18 @@ class ClothSystem:
             self._contacts_next = wp.zeros(size, dtype=wp.int32, device=self.device)
 
     def remap_bodies(self, slot: np.ndarray) -> None:
-        """The world renumbered its body rows (row i is now `slot[i]`): move the per-body contact counts."""
+        """The world renumbered its body rows (row i is now `slot[i]`): move the last substep's
+        per-body contact counts (the next substep's are zeroed before use)."""
         n = len(slot)
-        for name in ("_contacts_prev", "_contacts_next"):
-            arr = getattr(self, name)
-            host = np.zeros(max(arr.shape[0], n), dtype=np.int32)
-            host[: arr.shape[0]] = arr.numpy()
-            moved = host.copy()
-            moved[slot] = host[:n]
-            if len(moved) == arr.shape[0]:
-                arr.assign(moved)
-            else:
-                setattr(self, name, wp.array(moved, dtype=wp.int32, device=self.device))
+        size = self._contacts_prev.shape[0]
+        host = np.zeros(max(size, n), dtype=np.int32)
+        host[:size] = self._contacts_prev.numpy()
+        host[slot] = host[:n].copy()
+        if len(host) == size:
+            self._contacts_prev.assign(host)
+        else:
+            self._contacts_prev = wp.array(host, dtype=wp.int32, device=self.device)
+            self._contacts_next = wp.zeros(len(host), dtype=wp.int32, device=self.device)
 
     # ------------------------------------------------------------------ user interaction
 

@@ -89,19 +89,25 @@ def collide_plane_sphere(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: 
 
 
 @wp.func
+def _box_corner(h: vec3, k: int):
+    """Corner k (0-7) of a box of half extents h in its own frame: bit i of k negates axis i."""
+    corner = vec3(h[0], h[1], h[2])
+    if k & 1:
+        corner[0] = -h[0]
+    if k & 2:
+        corner[1] = -h[1]
+    if k & 4:
+        corner[2] = -h[2]
+    return corner
+
+
+@wp.func
 def collide_plane_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, h: vec3, max_sep: float_t):
     # the (up to) four deepest of the eight corners
     n = _axis(A.q, 2)
     depth = vec8()
     for k in range(8):
-        corner = vec3(h[0], h[1], h[2])
-        if k & 1:
-            corner[0] = -h[0]
-        if k & 2:
-            corner[1] = -h[1]
-        if k & 4:
-            corner[2] = -h[2]
-        depth[k] = wp.dot(n, B.x + wp.quat_rotate(B.q, corner) - A.x)
+        depth[k] = wp.dot(n, B.x + wp.quat_rotate(B.q, _box_corner(h, k)) - A.x)
     taken = int(0)
     for _pick in range(4):
         best = int(-1)
@@ -111,14 +117,7 @@ def collide_plane_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, h: vec
                     best = k
         taken = taken | (1 << best)
         if depth[best] <= max_sep:
-            corner = vec3(h[0], h[1], h[2])
-            if best & 1:
-                corner[0] = -h[0]
-            if best & 2:
-                corner[1] = -h[1]
-            if best & 4:
-                corner[2] = -h[2]
-            p = B.x + wp.quat_rotate(B.q, corner)
+            p = B.x + wp.quat_rotate(B.q, _box_corner(h, best))
             emit(c, a, b, A, B, n, p - n * depth[best], p, max_sep)
 
 

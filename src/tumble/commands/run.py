@@ -46,17 +46,9 @@ def _check_arguments(args: argparse.Namespace) -> None:
     if args.device == "cuda":
         import warp as wp
 
-        _quiet_warp()
         init_warp()
         if not wp.is_cuda_available():
             raise TumbleError("--device cuda: Warp finds no CUDA device on this machine; use --device cpu")
-
-
-def _quiet_warp() -> None:
-    """Keep Warp's start-up banner off stdout (the summary is the output)."""
-    import warp as wp
-
-    wp.config.log_level = wp.LOG_WARNING
 
 
 def main(args: argparse.Namespace) -> int:
@@ -67,7 +59,6 @@ def main(args: argparse.Namespace) -> int:
     from ..io.scene import load_scene
 
     _check_arguments(args)
-    _quiet_warp()
     world = load_scene(args.scene, seed=args.seed, device=args.device)
     steps = max(1, int(round(args.duration / world.dt)))
     recorder = Recorder(world, fps=args.fps) if args.record else None
