@@ -114,6 +114,10 @@ def _over_limit(
     limit: wp.array(dtype=float_t),
     violated: wp.array(dtype=wp.int32),
 ):
+    # one spring over its limit settles the answer: on the CPU, where threads run in order,
+    # the rest of the check is then skipped
+    if violated[0] != 0:
+        return
     s = wp.tid()
     if wp.length(x[ids[s, 1]] - x[ids[s, 0]]) > limit[s]:
         violated[0] = 1
@@ -271,36 +275,43 @@ def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray,
 def _limit_tethers(
     x: wp.array(dtype=vec3),
     inv_m: wp.array(dtype=float_t),
-    particle: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
     pin: wp.array(dtype=wp.int32),
     limit: wp.array(dtype=float_t),
     margin: float_t,
 ):
-    t = wp.tid()
-    p = particle[t]
-    a = pin[t]
-    if inv_m[p] <= float_t(0.0) or inv_m[a] > float_t(0.0):
+    # one thread per particle, its tethers in turn: no two threads move the same particle, and
+    # pins do not move, so the sweep is the same on the CPU and on CUDA
+    p = wp.tid()
+    if inv_m[p] <= float_t(0.0):
         return
-    d = x[p] - x[a]
-    length = wp.length(d)
-    excess = length - limit[t] * margin
-    if excess > float_t(0.0):
-        # the pin does not move: pull the particle back onto the sphere of radius `limit`
-        wp.atomic_sub(x, p, d * (excess / length))
+    xp = x[p]
+    for t in range(first[p], first[p] + count[p]):
+        a = pin[t]
+        if inv_m[a] <= float_t(0.0):
+            d = xp - x[a]
+            length = wp.length(d)
+            excess = length - limit[t] * margin
+            if excess > float_t(0.0):
+                # pull the particle back onto the sphere of radius margin * limit about the pin
+                xp = xp - d * (excess / length)
+    x[p] = xp
 
 
-def limit_tethers(x, inv_mass, tether_particle, tether_pin, tether_limit, *, margin: float = 0.99,
+def limit_tethers(x, inv_mass, tether_first, tether_count, tether_pin, tether_limit, *, margin: float = 0.99,
                   cache: LaunchCache | None = None):
     """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
 
     Args:
         x: particle positions [m], shape (P,) vec3 (corrected in place).
         inv_mass: inverse masses [1/kg], shape (P,); a tether acts only while its pin is pinned.
-        tether_particle, tether_pin: particle and pin indices, shape (m,) int32.
+        tether_first, tether_count: each particle's first tether and number of tethers, shape (P,) int32.
+        tether_pin: each tether's pin, shape (m,) int32, tethers sorted by particle.
         tether_limit: largest particle-pin distance [m], shape (m,).
         margin: particles are kept within margin * limit, the same margin as `limit_stretch`, so
             that a taut chain of springs between a particle and its pin fits inside both limits.
     """
-    m = tether_particle.shape[0]
-    if m:
-        launch(_limit_tethers, m, [x, inv_mass, tether_particle, tether_pin, tether_limit, margin], x.device, cache)
+    if tether_pin.shape[0]:
+        launch(_limit_tethers, x.shape[0], [x, inv_mass, tether_first, tether_count, tether_pin, tether_limit,
+                                            margin], x.device, cache)

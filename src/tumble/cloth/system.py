@@ -365,7 +365,6 @@ class ClothSystem:
             pins.append(pin + cloth.particle_start)
             limits.append(limit)
         cat = (lambda xs, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype))
-        self._arrays["tether_particle"] = wp.array(cat(parts, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
         # per particle: its first tether and how many (tethers are sorted by particle)
@@ -452,8 +451,8 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         for it in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["tether_particle"],
-                                  a["tether_pin"], a["tether_limit"], cache=cache)
+            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["particle_tether_first"],
+                                  a["particle_tether_count"], a["tether_pin"], a["tether_limit"], cache=cache)
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
