@@ -118,7 +118,7 @@ def test_bad_file_exits_2_with_one_line(write_scene, tumble_subprocess_env, comm
     text, fragment = BAD_FILES[case]
     path = write_scene(text, "bad.toml")
     result = subprocess.run(
-        [sys.executable, "-m", "tumble.cli", command, str(path)],
+        [sys.executable, "-m", "tumble", command, str(path)],
         capture_output=True, text=True, env=tumble_subprocess_env, timeout=120,
     )
     assert result.returncode == 2
