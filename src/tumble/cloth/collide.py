@@ -38,6 +38,7 @@ from ..collision.narrowphase import box_closest
 from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
 from ..launch import LaunchCache, launch
+from .springs import Tethers
 
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
@@ -62,16 +63,6 @@ class BodyArrays:
     delta_rotation: wp.array(dtype=vec3)
 
 
-@wp.struct
-class Tethers:
-    """Each particle's tethers (`first`, `count`: per particle) and each tether's pin and largest length."""
-
-    first: wp.array(dtype=wp.int32)
-    count: wp.array(dtype=wp.int32)
-    pin: wp.array(dtype=wp.int32)
-    limit: wp.array(dtype=float_t)
-
-
 def body_arrays(bodies) -> BodyArrays:
     """The struct over a body `ArraySet`'s arrays, kept on the set until its arrays are replaced
     (so that a recorded launch sees the same struct and re-packs nothing)."""
@@ -83,13 +74,6 @@ def body_arrays(bodies) -> BodyArrays:
             setattr(s, name, array)
         cached = bodies.__dict__["_cloth_struct"] = (s, arrays)
     return cached[0]
-
-
-def tether_arrays(first, count, pin, limit) -> Tethers:
-    """The struct over the tether arrays (see `grid.tethers`)."""
-    t = Tethers()
-    t.first, t.count, t.pin, t.limit = first, count, pin, limit
-    return t
 
 
 @wp.func
@@ -526,7 +510,7 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, c
         inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
         thickness: distance particles keep from surfaces [m], shape (P,).
         friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
-        tethers: each particle's tethers and their pins and largest lengths (`tether_arrays`).
+        tethers: each particle's tethers and their pins and largest lengths (`springs.tether_arrays`).
         candidates: body indices to test, shape (k,) int32.
         bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
         contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.

@@ -271,47 +271,52 @@ def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray,
     return 0.9 * float(np.min(h))
 
 
+@wp.struct
+class Tethers:
+    """Each particle's tethers (`first`, `count`: per particle) and each tether's pin and largest length."""
+
+    first: wp.array(dtype=wp.int32)
+    count: wp.array(dtype=wp.int32)
+    pin: wp.array(dtype=wp.int32)
+    limit: wp.array(dtype=float_t)
+
+
+def tether_arrays(first, count, pin, limit) -> Tethers:
+    """The struct over the tether arrays (see `grid.tethers`)."""
+    t = Tethers()
+    t.first, t.count, t.pin, t.limit = first, count, pin, limit
+    return t
+
+
 @wp.kernel
-def _limit_tethers(
-    x: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    first: wp.array(dtype=wp.int32),
-    count: wp.array(dtype=wp.int32),
-    pin: wp.array(dtype=wp.int32),
-    limit: wp.array(dtype=float_t),
-    margin: float_t,
-):
+def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers, margin: float_t):
     # one thread per particle, its tethers in turn: no two threads move the same particle, and
     # pins do not move, so the sweep is the same on the CPU and on CUDA
     p = wp.tid()
     if inv_m[p] <= float_t(0.0):
         return
     xp = x[p]
-    for t in range(first[p], first[p] + count[p]):
-        a = pin[t]
+    for t in range(tethers.first[p], tethers.first[p] + tethers.count[p]):
+        a = tethers.pin[t]
         if inv_m[a] <= float_t(0.0):
             d = xp - x[a]
             length = wp.length(d)
-            excess = length - limit[t] * margin
+            excess = length - tethers.limit[t] * margin
             if excess > float_t(0.0):
                 # pull the particle back onto the sphere of radius margin * limit about the pin
                 xp = xp - d * (excess / length)
     x[p] = xp
 
 
-def limit_tethers(x, inv_mass, tether_first, tether_count, tether_pin, tether_limit, *, margin: float = 0.99,
-                  cache: LaunchCache | None = None):
+def limit_tethers(x, inv_mass, tethers: Tethers, *, margin: float = 0.99, cache: LaunchCache | None = None):
     """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
 
     Args:
         x: particle positions [m], shape (P,) vec3 (corrected in place).
         inv_mass: inverse masses [1/kg], shape (P,); a tether acts only while its pin is pinned.
-        tether_first, tether_count: each particle's first tether and number of tethers, shape (P,) int32.
-        tether_pin: each tether's pin, shape (m,) int32, tethers sorted by particle.
-        tether_limit: largest particle-pin distance [m], shape (m,).
+        tethers: each particle's tethers, their pins and largest lengths (`tether_arrays`).
         margin: particles are kept within margin * limit, the same margin as `limit_stretch`, so
             that a taut chain of springs between a particle and its pin fits inside both limits.
     """
-    if tether_pin.shape[0]:
-        launch(_limit_tethers, x.shape[0], [x, inv_mass, tether_first, tether_count, tether_pin, tether_limit,
-                                            margin], x.device, cache)
+    if tethers.pin.shape[0]:
+        launch(_limit_tethers, x.shape[0], [x, inv_mass, tethers, margin], x.device, cache)

@@ -375,7 +375,7 @@ class ClothSystem:
         self._arrays["particle_tether_first"] = wp.array(first, dtype=wp.int32, device=self.device)
         self._arrays["particle_tether_count"] = wp.array(count, dtype=wp.int32, device=self.device)
         a = self._arrays
-        self._tethers = collide.tether_arrays(a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
+        self._tethers = springs.tether_arrays(a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
                                               a["tether_limit"])
         self._cache.clear()
         self._update_stable_step()
@@ -451,8 +451,7 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         for it in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], a["particle_tether_first"],
-                                  a["particle_tether_count"], a["tether_pin"], a["tether_limit"], cache=cache)
+            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], self._tethers, cache=cache)
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
