@@ -24,7 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.scenes import CLOTH_SIZE, FRICTION, RESTITUTION, Scene, initial_bodies, initial_cloth
+from benchmarks.scenes import (
+    CLOTH_SIZE, FRICTION, NO_RAPIER_CLOTH, RESTITUTION, Scene, initial_bodies, initial_cloth,
+)
 
 GRAVITY = (0.0, 0.0, -9.81)
 
@@ -63,6 +65,11 @@ class TumbleAdapter:
     """
 
     name = "tumble"
+
+    def settings(self) -> str:
+        """The solver settings this adapter runs with, for the results table."""
+        w = self.world
+        return f"dt 1/{round(1 / w.dt)}, {w.substeps} substeps"
 
     def __init__(self, scene: Scene, device: str = "cpu"):
         import tumble
@@ -134,6 +141,10 @@ class PyBulletAdapter:
     """
 
     name = "pybullet"
+
+    def settings(self) -> str:
+        """The solver settings this adapter runs with, for the results table."""
+        return f"dt 1/{round(1 / self.scene.dt)}, default (10 iterations)"
 
     def __init__(self, scene: Scene, device: str = "cpu"):
         import pybullet as p
@@ -233,6 +244,11 @@ class MuJoCoAdapter:
     """
 
     name = "mujoco"
+
+    def settings(self) -> str:
+        """The solver settings this adapter runs with, for the results table."""
+        o = self.model.opt
+        return f"dt 1/{round(1 / o.timestep)}, CG, {o.iterations} iterations"
 
     def __init__(self, scene: Scene, device: str = "cpu"):
         import mujoco
@@ -340,4 +356,81 @@ class MuJoCoAdapter:
         self.model = self.data = None
 
 
-ADAPTERS = {a.name: a for a in (TumbleAdapter, PyBulletAdapter, MuJoCoAdapter)}
+class RapierAdapter:
+    """Rapier (`rapier3d`, Rust, f32) on one thread with its defaults (4 solver iterations).
+
+    Planes are half-spaces on one fixed body; each moving body is a dynamic body with one
+    collider carrying the body's mass, restitution 0.5 and friction 0.5 (Rapier combines a pair
+    by the average, so each pair gets 0.5). Sleeping is off, as in the other engines.
+    """
+
+    name = "rapier"
+
+    #: Rapier's own default solver iterations per step (its quality setting is `QUALITY_ITERATIONS`)
+    ITERATIONS = 4
+
+    def settings(self) -> str:
+        """The solver settings this adapter runs with, for the results table."""
+        p = self.world.integration_parameters
+        return f"dt 1/{round(1 / p.dt)}, {p.num_solver_iterations} iterations, 1 thread"
+
+    def __init__(self, scene: Scene, device: str = "cpu", *, iterations: int | None = None):
+        import rapier3d as r
+
+        if scene.kind == "cloth":
+            raise NotImplementedError(NO_RAPIER_CLOTH)
+        self.r = r
+        self.scene = scene
+        self.world = world = r.PhysicsWorld(gravity=r.Vec3(*GRAVITY))
+        world.set_num_threads(1)
+        world.integration_parameters.dt = scene.dt
+        world.integration_parameters.num_solver_iterations = iterations or self.ITERATIONS
+        self.init = init = initial_bodies(scene)
+        ground = world.add_body(r.RigidBody.fixed())
+        for normal, offset in init.planes:
+            # the half-space's solid side is opposite its normal; the plane passes through normal * offset
+            point = normal * offset
+            world.add_collider(
+                r.Collider.halfspace(r.Vec3(*map(float, normal)), translation=r.Vec3(*map(float, point)),
+                                     friction=FRICTION, restitution=RESTITUTION),
+                parent=ground,
+            )
+        self.handles = []
+        for x in init.position:
+            body = world.add_body(r.RigidBody.dynamic(translation=r.Vec3(*map(float, x)), can_sleep=False))
+            if init.shape == "sphere":
+                collider = r.Collider.ball(init.radius, mass=init.mass, friction=FRICTION, restitution=RESTITUTION)
+            else:
+                hx, hy, hz = map(float, init.half_extents)
+                collider = r.Collider.cuboid(hx, hy, hz, mass=init.mass, friction=FRICTION, restitution=RESTITUTION)
+            world.add_collider(collider, parent=body)
+            self.handles.append(body)
+
+    def step(self, k: int) -> None:
+        world = self.world
+        for _ in range(k):
+            world.step()
+
+    def sync(self) -> None:
+        pass
+
+    def bodies(self) -> dict[str, np.ndarray]:
+        bodies = self.world.rigid_bodies
+        rows = [bodies[h] for h in self.handles]
+
+        def vec(v):
+            return (v.x, v.y, v.z)
+
+        return {
+            "position": np.array([vec(b.translation) for b in rows], dtype=np.float64),
+            "orientation": np.array([(b.rotation.i, b.rotation.j, b.rotation.k, b.rotation.w) for b in rows],
+                                    dtype=np.float64),
+            "velocity": np.array([vec(b.linvel) for b in rows], dtype=np.float64),
+            "angular_velocity": np.array([vec(b.angvel) for b in rows], dtype=np.float64),
+        }
+
+    def close(self) -> None:
+        self.world = None
+
+
+ADAPTERS = {a.name: a for a in (TumbleAdapter, PyBulletAdapter, MuJoCoAdapter, RapierAdapter)}

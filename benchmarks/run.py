@@ -1,4 +1,4 @@
-"""Run the benchmark scenes in Tumble, PyBullet and MuJoCo, side by side, on one CPU core.
+"""Run the benchmark scenes in Tumble, PyBullet, MuJoCo and Rapier, side by side, on one CPU core.
 
     PYTHONPATH=src python benchmarks/run.py                         # everything (~13-15 min)
     PYTHONPATH=src python benchmarks/run.py --scenes pile_1k,cloth_64
@@ -72,6 +72,7 @@ class Result:
     quality: dict = field(default_factory=dict)
     error: str = ""
     note: str = ""
+    settings: str = ""  # the engine's solver settings (time step, iterations, substeps)
     profile: dict = field(default_factory=dict)  # Tumble's World.profile: stage -> seconds
     max_strain: float = math.nan  # cloth: largest strain seen so far
     early: bool = False  # Tumble's figures over the peers' shorter interval
@@ -149,6 +150,7 @@ def machine_description(device: str) -> dict[str, str]:
         "warp": version("warp-lang"),
         "pybullet": version("pybullet"),
         "mujoco": version("mujoco"),
+        "rapier": version("rapier3d"),
         "tumble": tumble_version,
     }
 
@@ -240,6 +242,7 @@ def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wal
             warm_up(engine, scene, device)
             start = time.perf_counter()
             adapters[engine] = ADAPTERS[engine](scene, device)
+            result.settings = adapters[engine].settings()
             log(f"  {engine}: built in {time.perf_counter() - start:.1f} s")
         except Exception as error:  # noqa: BLE001 - one engine failing must not stop the others
             result.error = f"{type(error).__name__}: {error}"
@@ -343,11 +346,11 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
     from rich.table import Table
 
     title = (
-        f"Tumble vs PyBullet vs MuJoCo, Tumble on {device}, {info['cpu']} ({info['cores']} cores, "
+        f"Tumble vs PyBullet, MuJoCo and Rapier, Tumble on {device}, {info['cpu']} ({info['cores']} cores, "
         f"one used), {info['date']}"
     )
     table = Table(title=title, title_justify="left")
-    for name, justify in [("scene", "left"), ("engine", "left"), ("sim s", "right"), ("steps/s", "right"),
+    for name, justify in [("scene", "left"), ("engine", "left"), ("settings", "left"), ("sim s", "right"), ("steps/s", "right"),
                           ("body-steps/s", "right"), ("Tumble ×", "right"), ("overlap mm", "right"),
                           ("ground mm", "right"), ("wall mm", "right"), ("KE J", "right"),
                           ("strain %", "right")]:
@@ -360,12 +363,12 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
         previous = r.scene.name
         engine = r.engine + (f" ({r.note})" if r.note else "")
         if r.error:
-            table.add_row(r.scene.name, engine, fmt(r.sim_time), "[red]failed[/red]", *[""] * 7)
+            table.add_row(r.scene.name, engine, r.settings, fmt(r.sim_time), "[red]failed[/red]", *[""] * 7)
             continue
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
         table.add_row(
-            r.scene.name, engine, f"{r.sim_time:.2f}", rate(r.steps_per_s), rate(r.body_steps_per_s), ratio,
+            r.scene.name, engine, r.settings, f"{r.sim_time:.2f}", rate(r.steps_per_s), rate(r.body_steps_per_s), ratio,
             fmt(q.get("overlap"), 1e3), fmt(q.get("ground"), 1e3), fmt(q.get("wall"), 1e3),
             fmt(q.get("kinetic_energy"), digits=3), fmt(q.get("strain"), 100, 1),
         )
@@ -438,21 +441,24 @@ def markdown_report(all_results: list[Result], info: dict[str, str], device: str
         f"{info['cpu']}, {info['cores']} cores, one used"
         + (f", GPU {info['gpu']}" if info["gpu"] else "")
         + f"; load average {info['load']} at the end; Python {info['python']}, NumPy {info['numpy']}, "
-        f"Warp {info['warp']}, PyBullet {info['pybullet']}, MuJoCo {info['mujoco']}, Tumble {info['tumble']}.",
+        f"Warp {info['warp']}, PyBullet {info['pybullet']}, MuJoCo {info['mujoco']}, "
+        f"Rapier {info['rapier']}, Tumble {info['tumble']}.",
         "",
-        "| scene | engine | sim s | steps/s | body-steps/s | Tumble × | overlap mm | ground mm | wall mm | KE J | strain % |",
-        "|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "| scene | engine | settings | sim s | steps/s | body-steps/s | Tumble × | overlap mm | ground mm | wall mm "
+        "| KE J | strain % |",
+        "|---|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for r in all_results:
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
         engine = r.engine + (f" ({r.note})" if r.note else "")
         if r.error:
-            lines.append(f"| {r.scene.name} | {engine} | {fmt(r.sim_time)} | failed: {r.error[:80]} | | | | | | | |")
+            lines.append(f"| {r.scene.name} | {engine} | {r.settings} | {fmt(r.sim_time)} | failed: {r.error[:80]} "
+                         "| | | | | | | |")
             continue
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
         lines.append(
-            f"| {r.scene.name} | {engine} | {r.sim_time:.2f} | {rate(r.steps_per_s)} | {rate(r.body_steps_per_s)} "
+            f"| {r.scene.name} | {engine} | {r.settings} | {r.sim_time:.2f} | {rate(r.steps_per_s)} | {rate(r.body_steps_per_s)} "
             f"| {ratio} | {fmt(q.get('overlap'), 1e3)} | {fmt(q.get('ground'), 1e3)} | {fmt(q.get('wall'), 1e3)} "
             f"| {fmt(q.get('kinetic_energy'), digits=3)} | {fmt(q.get('strain'), 100, 1)} |"
         )
@@ -476,10 +482,10 @@ def update_doc(path: Path, report: str, device: str) -> None:
 
 
 CSV_FIELDS = [
-    "date", "device", "scene", "engine", "early", "note", "bodies", "sim_time_s", "steps", "wall_s", "steps_per_s",
+    "date", "device", "scene", "engine", "settings", "early", "note", "bodies", "sim_time_s", "steps", "wall_s", "steps_per_s",
     "body_steps_per_s", "tumble_ratio", "max_overlap_m", "max_ground_penetration_m",
     "max_wall_penetration_m", "kinetic_energy_J", "max_strain", "error",
-    "cpu", "cores", "load", "gpu", "python", "numpy", "warp", "pybullet", "mujoco", "tumble",
+    "cpu", "cores", "load", "gpu", "python", "numpy", "warp", "pybullet", "mujoco", "rapier", "tumble",
 ]
 
 
@@ -490,7 +496,8 @@ def write_csv(path: Path, all_results: list[Result], info: dict[str, str], devic
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
         q = r.quality
         rows.append({
-            **info, "device": device, "scene": r.scene.name, "engine": r.engine, "note": r.note,
+            **info, "device": device, "scene": r.scene.name, "engine": r.engine, "settings": r.settings,
+            "note": r.note,
             "early": "yes" if r.early else "",
             "bodies": r.scene.body_count, "sim_time_s": f"{r.sim_time:.4f}", "steps": r.steps,
             "wall_s": f"{r.seconds:.3f}", "steps_per_s": f"{r.steps_per_s:.4g}",
@@ -539,7 +546,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", default="all",
                         help=f"comma-separated scene names or groups (all, pile, cloth); scenes: {', '.join(SCENES)}")
-    parser.add_argument("--engines", default="tumble,pybullet,mujoco", help="comma-separated engines")
+    parser.add_argument("--engines", default="tumble,pybullet,mujoco,rapier", help="comma-separated engines")
     parser.add_argument("--device", default="cpu", help="Warp device for Tumble: cpu (default) or cuda")
     parser.add_argument("--quick", action="store_true", help=f"simulate at most {QUICK_DURATION} s per scene")
     parser.add_argument("--duration", type=float, default=None, help="simulate at most this many seconds per scene")
@@ -587,7 +594,8 @@ def main(argv: list[str] | None = None) -> int:
     core = None if args.no_pin else pin_to_one_core(args.cpu)
     info = machine_description(args.device)
     print(f"{info['cpu']}, {info['cores']} cores (running on core {core}), load {info['load']}, "
-          f"python {info['python']}, warp {info['warp']}, pybullet {info['pybullet']}, mujoco {info['mujoco']}")
+          f"python {info['python']}, warp {info['warp']}, pybullet {info['pybullet']}, mujoco {info['mujoco']}, "
+          f"rapier {info['rapier']}")
 
     all_results: list[Result] = []
     for name in args.scene_list:

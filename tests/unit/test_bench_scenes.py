@@ -82,3 +82,24 @@ def test_peer_engines_start_from_the_scene_positions(engine):
     adapter = engines.ADAPTERS[engine](cloth)
     np.testing.assert_allclose(adapter.cloth_position(), scenes.initial_cloth(cloth).position, atol=1e-6)
     adapter.close()
+
+
+def test_rapier_starts_from_the_scene_positions_and_keeps_spheres_above_the_ground():
+    """Build a small pile in Rapier, read back the initial state, and step it onto the ground."""
+    pytest.importorskip("rapier3d")
+    from benchmarks import engines
+
+    pile = scenes.Scene("pile_test", "pile", 50)
+    adapter = engines.ADAPTERS["rapier"](pile)
+    start = adapter.bodies()
+    # Rapier stores f32: positions round to ~1e-7 relative
+    np.testing.assert_allclose(start["position"], scenes.initial_bodies(pile).position, atol=1e-6)
+    np.testing.assert_allclose(np.abs(start["orientation"][:, 3]), 1.0)
+    assert "4 iterations" in adapter.settings()
+    adapter.step(240)  # 1 s: the pile falls ~0.2-0.7 m and lands
+    z = adapter.bodies()["position"][:, 2]
+    assert np.all(z < start["position"][:, 2])  # everything fell
+    assert z.min() > 0.5 * scenes.SPHERE_RADIUS  # nothing fell through the ground (half-space side right)
+    adapter.close()
+    with pytest.raises(NotImplementedError):
+        engines.ADAPTERS["rapier"](scenes.Scene("cloth_test", "cloth", 8))
