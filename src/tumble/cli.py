@@ -19,6 +19,7 @@ COMMANDS = {
     "view": "view",
     "render": "render",
     "plot": "plot",
+    "export": "export",
 }
 
 

@@ -15,6 +15,8 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     contact_count (F,) int32, kinetic_energy (F,)
     with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3),
     cloth_mass (P,) [kg], cloth_max_strain (F,) (largest structural-spring strain per frame)
+    since version 2: restitution (N,), friction (N,); with a scene [camera]: camera_position (3,),
+    camera_target (3,), camera_up (3,), camera_fov () [degrees]
 
 Cost: one host copy of the body state per frame (~100 bytes per body per frame in memory).
 """
@@ -25,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import TumbleError
 from ..shapes import SHAPE_NAMES
 
 #: format version written as `format_version` in every recording
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 
 class Recorder:
@@ -50,6 +53,12 @@ class Recorder:
         self.world = world
         self.fps = fps
         self.start_time = float(world.time)
+        # the scene's [camera] as resolved at the first frame (the USD export's Camera prim)
+        self.camera = None
+        if getattr(world, "metadata", {}).get("camera"):
+            from ..render.camera import Camera
+
+            self.camera = Camera.for_world(world)
         self.frames: list[dict[str, np.ndarray]] = []
         self.capture()
 
@@ -107,6 +116,13 @@ class Recorder:
         out["radius"] = np.array(w.body_radius, dtype=np.float64)
         out["half_extents"] = np.array(w.body_half_extents, dtype=np.float64)
         out["mass"] = np.array(w.body_mass, dtype=np.float64)
+        out["restitution"] = np.array(w.body_restitution, dtype=np.float64)
+        out["friction"] = np.array(w.body_friction, dtype=np.float64)
+        if self.camera is not None:
+            out["camera_position"] = np.array(self.camera.position, dtype=np.float64)
+            out["camera_target"] = np.array(self.camera.target, dtype=np.float64)
+            out["camera_up"] = np.array(self.camera.up, dtype=np.float64)
+            out["camera_fov"] = np.float64(self.camera.fov_deg)
         out["gravity"] = np.array(w.gravity, dtype=np.float64)
         out["dt"] = np.float64(w.dt)
         out["fps"] = np.float64(self.fps)
@@ -140,6 +156,15 @@ class Recorder:
 
 
 def load_recording(path) -> dict[str, np.ndarray]:
-    """Read a recording written by `Recorder.save` into a dict of arrays."""
+    """Read a recording written by `Recorder.save` into a dict of arrays.
+
+    Raises:
+        TumbleError: the file was written by a newer format version than this Tumble reads.
+    """
     with np.load(Path(path), allow_pickle=False) as data:
-        return {name: data[name] for name in data.files}
+        out = {name: data[name] for name in data.files}
+    version = int(out.get("format_version", 1))
+    if version > FORMAT_VERSION:
+        raise TumbleError(f"{path}: recording format version {version} is newer than this Tumble reads "
+                          f"(up to {FORMAT_VERSION}); upgrade Tumble")
+    return out

@@ -1,0 +1,431 @@
+"""USD export (tumble.io.usd, `tumble export`): every stage is read back with pxr and compared with the recording."""
+
+from __future__ import annotations
+
+import os
+import zipfile
+
+import numpy as np
+import pytest
+from pxr import Gf, Usd, UsdGeom, UsdPhysics
+
+import tumble
+from tumble.cli import main
+from tumble.io import usd
+from tumble.io.record import FORMAT_VERSION, Recorder, load_recording
+from tumble.world import quat_to_matrix
+
+FPS = 30.0
+FRAMES = 16  # 0.5 s
+
+# planes, a static pole, two spheres, a spinning box, an emitter releasing spheres and boxes
+# after the start, a small pinned cloth, and a camera
+SCENE = """
+[world]
+dt = 0.004166666666666667
+
+[[plane]]
+normal = [0, 0, 1]
+
+[[plane]]
+normal = [1, 0, 0]
+offset = -1.5
+
+[[box]]
+position = [-0.8, 0, 0.6]
+half_extents = [0.02, 0.02, 0.6]
+static = true
+
+[[sphere]]
+position = [0.3, 0, 0.4]
+radius = 0.1
+mass = 1.0
+
+[[sphere]]
+position = [0.6, 0.1, 0.9]
+radius = 0.07
+mass = 0.5
+restitution = 0.8
+
+[[box]]
+position = [-0.3, 0.3, 0.5]
+half_extents = [0.1, 0.05, 0.08]
+mass = 1.0
+angular_velocity = [1, 3, 2]
+
+[[emitter]]
+shape = ["sphere", "box"]
+rate = 20
+count = 5
+position = [0, -0.4, 1.2]
+region = "box"
+extent = [0.3, 0.1, 0.05]
+radius = 0.04
+half_extents = 0.03
+mass = 0.1
+seed = 2
+
+[[cloth]]
+size = [0.6, 0.4]
+resolution = [6, 4]
+position = [0, 0.5, 1.0]
+mass = 0.1
+pins = "top-corners"
+
+[camera]
+position = [2.0, -3.0, 1.5]
+target = [0, 0, 0.4]
+fov = 40
+"""
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """The scene recorded for FRAMES frames at FPS, as load_recording returns it."""
+    path = tmp_path_factory.mktemp("usd") / "scene.toml"
+    path.write_text(SCENE, encoding="utf-8")
+    world = tumble.load_scene(path)
+    recorder = Recorder(world, fps=FPS)
+    while recorder.frame_count < FRAMES:
+        world.step()
+        recorder(world)
+    npz = path.with_name("take.npz")
+    recorder.save(npz)
+    return load_recording(npz)
+
+
+@pytest.fixture(scope="module")
+def stage_path(recording, tmp_path_factory):
+    return usd.export(recording, tmp_path_factory.mktemp("out") / "take.usdc")
+
+
+#: stages opened by the tests, kept alive while their prims are in use (a prim dies with its stage)
+_OPEN: list = []
+
+
+def _open(path):
+    stage = Usd.Stage.Open(str(path))
+    assert stage is not None
+    _OPEN.append(stage)
+    return stage
+
+
+def _moving(rec):
+    names = rec["shape_names"][rec["shape"]]
+    return np.flatnonzero((names != "plane") & (rec["mass"] > 0))
+
+
+def test_stage_metadata_and_time_codes(stage_path):
+    """Write Z up, metres, the fps as time codes per second, frames 0..F-1, and /Root as default prim."""
+    stage = _open(stage_path)
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == FPS
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, FRAMES - 1)
+    assert stage.GetDefaultPrim().GetPath() == "/Root"
+    assert stage.GetDefaultPrim().IsA(UsdGeom.Xform)
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    assert inst.GetPositionsAttr().GetTimeSamples() == list(range(FRAMES))
+    assert inst.GetOrientationsAttr().GetTimeSamples() == list(range(FRAMES))
+
+
+def test_stage_opens_without_composition_errors(stage_path):
+    """Open the stage with no composition errors, every prim valid and defined."""
+    stage = _open(stage_path)
+    assert list(stage.GetCompositionErrors()) == []
+    prims = list(stage.Traverse())
+    assert len(prims) > 5 and all(p.IsValid() and p.IsDefined() for p in prims)
+
+
+def test_positions_and_orientations_equal_the_recording(recording, stage_path):
+    """At every frame each released body's position is the recording's in float32, its orientation in half."""
+    rec = recording
+    moving = _moving(rec)
+    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    ids = np.array(inst.GetIdsAttr().Get())
+    np.testing.assert_array_equal(ids, moving)
+    for k in range(FRAMES):
+        pos = np.array(inst.GetPositionsAttr().Get(k))
+        quat = np.array([(*q.GetImaginary(), q.GetReal()) for q in inst.GetOrientationsAttr().Get(k)])
+        want_p = rec["position"][k, moving]
+        want_q = rec["orientation"][k, moving]
+        seen = np.isfinite(want_p).all(axis=1)
+        np.testing.assert_array_equal(pos[seen], want_p[seen].astype(np.float32))
+        np.testing.assert_array_equal(quat[seen], want_q[seen].astype(np.float16).astype(np.float64))
+
+
+def test_instance_transforms_match_the_bodies(recording, stage_path):
+    """pxr's own instance transforms are the bodies' rotation matrices times their sizes, at their positions."""
+    rec = recording
+    moving = _moving(rec)
+    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    k = FRAMES - 1
+    xforms = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(k), Usd.TimeCode(k))
+    m = np.array([np.array(x) for x in xforms])  # row-vector convention: rows are the local axes
+    names = rec["shape_names"][rec["shape"][moving]]
+    size = np.where((names == "sphere")[:, None], rec["radius"][moving, None], rec["half_extents"][moving])
+    rot = quat_to_matrix(rec["orientation"][k, moving])  # world.py's column-vector rotation
+    # half-precision quaternions: entries of the rotation good to ~2 * 2^-11
+    np.testing.assert_allclose(m[:, :3, :3], np.transpose(rot, (0, 2, 1)) * size[:, :, None], atol=2e-3 * 0.1)
+    np.testing.assert_allclose(m[:, 3, :3], rec["position"][k, moving], atol=1e-6)
+
+
+def test_emitted_bodies_appear_at_their_birth_frame(recording, stage_path):
+    """A body not yet released is in invisibleIds (and scaled to zero) until the frame it first exists."""
+    rec = recording
+    moving = _moving(rec)
+    exists = np.isfinite(rec["position"][:, moving, 0])
+    birth = exists.argmax(axis=0)
+    assert (birth > 0).sum() >= 3, "the scene should release bodies after the first frame"
+    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    for k in range(FRAMES):
+        hidden = set(np.array(inst.GetInvisibleIdsAttr().Get(k), dtype=np.int64).tolist())
+        assert hidden == set(moving[~exists[k]].tolist()), k
+        scales = np.array(inst.GetScalesAttr().Get(k))
+        np.testing.assert_array_equal(scales[~exists[k]], 0.0)
+        assert np.all(scales[exists[k]] > 0)
+    for body, b in zip(moving, birth):
+        if b > 0:
+            assert body in set(np.array(inst.GetInvisibleIdsAttr().Get(int(b) - 1)).tolist())
+            assert body not in set(np.array(inst.GetInvisibleIdsAttr().Get(int(b))).tolist())
+
+
+def test_cloth_points_and_topology(recording, stage_path):
+    """The cloth is one double-sided mesh: the recorded triangles, points in float32 at every frame, unit normals."""
+    rec = recording
+    mesh = UsdGeom.Mesh(_open(stage_path).GetPrimAtPath("/Root/Cloth"))
+    assert mesh.GetDoubleSidedAttr().Get() is True
+    tri = rec["cloth_triangles"]
+    np.testing.assert_array_equal(np.array(mesh.GetFaceVertexCountsAttr().Get()), np.full(len(tri), 3))
+    np.testing.assert_array_equal(np.array(mesh.GetFaceVertexIndicesAttr().Get()), tri.reshape(-1))
+    assert mesh.GetPointsAttr().GetTimeSamples() == list(range(FRAMES))
+    moved = 0.0
+    for k in range(FRAMES):
+        pts = np.array(mesh.GetPointsAttr().Get(k))
+        np.testing.assert_array_equal(pts, rec["cloth_position"][k].astype(np.float32))
+        normals = np.array(mesh.GetNormalsAttr().Get(k))
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
+        moved = max(moved, float(np.abs(pts - rec["cloth_position"][0]).max()))
+    assert moved > 0.01, "the cloth should move in the take"
+
+
+def test_static_geometry_colors_and_camera(recording, stage_path):
+    """Planes become quads around the action, the static pole a box mesh, colours are the viewer's, the camera the scene's."""
+    from tumble.render.colors import body_colors
+
+    stage = _open(stage_path)
+    rec = recording
+    ground = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Static/plane_0"))
+    wall = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Static/plane_1"))
+    for plane, normal, offset in ((ground, (0, 0, 1), 0.0), (wall, (1, 0, 0), -1.5)):
+        m = np.array(plane.ComputeLocalToWorldTransform(0))
+        corners = np.c_[np.array(plane.GetPointsAttr().Get()), np.ones(4)] @ m
+        np.testing.assert_allclose(corners[:, :3] @ np.array(normal, float), offset, atol=1e-6)
+        assert np.ptp(corners[:, :3], axis=0).max() > 2.0  # wider than the action
+    pole_index = int(np.flatnonzero((rec["shape_names"][rec["shape"]] == "box") & (rec["mass"] == 0))[0])
+    pole = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Root/Static/box_{pole_index}"))
+    bound = pole.ComputeWorldBound(0, UsdGeom.Tokens.default_).ComputeAlignedRange()
+    np.testing.assert_allclose(np.array(bound.GetMin()), (-0.82, -0.02, 0.0), atol=1e-6)
+    np.testing.assert_allclose(np.array(bound.GetMax()), (-0.78, 0.02, 1.2), atol=1e-6)
+    np.testing.assert_allclose(np.array(pole.GetDisplayColorAttr().Get()[0]), body_colors([pole_index])[0])
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    colors = UsdGeom.PrimvarsAPI(inst.GetPrim()).GetPrimvar("displayColor")
+    assert colors.GetInterpolation() == UsdGeom.Tokens.vertex
+    np.testing.assert_allclose(np.array(colors.Get()), body_colors(_moving(rec)))
+
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Root/Camera")).GetCamera(0)
+    m = np.array(cam.transform)
+    np.testing.assert_allclose(m[3, :3], (2.0, -3.0, 1.5), atol=1e-9)
+    look = -m[2, :3]  # the camera looks down its -z
+    want = np.array([-2.0, 3.0, -1.1]) / np.linalg.norm([-2.0, 3.0, -1.1])
+    np.testing.assert_allclose(look, want, atol=1e-9)
+    assert cam.GetFieldOfView(Gf.Camera.FOVVertical) == pytest.approx(40.0, abs=1e-4)
+
+
+def test_xforms_mode_animates_one_xform_per_body(recording, tmp_path):
+    """--bodies xforms: each body's world transform sits at its recorded position and is invisible before release."""
+    rec = recording
+    path = usd.export(rec, tmp_path / "xf.usda", bodies="xforms")
+    stage = _open(path)
+    assert list(stage.GetCompositionErrors()) == []
+    moving = _moving(rec)
+    cache = UsdGeom.XformCache()
+    for k in (0, FRAMES // 2, FRAMES - 1):
+        cache.SetTime(k)
+        for b in moving:
+            prim = stage.GetPrimAtPath(f"/Root/Bodies/body_{b:06d}")
+            visible = UsdGeom.Imageable(prim).ComputeVisibility(k) != UsdGeom.Tokens.invisible
+            exists = bool(np.isfinite(rec["position"][k, b]).all())
+            assert visible == exists
+            if exists:
+                m = np.array(cache.GetLocalToWorldTransform(prim))
+                np.testing.assert_allclose(m[3, :3], rec["position"][k, b], atol=1e-12)
+                rot = quat_to_matrix(rec["orientation"][k, b][None])[0]
+                scale = np.linalg.norm(m[:3, :3], axis=1)
+                np.testing.assert_allclose(m[:3, :3] / scale[:, None], rot.T, atol=1e-6)
+        geom = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Root/Bodies/body_{moving[0]:06d}/geom"))
+        assert len(geom.GetPointsAttr().Get()) > 100  # the sphere prototype, through its reference
+
+
+@pytest.mark.parametrize("suffix, magic", [(".usd", b"PXR-USDC"), (".usdc", b"PXR-USDC"), (".usda", b"#usda"),
+                                           (".usdz", b"PK")])
+def test_every_extension_writes_its_format(recording, tmp_path, suffix, magic):
+    """.usd/.usdc write binary crate, .usda text, .usdz a package; each opens with all frames and no temp file left."""
+    path = usd.export(recording, tmp_path / f"shot{suffix}")
+    assert path.read_bytes()[: len(magic)] == magic
+    if suffix == ".usdz":
+        assert zipfile.ZipFile(path).namelist()[0].endswith(".usdc")
+    stage = _open(path)
+    assert stage.GetEndTimeCode() == FRAMES - 1
+    assert sorted(os.listdir(tmp_path)) == [path.name]
+
+
+def test_physics_schemas(recording, tmp_path):
+    """physics=True: a PhysicsScene with the gravity, static colliders, rigid prototypes with density and materials."""
+    stage = _open(usd.export(recording, tmp_path / "phys.usda", physics=True))
+    scene = UsdPhysics.Scene(stage.GetPrimAtPath("/Root/PhysicsScene"))
+    assert scene.GetGravityMagnitudeAttr().Get() == pytest.approx(9.81)
+    np.testing.assert_allclose(np.array(scene.GetGravityDirectionAttr().Get()), (0, 0, -1))
+    ground = stage.GetPrimAtPath("/Root/Static/plane_0")
+    assert ground.HasAPI(UsdPhysics.CollisionAPI) and not ground.HasAPI(UsdPhysics.RigidBodyAPI)
+    sphere = stage.GetPrimAtPath("/Root/Bodies/Prototypes/sphere")
+    assert sphere.HasAPI(UsdPhysics.RigidBodyAPI) and sphere.HasAPI(UsdPhysics.CollisionAPI)
+    # one density per prototype: the median of m / (4/3 pi r^3) over the spheres
+    spheres = np.flatnonzero((recording["shape_names"][recording["shape"]] == "sphere") & (recording["mass"] > 0))
+    want = np.median(recording["mass"][spheres] / (4 / 3 * np.pi * recording["radius"][spheres] ** 3))
+    assert UsdPhysics.MassAPI(sphere).GetDensityAttr().Get() == pytest.approx(want, rel=1e-6)
+    restitutions = sorted(UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
+                          for p in stage.Traverse() if p.HasAPI(UsdPhysics.MaterialAPI))
+    assert restitutions == [0.5]  # the spheres' prototype binds the first sphere's; 0.8 is per body in xforms
+    stage = _open(usd.export(recording, tmp_path / "phys_xf.usda", physics=True, bodies="xforms"))
+    light = int(np.flatnonzero(recording["mass"] == 0.5)[0])
+    body = stage.GetPrimAtPath(f"/Root/Bodies/body_{light:06d}")
+    assert UsdPhysics.MassAPI(body).GetMassAttr().Get() == pytest.approx(0.5)
+    restitutions = sorted(UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
+                          for p in stage.Traverse() if p.HasAPI(UsdPhysics.MaterialAPI))
+    assert restitutions == pytest.approx([0.5, 0.8])
+
+
+def test_lower_fps_takes_every_other_frame(recording, tmp_path):
+    """fps 15 from a 30 fps recording writes frames 0, 2, 4, ... with 15 time codes per second."""
+    stage = _open(usd.export(recording, tmp_path / "half.usdc", fps=15))
+    assert stage.GetTimeCodesPerSecond() == 15
+    assert stage.GetEndTimeCode() == (FRAMES - 1) // 2
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Cloth"))
+    np.testing.assert_array_equal(np.array(mesh.GetPointsAttr().Get(3)), recording["cloth_position"][6].astype(np.float32))
+    with pytest.raises(tumble.errors.TumbleError, match="more than the recording"):
+        usd.export(recording, tmp_path / "fast.usdc", fps=60)
+    with pytest.raises(tumble.errors.TumbleError, match="the recording holds"):
+        usd.export(recording, tmp_path / "long.usdc", duration=5.0)
+    assert not list(tmp_path.glob("fast*")) and not list(tmp_path.glob("long*"))
+
+
+def test_version_1_recording_still_exports(recording, tmp_path):
+    """A recording from format version 1 (no materials, no camera) exports all the same."""
+    old = {k: v for k, v in recording.items() if k not in ("restitution", "friction") and not k.startswith("camera")}
+    old["format_version"] = np.int32(1)
+    np.savez_compressed(tmp_path / "old.npz", **old)
+    stage = _open(usd.export(tmp_path / "old.npz", tmp_path / "old.usdc", physics=True))
+    assert not stage.GetPrimAtPath("/Root/Camera")
+    assert stage.GetEndTimeCode() == FRAMES - 1
+
+
+def test_failed_write_leaves_the_old_file_and_no_temp(recording, tmp_path, monkeypatch):
+    """An error while authoring leaves an existing target untouched and no temporary file beside it."""
+    target = tmp_path / "keep.usda"
+    target.write_text("old", encoding="utf-8")
+
+    def broken(self):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(usd._Writer, "write", broken)
+    with pytest.raises(RuntimeError):
+        usd.export(recording, target)
+    assert target.read_text(encoding="utf-8") == "old"
+    assert os.listdir(tmp_path) == ["keep.usda"]
+
+
+def test_world_export_simulates_the_frames(tmp_path):
+    """Exporting a World steps it: frames = duration * fps + 1, the last at the world's end time."""
+    world = tumble.World(dt=1 / 240)
+    world.add_plane()
+    world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    stage = _open(usd.export(world, tmp_path / "drop.usdc", duration=0.25, fps=20))
+    assert stage.GetEndTimeCode() == 5
+    assert world.time == pytest.approx(0.25, abs=0.5 / 240)
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    assert np.array(inst.GetPositionsAttr().Get(5))[0, 2] == np.float32(world.body_position[1, 2])
+
+
+# ---------------------------------------------------------------------------------------------- command line
+
+
+def test_cli_exports_a_scene_and_a_recording(write_scene, recording, tmp_path, capsys):
+    """`tumble export SCENE -o` and `tumble export RECORDING.npz -o` write stages and exit 0."""
+    scene = write_scene(SCENE)
+    assert main(["export", str(scene), "-o", str(tmp_path / "a.usda"), "--frames", "4", "--no-progress"]) == 0
+    assert _open(tmp_path / "a.usda").GetEndTimeCode() == 3
+    np.savez_compressed(tmp_path / "r.npz", **recording)
+    assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "r.usdz"), "--fps", "10",
+                 "--bodies", "xforms", "--no-progress"]) == 0
+    assert _open(tmp_path / "r.usdz").GetTimeCodesPerSecond() == 10
+    assert "wrote" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("out, message", [
+    ("shot.abc", "must end in .usd, .usda, .usdc or .usdz"),
+    ("missing/shot.usd", "does not exist"),
+    ("file.txt/shot.usd", "does not exist"),
+])
+def test_cli_bad_output_is_one_line(write_scene, tmp_path, capsys, monkeypatch, out, message):
+    """A wrong extension or a folder that is missing or a file: one line on stderr, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "file.txt").write_text("x", encoding="utf-8")
+    scene = write_scene(SCENE)
+    before = sorted(os.listdir(tmp_path))
+    assert main(["export", str(scene), "-o", out, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err and err.startswith("tumble export: error:")
+    assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_cli_unwritable_folder_is_one_line(recording, tmp_path, capsys, monkeypatch):
+    """A folder the user may not write to: one line, exit 2 (os.access is faked, since root may write anywhere)."""
+    np.savez_compressed(tmp_path / "r.npz", **recording)
+    real = os.access
+    monkeypatch.setattr(usd.os, "access", lambda p, mode: False if str(p) == str(tmp_path / "ro") else real(p, mode))
+    (tmp_path / "ro").mkdir()
+    assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "ro" / "x.usd")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "permission denied" in err
+    assert os.listdir(tmp_path / "ro") == []
+
+
+def test_cli_newer_recording_is_one_line(recording, tmp_path, capsys):
+    """A recording from a newer format version: one line naming the versions, exit 2."""
+    newer = dict(recording, format_version=np.int32(FORMAT_VERSION + 1))
+    np.savez_compressed(tmp_path / "new.npz", **newer)
+    assert main(["export", str(tmp_path / "new.npz"), "-o", str(tmp_path / "x.usdc")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"format version {FORMAT_VERSION + 1} is newer" in err
+    assert not (tmp_path / "x.usdc").exists()
+
+
+def test_cli_broken_recording_is_one_line(tmp_path, capsys):
+    """A file that is not a recording: one line, exit 2."""
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    assert main(["export", str(tmp_path / "junk.npz"), "-o", str(tmp_path / "x.usdc")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a readable recording" in err
+
+
+def test_cli_missing_pxr_names_the_pip_command(write_scene, tmp_path, capsys, monkeypatch):
+    """Without pxr: one line naming `pip install 'tumble[usd]'`, exit 2."""
+    import sys
+
+    for name in [m for m in sys.modules if m == "pxr" or m.startswith("pxr.")]:
+        monkeypatch.setitem(sys.modules, name, None)
+    scene = write_scene(SCENE)
+    assert main(["export", str(scene), "-o", str(tmp_path / "x.usd")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pip install 'tumble[usd]'" in err
