@@ -213,6 +213,10 @@ def test_static_geometry_colors_and_camera(recording, stage_path):
     """Planes become quads around the action, the static pole a box mesh, colours are the viewer's, the camera the scene's."""
     from tumble.render.colors import body_colors
 
+    def linear(c):  # USD colours are linear; the palette is sRGB (IEC 61966-2-1)
+        c = np.asarray(c, dtype=np.float64)
+        return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
     stage = _open(stage_path)
     rec = recording
     ground = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Static/plane_0"))
@@ -227,11 +231,11 @@ def test_static_geometry_colors_and_camera(recording, stage_path):
     bound = pole.ComputeWorldBound(0, UsdGeom.Tokens.default_).ComputeAlignedRange()
     np.testing.assert_allclose(np.array(bound.GetMin()), (-0.82, -0.02, 0.0), atol=1e-6)
     np.testing.assert_allclose(np.array(bound.GetMax()), (-0.78, 0.02, 1.2), atol=1e-6)
-    np.testing.assert_allclose(np.array(pole.GetDisplayColorAttr().Get()[0]), body_colors([pole_index])[0])
+    np.testing.assert_allclose(np.array(pole.GetDisplayColorAttr().Get()[0]), linear(body_colors([pole_index])[0]), rtol=1e-6)
     inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
     colors = UsdGeom.PrimvarsAPI(inst.GetPrim()).GetPrimvar("displayColor")
     assert colors.GetInterpolation() == UsdGeom.Tokens.vertex
-    np.testing.assert_allclose(np.array(colors.Get()), body_colors(_moving(rec)))
+    np.testing.assert_allclose(np.array(colors.Get()), linear(body_colors(_moving(rec))), rtol=1e-6)
 
     cam = UsdGeom.Camera(stage.GetPrimAtPath("/Root/Camera")).GetCamera(0)
     m = np.array(cam.transform)

@@ -22,7 +22,8 @@ What the stage holds (Z up, metres, `timeCodesPerSecond` = fps, frame k at time 
 
 With `bodies="xforms"`, `Bodies` holds one animated Xform per body instead (`body_000042`,
 translate + orient time-sampled, visibility off until release), for tools that take instancers
-poorly. Colours are the viewer's (`tumble.render.colors`), as `primvars:displayColor`.
+poorly. Colours are the viewer's (`tumble.render.colors`), as `primvars:displayColor`, turned
+from sRGB into the linear values USD colours are (so that a renderer shows the viewer's shade).
 
 Cost: one pass over the frames, NumPy throughout; pxr copies each frame's arrays once. A 2 s,
 60 fps recording of 5,000 bodies writes in ~1-2 s to a ~20 MB .usdc (benchmarks/export_usd.py).
@@ -52,8 +53,8 @@ EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 BODY_MODES = ("instancer", "xforms")
 #: the pip command that brings pxr
 PIP_HINT = "pip install 'tumble[usd]' (or: pip install usd-core)"
-#: colour of planes (the viewer's ground is a light grey checker)
-PLANE_COLOR = (0.62, 0.63, 0.65)
+#: colour of planes, sRGB (the viewer's ground is a light grey checker)
+PLANE_COLOR = (0.80, 0.81, 0.83)
 #: default seconds to simulate when neither the call nor the scene says
 DEFAULT_DURATION = 2.0
 
@@ -270,6 +271,12 @@ def prototype_uses(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
     return uses
 
 
+def srgb_to_linear(c) -> np.ndarray:
+    """sRGB colour values in [0, 1] to linear ones (IEC 61966-2-1), float32."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors v (..., 3) by unit quaternions q (..., 4) as (x, y, z, w): v + 2 u x (u x v + w v)."""
     u, w = q[..., :3], q[..., 3:4]
@@ -383,7 +390,7 @@ class _Writer:
         self.Gf, self.Sdf, self.Usd, self.UsdGeom, self.UsdPhysics, self.UsdShade, self.Vt = (
             Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdShade, Vt)
         self.stage, self.take, self.bodies, self.physics, self.advance = stage, take, bodies, physics, advance
-        self.colors = body_colors(np.arange(len(take.rec["shape"])))
+        self.colors = srgb_to_linear(body_colors(np.arange(len(take.rec["shape"]))))
         self._materials: dict[tuple[float, float], object] = {}
 
     def write(self) -> None:
@@ -401,14 +408,18 @@ class _Writer:
         if self.physics:
             self._physics_scene()
         self._static()
-        if self.bodies == "xforms":
-            self._xforms()
-        else:
-            self._instancer()
-        if take.cloth:
-            self._cloth()
         if "camera_position" in take.rec:
             self._camera()
+        # the animated parts set up their prims, then author one frame at a time
+        parts = [self._xforms() if self.bodies == "xforms" else self._instancer()]
+        if take.cloth:
+            parts.append(self._cloth())
+        parts = [frame for frame in parts if frame is not None]
+        for k in range(take.frame_count):
+            t = self.Usd.TimeCode(k)
+            for frame in parts:
+                frame(k, t)
+            self.advance()
 
     # -------------------------------------------------------------------- helpers
 
@@ -493,7 +504,7 @@ class _Writer:
             quad = Prototype("plane", np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]],
                                                np.float32), np.array([4], np.int32), np.arange(4, dtype=np.int32),
                              np.tile(np.float32([0, 0, 1]), (4, 1)), collision="none")
-            mesh = self._mesh(f"/Root/Static/plane_{b}", quad, color=PLANE_COLOR)
+            mesh = self._mesh(f"/Root/Static/plane_{b}", quad, color=srgb_to_linear(PLANE_COLOR))
             self._place(mesh, c, q)
             if self.physics:
                 self._collider(mesh.GetPrim(), None, b)
@@ -504,7 +515,7 @@ class _Writer:
                 if self.physics:
                     self._collider(mesh.GetPrim(), use.prototype, b)
 
-    def _instancer(self) -> None:
+    def _instancer(self) -> Callable | None:
         UsdGeom, Vt, take = self.UsdGeom, self.Vt, self.take
         if not len(take.moving):
             return
@@ -548,8 +559,9 @@ class _Writer:
         pos32 = take.position.astype(np.float32)
         quat16 = take.orientation.astype(np.float16)
         previous = None
-        for k in range(take.frame_count):
-            t = self.Usd.TimeCode(k)
+
+        def frame(k: int, t) -> None:
+            nonlocal previous
             positions.Set(Vt.Vec3fArray.FromNumpy(pos32[k]), t)
             orientations.Set(Vt.QuathArray.FromNumpy(quat16[k]), t)
             seen = take.visible[k]
@@ -565,7 +577,8 @@ class _Writer:
                 extent.Set(self._f3(np.stack([(p - r).min(axis=0), (p + r).max(axis=0)])), t)
             else:
                 extent.Set(self._f3(np.zeros((2, 3))), t)
-            self.advance()
+
+        return frame
 
     def _rigid_prototype(self, prim, use: PrototypeUse) -> None:
         """RigidBodyAPI and a collider on an instancer's prototype; density from its bodies' masses."""
@@ -579,7 +592,7 @@ class _Writer:
             UsdPhysics.MassAPI.Apply(prim).CreateDensityAttr(float(np.median(mass / volume)))
         self._bind_material(prim, int(use.bodies[0]))
 
-    def _xforms(self) -> None:
+    def _xforms(self) -> Callable | None:
         UsdGeom, take, rec = self.UsdGeom, self.take, self.take.rec
         if not len(take.moving):
             return
@@ -611,8 +624,8 @@ class _Writer:
                     self._bind_material(geom, int(b))
                 prims.append((slot[int(b)], xf, ops))
         vis_tokens = (UsdGeom.Tokens.invisible, UsdGeom.Tokens.inherited)
-        for k in range(take.frame_count):
-            t = self.Usd.TimeCode(k)
+
+        def frame(k: int, t) -> None:
             pos = take.position[k]
             quat = take.orientation[k].astype(np.float32)
             for row, xf, (translate, orient, _) in prims:
@@ -622,9 +635,10 @@ class _Writer:
                 seen = bool(take.visible[k, row])
                 if k == 0 or seen != bool(take.visible[k - 1, row]):
                     xf.CreateVisibilityAttr().Set(vis_tokens[seen], t)
-            self.advance()
 
-    def _cloth(self) -> None:
+        return frame
+
+    def _cloth(self) -> Callable:
         UsdGeom, take, rec = self.UsdGeom, self.take, self.take.rec
         tri = np.asarray(rec["cloth_triangles"], dtype=np.int32)
         pts = np.asarray(rec["cloth_position"], dtype=np.float64)[take.frames]
@@ -634,14 +648,16 @@ class _Writer:
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateDoubleSidedAttr(True)
         mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-        mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(self._f3(CLOTH_COLOR[None]))
+        mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(self._f3(srgb_to_linear(CLOTH_COLOR[None])))
         points, normals, extent = mesh.CreatePointsAttr(), mesh.CreateNormalsAttr(), mesh.CreateExtentAttr()
-        for k in range(take.frame_count):
+
+        def frame(k: int, t) -> None:
             p = np.nan_to_num(pts[k])
-            t = self.Usd.TimeCode(k)
             points.Set(self._f3(p), t)
             normals.Set(self._f3(vertex_normals(p, tri)), t)
             extent.Set(self._f3(np.stack([p.min(axis=0), p.max(axis=0)])), t)
+
+        return frame
 
     def _camera(self) -> None:
         rec = self.take.rec
