@@ -62,6 +62,7 @@ def test_blender_imports_the_instancer_and_the_cloth(tmp_path):
                     ",".join(map(str, CHECKED)), str(render), str(RENDER_FRAME), f"{SIZE[0]}x{SIZE[1]}"],
                    check=True, timeout=600, capture_output=True)
     report = json.loads(report_path.read_text(encoding="utf-8"))
+    print(f"blender: import {report['import_seconds']:.2f} s, Cycles render {report['render_seconds']:.1f} s")
 
     assert (report["frame_start"], report["frame_end"]) == (0, FRAMES - 1)
     assert report["camera_fov_y"] == pytest.approx(45.0, abs=0.01)
