@@ -335,7 +335,7 @@ class Take:
         ever = finite.any(axis=0)
         first = np.where(ever, finite.argmax(axis=0), 0)
         p0 = pos[first, np.arange(n)]
-        still = np.array([True] * n) if not n else np.all((pos == p0[None]) | ~finite[..., None], axis=(0, 2))
+        still = np.all((pos == p0[None]) | ~finite[..., None], axis=(0, 2))  # (N,)
         static = np.flatnonzero((shape != "plane") & (mass <= 0.0) & still & ever)
         moving = np.setdiff1d(np.arange(n), np.union1d(planes, static))
         visible = finite[:, moving]
