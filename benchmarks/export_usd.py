@@ -110,9 +110,10 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     take = record_take if args.simulate else synthetic_take
     rec = take(args.spheres, args.boxes, args.duration, args.fps)
-    n_frames, n_bodies = rec["position"].shape[:2]
+    n_frames = len(rec["time"])
+    n_bodies = int((rec["mass"] > 0).sum())
     born_late = int((~np.isfinite(rec["position"][0, :, 0])).sum())
-    print(f"take: {int((rec['mass'] > 0).sum()):,} bodies ({born_late:,} released after frame 0), {n_frames} frames; "
+    print(f"take: {n_bodies:,} bodies ({born_late:,} released after frame 0), {n_frames} frames; "
           f"{'simulated' if args.simulate else 'made up'} in {time.perf_counter() - start:.1f} s")
 
     cases = [(fmt, "instancer") for fmt in args.formats.split(",")]
