@@ -26,7 +26,8 @@ poorly. Colours are the viewer's (`tumble.render.colors`), as `primvars:displayC
 from sRGB into the linear values USD colours are (so that a renderer shows the viewer's shade).
 
 Cost: one pass over the frames, NumPy throughout; pxr copies each frame's arrays once. A 2 s,
-60 fps recording of 5,000 bodies writes in ~1-2 s to a ~20 MB .usdc (benchmarks/export_usd.py).
+60 fps recording of 5,000 bodies writes in ~2.6 s to a 15.8 MB .usdc (benchmarks/export_usd.py);
+`bodies="xforms"` costs ~25 us per body per frame (one pxr call per sample), for small scenes.
 
 The shape of a body picks its prototype through `PROTOTYPES` (shape name -> builder), so a new
 shape kind adds one builder returning its meshes, which bodies use them and at what scale.
