@@ -1,13 +1,26 @@
 """The `tumble` command line: one subcommand per module under `tumble.commands`.
 
-Each command module defines `HELP` (one line), `add_arguments(parser)` and `main(args) -> int`.
-Bad input (a missing or malformed scene) exits with status 2 and one line on stderr.
+Each command module defines `HELP` (one line, lower case, no full stop), `add_arguments(parser)`
+and `main(args) -> int`.
+
+Exit status and what is printed on stderr, for every command:
+
+- 0: done.
+- 2: bad input (a missing or malformed scene, a bad option, an output that cannot be written,
+  a request beyond a limit, a broken recording, a missing optional package, out of memory):
+  one line, "tumble COMMAND: error: ...".
+- 1: an unexpected error (a bug): one line naming it and how to see the traceback.
+- 130: interrupted (Ctrl-C).
+
+A traceback is printed only with `--debug` (before or after the command) or with the
+environment variable TUMBLE_DEBUG=1.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from .errors import TumbleError
@@ -22,10 +35,45 @@ COMMANDS = {
     "export": "export",
 }
 
+#: environment variable that turns on tracebacks (as --debug does)
+DEBUG_ENV = "TUMBLE_DEBUG"
+
+#: optional packages -> the pip command that installs them (the [viewer] extra holds them all)
+OPTIONAL = {
+    name: 'pip install "tumble[viewer]"'
+    for name in ("PySide6", "moderngl", "glcontext", "matplotlib", "imageio", "imageio_ffmpeg", "PIL")
+}
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+
+        return version("tumble")
+    except (ImportError, PackageNotFoundError):
+        from . import __version__
+
+        return __version__
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: "tumble run: error: ... (see tumble run --help)", exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="tumble", description="Tumble: particles, rigid bodies and cloth.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser = _Parser(
+        prog="tumble",
+        description="Tumble: particles, rigid bodies and cloth, simulated headless, viewed, rendered and plotted.",
+        epilog="Scenes are TOML files (docs/scenes.md) or the names of bundled samples, e.g. sphere_pile. "
+               f"Errors are one line on stderr; --debug or {DEBUG_ENV}=1 adds the traceback.",
+    )
+    parser.add_argument("-V", "--version", action="version", version=f"tumble {_version()}",
+                        help="print the version and exit")
+    parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, module_name in COMMANDS.items():
         try:
             module = importlib.import_module(f"tumble.commands.{module_name}")
@@ -33,22 +81,66 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != f"tumble.commands.{module_name}":
                 raise
             continue  # command not built yet in this checkout
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP[0].upper() + module.HELP[1:] + ".")
         module.add_arguments(p)
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                       help="print the traceback of an error")
         p.set_defaults(_main=module.main)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    debug = bool(getattr(args, "debug", False)) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+    prefix = f"tumble {args.command}: error:"
     try:
         return int(args._main(args) or 0)
-    except (TumbleError, ValueError, OSError) as exc:
-        print(f"tumble {args.command}: error: {exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print(f"tumble {args.command}: interrupted", file=sys.stderr)
         return 130
+    except ModuleNotFoundError as exc:
+        top = (exc.name or "").split(".")[0]
+        if top not in OPTIONAL or debug:
+            return _unexpected(args.command, exc, debug)
+        print(f"{prefix} `tumble {args.command}` needs the Python package {top!r}, which is not installed; "
+              f"install it with: {OPTIONAL[top]}", file=sys.stderr)
+        return 2
+    except MemoryError as exc:
+        if debug:
+            raise
+        detail = f" ({exc})" if str(exc) else ""
+        print(f"{prefix} out of memory{detail}; reduce the number of bodies (emitter count), the cloth "
+              "resolution, or the recorded duration and --fps", file=sys.stderr)
+        return 2
+    except RecursionError as exc:
+        return _unexpected(args.command, exc, debug)
+    except (TumbleError, ValueError, OSError) as exc:
+        if debug:
+            raise
+        print(f"{prefix} {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 (the last resort: one line, not a traceback)
+        return _unexpected(args.command, exc, debug)
+
+
+def _one_line(exc: BaseException) -> str:
+    """The message of `exc` on one line (an OSError without a message shows its strerror and file)."""
+    text = str(exc)
+    if isinstance(exc, OSError) and exc.strerror and exc.filename and not isinstance(exc, TumbleError):
+        text = f"{exc.filename}: {exc.strerror}"
+    return " ".join(part.strip() for part in text.splitlines() if part.strip()) or type(exc).__name__
+
+
+def _unexpected(command: str, exc: BaseException, debug: bool) -> int:
+    if debug:
+        raise exc
+    print(f"tumble {command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+          f"(run again with --debug or {DEBUG_ENV}=1 for the traceback, and please report it)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

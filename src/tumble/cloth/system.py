@@ -718,6 +718,12 @@ class ClothSystem:
         v = self._view("particle_velocity")
         return 0.5 * float(np.sum(self._host["particle_mass"] * np.einsum("ij,ij->i", v, v)))
 
+    def momentum(self) -> np.ndarray:
+        """Linear momentum of the cloth [kg m/s]: sum m v, shape (3,)."""
+        if self._particle_count == 0:
+            return np.zeros(3)
+        return self._host["particle_mass"] @ self._view("particle_velocity")
+
     def potential_energy(self) -> float:
         """Gravitational potential energy relative to the origin [J]: -sum m g . x."""
         if self._particle_count == 0:

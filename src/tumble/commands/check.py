@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "validate a scene file without running it"
+HELP = "validate a scene file (keys, values and limits) without running it"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="scene file (.toml) or the name of a bundled sample")
+    from .run import SCENE_HELP
+
+    parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
 
 
 def main(args: argparse.Namespace) -> int:

@@ -8,15 +8,21 @@ HELP = "plot energy, momentum, contact count and cloth strain of a recording (.n
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("record", metavar="RECORD", help="recording written by `tumble run --record` (.npz)")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="image to write (.png, .svg, .pdf)")
-    parser.add_argument("--dpi", type=int, default=100, help="resolution of raster images (default 100)")
+    parser.add_argument("record", metavar="RECORD",
+                        help="recording written by `tumble run SCENE --record RECORD.npz` (not a scene file)")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT",
+                        help="image to write: OUT.png, OUT.svg or OUT.pdf (checked before the recording is read)")
+    parser.add_argument("--dpi", type=int, default=100, metavar="N",
+                        help="resolution of raster images in dots per inch (default 100)")
 
 
 def main(args: argparse.Namespace) -> int:
     import sys
 
     from ..io.plot import plot_record
+
+    if not 10 <= args.dpi <= 2000:
+        raise ValueError(f"--dpi must be between 10 and 2000, got {args.dpi}")
 
     out = plot_record(args.record, args.output, dpi=args.dpi)
     print(f"wrote {out}", file=sys.stderr)

@@ -18,9 +18,12 @@ def _triple(text: str) -> tuple[float, float, float]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE", help="scene file (.toml)")
+    from .run import SCENE_HELP
+
+    parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
-                        help="output: NAME.mp4, NAME.gif, or a folder for numbered PNG frames")
+                        help="output: NAME.mp4, NAME.gif, or a folder for numbered PNG frames (checked before "
+                             "rendering, written atomically)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated seconds to render (default: the scene's duration, else 5)")
     parser.add_argument("--fps", type=float, default=30.0, help="frames per simulated second (default 30)")
@@ -53,22 +56,43 @@ def camera_for(world, args, aspect: float):
             world.metadata["camera"] = saved
 
 
+def _check_limits(args, world, duration: float, kind: str, width: int, height: int) -> None:
+    """Refuse a render beyond the limits (docs/scenes.md#limits) before its first frame."""
+    from .. import limits
+    from ..io.video import frame_count
+
+    limits.check_steps("--duration", duration, world.dt)
+    n = frame_count(duration, args.fps)
+    if n > limits.MAX_FRAMES:
+        raise limits.LimitError(f"--duration {duration:g} s at --fps {args.fps:g} is {n:,} frames; "
+                                f"the limit is {limits.MAX_FRAMES:,} frames")
+    if kind == "gif":  # a GIF is assembled in memory: one byte per pixel per frame, and as much again
+        try:
+            limits.check_memory("--duration", "GIF frames", n, 2 * width * height)
+        except limits.LimitError as exc:
+            raise limits.LimitError(f"{exc} at {width}x{height}; lower --duration, --fps or --size, "
+                                    "or write an .mp4") from None
+
+
 def main(args: argparse.Namespace) -> int:
     import sys
 
     import tumble
 
-    from ..io.video import export, output_kind, parse_size
+    from ..io.atomic import check_output
+    from ..io.video import FORMATS, export, output_kind, parse_size
     from ..render import Renderer, create_context
 
-    # cheap checks first: the output kind, the size, then an OpenGL context (TumbleError -> exit 2)
-    output_kind(args.output)
+    # cheap checks first: the output kind and folder, the size, then an OpenGL context (TumbleError -> exit 2)
+    kind = output_kind(args.output)
+    check_output(args.output, suffixes=tuple(FORMATS), folder=kind == "png", option="-o")
     width, height = parse_size(args.size)
     ctx = create_context()
     renderer = Renderer(ctx, width, height, samples=4)
     try:
         world = tumble.load_scene(args.scene)
         duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
+        _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)
         out = export(world, args.output, duration=duration, fps=args.fps, size=(width, height), camera=camera,
                      progress=not args.no_progress, renderer=renderer)

@@ -6,24 +6,29 @@ import argparse
 import math
 import sys
 import time
-from pathlib import Path
 
+from .. import limits
 from ..errors import TumbleError
+from ..io.atomic import check_output
 from ..runtime import init_warp
 
 HELP = "simulate a scene headless and print a summary"
 
 DEFAULT_DURATION = 2.0
 
+#: the SCENE argument of run, check, view and render
+SCENE_HELP = "scene file (.toml), or the name of a bundled sample (e.g. sphere_pile; see samples/)"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="scene file (.toml) or the name of a bundled sample")
+    parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, metavar="S",
                         help=f"simulated time in seconds (default {DEFAULT_DURATION:g})")
     parser.add_argument("--seed", type=int, default=None, metavar="N",
                         help="replace the scene's [world] seed (emitters without their own seed follow it)")
     parser.add_argument("--record", default=None, metavar="FILE.npz",
-                        help="write the trajectory to FILE.npz (format in docs/scenes.md)")
+                        help="write the trajectory to FILE.npz (format in docs/scenes.md); checked before the "
+                             "run starts, written atomically, kept up to Ctrl-C")
     parser.add_argument("--fps", type=float, default=60.0, metavar="F",
                         help="recorded frames per second of simulated time (default 60)")
     parser.add_argument("--profile", action="store_true", help="print the time spent in each stage of the step")
@@ -38,11 +43,8 @@ def _check_arguments(args: argparse.Namespace) -> None:
     if args.seed is not None and args.seed < 0:
         raise TumbleError(f"--seed must be >= 0, got {args.seed}")
     if args.record is not None:
-        path = Path(args.record)
-        if path.suffix != ".npz":
-            raise TumbleError(f"--record {args.record}: the file name must end in .npz")
-        if not path.parent.is_dir():
-            raise TumbleError(f"--record {args.record}: no such directory {str(path.parent)!r}")
+        # before anything is simulated: a run is never lost to an unwritable output
+        check_output(args.record, suffixes=(".npz",), option="--record")
     if args.device == "cuda":
         import warp as wp
 
@@ -52,16 +54,46 @@ def _check_arguments(args: argparse.Namespace) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     from ..io.record import Recorder
     from ..io.scene import load_scene
 
     _check_arguments(args)
     world = load_scene(args.scene, seed=args.seed, device=args.device)
-    steps = max(1, int(round(args.duration / world.dt)))
+    steps = limits.check_steps("--duration", args.duration, world.dt)
+    if args.record:
+        _check_record_memory(args, world, steps)
     recorder = Recorder(world, fps=args.fps) if args.record else None
+    try:
+        _simulate(args, world, steps, recorder)
+    except KeyboardInterrupt:
+        if recorder is None:
+            raise
+        # Ctrl-C: keep what was recorded (written atomically; a second Ctrl-C leaves no partial file)
+        recorder.save(args.record)
+        print(f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,} of {steps:,}); "
+              f"saved the {recorder.frame_count:,} frames recorded so far to {args.record}", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _check_record_memory(args: argparse.Namespace, world, steps: int) -> None:
+    """Refuse a --record whose frames would not fit in memory (docs/scenes.md#limits)."""
+    frames = min(steps, int(args.duration * args.fps)) + 1  # at most one frame a step
+    bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
+    particles = world.cloth.particle_count if world._cloth is not None else 0
+    per_frame = bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME
+    try:
+        limits.check_memory("--record", "frames", frames, per_frame)
+    except limits.LimitError as exc:
+        raise limits.LimitError(f"{exc} of {bodies:,} bodies and {particles:,} cloth particles; "
+                                "lower --fps or --duration") from None
+
+
+def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
+    """Step `world` `steps` times (recording each step), then print the summary."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
     err = Console(stderr=True)
 
     # first step: Warp loads its kernels (and compiles them the first time on this machine)
@@ -94,7 +126,6 @@ def main(args: argparse.Namespace) -> int:
     _print_summary(args, world, steps, wall, first_step, recorder)
     if args.profile:
         _print_profile(world, steps)
-    return 0
 
 
 def _print_summary(args, world, steps: int, wall: float, first_step: float, recorder) -> None:

@@ -6,7 +6,7 @@ import argparse
 import re
 from pathlib import Path
 
-HELP = "Open a scene in the interactive viewer (orbit, play, tune parameters live, record)."
+HELP = "open a scene in the interactive viewer (orbit, play, tune parameters live, record)"
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -21,7 +21,9 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="scene file (.toml), or the name of a bundled sample (sphere_pile)")
+    from .run import SCENE_HELP
+
+    parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     parser.add_argument("--paused", action="store_true", help="start paused (space plays)")
     parser.add_argument("--size", type=parse_size, default=(1280, 720), metavar="WxH",
                         help="size of the 3D view in pixels (default 1280x720)")
@@ -35,6 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     import tumble
 
+    from ..io.atomic import check_folder
+
+    check_folder(args.out_dir, option="--out-dir")
     scene = args.scene
     # load once before opening any window, so that a missing or broken scene is one line on
     # stderr (from the CLI), not a window that opens and fails

@@ -27,23 +27,14 @@ from ..shapes import ShapeType
 
 
 def load_record(path) -> dict[str, np.ndarray]:
-    """All arrays of a recording, by name.
+    """All arrays of a recording, by name (`tumble.io.record.load_recording`).
 
     Raises:
         ValueError: the file is not a readable .npz or has no usable `time` array.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such recording")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            record = {name: data[name] for name in data.files}
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: not a readable .npz recording ({exc})") from None
-    time = record.get("time")
-    if time is None or time.ndim != 1 or len(time) == 0:
-        raise ValueError(f"{path}: a recording needs a non-empty 1-D 'time' array")
-    return record
+    from .record import load_recording
+
+    return load_recording(path)
 
 
 @dataclass
@@ -160,8 +151,11 @@ def compute_series(record: dict) -> Series:
         x = np.nan_to_num(np.where(present[..., None], pos, 0.0))
         s.potential = -np.einsum("n,fn->f", mass, x @ g)
 
-    # linear momentum: sum m v
-    if vel is None or mass is None or pos is None:
+    # linear momentum: the engine's own total when recorded (bodies and cloth), else sum m v
+    recorded_momentum = record.get("momentum")
+    if recorded_momentum is not None:
+        s.momentum = np.asarray(recorded_momentum, dtype=np.float64).reshape(-1, 3)[:f]
+    elif vel is None or mass is None or pos is None:
         s.missing["momentum"] = "needs " + " and ".join(
             k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None)
     else:
@@ -187,9 +181,14 @@ def compute_series(record: dict) -> Series:
             if s.potential is not None:
                 s.potential = s.potential - np.einsum("p,fp->f", cm, np.nan_to_num(cloth_pos) @ g)
             cloth_vel = record.get("cloth_velocity")
-            if s.kinetic is not None and cloth_vel is not None and recorded_kinetic is None:
-                cv = np.nan_to_num(np.asarray(cloth_vel, dtype=np.float64))
+            cv = None if cloth_vel is None else np.nan_to_num(np.asarray(cloth_vel, dtype=np.float64))
+            if s.kinetic is not None and cv is not None and recorded_kinetic is None:
                 s.kinetic = s.kinetic + 0.5 * np.einsum("p,fpi,fpi->f", cm, cv, cv)
+            if s.momentum is not None and recorded_momentum is None:
+                if cv is None:
+                    s.notes["momentum"] = "bodies only: no cloth_velocity recorded"
+                else:
+                    s.momentum = s.momentum + np.einsum("p,fpi->fi", cm, cv)
     if "cloth_max_strain" in record:
         s.strain = np.asarray(record["cloth_max_strain"], dtype=np.float64).reshape(-1)[:f]
     elif s.has_cloth:
@@ -237,7 +236,10 @@ def build_figure(record: dict, *, name: str | None = None):
     """A matplotlib Figure (Agg) with one panel per quantity, stacked over a shared time axis.
 
     The strain panel appears only for recordings with cloth. A panel whose inputs are missing
-    stays empty and its title says "not recorded" and what it needs.
+    stays empty and its title says "not recorded" and what it needs; a quantity that is zero
+    throughout says so in the panel (with a symmetric axis, not fractional ticks). While
+    bodies are being emitted every panel shades that time span, and the potential-energy
+    panel's title says how many appeared (the energy changes as they do).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -248,6 +250,7 @@ def build_figure(record: dict, *, name: str | None = None):
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(keys), 1, sharex=True, squeeze=False)[:, 0]
     t = s.time
+    emitting = emission_span(t, s.bodies)
     for ax, key in zip(axes, keys):
         label, unit = PANELS[key]
         data = getattr(s, key)
@@ -258,6 +261,19 @@ def build_figure(record: dict, *, name: str | None = None):
             ax.text(0.5, 0.5, "not recorded", transform=ax.transAxes, ha="center", va="center", color="0.5")
             continue
         ax.set_title(label + (f" ({s.notes[key]})" if key in s.notes else ""), loc="left", fontsize=10)
+        if emitting is not None:
+            ax.axvspan(*emitting, color="#edae49", alpha=0.12, lw=0, label="_emitting")
+        values = np.asarray(data, dtype=np.float64)
+        if not np.isfinite(values).any() or np.all(values[np.isfinite(values)] == 0.0):
+            # nothing to draw: say so, on an axis with whole ticks around zero
+            what = {"contacts": "no contacts", "strain": "no strain"}.get(key, "zero throughout")
+            if not np.isfinite(values).any():
+                what = "no finite values"
+            ax.axhline(0.0, color="0.6", lw=1.0)
+            ax.set_ylim(-1.0, 1.0)
+            ax.set_yticks([-1.0, 0.0, 1.0])
+            ax.text(0.5, 0.5, what, transform=ax.transAxes, ha="center", va="center", color="0.4")
+            continue
         if key == "momentum":
             for i, (axis, colour) in enumerate(zip("xyz", ("#d1495b", "#66a182", "#2e86ab"))):
                 ax.plot(t, data[:, i], color=colour, lw=1.2, label=f"p{axis}")
@@ -271,6 +287,12 @@ def build_figure(record: dict, *, name: str | None = None):
         else:
             colour = {"kinetic": "#d1495b", "potential": "#2e86ab", "strain": "#edae49"}[key]
             ax.plot(t, data, color=colour, lw=1.4)
+        if key == "potential" and emitting is not None:
+            first, last = int(s.bodies[0]), int(s.bodies.max())
+            notes = [s.notes[key]] if key in s.notes else []
+            notes.append(f"changes as bodies are emitted: {first:,} to {last:,} bodies "
+                         f"from {emitting[0]:.3g} to {emitting[1]:.3g} s, shaded")
+            ax.set_title(f"{label} ({'; '.join(notes)})", loc="left", fontsize=10)
     axes[-1].set_xlabel("time [s]")
     if len(t) > 1 and t[-1] > t[0]:
         axes[-1].set_xlim(t[0], t[-1])
@@ -280,11 +302,36 @@ def build_figure(record: dict, *, name: str | None = None):
     return fig
 
 
+def emission_span(time: np.ndarray, bodies: np.ndarray | None) -> tuple[float, float] | None:
+    """(first, last) time at which the body count grew, or None when it never did."""
+    if bodies is None or len(bodies) < 2:
+        return None
+    grew = np.nonzero(np.diff(bodies) > 0)[0]
+    if len(grew) == 0:
+        return None
+    return float(time[grew[0]]), float(time[grew[-1] + 1])
+
+
+#: image formats `plot_record` writes, by suffix
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
 def plot_record(path, out, *, dpi: int = 100) -> Path:
-    """Read recording `path` and write its plot to `out` (PNG, or any format matplotlib knows by suffix)."""
-    path, out = Path(path), Path(out)
-    if not out.parent.exists():
-        raise ValueError(f"cannot write {str(out)!r}: folder {str(out.parent)!r} does not exist")
-    fig = build_figure(load_record(path), name=path.name)
-    fig.savefig(out, dpi=dpi)
+    """Read recording `path` and write its plot to `out` (.png, .svg or .pdf), atomically.
+
+    Raises:
+        OutputError: `out` cannot be written (checked before the recording is read).
+        RecordingError: `path` is not a readable recording.
+    """
+    from .atomic import atomic_path, check_output
+
+    path = Path(path)
+    out = check_output(out, suffixes=PLOT_SUFFIXES, option="")
+    record = load_record(path)
+    try:
+        fig = build_figure(record, name=path.name)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=out.suffix[1:].lower())
     return out

@@ -12,7 +12,7 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     time (F,), position (F, N, 3), velocity (F, N, 3), orientation (F, N, 4) as (x, y, z, w),
     angular_velocity (F, N, 3), shape (N,) int32 indexing shape_names, shape_names (3,),
     radius (N,), half_extents (N, 3), mass (N,), gravity (3,), dt (), fps (),
-    contact_count (F,) int32, kinetic_energy (F,)
+    contact_count (F,) int32, kinetic_energy (F,), momentum (F, 3) [kg m/s] (bodies and cloth)
     with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3),
     cloth_mass (P,) [kg], cloth_max_strain (F,) (largest structural-spring strain per frame)
     since version 2: restitution (N,), friction (N,); with a scene [camera]: camera_position (3,),
@@ -23,6 +23,8 @@ Cost: one host copy of the body state per frame (~100 bytes per body per frame i
 
 from __future__ import annotations
 
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -86,9 +88,11 @@ class Recorder:
             "angular_velocity": np.array(w.body_angular_velocity, dtype=np.float64),
             "contact_count": np.int32(w.contact_count),
             "kinetic_energy": np.float64(w.kinetic_energy()),
+            "momentum": np.array(w.momentum(), dtype=np.float64),
         }
         cloth = getattr(w, "_cloth", None)
         if cloth is not None:
+            frame["momentum"] = frame["momentum"] + cloth.momentum()
             frame["cloth_position"] = np.array(cloth.particle_position, dtype=np.float64)
             frame["cloth_max_strain"] = np.float64(cloth.max_strain())
         self.frames.append(frame)
@@ -103,6 +107,7 @@ class Recorder:
             "time": np.array([fr["time"] for fr in self.frames], dtype=np.float64),
             "contact_count": np.array([fr["contact_count"] for fr in self.frames], dtype=np.int32),
             "kinetic_energy": np.array([fr["kinetic_energy"] for fr in self.frames], dtype=np.float64),
+            "momentum": np.array([fr["momentum"] for fr in self.frames], dtype=np.float64).reshape(f, 3),
         }
         # per-body state, padded with NaN for bodies created after the frame
         for name, width in (("position", 3), ("velocity", 3), ("orientation", 4), ("angular_velocity", 3)):
@@ -145,26 +150,93 @@ class Recorder:
         return out
 
     def save(self, path) -> Path:
-        """Write the recording to `path` (.npz, compressed). Returns the path written."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            raise ValueError(f"{path}: recordings are .npz files")
-        if path.parent and not path.parent.exists():
-            raise FileNotFoundError(f"{path.parent}: no such directory")
-        np.savez_compressed(path, **self.arrays())
+        """Write the recording to `path` (.npz, compressed), atomically. Returns the path written.
+
+        The file is written beside `path` and renamed into place (`tumble.io.atomic`): a failure
+        (a full disk, Ctrl-C) leaves an existing `path` as it was and no partial file.
+
+        Raises:
+            OutputError: `path` does not end in .npz, its folder is missing or unwritable, or the
+                write failed (an OSError).
+        """
+        from .atomic import atomic_path, check_output
+
+        path = check_output(path, suffixes=(".npz",), option="")
+        arrays = self.arrays()
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, **arrays)
         return path
+
+
+class RecordingError(TumbleError, ValueError):
+    """A file that is not a readable recording; the message names the file and what is wrong."""
+
+
+#: the first bytes of a zip archive (an .npz), of an empty one, and of a single .npy array
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+_NPY_MAGIC = b"\x93NUMPY"
 
 
 def load_recording(path) -> dict[str, np.ndarray]:
     """Read a recording written by `Recorder.save` into a dict of arrays.
 
+    Object (pickled) arrays are never loaded.
+
     Raises:
+        RecordingError: a missing, empty, truncated or corrupt file, a file of another kind (a
+            scene file, a single .npy array), or one without a non-empty 1-D `time` array.
         TumbleError: the file was written by a newer format version than this Tumble reads.
     """
-    with np.load(Path(path), allow_pickle=False) as data:
-        out = {name: data[name] for name in data.files}
+    p = Path(path)
+
+    def bad(why: str) -> RecordingError:
+        return RecordingError(f"{p}: not a readable recording (.npz): {why}")
+
+    if not p.exists():
+        raise RecordingError(f"{p}: no such recording")
+    if p.is_dir():
+        raise bad("it is a directory")
+    try:
+        with open(p, "rb") as f:
+            head = f.read(512)
+    except OSError as exc:
+        raise bad(f"cannot read it ({exc.strerror or exc})") from None
+    if not head:
+        raise bad("the file is empty")
+    if not head.startswith(_ZIP_MAGIC):
+        raise bad(_describe(p, head))
+    try:
+        with np.load(p, allow_pickle=False) as data:
+            if not hasattr(data, "files"):
+                raise bad("it holds a single array, not named arrays")
+            out = {name: data[name] for name in data.files}
+    except zipfile.BadZipFile as exc:
+        raise bad(f"corrupt ({exc})" if "CRC" in str(exc) else "truncated or corrupt (not a complete zip archive)") \
+            from None
+    except ValueError as exc:
+        if "pickle" in str(exc):
+            raise bad("it holds object (pickled) arrays, which Tumble never loads") from None
+        raise bad(f"corrupt ({exc})") from None
+    except (OSError, EOFError, KeyError, zlib.error) as exc:
+        raise bad(f"truncated or corrupt ({type(exc).__name__}: {exc})") from None
+    time = out.get("time")
+    if time is None or time.ndim != 1 or len(time) == 0:
+        raise RecordingError(f"{p}: a recording needs a non-empty 1-D 'time' array")
     version = int(out.get("format_version", 1))
     if version > FORMAT_VERSION:
         raise TumbleError(f"{path}: recording format version {version} is newer than this Tumble reads "
                           f"(up to {FORMAT_VERSION}); upgrade Tumble")
     return out
+
+
+def _describe(path: Path, head: bytes) -> str:
+    """What a file that is not a zip archive seems to be, for the error message."""
+    if head.startswith(_NPY_MAGIC):
+        return "it is a single NumPy array (.npy), not a recording"
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError:
+        return "unknown binary content (a recording is a zip archive of arrays)"
+    if path.suffix.lower() == ".toml" or head.lstrip().startswith((b"[", b"#")):
+        return f"it is a text file (a scene?); record a scene with `tumble run {path} --record FILE.npz`"
+    return "it is a text file; a recording is written by `tumble run SCENE --record FILE.npz`"

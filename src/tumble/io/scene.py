@@ -35,7 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..errors import SceneError
+from ..limits import show_bytes
 
 #: directory of the bundled sample scenes (the repository's `samples/`; override with $TUMBLE_SAMPLES)
 SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES", Path(__file__).resolve().parents[3] / "samples"))
@@ -84,15 +86,20 @@ def _show(value) -> str:
     return repr(value)
 
 
-def number(*, low: float | None = None, high: float | None = None, low_open: bool = False) -> Check:
-    """A finite float, optionally bounded: low < v (low_open) or low <= v, v <= high."""
+def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,
+           limit: str | None = None) -> Check:
+    """A finite float, optionally bounded: low < v (low_open) or low <= v, v <= high.
+
+    `limit` names what `high` is (e.g. "the largest dt Tumble supports"), for the message.
+    """
 
     def convert(value):
         v = _number(value)
         if low is not None and (v <= low if low_open else v < low):
             raise _Bad(f"must be {'>' if low_open else '>='} {low:g}, got {_show(value)}")
         if high is not None and v > high:
-            raise _Bad(f"must be <= {high:g}, got {_show(value)}")
+            raise _Bad(f"{_show(value)} is too large: must be <= {high:g}"
+                       + (f" ({limit}, docs/scenes.md#limits)" if limit else ""))
         return v
 
     if low == 0 and low_open and high is None:
@@ -106,16 +113,21 @@ def number(*, low: float | None = None, high: float | None = None, low_open: boo
     return Check(kind, convert)
 
 
-def integer(*, low: int | None = None) -> Check:
-    """An integer, optionally >= low."""
+def integer(*, low: int | None = None, high: int | None = None, limit: str | None = None) -> Check:
+    """An integer, optionally >= low and <= high (`limit` names what `high` is, as for `number`)."""
 
     def convert(value):
         if isinstance(value, bool) or not isinstance(value, int):
             raise _Bad(f"must be an integer, got {_show(value)}")
         if low is not None and value < low:
             raise _Bad(f"must be >= {low}, got {value}")
+        if high is not None and value > high:
+            raise _Bad(f"{value:,} is too large: must be <= {high:,}"
+                       + (f" ({limit}, docs/scenes.md#limits)" if limit else ""))
         return int(value)
 
+    if high is not None:
+        return Check(f"integer in [{low}, {high}]", convert)
     return Check("integer" if low is None else f"integer >= {low}", convert)
 
 
@@ -393,8 +405,10 @@ SCHEMA: dict[str, TableSpec] = {
             "Global settings.",
             {
                 "gravity": Field(vector(3), [0.0, 0.0, -9.81], "m/s^2", "gravitational acceleration"),
-                "dt": Field(number(low=0, low_open=True), 1.0 / 240.0, "s", "fixed time step", "1/240"),
-                "substeps": Field(integer(low=1), 8, "", "solver substeps per step"),
+                "dt": Field(number(low=0, low_open=True, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
+                            1.0 / 240.0, "s", "fixed time step", "1/240"),
+                "substeps": Field(integer(low=1, high=limits.MAX_SUBSTEPS, limit="the most Tumble supports"), 8, "",
+                                  "solver substeps per step"),
                 "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
                 "restitution_threshold": Field(
                     number(low=0), 0.5, "m/s", "approach speed below which contacts do not bounce"
@@ -642,6 +656,8 @@ def parse_scene(text: str, path=None) -> Scene:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"invalid TOML: {exc}", path=path) from None
+    except RecursionError:
+        raise SceneError("invalid TOML: arrays or tables nested too deeply", path=path) from None
     scene = Scene(path=None if path is None else str(path))
     for name, raw in doc.items():
         spec = SCHEMA.get(name)
@@ -663,7 +679,75 @@ def parse_scene(text: str, path=None) -> Scene:
             if isinstance(raw, list):
                 raise SceneError(f"write [{name}] (one table), not [[{name}]]", path=path, table=name)
             scene.tables[name] = _parse_table(spec, raw, path, None)
+    check_limits(scene)
     return scene
+
+
+def check_limits(scene: Scene, *, dt: float | None = None) -> None:
+    """Refuse a scene asking for more than Tumble can do or this machine can hold (docs/scenes.md#limits).
+
+    Checked before anything is allocated: bodies released per emitter step, steps of the
+    [check] duration, cloth indices (int32), and the memory of every body and cloth particle
+    the scene will hold against `limits.available_memory()`.
+
+    Args:
+        dt: the time step the scene will run at (default its [world] dt).
+
+    Raises:
+        SceneError: naming the table and key asking too much, the request and the limit.
+    """
+    path = scene.path
+    world = scene.table("world") or {}
+    dt = float(world.get("dt", SCHEMA["world"].fields["dt"].default) if dt is None else dt)
+
+    # solver limits: bodies released in one step, steps of the check run
+    for i, e in enumerate(scene.items("emitter")):
+        per_step = min(e["rate"] * dt, e["count"])
+        if per_step > limits.MAX_RELEASE_PER_STEP:
+            raise SceneError(
+                f"{e['rate']:g} bodies/s at dt {dt:g} s releases {per_step:,.0f} bodies in one step; "
+                f"the limit is {limits.MAX_RELEASE_PER_STEP:,} a step (docs/scenes.md#limits)",
+                path=path, table=_table_label("emitter", i), key="rate")
+    check = scene.table("check")
+    if check is not None:
+        try:
+            limits.check_steps("duration", check["duration"], dt)
+        except limits.LimitError as exc:
+            raise SceneError(str(exc), path=path, table="check") from None
+
+    # memory: every body (listed and emitted) and every cloth particle, blamed on the largest request
+    requests = []  # (bytes, table, key, count, what, bytes each)
+    for name in BODY_TABLES:
+        n = len(scene.items(name))
+        if n:
+            requests.append((n * limits.BYTES_PER_BODY, name, None, n, f"{name} bodies", limits.BYTES_PER_BODY))
+    for i, e in enumerate(scene.items("emitter")):
+        requests.append((e["count"] * limits.BYTES_PER_BODY, _table_label("emitter", i), "count", e["count"],
+                         "bodies", limits.BYTES_PER_BODY))
+    particles = 0
+    for i, c in enumerate(scene.items("cloth")):
+        n = c["resolution"][0] * c["resolution"][1]
+        particles += n
+        if particles > limits.MAX_PARTICLES_INT32:
+            raise SceneError(
+                f"{c['resolution'][0]:,} x {c['resolution'][1]:,} = {n:,} particles; cloth indices are int32, "
+                f"which allows at most {limits.MAX_PARTICLES_INT32:,} particles in all (docs/scenes.md#limits)",
+                path=path, table=_table_label("cloth", i), key="resolution")
+        requests.append((n * limits.BYTES_PER_PARTICLE, _table_label("cloth", i), "resolution", n, "particles",
+                         limits.BYTES_PER_PARTICLE))
+    need = sum(r[0] for r in requests)
+    if requests:
+        have = limits.available_memory()
+        if need > have:
+            _, table, key, count, what, each = max(requests, key=lambda r: r[0])
+            others = need - count * each
+            try:
+                limits.check_memory(key or f"[[{table}]]", what, count, each, available=max(0, have - others))
+            except limits.LimitError as exc:
+                message = str(exc).split(": ", 1)[1] if key is not None else str(exc)
+                if others > 0.01 * have:
+                    message += f" beside the {show_bytes(others)} the rest of the scene needs"
+                raise SceneError(message, path=path, table=table if key is not None else None, key=key) from None
 
 
 def read_scene(path) -> Scene:

@@ -160,41 +160,40 @@ def export(
         world, duration, fps, size, camera, renderer: as for `render_frames`.
         progress: show a progress bar on stderr (frames done, estimated time left).
 
+    The output is checked before the first frame and written beside `out`, then renamed into
+    place when complete (`tumble.io.atomic`): a failure leaves an existing `out` as it was.
+
     Raises:
         ValueError: an unsupported suffix, or bad duration / fps / size.
+        OutputError: `out` cannot be written (checked first), or writing it failed.
         TumbleError: no OpenGL context could be made.
     """
+    from .atomic import atomic_folder, atomic_path, check_output
+
     out = Path(out)
     kind = output_kind(out)
     n = frame_count(duration, fps)
     width, height = parse_size(size)
+    # the output is checked before the first frame is simulated (OutputError names it)
+    check_output(out, suffixes=tuple(FORMATS), folder=kind == "png", option="")
     frames = render_frames(world, duration=duration, fps=fps, size=(width, height), camera=camera,
                            renderer=renderer)
     label = f"rendering {out.name or out}"
-    if kind != "png" and not out.parent.exists():
-        raise ValueError(f"cannot write {str(out)!r}: folder {str(out.parent)!r} does not exist")
 
+    # every kind is written beside `out` and renamed into place when complete (tumble.io.atomic)
     with _progress(n, label, progress) as advance:
         if kind == "png":
             from PIL import Image
 
-            out.mkdir(parents=True, exist_ok=True)
-            for k, image in enumerate(frames):
-                Image.fromarray(image).save(out / f"frame_{k:05d}.png")
-                advance()
-        elif kind == "mp4":
-            import imageio.v2 as imageio
-
-            writer = imageio.get_writer(
-                str(out), format="FFMPEG", mode="I", fps=float(fps), codec="libx264", quality=8,
-                pixelformat="yuv420p", macro_block_size=2, ffmpeg_log_level="error",
-            )
-            try:
-                for image in frames:
-                    writer.append_data(image)
+            with atomic_folder(out) as tmp:
+                for k, image in enumerate(frames):
+                    Image.fromarray(image).save(tmp / f"frame_{k:05d}.png")
                     advance()
-            finally:
-                writer.close()
+        elif kind == "mp4":
+            with atomic_path(out) as tmp, FfmpegWriter(tmp, (width, height), fps) as writer:
+                for image in frames:
+                    writer.append(image)
+                    advance()
         else:  # gif
             from PIL import Image
 
@@ -205,6 +204,100 @@ def export(
                 advance()
             # GIF delays are in hundredths of a second
             delay_ms = max(20, int(round(100.0 / float(fps))) * 10)
-            images[0].save(out, save_all=True, append_images=images[1:], duration=delay_ms, loop=0,
-                           optimize=False, disposal=1)
+            with atomic_path(out) as tmp:
+                images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=delay_ms,
+                               loop=0, optimize=False, disposal=1)
     return out
+
+
+class FfmpegWriter:
+    """H.264 MP4 through the ffmpeg binary of imageio-ffmpeg, its output summarized in one line.
+
+    Frames go to ffmpeg's stdin as raw RGB; ffmpeg's own messages go to a temporary file, not
+    to the terminal, and a failure (ffmpeg missing, exiting early, a full disk) raises
+    OSError with ffmpeg's last message as one line (`atomic_path` names the target). The encoding matches imageio's
+    `quality=8` (CRF 10), yuv420p, odd sizes scaled up to even ones.
+
+    Args:
+        path: the .mp4 file to write (a temporary path from `atomic_path`).
+        size: (width, height) of every frame in pixels.
+        fps: frames per second of the video.
+    """
+
+    def __init__(self, path, size: tuple[int, int], fps: float):
+        import subprocess
+        import tempfile
+        from fractions import Fraction
+
+        import imageio_ffmpeg
+
+        self.path = Path(path)
+        self.size = (int(size[0]), int(size[1]))
+        w, h = self.size
+        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "rawvideo", "-vcodec", "rawvideo",
+               "-s", f"{w}x{h}", "-pix_fmt", "rgb24", "-r", str(Fraction(float(fps)).limit_denominator()),
+               "-i", "-", "-an", "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "10"]
+        if w % 2 or h % 2:
+            cmd += ["-vf", f"scale={w + w % 2}:{h + h % 2}"]
+        cmd += ["-f", "mp4", str(self.path)]
+        self._log = tempfile.TemporaryFile()
+        try:
+            self._process = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                             stderr=self._log)
+        except OSError as exc:
+            self._log.close()
+            raise self._error(f"cannot start ffmpeg ({exc.strerror or exc})") from None
+
+    def append(self, image: np.ndarray) -> None:
+        """Encode one frame, shape (height, width, 3) uint8."""
+        w, h = self.size
+        if image.shape != (h, w, 3):
+            raise ValueError(f"frame of shape {image.shape}, expected {(h, w, 3)}")
+        try:
+            self._process.stdin.write(np.ascontiguousarray(image, dtype=np.uint8).tobytes())
+        except (BrokenPipeError, OSError):
+            self._process.wait()
+            raise self._error(self._summary()) from None
+
+    def close(self) -> None:
+        """Finish the file; raises OSError if ffmpeg failed."""
+        try:
+            self._process.stdin.close()
+        except OSError:
+            pass
+        code = self._process.wait()
+        summary = self._summary() if code else ""
+        self._log.close()
+        if code:
+            raise self._error(summary)
+
+    def _summary(self) -> str:
+        """ffmpeg's last message, one line."""
+        self._log.seek(0)
+        lines = [line.strip() for line in self._log.read().decode(errors="replace").splitlines() if line.strip()]
+        code = self._process.poll()
+        why = lines[-1] if lines else "no message"
+        if code is not None and code < 0:
+            import signal
+
+            name = signal.Signals(-code).name
+            hint = {"SIGXFSZ": ": the file size limit was reached"}.get(name, "")
+            return f"ffmpeg was killed by {name}{hint}" + (f" ({why})" if lines else "")
+        return f"ffmpeg failed (exit status {code}): {why}" if code else f"ffmpeg stopped reading frames: {why}"
+
+    def _error(self, message: str) -> OSError:
+        # an OSError: `atomic_path` reports it as "cannot write OUT: <message>", naming the target
+        return OSError(message)
+
+    def __enter__(self) -> FfmpegWriter:
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        if exc is None:
+            self.close()
+            return
+        # the block failed: stop ffmpeg without waiting for it to finish the file
+        if self._process.poll() is None:
+            self._process.kill()
+        self._process.wait()
+        self._log.close()
