@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .limits import MAX_RELEASE_PER_STEP
 from .shapes import ShapeType, box_inertia, box_volume, shape_from_name, sphere_inertia, sphere_volume
 
 #: jittered tries per candidate before it waits for the next step
@@ -241,7 +242,8 @@ class Emitter:
         if self.done:
             return 0
         self._owed += self.rate * dt
-        k = min(int(self._owed), self.count - self.emitted)
+        # at most MAX_RELEASE_PER_STEP a step: each candidate is placed in a NumPy loop below
+        k = min(int(self._owed), self.count - self.emitted, MAX_RELEASE_PER_STEP)
         if k <= 0:
             return 0
         cand = self._sample_bodies(k)

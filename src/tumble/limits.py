@@ -30,8 +30,10 @@ MAX_DT = 0.1
 MAX_SUBSTEPS = 1000
 #: largest number of steps in one run (duration / dt): about 12 days at 1 ms a step
 MAX_STEPS = 10**9
-#: most bodies one emitter releases in one step (rate * dt); each is placed in NumPy, ~30 us apiece
-MAX_RELEASE_PER_STEP = 10_000
+#: most bodies one emitter releases in one step (rate * dt): each new body is tested against the
+#: ones placed before it in the same step, so the cost grows as its square (1,000: ~1.5 s, 2,000: ~6 s,
+#: 10,000: ~100 s measured on one loaded core)
+MAX_RELEASE_PER_STEP = 1_000
 #: most frames one `tumble render` writes (an hour of video at 30 fps is 108,000)
 MAX_FRAMES = 1_000_000
 #: particle, spring and triangle indices are int32: at most this many cloth particles (~6 springs each)

@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=float, default=60.0, metavar="F",
                         help="recorded frames per second of simulated time (default 60)")
     parser.add_argument("--profile", action="store_true", help="print the time spent in each stage of the step")
-    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="Warp device (default cpu)")
+    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device to run the kernels on (default cpu)")
 
 
 def _check_arguments(args: argparse.Namespace) -> None:

@@ -77,13 +77,12 @@ def _number(value) -> float:
 
 
 def _show(value) -> str:
-    if isinstance(value, str):
-        return repr(value)
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, dict):
         return "a table"
-    return repr(value)
+    text = repr(value)
+    return text if len(text) <= 80 else text[:76] + " ..."  # a deeply nested or long value stays readable
 
 
 def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,

@@ -1,0 +1,253 @@
+"""Broken recordings, huge requests and unexpected errors: one line naming the problem, never a traceback.
+
+Issue 13 (bad input, huge requests and failed writes).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import tumble.cli
+from tumble import limits
+from tumble.cli import main
+from tumble.io.record import RecordingError, load_recording
+from tumble.io.scene import SAMPLES_DIR, parse_scene
+
+BALL = "[[plane]]\n[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nmass = 1.0\n"
+
+
+# ------------------------------------------------------------------------------ recordings
+
+
+def _recording(path):
+    t = np.linspace(0.0, 1.0, 50)
+    np.savez(path, time=t, position=np.zeros((50, 1, 3)), velocity=np.zeros((50, 1, 3)), mass=np.ones(1))
+    return path
+
+
+def _bad_recordings(tmp_path) -> dict[str, tuple[object, str]]:
+    """name -> (path, a fragment of the message)"""
+    good = _recording(tmp_path / "good.npz").read_bytes()
+    cases = {}
+    (tmp_path / "truncated.npz").write_bytes(good[: len(good) // 2])
+    cases["truncated"] = (tmp_path / "truncated.npz", "truncated or corrupt")
+    # flip one byte inside the stored data of the first member (np.savez does not compress)
+    flipped = bytearray(good)
+    flipped[200] ^= 0xFF
+    (tmp_path / "crc.npz").write_bytes(bytes(flipped))
+    cases["bad crc"] = (tmp_path / "crc.npz", "CRC")
+    (tmp_path / "empty.npz").write_bytes(b"")
+    cases["empty"] = (tmp_path / "empty.npz", "empty")
+    cases["scene file"] = (SAMPLES_DIR / "rain.toml", "scene")
+    np.save(tmp_path / "single.npy", np.zeros(3))
+    cases["npy"] = (tmp_path / "single.npy", ".npy")
+    np.savez(tmp_path / "pickled.npz", time=np.array([0.0, 1.0]), junk=np.array([{"a": 1}], dtype=object))
+    cases["pickled"] = (tmp_path / "pickled.npz", "pickled")
+    (tmp_path / "binary.npz").write_bytes(bytes(range(256)))
+    cases["binary"] = (tmp_path / "binary.npz", "binary")
+    np.savez(tmp_path / "notime.npz", position=np.zeros((2, 1, 3)))
+    cases["no time"] = (tmp_path / "notime.npz", "'time'")
+    (tmp_path / "folder.npz").mkdir()
+    cases["directory"] = (tmp_path / "folder.npz", "directory")
+    return cases
+
+
+def test_broken_recordings_raise_one_named_error(tmp_path):
+    """load_recording: each broken kind raises RecordingError naming the file and the problem."""
+    for why, (path, fragment) in _bad_recordings(tmp_path).items():
+        with pytest.raises(RecordingError) as info:
+            load_recording(path)
+        message = str(info.value)
+        assert str(path) in message and fragment in message and "\n" not in message, (why, message)
+        assert "pickled data" not in message or why == "pickled"
+
+
+def test_plot_of_broken_recordings_exits_2_with_one_line(tmp_path, tumble_subprocess_env):
+    """`tumble plot` on each broken kind: exit 2, one line naming the file, no traceback, no image."""
+    for why, (path, fragment) in _bad_recordings(tmp_path).items():
+        out = tmp_path / f"{why.replace(' ', '_')}.png"
+        result = subprocess.run([sys.executable, "-m", "tumble", "plot", str(path), "-o", str(out)],
+                                capture_output=True, text=True, env=tumble_subprocess_env, timeout=120)
+        assert result.returncode == 2, (why, result.stderr)
+        assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr, (why, result.stderr)
+        assert result.stderr.startswith("tumble plot: error: ") and str(path) in result.stderr, why
+        assert fragment in result.stderr and not out.exists(), why
+    result = subprocess.run([sys.executable, "-m", "tumble", "plot", str(SAMPLES_DIR / "rain.toml"), "-o",
+                             str(tmp_path / "r.png")], capture_output=True, text=True, env=tumble_subprocess_env)
+    assert "tumble run" in result.stderr and "--record" in result.stderr  # says how to make a recording
+
+
+# ------------------------------------------------------------------------------ limits
+
+HUGE_REQUESTS = {
+    "substeps": ("[world]\nsubsteps = 1000000000\n" + BALL, "substeps", "1,000"),
+    "dt": ("[world]\ndt = 1e9\n" + BALL, "dt", "0.1"),
+    "emitter count": (BALL + "[[emitter]]\nrate = 100\ncount = 1000000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
+                      "count", "available"),
+    "emitter rate": (BALL + "[[emitter]]\nrate = 1e9\ncount = 1000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
+                     "rate", "1,000 a step"),
+    "cloth int32": ("[[cloth]]\nsize = [1, 1]\nresolution = [100000, 100000]\nposition = [0, 0, 1]\n",
+                    "resolution", "int32"),
+    "cloth memory": ("[[cloth]]\nsize = [1, 1]\nresolution = [4000, 4000]\nposition = [0, 0, 1]\n",
+                     "resolution", "available"),
+    "check duration": (BALL + "[check]\nduration = 1e300\n", "duration", "1,000,000,000 steps"),
+}
+
+
+@pytest.mark.parametrize("case", list(HUGE_REQUESTS))
+def test_huge_requests_are_refused_alike_by_every_command(case, write_scene, capsys, monkeypatch):
+    """check, run, view and render refuse each huge request with the same line: key, request, limit."""
+    import tumble.render
+
+    monkeypatch.setenv("TUMBLE_MEMORY", "1G")
+    monkeypatch.setattr(tumble.render, "create_context", lambda *a, **k: _NoContext())
+    monkeypatch.setattr(tumble.render, "Renderer", _NoRenderer)
+    text, key, limit = HUGE_REQUESTS[case]
+    path = write_scene(text, "huge.toml")
+    messages = set()
+    for argv in (["check", str(path)], ["run", str(path)], ["view", str(path)],
+                 ["render", str(path), "-o", str(path.parent / "v.mp4")]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0, err
+        command = argv[0]
+        assert err.startswith(f"tumble {command}: error: {path}") and key in err and limit in err, err
+        messages.add(err.split(": error: ", 1)[1])
+    assert len(messages) == 1, messages
+
+
+class _NoContext:
+    def release(self):
+        pass
+
+
+class _NoRenderer:
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def release(self):
+        pass
+
+
+def test_memory_limit_follows_the_available_memory(monkeypatch):
+    """The body limit is the available memory over BYTES_PER_BODY: 10,000 bodies fit in 1G, 10^6 do not."""
+    scene = BALL + "[[emitter]]\nrate = 100\ncount = {n}\nposition = [0, 0, 2]\nradius = 0.05\n"
+    monkeypatch.setenv("TUMBLE_MEMORY", "1G")
+    assert limits.available_memory() <= 2**30
+    parse_scene(scene.format(n=10_000))
+    most = (2**30 - 2 * limits.BYTES_PER_BODY) // limits.BYTES_PER_BODY  # beside the plane and the ball
+    with pytest.raises(ValueError, match=f"at most {most:,} bodies"):
+        parse_scene(scene.format(n=10**6))
+
+
+def test_parse_bytes():
+    """TUMBLE_MEMORY sizes: binary multiples, plain bytes, and a clear error otherwise."""
+    assert limits.parse_bytes("2G") == 2 * 2**30
+    assert limits.parse_bytes("512m") == 512 * 2**20
+    assert limits.parse_bytes("1.5 GiB") == int(1.5 * 2**30)
+    assert limits.parse_bytes("100000") == 100000
+    with pytest.raises(limits.LimitError, match="TUMBLE_MEMORY"):
+        limits.parse_bytes("lots")
+
+
+def test_run_refuses_too_many_steps_and_a_recording_too_big(write_scene, capsys, monkeypatch):
+    """--duration beyond 10^9 steps, and a --record whose frames exceed memory: one line each."""
+    path = str(write_scene(BALL))
+    assert main(["run", path, "--duration", "1e300"]) == 2
+    assert "1,000,000,000 steps" in capsys.readouterr().err
+    monkeypatch.setenv("TUMBLE_MEMORY", "1M")
+    assert main(["run", path, "--duration", "100", "--record", str(write_scene("", "r.npz"))]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--record" in err and "frames" in err and "--fps" in err
+
+
+def test_a_huge_emitter_rate_from_python_does_not_hang():
+    """An emitter asking for 10^9 bodies at 10^9/s releases at most MAX_RELEASE_PER_STEP a step."""
+    import time
+
+    import tumble
+
+    world = tumble.World()
+    world.add_plane()
+    world.add_emitter(rate=1e9, count=10**9, position=(0, 0, 50), region="box", extent=(40, 40, 40), radius=0.05)
+    start = time.perf_counter()
+    world.step()
+    assert world.body_count - 1 <= limits.MAX_RELEASE_PER_STEP
+    assert time.perf_counter() - start < 30
+
+
+def test_deeply_nested_toml_is_one_line(write_scene, capsys):
+    """A value nested 100,000 deep is a clean error in check and run."""
+    path = write_scene("x = " + "[" * 100_000 + "]" * 100_000 + "\n", "deep.toml")
+    for command in ("check", "run"):
+        assert main([command, str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "nested too deeply" in err
+
+
+# ------------------------------------------------------------------------------ no tracebacks
+
+
+def test_an_unexpected_error_is_one_line_with_how_to_debug(monkeypatch, capsys, tumble_subprocess_env):
+    """A bug: exit 1, one line naming it and --debug / TUMBLE_DEBUG; with them, the traceback."""
+    import tumble.commands.check as check
+
+    def broken(args):
+        raise RuntimeError("something broke")
+
+    monkeypatch.setattr(check, "main", broken)
+    assert main(["check", "bouncing_ball"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "RuntimeError: something broke" in err
+    assert "--debug" in err and "TUMBLE_DEBUG=1" in err
+    for argv in (["--debug", "check", "bouncing_ball"], ["check", "bouncing_ball", "--debug"]):
+        with pytest.raises(RuntimeError):
+            main(argv)
+    monkeypatch.setenv("TUMBLE_DEBUG", "1")
+    with pytest.raises(RuntimeError):
+        main(["check", "bouncing_ball"])
+
+
+def test_debug_shows_the_traceback_of_bad_input(tmp_path, tumble_subprocess_env):
+    """TUMBLE_DEBUG=1 turns the one-line error of a missing file into a traceback."""
+    env = dict(tumble_subprocess_env, TUMBLE_DEBUG="1")
+    result = subprocess.run([sys.executable, "-m", "tumble", "check", str(tmp_path / "none.toml")],
+                            capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode != 0 and "Traceback" in result.stderr
+
+
+def test_out_of_memory_says_so_and_what_to_reduce(monkeypatch, capsys):
+    """A MemoryError: one line saying out of memory and what to reduce, exit 2."""
+    import tumble.commands.run as run
+
+    def oom(args):
+        raise MemoryError("Unable to allocate 7.45 GiB")
+
+    monkeypatch.setattr(run, "main", oom)
+    assert main(["run", "bouncing_ball"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "out of memory" in err and "reduce" in err and "7.45 GiB" in err
+
+
+@pytest.mark.parametrize("command, module", [("plot", "matplotlib"), ("view", "PySide6"), ("render", "moderngl")])
+def test_a_missing_optional_package_names_the_pip_command(command, module, tmp_path, monkeypatch, capsys):
+    """Without matplotlib / PySide6 / moderngl: one line naming the package and the pip command, exit 2."""
+    for name in list(sys.modules):
+        if name == module or name.startswith(module + "."):
+            monkeypatch.delitem(sys.modules, name)
+    for name in ("tumble.io.plot", "tumble.viewer", "tumble.render"):
+        for loaded in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+            monkeypatch.delitem(sys.modules, loaded)
+    monkeypatch.setitem(sys.modules, module, None)  # import raises ModuleNotFoundError
+    _recording(tmp_path / "r.npz")
+    argv = {"plot": ["plot", str(tmp_path / "r.npz"), "-o", str(tmp_path / "p.png")],
+            "view": ["view", "bouncing_ball"],
+            "render": ["render", "bouncing_ball", "-o", str(tmp_path / "v.mp4")]}[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and repr(module) in err and 'pip install "tumble[viewer]"' in err, err
+    assert tumble.cli.OPTIONAL[module] == 'pip install "tumble[viewer]"'
