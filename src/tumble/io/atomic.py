@@ -103,6 +103,37 @@ def _fsync(path: Path) -> None:
         os.fsync(f.fileno())
 
 
+class AtomicFile:
+    """A temporary file beside `path` that becomes `path` on `commit()` (for writers that stay open).
+
+    `atomic_path` is the same as a `with` block; a writer that lives across calls (the viewer's
+    video recording) makes one, writes to `.tmp`, then calls `commit()` or `discard()`.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        fd, name = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}.",
+                                    suffix=f".tmp{self.path.suffix}")
+        os.close(fd)
+        self.tmp = Path(name)
+
+    def commit(self) -> Path:
+        """Flush the temporary file to disk and rename it onto `path` (atomic). Returns `path`."""
+        try:
+            os.chmod(self.tmp, _file_mode(self.path))
+            _fsync(self.tmp)
+            os.replace(self.tmp, self.path)
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"cannot write {str(self.path)!r}: {exc.strerror or exc}") from exc
+        return self.path
+
+    def discard(self) -> None:
+        """Remove the temporary file; `path` stays as it was."""
+        with contextlib.suppress(OSError):
+            self.tmp.unlink()
+
+
 @contextlib.contextmanager
 def atomic_path(path) -> Iterator[Path]:
     """Yield a temporary path beside `path`; rename it onto `path` when the block succeeds.
@@ -110,21 +141,15 @@ def atomic_path(path) -> Iterator[Path]:
     On any exception (KeyboardInterrupt included) the temporary file is removed and `path` is
     left as it was. An OSError is re-raised as `OutputError` naming `path`.
     """
-    target = Path(path)
-    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}")
-    os.close(fd)
-    tmp = Path(name)
+    file = AtomicFile(path)
     try:
-        yield tmp
-        os.chmod(tmp, _file_mode(target))
-        _fsync(tmp)
-        os.replace(tmp, target)
+        yield file.tmp
     except BaseException as exc:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+        file.discard()
         if isinstance(exc, OSError) and not isinstance(exc, OutputError):
-            raise OutputError(f"cannot write {str(target)!r}: {exc.strerror or exc}") from exc
+            raise OutputError(f"cannot write {str(file.path)!r}: {exc.strerror or exc}") from exc
         raise
+    file.commit()
 
 
 @contextlib.contextmanager

@@ -25,8 +25,11 @@ def save_png(pixels: np.ndarray, path) -> Path:
     """Write (H, W, 3) uint8 pixels to a PNG file. Returns the path."""
     import imageio.v3 as iio
 
+    from ..io.atomic import atomic_path
+
     path = Path(path)
-    iio.imwrite(path, np.ascontiguousarray(pixels, dtype=np.uint8), extension=".png")
+    with atomic_path(path) as tmp:  # written beside, renamed into place (tumble.io.atomic)
+        iio.imwrite(tmp, np.ascontiguousarray(pixels, dtype=np.uint8), extension=".png")
     return path
 
 
@@ -49,26 +52,44 @@ class VideoRecorder:
         """Append one (H, W, 3) uint8 frame."""
         pixels = np.asarray(pixels, dtype=np.uint8)
         if self._writer is None:
-            import imageio.v2 as imageio
+            from ..io.atomic import AtomicFile
+            from ..io.video import FfmpegWriter
 
-            # even width and height, as H.264 in yuv420p needs; macro_block_size=2 keeps the size
+            # even width and height, as H.264 in yuv420p needs
             h, w = pixels.shape[0] // 2 * 2, pixels.shape[1] // 2 * 2
             self._shape = (h, w)
-            self._writer = imageio.get_writer(
-                self.path, fps=self.fps, codec="libx264", quality=8, macro_block_size=2,
-                pixelformat="yuv420p", ffmpeg_log_level="error",
-            )
+            # written beside the target and renamed into place on close (tumble.io.atomic)
+            self._file = AtomicFile(self.path)
+            try:
+                self._writer = FfmpegWriter(self._file.tmp, (w, h), self.fps)
+            except BaseException:
+                self._file.discard()
+                raise
         h, w = self._shape
         frame = np.zeros((h, w, 3), dtype=np.uint8)
         ph, pw = min(h, pixels.shape[0]), min(w, pixels.shape[1])
         frame[:ph, :pw] = pixels[:ph, :pw, :3]
-        self._writer.append_data(frame)
+        try:
+            self._writer.append(frame)
+        except BaseException:
+            self._abandon()
+            raise
         self.frame_count += 1
 
     def close(self) -> Path | None:
         """Finish the file. Returns its path, or None when no frame was written."""
         if self._writer is None:
             return None
-        self._writer.close()
-        self._writer = None
-        return self.path
+        writer, self._writer = self._writer, None
+        try:
+            writer.close()
+        except BaseException:
+            self._file.discard()
+            raise
+        return self._file.commit()
+
+    def _abandon(self) -> None:
+        """Stop ffmpeg and remove the partial file (an existing `path` stays as it was)."""
+        writer, self._writer = self._writer, None
+        writer.__exit__(RuntimeError, RuntimeError("abandoned"), None)
+        self._file.discard()
