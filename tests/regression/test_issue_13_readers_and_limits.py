@@ -194,7 +194,7 @@ def test_deeply_nested_toml_is_one_line(write_scene, capsys):
 
 def test_an_unexpected_error_is_one_line_with_how_to_debug(monkeypatch, capsys, tumble_subprocess_env):
     """A bug: exit 1, one line naming it and --debug / TUMBLE_DEBUG; with them, the traceback."""
-    import tumble.commands.check as check
+    from tumble.commands import check
 
     def broken(args):
         raise RuntimeError("something broke")
@@ -222,7 +222,7 @@ def test_debug_shows_the_traceback_of_bad_input(tmp_path, tumble_subprocess_env)
 
 def test_out_of_memory_says_so_and_what_to_reduce(monkeypatch, capsys):
     """A MemoryError: one line saying out of memory and what to reduce, exit 2."""
-    import tumble.commands.run as run
+    from tumble.commands import run
 
     def oom(args):
         raise MemoryError("Unable to allocate 7.45 GiB")

@@ -19,7 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     import sys
 
-    from ..io.plot import plot_record
+    from ..io.atomic import check_output
+    from ..io.plot import PLOT_SUFFIXES, plot_record
+
+    check_output(args.output, suffixes=PLOT_SUFFIXES, option="-o")
 
     if not 10 <= args.dpi <= 2000:
         raise ValueError(f"--dpi must be between 10 and 2000, got {args.dpi}")

@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "rendering, written atomically)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated seconds to render (default: the scene's duration, else 5)")
-    parser.add_argument("--fps", type=float, default=30.0, help="frames per simulated second (default 30)")
+    parser.add_argument("--fps", type=float, default=30.0, metavar="F", help="frames per simulated second (default 30)")
     parser.add_argument("--size", default="1280x720", metavar="WxH", help="image size in pixels (default 1280x720)")
     parser.add_argument("--camera-position", type=_triple, metavar="X,Y,Z", help="camera position [m]")
     parser.add_argument("--camera-target", type=_triple, metavar="X,Y,Z", help="point the camera looks at [m]")

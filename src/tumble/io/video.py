@@ -19,6 +19,7 @@ import math
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 
@@ -234,13 +235,17 @@ class FfmpegWriter:
         self.path = Path(path)
         self.size = (int(size[0]), int(size[1]))
         w, h = self.size
-        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "rawvideo", "-vcodec", "rawvideo",
+        try:
+            exe = imageio_ffmpeg.get_ffmpeg_exe()
+        except RuntimeError as exc:
+            raise OSError(f"no ffmpeg binary found ({exc}); install it with: pip install imageio-ffmpeg") from None
+        cmd = [exe, "-y", "-v", "error", "-f", "rawvideo", "-vcodec", "rawvideo",
                "-s", f"{w}x{h}", "-pix_fmt", "rgb24", "-r", str(Fraction(float(fps)).limit_denominator()),
                "-i", "-", "-an", "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "10"]
         if w % 2 or h % 2:
             cmd += ["-vf", f"scale={w + w % 2}:{h + h % 2}"]
         cmd += ["-f", "mp4", str(self.path)]
-        self._log = tempfile.TemporaryFile()
+        self._log = tempfile.TemporaryFile()  # noqa: SIM115 (open while ffmpeg runs; closed in close/__exit__)
         try:
             self._process = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                              stderr=self._log)
@@ -289,7 +294,7 @@ class FfmpegWriter:
         # an OSError: `atomic_path` reports it as "cannot write OUT: <message>", naming the target
         return OSError(message)
 
-    def __enter__(self) -> FfmpegWriter:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, kind, exc, tb) -> None:
