@@ -22,6 +22,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from .errors import TumbleError
 
@@ -96,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     debug = bool(getattr(args, "debug", False)) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+    if not debug:  # NumPy's overflow warnings on absurd (but valid) values are not a user's business
+        warnings.filterwarnings("ignore", category=RuntimeWarning)
     prefix = f"tumble {args.command}: error:"
     try:
         return int(args._main(args) or 0)

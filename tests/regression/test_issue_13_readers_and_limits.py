@@ -251,3 +251,21 @@ def test_a_missing_optional_package_names_the_pip_command(command, module, tmp_p
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and repr(module) in err and 'pip install "tumble[viewer]"' in err, err
     assert tumble.cli.OPTIONAL[module] == 'pip install "tumble[viewer]"'
+
+
+@pytest.mark.parametrize("body, key", [
+    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e300\n", "radius"),
+    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e-300\n", "radius"),
+    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nmass = 1e-320\n", "radius"),
+    ("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-200, 1e-200, 1]\n", "half_extents"),
+    ("[[emitter]]\nrate = 10\ncount = 10\nposition = [0, 0, 1]\nradius = [1e-200, 0.1]\n", "radius"),
+])
+def test_sizes_whose_mass_is_not_representable_are_refused(body, key):
+    """A mass or inertia that overflows or vanishes in float64 is a SceneError naming the size key."""
+    with pytest.raises(ValueError, match=f"{key}: a size of .* must be finite and > 0"):
+        parse_scene(body)
+
+
+def test_thin_but_representable_boxes_are_accepted():
+    """A box 1e-120 m thin still has a finite, positive mass and inertia: accepted."""
+    parse_scene("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-120, 1, 1]\n")

@@ -33,8 +33,11 @@ from pathlib import Path
 from ..errors import TumbleError
 
 
-class OutputError(TumbleError, OSError):
-    """An output path Tumble cannot write; the message names the path and why."""
+class OutputError(TumbleError, OSError, ValueError):
+    """An output path Tumble cannot write; the message names the path and why.
+
+    An OSError, and a ValueError as the checks it replaces were (`Recorder.save`, `plot_record`).
+    """
 
 
 def check_output(path, *, suffixes: Sequence[str] = (), folder: bool = False, option: str = "-o") -> Path:

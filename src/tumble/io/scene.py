@@ -346,6 +346,45 @@ class TableSpec:
 def _mass_or_density(values: dict) -> None:
     if values.get("mass") is not None and values.get("density") is not None:
         raise _KeyBad("density", "give mass or density, not both")
+    _mass_representable(values)
+
+
+def _extremes(value) -> list[float]:
+    """The smallest and largest number in a value, a range or a nested list of them."""
+    flat = np.asarray([value], dtype=object).ravel().tolist()
+    while any(isinstance(v, (list, tuple)) for v in flat):
+        flat = [x for v in flat for x in (v if isinstance(v, (list, tuple)) else [v])]
+    return [min(flat), max(flat)] if flat else []
+
+
+def _mass_representable(values: dict) -> None:
+    """Refuse sizes or masses whose mass or inertia (or their inverses) overflow or vanish in float64.
+
+    A sphere of radius 1e300 would weigh inf kg and one of radius 1e-300 nothing; the solver
+    divides by both. A box is checked with its half extents; an emitter's ranges by their
+    extremes (as spheres or cubes).
+    """
+    from ..shapes import box_inertia, box_volume, sphere_inertia, sphere_volume
+
+    mass, density = values.get("mass"), values.get("density")
+    for key in ("radius", "half_extents"):
+        size = values.get(key)
+        if size is None:
+            continue
+        exact_box = key == "half_extents" and isinstance(size, list) and len(size) == 3
+        shapes = [size] if exact_box else [[r, r, r] if key == "half_extents" else r for r in _extremes(size)]
+        with np.errstate(all="ignore"):
+            for h in shapes:
+                volume = float(box_volume(h) if key == "half_extents" else sphere_volume(h))
+                masses = _extremes(mass) if mass is not None else [d * volume for d in _extremes(density or 1000.0)]
+                for m in masses:
+                    inertia = box_inertia(m, h) if key == "half_extents" else sphere_inertia(m, h)
+                    numbers = np.concatenate([[m], np.ravel(inertia)])
+                    if not (np.all(np.isfinite(numbers)) and np.all(numbers > 0) and np.all(np.isfinite(1.0 / numbers))):
+                        shown = _show(h if exact_box else (h[0] if isinstance(h, list) else h))
+                        raise _KeyBad(key, f"a size of {shown} m gives a mass of {m:g} kg and moments of inertia "
+                                           f"down to {float(np.min(inertia)):g} kg m^2; both (and their inverses) "
+                                           "must be finite and > 0 in float64")
 
 
 class _KeyBad(Exception):
