@@ -44,7 +44,8 @@ def create_context(*, require: tuple[int, int] = (3, 3)):
     try:
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a declared dependency
-        raise TumbleError(f"no OpenGL context: moderngl is not installed ({exc})") from None
+        raise TumbleError('no OpenGL context: the Python package \'moderngl\' is not installed; install it with: '
+                          'pip install "tumble[viewer]"') from None
     version = require[0] * 100 + require[1] * 10
     errors = []
     for kwargs in ({"backend": "egl"}, {}):
