@@ -44,6 +44,7 @@ OPTIONAL = {
     name: 'pip install "tumble[viewer]"'
     for name in ("PySide6", "moderngl", "glcontext", "matplotlib", "imageio", "imageio_ffmpeg", "PIL")
 }
+OPTIONAL["pxr"] = 'pip install "tumble[usd]"'  # tumble export
 
 
 def _version() -> str:
