@@ -43,7 +43,7 @@ def create_context(*, require: tuple[int, int] = (3, 3)):
     """
     try:
         import moderngl
-    except ImportError as exc:  # pragma: no cover - moderngl is a declared dependency
+    except ImportError:  # pragma: no cover - moderngl is a declared dependency
         raise TumbleError('no OpenGL context: the Python package \'moderngl\' is not installed; install it with: '
                           'pip install "tumble[viewer]"') from None
     version = require[0] * 100 + require[1] * 10
