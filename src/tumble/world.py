@@ -32,6 +32,7 @@ from .runtime import init_warp
 from .shapes import ShapeType
 from .solver import contacts as contact_solver
 from .solver import integrate
+from .solver import joints as joint_solver
 from .state import ArraySet, BodyId, float_t, quat, readonly, vec3
 
 #: worlds with fewer bodies keep their rows in id order (their state fits in cache anyway)
@@ -182,6 +183,7 @@ class World:
         self.emitters: list = []
         self.broadphase = broadphase.BroadPhase(self.device)
         self.contacts = contact_solver.ContactSet(self.device)
+        self.joints = joint_solver.JointSet(self.device)
         self._cloth = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
@@ -365,6 +367,43 @@ class World:
         if friction is not None:
             self.bodies.write("body_friction", slice(0, n), _unit_interval(friction, "friction"))
 
+    def add_joint(self, kind: str, body_a, body_b, **kwargs):
+        """Join two bodies (either may be None: the world, a fixed frame); see `tumble.solver.joints`.
+
+        Args:
+            kind: "ball", "hinge", "slider", "fixed", "distance" or "rope".
+            body_a, body_b: BodyId (or index) of the two bodies, or None for the world.
+            anchor: shared anchor, world point at creation [m]; or anchor_a / anchor_b, one per body
+                (world points, or body-frame points with frame="body"). Default: a's centre (distance
+                and rope: each body's centre).
+            axis: hinge / slider axis, world (or a's frame with frame="body"); default (0, 0, 1).
+            lower, upper: hinge angle limits [rad] or slider translation limits [m] (from creation).
+            motor_speed: hinge [rad/s] / slider [m/s] target speed of b relative to a, with max_torque [N m]
+                (hinge) or max_force [N] (slider).
+            length, min_length, max_length: distance joint rest length (default: the current distance)
+                and bounds (default: rigid rod; rope: 0 to length; spring: unbounded).
+            stiffness, damping: distance spring [N/m], [N s/m].
+            break_force: the joint breaks when its force exceeds this [N] (default never).
+            collide: whether the two bodies still collide (default False).
+
+        Returns:
+            The new joint's `JointId`; `joint_force[id.index]` is its force on b [N].
+        """
+        ends = [joint_solver.JointBody.world() if body is None else self._joint_body(body, key)
+                for key, body in (("body_a", body_a), ("body_b", body_b))]
+        rows = joint_solver.joint_rows(kind, *ends, **kwargs)
+        return joint_solver.JointId(self.joints.add(rows)[0])
+
+    def _joint_body(self, body, key: str):
+        try:
+            i = self._slot(body)
+        except (IndexError, TypeError, ValueError):
+            raise joint_solver.JointArgumentError(
+                key, f"no body {body!r} (the world has {self.bodies.count} bodies)") from None
+        b = self.bodies
+        return joint_solver.JointBody(i, b.numpy("body_position")[i].copy(), b.numpy("body_orientation")[i].copy(),
+                                      bool(b.numpy("body_inv_mass")[i] > 0.0))
+
     def apply_force(self, body, force: Sequence[float], *, point: Sequence[float] | None = None) -> None:
         """Apply a force [N] (at a world `point`, default the centre of mass) during the next step only."""
         i = self._slot(body)
@@ -465,6 +504,7 @@ class World:
         self.contacts.remap_bodies(slot)
         if self._cloth is not None:
             self._cloth.remap_bodies(slot)
+        self.joints.remap_bodies(slot)
         self._slot_of_id = np.empty(n, dtype=np.int64)
         self._slot_of_id[self.bodies.numpy("body_id")] = np.arange(n)
 
@@ -493,6 +533,7 @@ class World:
         # broad phase: spatial hash -> candidate pairs of bodies whose swept bounds overlap
         with self._timer("broad_phase"):
             pairs = self.broadphase.find_pairs(bodies, dt)
+            pairs = self.joints.filter_pairs(pairs, bodies)  # jointed pairs collide only if asked
 
         # narrow phase: pair table -> contact points with normal, separation and anchors
         with self._timer("narrow_phase"):
@@ -512,10 +553,13 @@ class World:
             with self._timer("solver"):
                 if substep == 0:
                     contact_solver.warm_start(bodies, contacts)
+                    self.joints.warm_start(bodies, h, cache=launches)
+                self.joints.solve(bodies, h, use_bias=True, cache=launches)
                 contact_solver.solve(bodies, contacts, h, use_bias=True, cache=launches)
             with self._timer("integrate"):
                 integrate.integrate_positions(bodies, h, cache=launches)
             with self._timer("solver"):
+                self.joints.solve(bodies, h, use_bias=False, cache=launches)
                 contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             if cloth is not None:
                 with self._timer("cloth"):
@@ -525,6 +569,7 @@ class World:
         with self._timer("solver"):
             contact_solver.restitution(bodies, contacts, self.restitution_threshold)
             contacts.store_impulses(bodies)
+            self.joints.finish(bodies, h, cache=launches)  # joint forces; joints over their break force break
             integrate.clear_forces(bodies)
 
         self.time += dt
@@ -615,6 +660,16 @@ class World:
     body_angular_velocity = property(
         lambda self: self._view("body_angular_velocity"), doc="Angular velocities, world frame [rad/s], shape (n, 3)."
     )
+
+    joint_count = property(lambda self: self.joints.count, doc="Number of joints, broken ones included.")
+    joint_force = property(lambda self: self.joints.view("joint_force"),
+                           doc="Force of each joint on its body b over the last substep, world [N], shape (j, 3).")
+    joint_torque = property(lambda self: self.joints.view("joint_torque"),
+                            doc="Torque of each joint on its body b, world [N m], shape (j, 3).")
+    joint_error = property(lambda self: readonly(joint_solver.joint_error(self.joints, self.bodies)),
+                           doc="Position error (drift) of each joint [m], shape (j,).")
+    joint_broken = property(lambda self: readonly(self.joints.numpy("joint_enabled") == 0),
+                            doc="Whether each joint has broken, shape (j,), bool.")
 
     @property
     def body_plane_normal(self) -> np.ndarray:

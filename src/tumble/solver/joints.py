@@ -1,0 +1,1064 @@
+"""Joints: ball, hinge, slider, fixed and distance/rope constraints, solved with the contacts.
+
+Reads body poses and velocities; writes body velocities, the joints' accumulated impulses and,
+once per step, `joint_force` / `joint_torque`. One pass costs O(joints).
+
+The scheme is the soft step of Catto (Box2D v3, `joint.c`, `revolute_joint.c`), in 3D, run in
+the same substeps as the contacts (see `solver/contacts.py` and `World.step`):
+- per substep: warm start (the first substep applies last step's impulses in a pass of its
+  own; later ones get the previous substep's through the per-body warm start the relax pass
+  sums, as the contacts do), `solve` with bias (soft: the position error is fed back at a rate
+  set by a stiffness that is a fraction of the substep rate, `JOINT_HERTZ_PER_SUBSTEP_RATE`),
+  integrate positions, `solve` again without bias ("relax"), which removes the push-back
+  velocity, so fixing drift adds no energy;
+- every row reads the bodies' current poses (positions and orientations after the last
+  integration), so the error is exact, not linearised;
+- rows of one joint, in order: the axial row (motor or spring, then lower and upper limit),
+  the angular rows, and the point rows last, since keeping the bodies together matters most.
+
+Rows, with C the position error and J the velocity Jacobian (Cdot = J v):
+- point (ball, hinge, fixed): C = p_b - p_a (anchors in world), a 3 x 3 block
+  K = (1/m_a + 1/m_b) 1 - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x, solved at once;
+- slider line: the two components of C = p_b - p_a across the axis, with body a's arm
+  r_a + d (the point of a under p_b), so that sliding along the axis is free;
+- angular lock (fixed, slider): C = 2 vec(q_b f_b (q_a f_a)^-1), K = I_a^-1 + I_b^-1;
+- hinge swing: the two components of C = u_a x u_b across u_a (u the hinge axis on each
+  body), K the 2 x 2 block of I_a^-1 + I_b^-1 on those directions;
+- axial: hinge angle (twist of f_b against f_a about the axis), slider translation along the
+  axis, or distance |p_b - p_a|. The motor drives its speed to the target with an impulse
+  clamped by max torque (force) times h; a limit is one-sided, speculative when not reached
+  (as contacts: it may close the gap in one substep, no more), soft when violated; a distance
+  spring of stiffness k [N/m] and damping c [N s/m] is soft with bias rate k / (c + h k) and
+  mass scale a / (1 + a), a = h (c + h k) / m_eff (the implicit spring, Box2D's b2MakeSoft
+  with omega^2 = k / m_eff, 2 zeta omega = c / m_eff).
+
+Soft coefficients (as contacts): omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1,
+a3 = 1 / (1 + a2); impulse = -m_eff a2 a3 (Cdot + (omega / a1) C) - a3 * accumulated.
+Tuning: `JOINT_HERTZ_PER_SUBSTEP_RATE` 0.25 (twice as stiff as contacts, as in Box2D) with
+damping ratio 2 holds a resting chain to micrometres per link at 8 substeps of 1/240 s; more
+substeps make every joint stiffer and more exact.
+
+Joint force: the accumulated impulses are per substep (each substep applies them again as its
+warm start), so the force is impulse / h; a joint whose force exceeds `break_force` breaks at
+the end of the step (it stops acting and its bodies collide again).
+
+On the CPU, Warp runs threads in order, so each pass is a Gauss-Seidel sweep in joint order and
+the result is deterministic. On CUDA the passes are Jacobi: deltas are added with atomics and
+each joint's impulse is scaled by 1 / (largest joint count of its two bodies).
+
+Jointed pairs do not collide unless the joint says `collide=True`: `JointSet.filter_pairs` drops
+them from the broad phase's pair list before the narrow phase (a binary search of each pair in
+the sorted keys of such joints, then an order-keeping compaction by exclusive scan).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+import warp as wp
+
+from ..launch import LaunchCache, launch
+from ..state import ArraySet, float_t, quat, readonly, vec3
+from .contacts import _inv_inertia_world
+
+#: joint stiffness as a fraction of the substep rate, and its damping ratio (Box2D v3:
+#: joints twice as stiff as contacts, damping ratio 2)
+JOINT_HERTZ_PER_SUBSTEP_RATE = 0.25
+JOINT_DAMPING_RATIO = 2.0
+
+
+class JointKind(IntEnum):
+    """Joint types. `DISTANCE` also covers ropes (min_length 0) and springs."""
+
+    BALL = 0
+    HINGE = 1
+    SLIDER = 2
+    FIXED = 3
+    DISTANCE = 4
+
+
+#: names accepted by `World.add_joint` and scene files ("rope" is a distance joint that only pulls)
+JOINT_NAMES = {"ball": JointKind.BALL, "hinge": JointKind.HINGE, "slider": JointKind.SLIDER,
+               "fixed": JointKind.FIXED, "distance": JointKind.DISTANCE, "rope": JointKind.DISTANCE}
+
+JOINT_FIELDS = {
+    # model
+    "joint_kind": wp.int32,  # JointKind
+    "joint_body_a": wp.int32,  # body row, or -1 for the world (a fixed frame at the origin)
+    "joint_body_b": wp.int32,
+    "joint_local_a": vec3,  # anchor in body a's frame [m] (in the world for the world)
+    "joint_local_b": vec3,
+    "joint_frame_a": quat,  # joint frame in body a's frame; its x axis is the hinge / slider axis
+    "joint_frame_b": quat,
+    "joint_limit": wp.int32,  # 1 = lower/upper rows act
+    "joint_lower": float_t,  # hinge [rad], slider [m], distance: min length [m]
+    "joint_upper": float_t,  # hinge [rad], slider [m], distance: max length [m]
+    "joint_motor": wp.int32,  # 1 = motor acts (hinge, slider)
+    "joint_motor_speed": float_t,  # target speed [rad/s] or [m/s], b relative to a
+    "joint_motor_max": float_t,  # largest motor torque [N m] or force [N]
+    "joint_length": float_t,  # distance: rest length of the spring [m]
+    "joint_stiffness": float_t,  # distance spring [N/m] (0 = none)
+    "joint_damping": float_t,  # distance spring damping [N s/m]
+    "joint_break_force": float_t,  # [N]; inf = unbreakable
+    "joint_collide": wp.int32,  # 1 = the pair still collides
+    "joint_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
+    # state
+    "joint_enabled": wp.int32,  # 0 once broken
+    "joint_impulse_linear": vec3,  # point / slider-line impulse on b, world [N s]
+    "joint_impulse_angular": vec3,  # angular impulse on b, world [N m s]
+    "joint_impulse_axial": float_t,  # motor or spring impulse along the axial row
+    "joint_impulse_lower": float_t,  # lower limit impulse (>= 0)
+    "joint_impulse_upper": float_t,  # upper limit impulse (>= 0)
+    "joint_force": vec3,  # force on b over the last substep, world [N]
+    "joint_torque": vec3,  # torque on b (about its anchor) over the last substep, world [N m]
+}
+
+_KIND_BALL = wp.constant(int(JointKind.BALL))
+_KIND_HINGE = wp.constant(int(JointKind.HINGE))
+_KIND_SLIDER = wp.constant(int(JointKind.SLIDER))
+_KIND_FIXED = wp.constant(int(JointKind.FIXED))
+_KIND_DISTANCE = wp.constant(int(JointKind.DISTANCE))
+
+
+@dataclass(frozen=True)
+class JointId:
+    """Public handle to one joint: its creation index."""
+
+    index: int
+
+    def __index__(self) -> int:
+        return self.index
+
+    def __int__(self) -> int:
+        return self.index
+
+
+# ---------------------------------------------------------------------------- geometry of a joint
+
+
+@wp.struct
+class _Geometry:
+    """One joint's rows at the current poses (world frame)."""
+
+    ra: vec3  # anchor offsets from the centres
+    rb: vec3
+    arm_a: vec3  # where the linear impulse acts on a (r_a; r_a + d for a slider)
+    d: vec3  # p_b - p_a
+    axis: vec3  # joint axis on a (hinge, slider)
+    perp1: vec3  # two directions across the axis
+    perp2: vec3
+    twist: vec3  # angular error to remove (fixed, slider: all three; hinge: across the axis)
+    n: vec3  # axial row: linear direction (slider, distance), zero for the hinge
+    ja: vec3  # axial row: angular Jacobian of a (Cdot = n.(v_b - v_a) + jb.w_b - ja.w_a)
+    jb: vec3
+    value: float_t  # axial coordinate: hinge angle [rad], slider translation [m], distance [m]
+    Ia: wp.mat33d  # world inverse inertias
+    Ib: wp.mat33d
+    ma: float_t  # inverse masses
+    mb: float_t
+
+
+@wp.func
+def _geometry(kind: int, xa: vec3, qa: quat, xb: vec3, qb: quat, local_a: vec3, local_b: vec3,
+              frame_a: quat, frame_b: quat, ma: float_t, mb: float_t, Ia: wp.mat33d, Ib: wp.mat33d):
+    g = _Geometry()
+    ra = wp.quat_rotate(qa, local_a)
+    rb = wp.quat_rotate(qb, local_b)
+    d = (xb + rb) - (xa + ra)
+    fa = qa * frame_a
+    fb = qb * frame_b
+    one = float_t(1.0)
+    zero = float_t(0.0)
+    axis = wp.quat_rotate(fa, vec3(one, zero, zero))
+    g.ra = ra
+    g.rb = rb
+    g.d = d
+    g.arm_a = ra
+    g.axis = axis
+    g.perp1 = wp.quat_rotate(fa, vec3(zero, one, zero))
+    g.perp2 = wp.quat_rotate(fa, vec3(zero, zero, one))
+    g.Ia = Ia
+    g.Ib = Ib
+    g.ma = ma
+    g.mb = mb
+    g.n = vec3()
+    g.ja = vec3()
+    g.jb = vec3()
+    g.value = zero
+    g.twist = vec3()
+    if kind == _KIND_FIXED or kind == _KIND_SLIDER:
+        # relative rotation of the frames, world: q_err = f_b f_a^-1 ~ (theta / 2, 1), C = 2 vec(q_err)
+        e = fb * wp.quat_inverse(fa)
+        s = float_t(2.0)
+        if e[3] < zero:
+            s = float_t(-2.0)
+        g.twist = vec3(e[0], e[1], e[2]) * s
+    if kind == _KIND_HINGE:
+        # u_a x u_b is the swing of b's axis away from a's (small angles: the rotation vector across u_a)
+        g.twist = wp.cross(axis, wp.quat_rotate(fb, vec3(one, zero, zero)))
+        # hinge angle: twist of f_b against f_a about the axis, from q_rel = f_a^-1 f_b
+        rel = wp.quat_inverse(fa) * fb
+        angle = float_t(2.0) * wp.atan2(rel[0], rel[3])
+        if angle > float_t(math.pi):
+            angle = angle - float_t(2.0 * math.pi)
+        if angle < float_t(-math.pi):
+            angle = angle + float_t(2.0 * math.pi)
+        g.value = angle
+        g.ja = axis
+        g.jb = axis
+    if kind == _KIND_SLIDER:
+        g.arm_a = ra + d
+        g.n = axis
+        g.ja = wp.cross(ra + d, axis)
+        g.jb = wp.cross(rb, axis)
+        g.value = wp.dot(axis, d)
+    if kind == _KIND_DISTANCE:
+        length = wp.length(d)
+        n = axis  # coincident anchors: any direction will do
+        if length > float_t(1.0e-12):
+            n = d / length
+        g.n = n
+        g.ja = wp.cross(ra, n)
+        g.jb = wp.cross(rb, n)
+        g.value = length
+    return g
+
+
+@wp.func
+def _axial_mass(g: _Geometry):
+    """Effective mass of the axial row: 1 / (|n|^2 (1/m_a + 1/m_b) + ja.I_a^-1 ja + jb.I_b^-1 jb)."""
+    k = wp.dot(g.n, g.n) * (g.ma + g.mb) + wp.dot(g.ja, g.Ia * g.ja) + wp.dot(g.jb, g.Ib * g.jb)
+    if k > float_t(0.0):
+        return float_t(1.0) / k
+    return float_t(0.0)
+
+
+@wp.func
+def _axial_speed(g: _Geometry, va: vec3, wa: vec3, vb: vec3, wb: vec3):
+    return wp.dot(g.n, vb - va) + wp.dot(g.jb, wb) - wp.dot(g.ja, wa)
+
+
+@wp.struct
+class _Velocities:
+    va: vec3
+    wa: vec3
+    vb: vec3
+    wb: vec3
+
+
+@wp.func
+def _apply_axial(g: _Geometry, s: _Velocities, impulse: float_t):
+    """Velocities after an impulse along the axial row."""
+    out = _Velocities()
+    out.va = s.va - g.n * (g.ma * impulse)
+    out.wa = s.wa - g.Ia * g.ja * impulse
+    out.vb = s.vb + g.n * (g.mb * impulse)
+    out.wb = s.wb + g.Ib * g.jb * impulse
+    return out
+
+
+@wp.func
+def _apply_linear(g: _Geometry, s: _Velocities, P: vec3):
+    """Velocities after a linear impulse P on b at its anchor (-P on a at its arm)."""
+    out = _Velocities()
+    out.va = s.va - P * g.ma
+    out.wa = s.wa - g.Ia * wp.cross(g.arm_a, P)
+    out.vb = s.vb + P * g.mb
+    out.wb = s.wb + g.Ib * wp.cross(g.rb, P)
+    return out
+
+
+@wp.func
+def _apply_angular(g: _Geometry, s: _Velocities, L: vec3):
+    """Velocities after an angular impulse L on b (-L on a)."""
+    out = _Velocities()
+    out.va = s.va
+    out.wa = s.wa - g.Ia * L
+    out.vb = s.vb
+    out.wb = s.wb + g.Ib * L
+    return out
+
+
+@wp.func
+def _limit(g: _Geometry, s: _Velocities, C: float_t, sign: float_t, accumulated: float_t, inv_h: float_t,
+           use_bias: int, bias_rate: float_t, mass_scale: float_t, impulse_scale: float_t, relax: float_t):
+    """New accumulated impulse (>= 0) of a one-sided row keeping C >= 0; `sign` -1 for an upper limit.
+
+    Speculative while C > 0 (the gap may close within the substep, no more), soft when violated.
+    """
+    bias = float_t(0.0)
+    ms = float_t(1.0)
+    isc = float_t(0.0)
+    if C > float_t(0.0):
+        bias = C * inv_h
+    elif use_bias != 0:
+        bias = bias_rate * C
+        ms = mass_scale
+        isc = impulse_scale
+    cdot = sign * _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+    j = -_axial_mass(g) * ms * (cdot + bias) - isc * accumulated
+    return wp.max(accumulated + j * relax, float_t(0.0))
+
+
+@wp.func
+def _total(g: _Geometry, s: _Velocities, linear: vec3, angular: vec3, axial: float_t):
+    """Velocities after the joint's whole accumulated impulse (warm start)."""
+    out = _apply_linear(g, s, linear)
+    out = _apply_angular(g, out, angular)
+    return _apply_axial(g, out, axial)
+
+
+@wp.func
+def _perp_block(I: wp.mat33d, e1: vec3, e2: vec3):
+    """The 2 x 2 block [e_i . I e_j] of a symmetric 3 x 3 matrix."""
+    return wp.mat22d(wp.dot(e1, I * e1), wp.dot(e1, I * e2), wp.dot(e2, I * e1), wp.dot(e2, I * e2))
+
+
+@wp.func
+def _solve22(K: wp.mat22d, r: wp.vec2d):
+    det = K[0, 0] * K[1, 1] - K[0, 1] * K[1, 0]
+    if det == float_t(0.0):
+        return wp.vec2d()
+    inv = float_t(1.0) / det
+    return wp.vec2d((K[1, 1] * r[0] - K[0, 1] * r[1]) * inv, (K[0, 0] * r[1] - K[1, 0] * r[0]) * inv)
+
+
+@wp.func
+def _solve33(K: wp.mat33d, r: vec3):
+    if wp.determinant(K) == float_t(0.0):
+        return vec3()
+    return wp.inverse(K) * r
+
+
+# ---------------------------------------------------------------------------- kernels
+
+
+@wp.struct
+class _Body:
+    x: vec3
+    q: quat
+    v: vec3
+    w: vec3
+    m: float_t
+    I: wp.mat33d
+
+
+@wp.func
+def _inverse(k: float_t):
+    if k > float_t(0.0):
+        return float_t(1.0) / k
+    return float_t(0.0)
+
+
+@wp.func
+def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(dtype=vec3),
+          w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), inv_inertia: wp.array(dtype=vec3)):
+    """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin."""
+    s = _Body()
+    s.q = wp.quat_identity(dtype=float_t)
+    if i >= 0:
+        s.x = x[i]
+        s.q = q[i]
+        s.v = v[i]
+        s.w = w[i]
+        s.m = inv_mass[i]
+        s.I = _inv_inertia_world(q[i], inv_inertia[i])
+    return s
+
+
+@wp.func
+def _store(i: int, dv: vec3, dw: vec3, v: wp.array(dtype=vec3), w: wp.array(dtype=vec3),
+           inv_mass: wp.array(dtype=float_t), serial: int):
+    """Add a velocity change to body row i (not the world, not static bodies); atomics off the CPU."""
+    if i < 0:
+        return
+    if inv_mass[i] == float_t(0.0):
+        return
+    if serial != 0:
+        v[i] = v[i] + dv
+        w[i] = w[i] + dw
+    else:
+        wp.atomic_add(v, i, dv)
+        wp.atomic_add(w, i, dw)
+
+
+@wp.kernel
+def _solve(
+    kind: wp.array(dtype=wp.int32),
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    frame_a: wp.array(dtype=quat),
+    frame_b: wp.array(dtype=quat),
+    limit: wp.array(dtype=wp.int32),
+    lower: wp.array(dtype=float_t),
+    upper: wp.array(dtype=float_t),
+    motor: wp.array(dtype=wp.int32),
+    motor_speed: wp.array(dtype=float_t),
+    motor_max: wp.array(dtype=float_t),
+    length: wp.array(dtype=float_t),
+    stiffness: wp.array(dtype=float_t),
+    damping: wp.array(dtype=float_t),
+    scale: wp.array(dtype=float_t),
+    enabled: wp.array(dtype=wp.int32),
+    imp_linear: wp.array(dtype=vec3),
+    imp_angular: wp.array(dtype=vec3),
+    imp_axial: wp.array(dtype=float_t),
+    imp_lower: wp.array(dtype=float_t),
+    imp_upper: wp.array(dtype=float_t),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    warm_v: wp.array(dtype=vec3),
+    warm_w: wp.array(dtype=vec3),
+    mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
+    h: float_t,
+    bias_rate: float_t,
+    mass_scale: float_t,
+    impulse_scale: float_t,
+    serial: int,
+    count: int,
+):
+    k = wp.tid()
+    if k >= count:
+        return  # launched over the capacity (see tumble.launch)
+    if enabled[k] == 0:
+        return
+    ia = body_a[k]
+    ib = body_b[k]
+    A = _load(ia, x, q, v, w, inv_mass, inv_inertia)
+    B = _load(ib, x, q, v, w, inv_mass, inv_inertia)
+    jk = kind[k]
+    g = _geometry(jk, A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
+    s0 = _Velocities()
+    s0.va = A.v
+    s0.wa = A.w
+    s0.vb = B.v
+    s0.wb = B.w
+    s = s0
+    zero = float_t(0.0)
+
+    if mode == 0:
+        # warm start: last step's impulses, at the current poses
+        s = _total(g, s, imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
+    else:
+        use_bias = 0
+        ms = float_t(1.0)
+        isc = zero
+        if mode == 1:
+            use_bias = 1
+            ms = mass_scale
+            isc = impulse_scale
+        relax = scale[k]
+        inv_h = float_t(1.0) / h
+
+        # axial: motor or spring, then the limits
+        axial = imp_axial[k]
+        if motor[k] != 0 and (jk == _KIND_HINGE or jk == _KIND_SLIDER):
+            # drive the joint speed to the target; |impulse| <= max torque (force) * h
+            cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - motor_speed[k]
+            cap = motor_max[k] * h
+            new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
+            s = _apply_axial(g, s, new - axial)
+            axial = new
+        if jk == _KIND_DISTANCE and lower[k] < upper[k] and (stiffness[k] > zero or damping[k] > zero):
+            # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
+            meff = _axial_mass(g)
+            if meff > zero:
+                kc = damping[k] + h * stiffness[k]
+                a2 = h * kc * _inverse(meff)
+                sms = a2 / (float_t(1.0) + a2)
+                sis = float_t(1.0) / (float_t(1.0) + a2)
+                sbias = stiffness[k] / kc * (g.value - length[k])
+                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
+                s = _apply_axial(g, s, new - axial)
+                axial = new
+        if jk == _KIND_DISTANCE and lower[k] >= upper[k]:
+            # rigid rod: C = |d| - length, two-sided
+            bias = zero
+            if use_bias != 0:
+                bias = bias_rate * (g.value - lower[k])
+            cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+            new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
+            s = _apply_axial(g, s, new - axial)
+            axial = new
+        imp_axial[k] = axial
+        if limit[k] != 0 and lower[k] < upper[k]:
+            lo = imp_lower[k]
+            new = _limit(g, s, g.value - lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax)
+            s = _apply_axial(g, s, new - lo)
+            imp_lower[k] = new
+            hi = imp_upper[k]
+            new = _limit(g, s, upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax)
+            s = _apply_axial(g, s, hi - new)
+            imp_upper[k] = new
+
+        # angular: all three axes (fixed, slider) or the two across the hinge axis
+        if jk == _KIND_FIXED or jk == _KIND_SLIDER:
+            L0 = imp_angular[k]
+            cdot3 = s.wb - s.wa
+            bias3 = vec3()
+            if use_bias != 0:
+                bias3 = g.twist * bias_rate
+            L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
+            L = L * relax
+            s = _apply_angular(g, s, L)
+            imp_angular[k] = L0 + L
+        if jk == _KIND_HINGE:
+            L0 = imp_angular[k]
+            e1 = g.perp1
+            e2 = g.perp2
+            cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
+            bias2 = wp.vec2d()
+            if use_bias != 0:
+                bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
+            acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
+            lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
+            lam = lam * relax
+            L = e1 * lam[0] + e2 * lam[1]
+            s = _apply_angular(g, s, L)
+            # keep only the components across the axis (the axis carries the motor and limits)
+            imp_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+
+        # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
+        if jk == _KIND_BALL or jk == _KIND_HINGE or jk == _KIND_FIXED:
+            P0 = imp_linear[k]
+            cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
+            bias3 = vec3()
+            if use_bias != 0:
+                bias3 = g.d * bias_rate
+            Sa = wp.skew(g.ra)
+            Sb = wp.skew(g.rb)
+            K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
+            P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
+            s = _apply_linear(g, s, P)
+            imp_linear[k] = P0 + P
+        if jk == _KIND_SLIDER:
+            P0 = imp_linear[k]
+            e1 = g.perp1
+            e2 = g.perp2
+            ja1 = wp.cross(g.arm_a, e1)
+            ja2 = wp.cross(g.arm_a, e2)
+            jb1 = wp.cross(g.rb, e1)
+            jb2 = wp.cross(g.rb, e2)
+            m = g.ma + g.mb
+            K2 = wp.mat22d(m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
+                           wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
+                           wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
+                           m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2))
+            dv = s.vb - s.va
+            cdot2 = wp.vec2d(wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
+                             wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa))
+            bias2 = wp.vec2d()
+            if use_bias != 0:
+                bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
+            acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
+            lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
+            s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
+            imp_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+
+    _store(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
+    _store(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
+    if mode == 2:
+        # relax: these impulses are final for the substep and start the next one (warm start)
+        t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
+        _store(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
+        _store(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
+
+
+@wp.kernel
+def _finish(
+    kind: wp.array(dtype=wp.int32),
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    frame_a: wp.array(dtype=quat),
+    frame_b: wp.array(dtype=quat),
+    break_force: wp.array(dtype=float_t),
+    enabled: wp.array(dtype=wp.int32),
+    imp_linear: wp.array(dtype=vec3),
+    imp_angular: wp.array(dtype=vec3),
+    imp_axial: wp.array(dtype=float_t),
+    imp_lower: wp.array(dtype=float_t),
+    imp_upper: wp.array(dtype=float_t),
+    force: wp.array(dtype=vec3),
+    torque: wp.array(dtype=vec3),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    inv_h: float_t,
+    count: int,
+):
+    k = wp.tid()
+    if k >= count:
+        return
+    if enabled[k] == 0:
+        force[k] = vec3()
+        torque[k] = vec3()
+        return
+    A = _load(body_a[k], x, q, v, w, inv_mass, inv_inertia)
+    B = _load(body_b[k], x, q, v, w, inv_mass, inv_inertia)
+    g = _geometry(kind[k], A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
+    # F = impulse / h on b: the accumulated impulses act once per substep
+    axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
+    f = (imp_linear[k] + g.n * axial) * inv_h
+    t = imp_angular[k] * inv_h
+    if kind[k] == _KIND_HINGE:
+        t = t + g.axis * (axial * inv_h)
+    force[k] = f
+    torque[k] = t
+    if wp.length(f) > break_force[k]:
+        enabled[k] = 0
+        imp_linear[k] = vec3()
+        imp_angular[k] = vec3()
+        imp_axial[k] = float_t(0.0)
+        imp_lower[k] = float_t(0.0)
+        imp_upper[k] = float_t(0.0)
+
+
+@wp.kernel
+def _keep_pair(
+    pair_a: wp.array(dtype=wp.int32),
+    pair_b: wp.array(dtype=wp.int32),
+    keys: wp.array(dtype=wp.int64),
+    key_joint: wp.array(dtype=wp.int32),
+    key_count: int,
+    enabled: wp.array(dtype=wp.int32),
+    keep: wp.array(dtype=wp.int32),
+):
+    p = wp.tid()
+    a = wp.int64(wp.min(pair_a[p], pair_b[p]))
+    b = wp.int64(wp.max(pair_a[p], pair_b[p]))
+    key = a * wp.int64(2147483648) + b
+    # first key >= key (binary search), then every joint of that pair
+    lo = 0
+    hi = key_count
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    keep[p] = 1
+    while lo < key_count:
+        if keys[lo] != key:
+            break
+        if enabled[key_joint[lo]] != 0:
+            keep[p] = 0
+        lo += 1
+
+
+@wp.kernel
+def _compact_pairs(
+    pair_a: wp.array(dtype=wp.int32),
+    pair_b: wp.array(dtype=wp.int32),
+    keep: wp.array(dtype=wp.int32),
+    offset: wp.array(dtype=wp.int32),
+    out_a: wp.array(dtype=wp.int32),
+    out_b: wp.array(dtype=wp.int32),
+):
+    p = wp.tid()
+    if keep[p] != 0:
+        out_a[offset[p]] = pair_a[p]
+        out_b[offset[p]] = pair_b[p]
+
+
+# ---------------------------------------------------------------------------- host side
+
+
+class _Pairs:
+    """A pair list in the broad phase's form (what the narrow phase reads)."""
+
+    def __init__(self, device: str):
+        self.pair_a = wp.zeros(1, dtype=wp.int32, device=device)
+        self.pair_b = wp.zeros(1, dtype=wp.int32, device=device)
+        self.keep = wp.zeros(1, dtype=wp.int32, device=device)  # 1 = the pair stays
+        self.offset = wp.zeros(1, dtype=wp.int32, device=device)  # its row in the kept list
+        self.pair_count = 0
+
+
+def softness(h: float) -> tuple[float, float, float]:
+    """(bias rate [1/s], mass scale, impulse scale) of the joints' soft rows at substep h [s]."""
+    omega = 2.0 * math.pi * JOINT_HERTZ_PER_SUBSTEP_RATE / h
+    a1 = 2.0 * JOINT_DAMPING_RATIO + h * omega
+    a2 = h * omega * a1
+    a3 = 1.0 / (1.0 + a2)
+    return omega / a1, a2 * a3, a3
+
+
+#: the arrays `_solve` takes, in its argument order
+_SOLVE_JOINT_ARRAYS = (
+    "joint_kind", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
+    "joint_limit", "joint_lower", "joint_upper", "joint_motor", "joint_motor_speed", "joint_motor_max",
+    "joint_length", "joint_stiffness", "joint_damping", "joint_scale", "joint_enabled", "joint_impulse_linear",
+    "joint_impulse_angular", "joint_impulse_axial", "joint_impulse_lower", "joint_impulse_upper",
+)
+_SOLVE_BODY_ARRAYS = (
+    "body_position", "body_orientation", "body_velocity", "body_angular_velocity", "body_inv_mass",
+    "body_inv_inertia", "body_warm_velocity", "body_warm_angular_velocity",
+)
+_FINISH_JOINT_ARRAYS = (
+    "joint_kind", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
+    "joint_break_force", "joint_enabled", "joint_impulse_linear", "joint_impulse_angular", "joint_impulse_axial",
+    "joint_impulse_lower", "joint_impulse_upper", "joint_force", "joint_torque",
+)
+
+
+class JointSet(ArraySet):
+    """Joint arrays (see JOINT_FIELDS), in creation order, and the pair filter they imply."""
+
+    def __init__(self, device: str):
+        super().__init__(JOINT_FIELDS, device=device, capacity=16)
+        self._pairs = _Pairs(device)
+        self._keys = None  # sorted keys of the non-colliding jointed pairs, and their joints
+        self._key_joint = None
+        self._key_count = 0
+        self._dirty = True
+
+    # -------------------------------------------------------------- building
+
+    def add(self, rows: dict[str, np.ndarray]) -> range:
+        """Append joints given as NumPy rows (see `World.add_joint`); returns their rows."""
+        rows = dict(rows)
+        k = len(rows["joint_kind"])
+        rows.setdefault("joint_enabled", np.ones(k, dtype=np.int32))
+        rows.setdefault("joint_scale", np.ones(k))
+        out = self.append(rows)
+        self._dirty = True
+        return out
+
+    def refresh(self, body_count: int) -> None:
+        """After joints or body rows changed: the pair filter's keys and the Jacobi scales."""
+        if not self._dirty:
+            return
+        self._dirty = False
+        n = self.count
+        a = self.numpy("joint_body_a").astype(np.int64)
+        b = self.numpy("joint_body_b").astype(np.int64)
+        no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
+        lo, hi = np.minimum(a, b)[no_collide], np.maximum(a, b)[no_collide]
+        keys = lo * 2147483648 + hi
+        order = np.argsort(keys, kind="stable")
+        self._key_count = len(keys)
+        self._keys = wp.array(np.append(keys[order], 0).astype(np.int64), dtype=wp.int64, device=self.device)
+        joint = np.nonzero(no_collide)[0][order]
+        self._key_joint = wp.array(np.append(joint, 0).astype(np.int32), dtype=wp.int32, device=self.device)
+        if self.device != "cpu" and n:
+            # Jacobi on CUDA: divide each joint's impulse by the larger joint count of its bodies
+            per_body = np.bincount(np.concatenate([a[a >= 0], b[b >= 0]]), minlength=body_count)
+            ca = np.where(a >= 0, per_body[np.maximum(a, 0)], 1)
+            cb = np.where(b >= 0, per_body[np.maximum(b, 0)], 1)
+            self.write("joint_scale", slice(0, n), 1.0 / np.maximum(np.maximum(ca, cb), 1))
+
+    def remap_bodies(self, slot: np.ndarray) -> None:
+        """The body rows were renumbered (row i is now `slot[i]`): follow them."""
+        for name in ("joint_body_a", "joint_body_b"):
+            rows = self.numpy(name).astype(np.int64)
+            self.write(name, slice(0, self.count), np.where(rows >= 0, slot[np.maximum(rows, 0)], -1))
+        self._dirty = True
+
+    # -------------------------------------------------------------- stepping
+
+    def filter_pairs(self, pairs, bodies):
+        """The broad phase's pairs without the jointed pairs that do not collide (order kept)."""
+        if self.count == 0:
+            return pairs
+        self.refresh(bodies.count)
+        n = pairs.pair_count
+        if self._key_count == 0 or n == 0:
+            return pairs
+        dev = self.device
+        out = self._pairs
+        if out.pair_a.shape[0] < n:
+            out.pair_a = wp.zeros(n, dtype=wp.int32, device=dev)
+            out.pair_b = wp.zeros(n, dtype=wp.int32, device=dev)
+            out.keep = wp.zeros(n, dtype=wp.int32, device=dev)
+            out.offset = wp.zeros(n, dtype=wp.int32, device=dev)
+        wp.launch(_keep_pair, dim=n, device=dev,
+                  inputs=[pairs.pair_a, pairs.pair_b, self._keys, self._key_joint, self._key_count,
+                          self.arrays["joint_enabled"], out.keep])
+        wp.utils.array_scan(out.keep, out.offset, inclusive=False)
+        wp.launch(_compact_pairs, dim=n, device=dev,
+                  inputs=[pairs.pair_a, pairs.pair_b, out.keep, out.offset, out.pair_a, out.pair_b])
+        last = out.offset[n - 1:n].numpy()[0] + out.keep[n - 1:n].numpy()[0]
+        out.pair_count = int(last)
+        return out
+
+    def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
+        j, b = self.arrays, bodies.arrays
+        launch(_solve, self.capacity,
+               [*(j[name] for name in _SOLVE_JOINT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS), mode, h,
+                *softness(h), 1 if self.device == "cpu" else 0, self.count], self.device, cache)
+
+    def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
+        """Apply last step's impulses (first substep only; later ones warm start through the relax pass)."""
+        if self.count:
+            self.refresh(bodies.count)
+            self._launch(bodies, h, 0, cache)
+
+    def solve(self, bodies, h: float, *, use_bias: bool, cache: LaunchCache | None = None) -> None:
+        """One Gauss-Seidel sweep over the joints: with bias (soft push-back) or without (relax)."""
+        if self.count:
+            self._launch(bodies, h, 1 if use_bias else 2, cache)
+
+    def finish(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
+        """Joint forces and torques of the last substep; joints over their break force break."""
+        if self.count == 0:
+            return
+        j, b = self.arrays, bodies.arrays
+        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS),
+                                        *(b[name] for name in _SOLVE_BODY_ARRAYS[:6]), 1.0 / h, self.count],
+               self.device, cache)
+
+    # -------------------------------------------------------------- views
+
+    def view(self, name: str) -> np.ndarray:
+        return readonly(self.numpy(name))
+
+
+# ---------------------------------------------------------------------------- building one joint
+
+
+class JointArgumentError(ValueError):
+    """A bad argument of `World.add_joint`; `key` names it (scene files report it as the table's key)."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key = key
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of quaternions (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+
+
+def _quat_conj(q: np.ndarray) -> np.ndarray:
+    return np.array([-q[0], -q[1], -q[2], q[3]])
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return _quat_mul(_quat_mul(q, np.append(v, 0.0)), _quat_conj(q))[:3]
+
+
+def _quat_from_x(axis: np.ndarray) -> np.ndarray:
+    """Unit quaternion rotating +x onto the unit vector `axis`."""
+    c = float(axis[0])
+    if c < -1.0 + 1e-12:
+        return np.array([0.0, 0.0, 1.0, 0.0])
+    q = np.array([0.0, -axis[2], axis[1], 1.0 + c])
+    return q / np.linalg.norm(q)
+
+
+def _point(value, key: str) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise JointArgumentError(key, f"must be 3 finite numbers, got {value!r}")
+    return a
+
+
+def _scalar(value, key: str, *, low: float | None = None, allow_inf: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise JointArgumentError(key, f"must be a number, got {value!r}") from None
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise JointArgumentError(key, f"must be finite, got {value!r}")
+    if low is not None and v < low:
+        raise JointArgumentError(key, f"must be >= {low:g}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class JointBody:
+    """What building a joint needs of one of its bodies: row (-1 = world), pose, whether it moves."""
+
+    row: int
+    position: np.ndarray
+    orientation: np.ndarray
+    dynamic: bool
+
+    @staticmethod
+    def world() -> JointBody:
+        return JointBody(-1, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), False)
+
+
+def joint_rows(kind, a: JointBody, b: JointBody, *, anchor=None, anchor_a=None, anchor_b=None, axis=None,
+               frame: str = "world", lower=None, upper=None, motor_speed=None, max_torque=None, max_force=None,
+               length=None, min_length=None, max_length=None, stiffness=0.0, damping=0.0,
+               break_force=math.inf, collide: bool = False) -> dict[str, np.ndarray]:
+    """One joint's rows for `JointSet.add`, checked; see `World.add_joint` for the arguments."""
+    if isinstance(kind, str):
+        if kind not in JOINT_NAMES:
+            raise JointArgumentError("kind", f"unknown joint kind {kind!r}: expected one of {', '.join(JOINT_NAMES)}")
+        name, kind = kind, JOINT_NAMES[kind]
+    else:
+        kind = JointKind(kind)
+        name = kind.name.lower()
+    if frame not in ("world", "body"):
+        raise JointArgumentError("frame", f"must be 'world' or 'body', got {frame!r}")
+    if a.row >= 0 and a.row == b.row:
+        raise JointArgumentError("body_b", "a joint needs two different bodies, got the same body twice")
+    if not a.dynamic and not b.dynamic:
+        raise JointArgumentError("body_b", "both bodies are static (or the world): the joint would do nothing")
+
+    # anchors: one shared world point, or one per body (world points, or body-frame points with frame="body")
+    if frame == "body" and anchor is not None:
+        raise JointArgumentError("anchor", "is a world point; with frame='body' give anchor_a and anchor_b")
+    shared = None if anchor is None else _point(anchor, "anchor")
+    local = []
+    for key, body, given in (("anchor_a", a, anchor_a), ("anchor_b", b, anchor_b)):
+        if given is not None:
+            p = _point(given, key)
+            if frame == "world":
+                p = _rotate(_quat_conj(body.orientation), p - body.position)
+        elif shared is not None:
+            p = _rotate(_quat_conj(body.orientation), shared - body.position)
+        elif frame == "body" or kind != JointKind.DISTANCE:
+            p = np.zeros(3) if frame == "body" else None
+        else:
+            p = np.zeros(3)  # a distance joint defaults to the centres
+        local.append(p)
+    if local[0] is None and local[1] is None:
+        local = [np.zeros(3), _rotate(_quat_conj(b.orientation), a.position - b.position)]  # at a's centre
+    elif local[0] is None:
+        world_b = b.position + _rotate(b.orientation, local[1])
+        local[0] = _rotate(_quat_conj(a.orientation), world_b - a.position)
+    elif local[1] is None:
+        world_a = a.position + _rotate(a.orientation, local[0])
+        local[1] = _rotate(_quat_conj(b.orientation), world_a - b.position)
+    pa = a.position + _rotate(a.orientation, local[0])
+    pb = b.position + _rotate(b.orientation, local[1])
+
+    # joint frame: x along the axis (world axis, or in a's frame with frame="body"); fixed: the bodies' frames
+    u = np.array([0.0, 0.0, 1.0]) if axis is None else _point(axis, "axis")
+    if np.linalg.norm(u) < 1e-12:
+        raise JointArgumentError("axis", "must not be the zero vector")
+    u = u / np.linalg.norm(u)
+    if frame == "body":
+        u = _rotate(a.orientation, u)
+    world_frame = _quat_from_x(u) if kind in (JointKind.HINGE, JointKind.SLIDER) else np.array([0.0, 0.0, 0.0, 1.0])
+    frame_a = _quat_mul(_quat_conj(a.orientation), world_frame)
+    frame_b = _quat_mul(_quat_conj(b.orientation), world_frame)
+
+    # limits, motor, distance
+    limit = 0
+    lo, hi = 0.0, 0.0
+    if kind in (JointKind.HINGE, JointKind.SLIDER):
+        if lower is not None or upper is not None:
+            limit = 1
+            bound = math.pi if kind == JointKind.HINGE else math.inf
+            lo = -bound if lower is None else _scalar(lower, "lower", allow_inf=True)
+            hi = bound if upper is None else _scalar(upper, "upper", allow_inf=True)
+            if lo > hi:
+                raise JointArgumentError("lower", f"lower {lo:g} > upper {hi:g}")
+    elif lower is not None or upper is not None:
+        raise JointArgumentError("lower", f"a {name} joint has no lower/upper limits (hinge and slider do)")
+    motor = 0
+    speed = top = 0.0
+    if motor_speed is not None or max_torque is not None or max_force is not None:
+        if kind not in (JointKind.HINGE, JointKind.SLIDER):
+            raise JointArgumentError("motor_speed", f"a {name} joint has no motor (hinge and slider do)")
+        motor = 1
+        speed = _scalar(0.0 if motor_speed is None else motor_speed, "motor_speed")
+        key, cap = ("max_torque", max_torque) if kind == JointKind.HINGE else ("max_force", max_force)
+        if cap is None:
+            raise JointArgumentError(key, f"a {name} motor needs {key}")
+        top = _scalar(cap, key, low=0.0, allow_inf=True)
+    k = _scalar(stiffness, "stiffness", low=0.0)
+    c = _scalar(damping, "damping", low=0.0)
+    rest = float(np.linalg.norm(pb - pa))
+    if kind == JointKind.DISTANCE:
+        rest = rest if length is None else _scalar(length, "length", low=0.0)
+        rope = name == "rope"
+        lo = (0.0 if rope else rest) if min_length is None else _scalar(min_length, "min_length", low=0.0)
+        hi = (rest if rope or k == 0.0 and c == 0.0 else math.inf) if max_length is None else _scalar(
+            max_length, "max_length", low=0.0, allow_inf=True)
+        if min_length is None and max_length is not None and not rope and k == 0.0 and c == 0.0:
+            lo = min(lo, hi)
+        if lo > hi:
+            raise JointArgumentError("min_length", f"min_length {lo:g} > max_length {hi:g}")
+        limit = 1
+    else:
+        for key, value in (("length", length), ("min_length", min_length), ("max_length", max_length)):
+            if value is not None:
+                raise JointArgumentError(key, f"a {name} joint has no {key} (distance and rope joints do)")
+        if k or c:
+            raise JointArgumentError("stiffness", f"a {name} joint has no spring (distance joints do)")
+    force = _scalar(break_force, "break_force", low=0.0, allow_inf=True)
+    big = 1.0e30  # infinite limits as large finite numbers: no inf * 0 in the kernels
+    return {
+        "joint_kind": np.array([int(kind)], dtype=np.int32),
+        "joint_body_a": np.array([a.row], dtype=np.int32),
+        "joint_body_b": np.array([b.row], dtype=np.int32),
+        "joint_local_a": local[0][None],
+        "joint_local_b": local[1][None],
+        "joint_frame_a": frame_a[None],
+        "joint_frame_b": frame_b[None],
+        "joint_limit": np.array([limit], dtype=np.int32),
+        "joint_lower": np.array([max(lo, -big)]),
+        "joint_upper": np.array([min(hi, big)]),
+        "joint_motor": np.array([motor], dtype=np.int32),
+        "joint_motor_speed": np.array([speed]),
+        "joint_motor_max": np.array([min(top, big)]),
+        "joint_length": np.array([rest]),
+        "joint_stiffness": np.array([k]),
+        "joint_damping": np.array([c]),
+        "joint_break_force": np.array([min(force, big)]),
+        "joint_collide": np.array([int(bool(collide))], dtype=np.int32),
+    }
+
+
+def joint_error(joints: JointSet, bodies) -> np.ndarray:
+    """Position error of each joint [m], shape (j,): the anchors' separation (point joints), its part
+    across the axis (slider), or the length outside [min, max] (distance); 0 for broken joints."""
+    n = joints.count
+    if n == 0:
+        return np.zeros(0)
+    x = np.vstack([bodies.numpy("body_position"), np.zeros((1, 3))])  # row -1 is the world
+    q = np.vstack([bodies.numpy("body_orientation"), [[0.0, 0.0, 0.0, 1.0]]])
+    ia, ib = joints.numpy("joint_body_a"), joints.numpy("joint_body_b")
+    pa = x[ia] + _rotate_rows(q[ia], joints.numpy("joint_local_a"))
+    pb = x[ib] + _rotate_rows(q[ib], joints.numpy("joint_local_b"))
+    d = pb - pa
+    err = np.linalg.norm(d, axis=1)
+    kind = joints.numpy("joint_kind")
+    slider = kind == JointKind.SLIDER
+    if slider.any():
+        fa = _quat_rows(q[ia], joints.numpy("joint_frame_a"))
+        axis = _rotate_rows(fa, np.tile([1.0, 0.0, 0.0], (n, 1)))
+        across = d - axis * np.einsum("ij,ij->i", d, axis)[:, None]
+        err = np.where(slider, np.linalg.norm(across, axis=1), err)
+    distance = kind == JointKind.DISTANCE
+    if distance.any():
+        out = np.maximum(joints.numpy("joint_lower") - err, err - joints.numpy("joint_upper"))
+        err = np.where(distance, np.maximum(out, 0.0), err)
+    return np.where(joints.numpy("joint_enabled") != 0, err, 0.0)
+
+
+def _quat_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise Hamilton products of (n, 4) quaternions (x, y, z, w)."""
+    av, aw = a[:, :3], a[:, 3:]
+    bv, bw = b[:, :3], b[:, 3:]
+    return np.hstack([aw * bv + bw * av + np.cross(av, bv), aw * bw - np.einsum("ij,ij->i", av, bv)[:, None]])
+
+
+def _rotate_rows(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise rotation of vectors v (n, 3) by unit quaternions q (n, 4): v + 2 w (u x v) + 2 u x (u x v)."""
+    u, w = q[:, :3], q[:, 3:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
