@@ -419,6 +419,33 @@ def _cloth_rules(values: dict) -> None:
                 raise _KeyBad("pins", f"pin [{i}, {j}] is outside the {nx} x {ny} grid")
 
 
+JOINT_KINDS = ("ball", "hinge", "slider", "fixed", "distance", "rope")
+
+
+def body_ref() -> Check:
+    """A body of the file, as its table and index ("box[2]" is the third [[box]]), or "world"."""
+
+    def convert(value):
+        if not isinstance(value, str):
+            raise _Bad(f'must name a body, "plane[i]", "sphere[i]" or "box[i]", or "world"; got {_show(value)}')
+        if value == "world":
+            return value
+        name, _, rest = value.partition("[")
+        if name not in BODY_TABLES or not rest.endswith("]") or not rest[:-1].isdigit():
+            raise _Bad(f'must name a body, "plane[i]", "sphere[i]" or "box[i]", or "world"; got {_show(value)}')
+        return value
+
+    return Check('"plane[i]", "sphere[i]", "box[i]" or "world"', convert)
+
+
+def _joint_rules(values: dict) -> None:
+    if values["body_a"] == values["body_b"]:
+        raise _KeyBad("body_b", f"a joint needs two different bodies, got {values['body_b']!r} twice")
+    for lo, hi in (("lower", "upper"), ("min_length", "max_length")):
+        if values.get(lo) is not None and values.get(hi) is not None and values[lo] > values[hi]:
+            raise _KeyBad(lo, f"{lo} {values[lo]:g} > {hi} {values[hi]:g}")
+
+
 def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
     return {
         "position": Field(vector(3), REQUIRED, "m", "centre of mass"),
@@ -550,6 +577,36 @@ SCHEMA: dict[str, TableSpec] = {
                 "lift": Field(number(low=0), 0.3, "", "lift coefficient of a cloth face"),
                 "air_density": Field(number(low=0), 1.2, "kg/m^3", "density of the air"),
             },
+        ),
+        TableSpec(
+            "joint",
+            True,
+            "Joints between two bodies, or a body and the world. Bodies are named by table and index "
+            '("box[0]" is the first [[box]]); anchors and axis are world coordinates at creation unless '
+            'frame = "body".',
+            {
+                "kind": Field(choice(*JOINT_KINDS), REQUIRED, "", "joint type"),
+                "body_a": Field(body_ref(), "world", "", "first body"),
+                "body_b": Field(body_ref(), REQUIRED, "", "second body (the joint force is on it)"),
+                "anchor": Field(vector(3), None, "m", "shared anchor point, world", "a's centre"),
+                "anchor_a": Field(vector(3), None, "m", "anchor on a (instead of anchor)", "anchor"),
+                "anchor_b": Field(vector(3), None, "m", "anchor on b (instead of anchor)", "anchor"),
+                "frame": Field(choice("world", "body"), "world", "", "frame of anchor_a/anchor_b (each body's) and axis (a's)"),
+                "axis": Field(vector(3, nonzero=True), None, "", "hinge / slider axis", "[0, 0, 1]"),
+                "lower": Field(number(), None, "deg or m", "lower limit: hinge angle (deg), slider offset (m)", "none"),
+                "upper": Field(number(), None, "deg or m", "upper limit: hinge angle (deg), slider offset (m)", "none"),
+                "motor_speed": Field(number(), None, "deg/s or m/s", "motor target speed of b relative to a", "no motor"),
+                "max_torque": Field(number(low=0), None, "N m", "hinge motor's largest torque", "none"),
+                "max_force": Field(number(low=0), None, "N", "slider motor's largest force", "none"),
+                "length": Field(number(low=0), None, "m", "distance joint rest length", "current distance"),
+                "min_length": Field(number(low=0), None, "m", "distance joint shortest length", "rod: length; rope: 0"),
+                "max_length": Field(number(low=0), None, "m", "distance joint longest length", "length"),
+                "stiffness": Field(number(low=0), 0.0, "N/m", "distance joint spring stiffness (0 = none)"),
+                "damping": Field(number(low=0), 0.0, "N s/m", "distance joint spring damping"),
+                "break_force": Field(number(low=0, low_open=True), None, "N", "force that breaks the joint", "never"),
+                "collide": Field(boolean(), False, "", "whether the two bodies still collide"),
+            },
+            _joint_rules,
         ),
         TableSpec(
             "camera",
@@ -854,10 +911,12 @@ def build_world(scene: Scene, **overrides):
         world.metadata["camera"] = dict(scene.table("camera"))
 
     # bodies: planes, then spheres, then boxes, each in file order
+    made = {}
     for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box)):
+        made[name] = []
         for i, values in enumerate(scene.items(name)):
             with _api_errors(path, _table_label(name, i)):
-                add(**_given(values))
+                made[name].append(add(**_given(values)))
     for i, values in enumerate(scene.items("emitter")):
         with _api_errors(path, _table_label("emitter", i)):
             world.add_emitter(**_given(values))
@@ -867,7 +926,35 @@ def build_world(scene: Scene, **overrides):
     if scene.table("wind") is not None:
         with _api_errors(path, "wind"):
             world.set_wind(**scene.table("wind"))
+    for i, values in enumerate(scene.items("joint")):
+        _add_joint(world, made, values, path, _table_label("joint", i))
     return world
+
+
+def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
+    """One [[joint]]: body names to ids (checked against the file's bodies), hinge degrees to radians."""
+    from ..solver.joints import JointArgumentError
+
+    args = _given(values)
+    ends = []
+    for key in ("body_a", "body_b"):
+        ref = args.pop(key)
+        if ref == "world":
+            ends.append(None)
+            continue
+        name, index = ref[:-1].split("[")
+        if int(index) >= len(made[name]):
+            raise SceneError(f"no body {ref!r}: the file has {len(made[name])} [[{name}]]", path=path,
+                             table=label, key=key)
+        ends.append(made[name][int(index)])
+    if args["kind"] == "hinge":
+        for key in ("lower", "upper", "motor_speed"):
+            if key in args:
+                args[key] = math.radians(args[key])
+    try:
+        world.add_joint(args.pop("kind"), *ends, **args)
+    except JointArgumentError as exc:
+        raise SceneError(exc.reason, path=path, table=label, key=exc.key) from None
 
 
 def load_scene(path, **overrides):

@@ -643,7 +643,7 @@ def _keep_pair(
     b = wp.int64(wp.max(pair_a[p], pair_b[p]))
     key = a * wp.int64(2147483648) + b
     # first key >= key (binary search), then every joint of that pair
-    lo = 0
+    lo = int(0)  # noqa: RUF046, UP018 (a dynamic variable for the loop below, as Warp needs)
     hi = key_count
     while lo < hi:
         mid = (lo + hi) // 2
@@ -837,6 +837,7 @@ class JointArgumentError(ValueError):
     def __init__(self, key: str, message: str):
         super().__init__(f"{key}: {message}")
         self.key = key
+        self.reason = message
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,0 +1,155 @@
+"""World.add_joint and [[joint]] tables: arguments, bad input (one line naming table and key), pair filter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.io.scene import build_world, parse_scene
+from tumble.solver.joints import JointArgumentError, JointKind
+
+
+def _world():
+    world = tumble.World(gravity=(0, 0, -9.81))
+    a = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1))
+    b = world.add_box(position=(0.3, 0, 1), half_extents=(0.1, 0.1, 0.1))
+    return world, a, b
+
+
+def test_add_joint_stores_anchors_in_body_frames():
+    """Give a world anchor: each body keeps it in its own frame, and the joint starts with no error."""
+    world, a, b = _world()
+    joint = world.add_joint("hinge", a, b, anchor=(0.15, 0, 1), axis=(0, 1, 0), lower=-1.0, upper=1.0)
+    j = world.joints
+    assert joint.index == 0 and world.joint_count == 1
+    assert j.numpy("joint_kind")[0] == JointKind.HINGE
+    assert j.numpy("joint_local_a")[0] == pytest.approx([0.15, 0, 0])
+    assert j.numpy("joint_local_b")[0] == pytest.approx([-0.15, 0, 0])
+    assert world.joint_error[0] == pytest.approx(0.0, abs=1e-15)
+    assert (j.numpy("joint_lower")[0], j.numpy("joint_upper")[0]) == (-1.0, 1.0)
+
+
+def test_distance_and_rope_defaults():
+    """A distance joint defaults to a rod of the current length; a rope to slack up to it."""
+    world, a, b = _world()
+    world.add_joint("distance", a, b)
+    world.add_joint("rope", None, b, anchor_a=(0.3, 0, 2))
+    lower, upper = world.joints.numpy("joint_lower"), world.joints.numpy("joint_upper")
+    assert (lower[0], upper[0]) == pytest.approx((0.3, 0.3))
+    assert (lower[1], upper[1]) == pytest.approx((0.0, 1.0))
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs", "key"),
+    [
+        (("ball", 0, 7), {}, "body_b"),
+        (("ball", 0, 0), {}, "body_b"),
+        (("hinge", 0, 1), {"axis": (0, 0, 0)}, "axis"),
+        (("hinge", 0, 1), {"lower": 1.0, "upper": -1.0}, "lower"),
+        (("distance", 0, 1), {"min_length": 2.0, "max_length": 1.0}, "min_length"),
+        (("twist", 0, 1), {}, "kind"),
+        (("ball", 0, 1), {"lower": 0.0}, "lower"),
+        (("hinge", 0, 1), {"motor_speed": 1.0}, "max_torque"),
+        (("ball", 0, 1), {"anchor": (0, float("nan"), 0)}, "anchor"),
+    ],
+)
+def test_add_joint_rejects_bad_arguments(args, kwargs, key):
+    """Reject a bad joint argument with a ValueError naming it."""
+    world, _, _ = _world()
+    with pytest.raises(JointArgumentError) as info:
+        world.add_joint(*args, **kwargs)
+    assert info.value.key == key
+    assert str(info.value).startswith(f"{key}: ")
+    assert world.joint_count == 0
+
+
+def test_add_joint_rejects_two_static_bodies():
+    """Refuse a joint between two static bodies, or a static body and the world."""
+    world = tumble.World()
+    ground = world.add_plane()
+    block = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1), static=True)
+    for a, b in ((ground, block), (None, block)):
+        with pytest.raises(JointArgumentError, match="static"):
+            world.add_joint("ball", a, b)
+
+
+SCENE = """
+[[plane]]
+[[sphere]]
+position = [0, 0, 1]
+radius = 0.1
+[[box]]
+position = [0.5, 0, 1]
+half_extents = [0.1, 0.1, 0.1]
+[[joint]]
+kind = "hinge"
+body_a = "sphere[0]"
+body_b = "box[0]"
+anchor = [0.25, 0, 1]
+axis = [0, 1, 0]
+lower = -45
+upper = 90
+[[joint]]
+kind = "rope"
+body_b = "sphere[0]"
+anchor_a = [0, 0, 2]
+"""
+
+
+def test_scene_joint_table_builds_joints():
+    """Build [[joint]] tables: bodies by table and index, hinge limits in degrees, the world by default."""
+    world = build_world(parse_scene(SCENE))
+    j = world.joints
+    assert world.joint_count == 2
+    assert list(j.numpy("joint_body_a")) == [1, -1]
+    assert list(j.numpy("joint_body_b")) == [2, 1]
+    assert j.numpy("joint_lower")[0] == pytest.approx(math.radians(-45))
+    assert j.numpy("joint_upper")[0] == pytest.approx(math.radians(90))
+    world.run(duration=0.1)
+    assert np.isfinite(world.joint_force).all()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (('body_b = "box[0]"', 'body_b = "box[3]"'), "[joint[0]] body_b: no body 'box[3]'"),
+        (('body_b = "box[0]"', 'body_b = "sphere[0]"'), "[joint[0]] body_b: a joint needs two different bodies"),
+        (("axis = [0, 1, 0]", "axis = [0, 0, 0]"), "[joint[0]] axis: must not be the zero vector"),
+        (("upper = 90", "upper = -90"), "[joint[0]] lower: lower -45 > upper -90"),
+        (('body_b = "box[0]"', 'body_b = "cube[0]"'), "[joint[0]] body_b: must name a body"),
+        (('body_a = "sphere[0]"', 'body_a = "plane[0]"\nbody_b = "world"'), None),
+    ],
+)
+def test_scene_joint_errors_name_table_and_key(change, message):
+    """Report a bad [[joint]] in one line naming the table and the key."""
+    text = SCENE.replace(*change)
+    if message is None:  # the plane and the world: both static
+        text = text.replace('body_b = "box[0]"\n', "", 1)
+        message = "[joint[0]] body_b: both bodies are static"
+    with pytest.raises(tumble.SceneError) as info:
+        build_world(parse_scene(text, path="s.toml"))
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_scene_rope_min_over_max():
+    """Report min_length > max_length on the min_length key."""
+    text = SCENE + "min_length = 2.0\nmax_length = 1.0\n"
+    with pytest.raises(tumble.SceneError, match=r"\[joint\[1\]\] min_length: min_length 2 > max_length 1"):
+        parse_scene(text, path="s.toml")
+
+
+def test_broken_joint_lets_its_pair_collide_again():
+    """Break a joint between overlapping boxes: from the next step on they make contacts."""
+    world = tumble.World(gravity=(0, 0, 0))
+    a = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1))
+    b = world.add_box(position=(0.15, 0, 1), half_extents=(0.1, 0.1, 0.1))
+    world.add_joint("ball", a, b, anchor=(0.075, 0, 1), break_force=1.0)
+    world.apply_force(b, (100.0, 0, 0))
+    world.step()
+    assert world.contact_count == 0 and world.joint_broken[0]
+    world.step()
+    assert world.contact_count > 0
