@@ -41,6 +41,7 @@ sys.path.insert(0, str(HERE.parent))
 if (HERE.parent / "src" / "tumble").is_dir():
     sys.path.insert(0, str(HERE.parent / "src"))
 
+from benchmarks import joints as joint_bench  # noqa: E402
 from benchmarks import quality  # noqa: E402
 from benchmarks.engines import ADAPTERS  # noqa: E402
 from benchmarks.scenes import CUBE_HALF, CUBE_MASS, SCENES, SPHERE_MASS, SPHERE_RADIUS, Scene, cloth_edges  # noqa: E402
@@ -564,8 +565,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--no-pin", action="store_true", help="do not restrict the process to one core")
     args = parser.parse_args(argv)
     names = []
+    args.joint_list = []  # joint scenes (benchmarks/joints.py): not in "all", run with --scenes joints
     for item in filter(None, (s.strip() for s in args.scenes.split(","))):
-        if item in GROUPS:
+        if item == "joints" or item in joint_bench.SCENES:
+            args.joint_list += list(joint_bench.SCENES) if item == "joints" else [item]
+        elif item in GROUPS:
             names += GROUPS[item]
         elif item in SCENES:
             names.append(item)
@@ -606,6 +610,18 @@ def main(argv: list[str] | None = None) -> int:
         chunk = max(1, int(round(CHUNK_DURATION / scene.dt)))
         all_results += run_scene(scene, args.engine_list, args.device, chunk, args.max_wall,
                                  lambda s: print(s, flush=True), all_peers=args.all_peers)
+
+    joint_rows = []
+    for name in dict.fromkeys(args.joint_list):
+        print(f"{name} (benchmarks/joints.py): {args.duration or joint_bench.DURATION:g} s", flush=True)
+        for engine in args.engine_list:
+            joint_rows.append(joint_bench.run(name, engine, args.duration or joint_bench.DURATION))
+    if joint_rows and not args.no_csv:
+        path = args.output / f"joints-{args.machine or machine_name(info)}.csv"
+        joint_bench.write_csv(path, joint_rows)
+        print(f"wrote {path}")
+    if not args.scene_list:
+        return 0
 
     info["load"] = "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else ""
     print()

@@ -569,7 +569,7 @@ class World:
         with self._timer("solver"):
             contact_solver.restitution(bodies, contacts, self.restitution_threshold)
             contacts.store_impulses(bodies)
-            self.joints.finish(bodies, h, cache=launches)  # joint forces; joints over their break force break
+            self.joints.finish(dt, cache=launches)  # joint forces; joints over their break force break
             integrate.clear_forces(bodies)
 
         self.time += dt

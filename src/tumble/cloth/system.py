@@ -35,6 +35,7 @@ import warp as wp
 from ..errors import SimulationError
 from ..state import float_t, readonly, vec3
 from . import collide, grid, springs
+from .attach import BodyPins
 from ..launch import LaunchCache
 from .wind import Wind, accumulate_air_forces, sample_wind
 
@@ -159,6 +160,7 @@ class ClothSystem:
         self._wind_modes = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._cache = LaunchCache()
+        self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
         self._violated = wp.zeros(1, dtype=wp.int32, device=self.device)
 
     # ------------------------------------------------------------------ building
@@ -438,12 +440,15 @@ class ClothSystem:
             accumulate_air_forces(a["particle_position"], a["particle_velocity"], a["particle_wind"],
                                   a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
 
+        self.body_pins.react(a, world.bodies, world.gravity, hi)  # the pull on body pins moves their bodies
+
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
         remaining = max(1, total - self._substep_index)
         springs.integrate(a["particle_position"], a["particle_velocity"], a["particle_position_prev"],
                           a["particle_force"], a["particle_external_force"], a["particle_inv_mass"],
                           a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
         self._substep_index += 1
+        self.body_pins.follow(a, world.bodies)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over
@@ -574,6 +579,7 @@ class ClothSystem:
     def remap_bodies(self, slot: np.ndarray) -> None:
         """The world renumbered its body rows (row i is now `slot[i]`): move the last substep's
         per-body contact counts (the next substep's are zeroed before use)."""
+        self.body_pins.remap_bodies(slot)
         n = len(slot)
         size = self._contacts_prev.shape[0]
         host = np.zeros(max(size, n), dtype=np.int32)
@@ -608,9 +614,25 @@ class ClothSystem:
         self.set_pin_target(i, self._arrays["particle_position"].numpy()[i])
         self._write("particle_velocity", i, np.zeros(3))
 
+    def pin_to_body(self, particles, body) -> None:
+        """Pin particles (indices) to a body where they are now: they follow it and pull on it (two-way)."""
+        idx = np.unique(np.asarray([self._particle(p) for p in np.atleast_1d(particles)], dtype=np.int64))
+        row = self.world._slot(body)
+        b = self.world.bodies
+        x, q = b.numpy("body_position")[row], b.numpy("body_orientation")[row]
+        offset = self._arrays["particle_position"].numpy()[idx] - x
+        # into the body frame: rotate by the conjugate quaternion (x, y, z, w)
+        u, w = -q[:3], q[3]
+        t = 2.0 * np.cross(u, offset)
+        local = offset + w * t + np.cross(u, t)
+        for i in idx:
+            self.pin(int(i))
+        self.body_pins.add(idx, row, local)
+
     def unpin(self, particle: int) -> None:
         """Release a pinned particle; it keeps its current velocity."""
         i = self._particle(particle)
+        self.body_pins.remove([i])
         self._write("particle_inv_mass", i, 1.0 / self._host["particle_mass"][i])
         self._update_pins()
 

@@ -561,6 +561,7 @@ SCHEMA: dict[str, TableSpec] = {
                 "thickness": Field(number(low=0, low_open=True), None, "m",
                                    "distance kept from bodies and between layers of cloth", "0.01"),
                 "friction": Field(number(low=0), None, "", "Coulomb friction against bodies", "0.3"),
+                "pin_body": Field(body_ref(), None, "", 'body the pins follow and pull on, e.g. "box[0]"', "none"),
             },
             _cloth_rules,
         ),
@@ -635,6 +636,9 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 "max_strain": Field(
                     number(low=0, low_open=True), None, "", "largest allowed cloth spring strain", "none"
+                ),
+                "max_joint_error": Field(
+                    number(low=0, low_open=True), None, "m", "largest allowed joint drift (world.joint_error)", "none"
                 ),
             },
         ),
@@ -921,14 +925,32 @@ def build_world(scene: Scene, **overrides):
         with _api_errors(path, _table_label("emitter", i)):
             world.add_emitter(**_given(values))
     for i, values in enumerate(scene.items("cloth")):
-        with _api_errors(path, _table_label("cloth", i)):
-            world.add_cloth(**_given(values))
+        label = _table_label("cloth", i)
+        args = _given(values)
+        pin_body = args.pop("pin_body", None)
+        with _api_errors(path, label):
+            cloth = world.cloth.cloths[world.add_cloth(**args)]
+        if pin_body is not None:
+            body = _named_body(made, pin_body, path, label, "pin_body")
+            start = cloth.particle_start
+            pinned = start + np.nonzero(world.cloth.particle_inv_mass[start:start + cloth.nx * cloth.ny] == 0.0)[0]
+            with _api_errors(path, label):
+                world.cloth.pin_to_body(pinned, body)
     if scene.table("wind") is not None:
         with _api_errors(path, "wind"):
             world.set_wind(**scene.table("wind"))
     for i, values in enumerate(scene.items("joint")):
         _add_joint(world, made, values, path, _table_label("joint", i))
     return world
+
+
+def _named_body(made: dict, ref: str, path, label: str, key: str):
+    """The BodyId of "box[2]" among the bodies the file made, or a SceneError at `key`."""
+    name, index = ref[:-1].split("[")
+    if ref == "world" or int(index) >= len(made[name]):
+        have = "no world here" if ref == "world" else f"the file has {len(made[name])} [[{name}]]"
+        raise SceneError(f"no body {ref!r}: {have}", path=path, table=label, key=key)
+    return made[name][int(index)]
 
 
 def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
@@ -942,11 +964,7 @@ def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
         if ref == "world":
             ends.append(None)
             continue
-        name, index = ref[:-1].split("[")
-        if int(index) >= len(made[name]):
-            raise SceneError(f"no body {ref!r}: the file has {len(made[name])} [[{name}]]", path=path,
-                             table=label, key=key)
-        ends.append(made[name][int(index)])
+        ends.append(_named_body(made, ref, path, label, key))
     if args["kind"] == "hinge":
         for key in ("lower", "upper", "motor_speed"):
             if key in args:
@@ -1048,6 +1066,10 @@ def check_world(world, check: dict | None = None) -> list[str]:
         strain = float(cloth.max_strain())
         if strain > check["max_strain"]:
             failures.append(f"cloth strain {strain:.4g} > max_strain {check['max_strain']:g}")
+    if check.get("max_joint_error") is not None and world.joint_count:
+        drift = float(np.max(world.joint_error))
+        if drift > check["max_joint_error"]:
+            failures.append(f"joint drift {drift:.4g} m > max_joint_error {check['max_joint_error']:g}")
     return failures
 
 

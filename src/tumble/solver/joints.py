@@ -39,8 +39,9 @@ damping ratio 2 holds a resting chain to micrometres per link at 8 substeps of 1
 substeps make every joint stiffer and more exact.
 
 Joint force: the accumulated impulses are per substep (each substep applies them again as its
-warm start), so the force is impulse / h; a joint whose force exceeds `break_force` breaks at
-the end of the step (it stops acting and its bodies collide again).
+warm start), so the step's mean force is the sum of the substeps' final impulses over dt (the
+relax pass adds them up); a joint whose mean force exceeds `break_force` breaks at the end of
+the step (it stops acting and its bodies collide again).
 
 On the CPU, Warp runs threads in order, so each pass is a Gauss-Seidel sweep in joint order and
 the result is deterministic. On CUDA the passes are Jacobi: deltas are added with atomics and
@@ -112,8 +113,10 @@ JOINT_FIELDS = {
     "joint_impulse_axial": float_t,  # motor or spring impulse along the axial row
     "joint_impulse_lower": float_t,  # lower limit impulse (>= 0)
     "joint_impulse_upper": float_t,  # upper limit impulse (>= 0)
-    "joint_force": vec3,  # force on b over the last substep, world [N]
-    "joint_torque": vec3,  # torque on b (about its anchor) over the last substep, world [N m]
+    "joint_sum_linear": vec3,  # the step's substep impulses summed, for the step's mean force
+    "joint_sum_angular": vec3,
+    "joint_force": vec3,  # mean force on b over the last step, world [N]
+    "joint_torque": vec3,  # mean torque on b over the last step, world [N m]
 }
 
 _KIND_BALL = wp.constant(int(JointKind.BALL))
@@ -410,6 +413,8 @@ def _solve(
     imp_axial: wp.array(dtype=float_t),
     imp_lower: wp.array(dtype=float_t),
     imp_upper: wp.array(dtype=float_t),
+    sum_linear: wp.array(dtype=vec3),
+    sum_angular: wp.array(dtype=vec3),
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
@@ -569,20 +574,20 @@ def _solve(
     _store(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
     if mode == 2:
         # relax: these impulses are final for the substep and start the next one (warm start)
-        t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
+        axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
+        t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], axial)
         _store(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
         _store(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
+        # and count them towards the step's mean force
+        sum_linear[k] = sum_linear[k] + imp_linear[k] + g.n * axial
+        spin = imp_angular[k]
+        if jk == _KIND_HINGE:
+            spin = spin + g.axis * axial  # a hinge's axial row is angular
+        sum_angular[k] = sum_angular[k] + spin
 
 
 @wp.kernel
 def _finish(
-    kind: wp.array(dtype=wp.int32),
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    frame_a: wp.array(dtype=quat),
-    frame_b: wp.array(dtype=quat),
     break_force: wp.array(dtype=float_t),
     enabled: wp.array(dtype=wp.int32),
     imp_linear: wp.array(dtype=vec3),
@@ -590,35 +595,24 @@ def _finish(
     imp_axial: wp.array(dtype=float_t),
     imp_lower: wp.array(dtype=float_t),
     imp_upper: wp.array(dtype=float_t),
+    sum_linear: wp.array(dtype=vec3),
+    sum_angular: wp.array(dtype=vec3),
     force: wp.array(dtype=vec3),
     torque: wp.array(dtype=vec3),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    inv_h: float_t,
+    inv_dt: float_t,
     count: int,
 ):
     k = wp.tid()
     if k >= count:
         return
-    if enabled[k] == 0:
-        force[k] = vec3()
-        torque[k] = vec3()
-        return
-    A = _load(body_a[k], x, q, v, w, inv_mass, inv_inertia)
-    B = _load(body_b[k], x, q, v, w, inv_mass, inv_inertia)
-    g = _geometry(kind[k], A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
-    # F = impulse / h on b: the accumulated impulses act once per substep
-    axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
-    f = (imp_linear[k] + g.n * axial) * inv_h
-    t = imp_angular[k] * inv_h
-    if kind[k] == _KIND_HINGE:
-        t = t + g.axis * (axial * inv_h)
+    # mean force over the step: the substeps' impulses (each acts once per substep) summed, over dt
+    f = sum_linear[k] * inv_dt
     force[k] = f
-    torque[k] = t
+    torque[k] = sum_angular[k] * inv_dt
+    sum_linear[k] = vec3()
+    sum_angular[k] = vec3()
+    if enabled[k] == 0:
+        return
     if wp.length(f) > break_force[k]:
         enabled[k] = 0
         imp_linear[k] = vec3()
@@ -703,16 +697,17 @@ _SOLVE_JOINT_ARRAYS = (
     "joint_kind", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
     "joint_limit", "joint_lower", "joint_upper", "joint_motor", "joint_motor_speed", "joint_motor_max",
     "joint_length", "joint_stiffness", "joint_damping", "joint_scale", "joint_enabled", "joint_impulse_linear",
-    "joint_impulse_angular", "joint_impulse_axial", "joint_impulse_lower", "joint_impulse_upper",
+    "joint_impulse_angular", "joint_impulse_axial", "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear",
+    "joint_sum_angular",
 )
 _SOLVE_BODY_ARRAYS = (
     "body_position", "body_orientation", "body_velocity", "body_angular_velocity", "body_inv_mass",
     "body_inv_inertia", "body_warm_velocity", "body_warm_angular_velocity",
 )
 _FINISH_JOINT_ARRAYS = (
-    "joint_kind", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
     "joint_break_force", "joint_enabled", "joint_impulse_linear", "joint_impulse_angular", "joint_impulse_axial",
-    "joint_impulse_lower", "joint_impulse_upper", "joint_force", "joint_torque",
+    "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear", "joint_sum_angular", "joint_force",
+    "joint_torque",
 )
 
 
@@ -813,13 +808,12 @@ class JointSet(ArraySet):
         if self.count:
             self._launch(bodies, h, 1 if use_bias else 2, cache)
 
-    def finish(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
-        """Joint forces and torques of the last substep; joints over their break force break."""
+    def finish(self, dt: float, cache: LaunchCache | None = None) -> None:
+        """Joint forces and torques, the mean over the step of `dt` seconds; joints over their break force break."""
         if self.count == 0:
             return
-        j, b = self.arrays, bodies.arrays
-        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS),
-                                        *(b[name] for name in _SOLVE_BODY_ARRAYS[:6]), 1.0 / h, self.count],
+        j = self.arrays
+        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS), 1.0 / dt, self.count],
                self.device, cache)
 
     # -------------------------------------------------------------- views
@@ -985,12 +979,12 @@ def joint_rows(kind, a: JointBody, b: JointBody, *, anchor=None, anchor_a=None, 
     rest = float(np.linalg.norm(pb - pa))
     if kind == JointKind.DISTANCE:
         rest = rest if length is None else _scalar(length, "length", low=0.0)
-        rope = name == "rope"
-        lo = (0.0 if rope else rest) if min_length is None else _scalar(min_length, "min_length", low=0.0)
-        hi = (rest if rope or k == 0.0 and c == 0.0 else math.inf) if max_length is None else _scalar(
+        # defaults: a rope is slack up to its length, a spring free, a plain distance joint a rigid rod
+        rope, spring = name == "rope", k > 0.0 or c > 0.0
+        hi = (math.inf if spring and not rope else rest) if max_length is None else _scalar(
             max_length, "max_length", low=0.0, allow_inf=True)
-        if min_length is None and max_length is not None and not rope and k == 0.0 and c == 0.0:
-            lo = min(lo, hi)
+        lo = (0.0 if rope or spring else min(rest, hi)) if min_length is None else _scalar(
+            min_length, "min_length", low=0.0)
         if lo > hi:
             raise JointArgumentError("min_length", f"min_length {lo:g} > max_length {hi:g}")
         limit = 1

@@ -1,0 +1,133 @@
+"""Cloth pinned to bodies: pins that follow a body's motion, and pull on it (two-way).
+
+Reads body poses and the cloth's forces on its pinned particles; writes those particles'
+positions and pin targets, and body velocities. Costs O(body pins) per cloth substep.
+
+A body pin is a pinned particle (inverse mass 0) with a point fixed in a body's frame. Each
+cloth substep, after the spring and air forces are summed and before integration:
+- reaction: the force F the cloth exerts on the pin, plus the pin particle's own weight m g,
+  acts on the body for the cloth substep: v += F h / m, w += I^-1 (r x F) h (as the cloth's
+  contacts push bodies);
+and after integration:
+- follow: the particle is put on the body point x_b + R_b r (its target too), so its velocity
+  (x - x_prev) / h is the point's.
+The body's response to the pins comes one cloth substep late, which is stable while the cloth
+is much lighter than the body (a flag on a pole).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..solver.contacts import inv_inertia_times
+from ..state import float_t, quat, vec3
+
+
+@wp.kernel
+def _reaction(
+    pin_particle: wp.array(dtype=wp.int32),
+    pin_body: wp.array(dtype=wp.int32),
+    pin_local: wp.array(dtype=vec3),
+    particle_force: wp.array(dtype=vec3),
+    particle_mass: wp.array(dtype=float_t),
+    gravity: vec3,
+    h: float_t,
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    serial: int,
+):
+    k = wp.tid()
+    b = pin_body[k]
+    im = inv_mass[b]
+    if im == float_t(0.0):
+        return
+    p = pin_particle[k]
+    F = particle_force[p] + gravity * particle_mass[p]
+    r = wp.quat_rotate(q[b], pin_local[k])
+    dv = F * (im * h)
+    dw = inv_inertia_times(q[b], inv_inertia[b], wp.cross(r, F)) * h
+    if serial != 0:
+        v[b] = v[b] + dv
+        w[b] = w[b] + dw
+    else:
+        wp.atomic_add(v, b, dv)
+        wp.atomic_add(w, b, dw)
+
+
+@wp.kernel
+def _follow(
+    pin_particle: wp.array(dtype=wp.int32),
+    pin_body: wp.array(dtype=wp.int32),
+    pin_local: wp.array(dtype=vec3),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    particle_position: wp.array(dtype=vec3),
+    particle_pin_target: wp.array(dtype=vec3),
+):
+    k = wp.tid()
+    b = pin_body[k]
+    p = pin_particle[k]
+    point = x[b] + wp.quat_rotate(q[b], pin_local[k])
+    particle_position[p] = point
+    particle_pin_target[p] = point
+
+
+class BodyPins:
+    """Particles pinned to points of bodies (rows of the world's body arrays)."""
+
+    def __init__(self, device: str):
+        self.device = device
+        self.count = 0
+        self._particle = np.zeros(0, dtype=np.int32)
+        self._body = np.zeros(0, dtype=np.int32)
+        self._local = np.zeros((0, 3))
+        self._upload()
+
+    def add(self, particles: np.ndarray, body_row: int, local: np.ndarray) -> None:
+        """Pin `particles` (indices) to body row `body_row` at body-frame points `local` (k, 3)."""
+        keep = ~np.isin(self._particle, particles)  # a particle follows one body: the last given
+        self._particle = np.concatenate([self._particle[keep], particles.astype(np.int32)])
+        self._body = np.concatenate([self._body[keep], np.full(len(particles), body_row, dtype=np.int32)])
+        self._local = np.vstack([self._local[keep], local])
+        self._upload()
+
+    def remove(self, particles) -> None:
+        keep = ~np.isin(self._particle, np.asarray(particles))
+        self._particle, self._body, self._local = self._particle[keep], self._body[keep], self._local[keep]
+        self._upload()
+
+    def remap_bodies(self, slot: np.ndarray) -> None:
+        self._body = slot[self._body].astype(np.int32)
+        self._upload()
+
+    def _upload(self) -> None:
+        self.count = len(self._particle)
+        n = max(1, self.count)
+        self.particle = wp.array(np.resize(self._particle, n), dtype=wp.int32, device=self.device)
+        self.body = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
+        self.local = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
+
+    def react(self, arrays: dict, bodies, gravity, h: float) -> None:
+        """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""
+        if self.count == 0:
+            return
+        b = bodies.arrays
+        wp.launch(_reaction, dim=self.count, device=self.device,
+                  inputs=[self.particle, self.body, self.local, arrays["particle_force"], arrays["particle_mass"],
+                          vec3(*gravity), h, b["body_position"], b["body_orientation"], b["body_velocity"],
+                          b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
+                          1 if self.device == "cpu" else 0])
+
+    def follow(self, arrays: dict, bodies) -> None:
+        """Put the pinned particles on their body points."""
+        if self.count == 0:
+            return
+        b = bodies.arrays
+        wp.launch(_follow, dim=self.count, device=self.device,
+                  inputs=[self.particle, self.body, self.local, b["body_position"], b["body_orientation"],
+                          arrays["particle_position"], arrays["particle_pin_target"]])
