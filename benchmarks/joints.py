@@ -206,8 +206,8 @@ class MuJoCo:
         import mujoco
 
         self.mj = mujoco
-        parts = [f'<mujoco><option timestep="{DT}" gravity="{GRAVITY[0]} {GRAVITY[1]} {GRAVITY[2]}" '
-                 f'iterations="100"/><size memory="200M"/><worldbody>']
+        parts = [(f'<mujoco><option timestep="{DT}" gravity="{GRAVITY[0]} {GRAVITY[1]} {GRAVITY[2]}" '
+                  f'iterations="100"/><size memory="200M"/><worldbody>')]
         if scene.ground:
             parts.append(f'<geom type="plane" size="0 0 1" friction="{FRICTION} 0.005 0.0001"/>')
         for i, (shape, size, x, m) in enumerate(zip(scene.shape, scene.size, scene.position, scene.mass)):
@@ -335,7 +335,7 @@ def main(argv: list[str] | None = None) -> int:
         for engine in args.engines.split(","):
             try:
                 rows.append(run(name, engine, args.duration))
-            except Exception as exc:  # an engine that cannot build the scene is reported, not fatal
+            except Exception as exc:  # noqa: BLE001 (an engine that cannot build the scene is reported, not fatal)
                 print(f"  {engine:9s} failed: {type(exc).__name__}: {exc}")
     return 0
 

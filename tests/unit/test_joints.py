@@ -153,3 +153,19 @@ def test_broken_joint_lets_its_pair_collide_again():
     assert world.contact_count == 0 and world.joint_broken[0]
     world.step()
     assert world.contact_count > 0
+
+
+def test_recording_holds_joint_forces(tmp_path):
+    """Record a pendulum: the file has each frame's joint force, which balances the bob's weight at rest."""
+    from tumble.io.record import Recorder, load_recording
+
+    world = tumble.World(gravity=(0, 0, -9.81))
+    bob = world.add_sphere(position=(0, 0, 1), radius=0.05, mass=2.0)
+    world.add_joint("rope", None, bob, anchor_a=(0, 0, 2))
+    recorder = Recorder(world, fps=30)
+    world.run(duration=0.5, callback=recorder)
+    rec = load_recording(recorder.save(tmp_path / "pendulum.npz"))
+    assert rec["joint_force"].shape == (recorder.frame_count, 1, 3)
+    assert rec["joint_force"][-1, 0] == pytest.approx([0, 0, 2.0 * 9.81], rel=1e-6)
+    assert rec["joint_bodies"].tolist() == [[-1, bob.index]]
+    assert not rec["joint_broken"].any()

@@ -17,6 +17,8 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     cloth_mass (P,) [kg], cloth_max_strain (F,) (largest structural-spring strain per frame)
     since version 2: restitution (N,), friction (N,); with a scene [camera]: camera_position (3,),
     camera_target (3,), camera_up (3,), camera_fov () [degrees]
+    with joints (J of them, in creation order): joint_force (F, J, 3) [N] and joint_torque (F, J, 3)
+    [N m] on each joint's body b, joint_broken (F, J) bool, joint_bodies (J, 2) int32 (-1 = the world)
 
 Cost: one host copy of the body state per frame (~100 bytes per body per frame in memory).
 """
@@ -95,6 +97,10 @@ class Recorder:
             frame["momentum"] = frame["momentum"] + cloth.momentum()
             frame["cloth_position"] = np.array(cloth.particle_position, dtype=np.float64)
             frame["cloth_max_strain"] = np.float64(cloth.max_strain())
+        if getattr(w, "joint_count", 0):
+            frame["joint_force"] = np.array(w.joint_force, dtype=np.float64)
+            frame["joint_torque"] = np.array(w.joint_torque, dtype=np.float64)
+            frame["joint_broken"] = np.array(w.joint_broken, dtype=bool)
         self.frames.append(frame)
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -147,6 +153,19 @@ class Recorder:
             rest = getattr(cloth, "rest_position", getattr(cloth, "particle_rest_position", None))
             if rest is not None:
                 out["cloth_rest_position"] = np.array(rest, dtype=np.float64)
+        if getattr(w, "joint_count", 0):
+            j = w.joint_count
+            for name, tail, fill in (("joint_force", (3,), np.nan), ("joint_torque", (3,), np.nan),
+                                     ("joint_broken", (), False)):
+                a = np.full((f, j, *tail), fill)
+                for k, fr in enumerate(self.frames):
+                    rows = fr.get(name)
+                    if rows is not None:
+                        a[k, : len(rows)] = rows
+                out[name] = a
+            bodies = np.stack([w.joints.numpy("joint_body_a"), w.joints.numpy("joint_body_b")], axis=1)
+            ids = np.asarray(w.bodies.numpy("body_id"))
+            out["joint_bodies"] = np.where(bodies >= 0, ids[np.maximum(bodies, 0)], -1).astype(np.int32)
         return out
 
     def save(self, path) -> Path:
