@@ -21,6 +21,7 @@ import numpy as np
 import warp as wp
 
 from ..solver.contacts import inv_inertia_times
+from ..solver.joints import add_velocity
 from ..state import float_t, quat, vec3
 
 
@@ -51,12 +52,7 @@ def _reaction(
     r = wp.quat_rotate(q[b], pin_local[k])
     dv = F * (im * h)
     dw = inv_inertia_times(q[b], inv_inertia[b], wp.cross(r, F)) * h
-    if serial != 0:
-        v[b] = v[b] + dv
-        w[b] = w[b] + dw
-    else:
-        wp.atomic_add(v, b, dv)
-        wp.atomic_add(w, b, dw)
+    add_velocity(b, dv, dw, v, w, inv_mass, serial)
 
 
 @wp.kernel

@@ -63,7 +63,7 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, quat, readonly, vec3
-from .contacts import _inv_inertia_world
+from .contacts import _inv_inertia_world, _inverse
 
 #: joint stiffness as a fraction of the substep rate, and its damping ratio (Box2D v3:
 #: joints twice as stiff as contacts, damping ratio 2)
@@ -350,13 +350,6 @@ class _Body:
 
 
 @wp.func
-def _inverse(k: float_t):
-    if k > float_t(0.0):
-        return float_t(1.0) / k
-    return float_t(0.0)
-
-
-@wp.func
 def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(dtype=vec3),
           w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), inv_inertia: wp.array(dtype=vec3)):
     """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin."""
@@ -373,8 +366,8 @@ def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(
 
 
 @wp.func
-def _store(i: int, dv: vec3, dw: vec3, v: wp.array(dtype=vec3), w: wp.array(dtype=vec3),
-           inv_mass: wp.array(dtype=float_t), serial: int):
+def add_velocity(i: int, dv: vec3, dw: vec3, v: wp.array(dtype=vec3), w: wp.array(dtype=vec3),
+                 inv_mass: wp.array(dtype=float_t), serial: int):
     """Add a velocity change to body row i (not the world, not static bodies); atomics off the CPU."""
     if i < 0:
         return
@@ -570,14 +563,14 @@ def _solve(
             s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
             imp_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
 
-    _store(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
-    _store(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
+    add_velocity(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
+    add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
     if mode == 2:
         # relax: these impulses are final for the substep and start the next one (warm start)
         axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
         t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], axial)
-        _store(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
-        _store(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
+        add_velocity(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
+        add_velocity(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
         # and count them towards the step's mean force
         sum_linear[k] = sum_linear[k] + imp_linear[k] + g.n * axial
         spin = imp_angular[k]
