@@ -35,7 +35,10 @@ class LaunchCache:
         if layout is None:
             arrays = [i for i, a in enumerate(inputs) if isinstance(a, wp.array)]
             scalars = tuple(i for i, a in enumerate(inputs) if not isinstance(a, wp.array))
-            getter = operator.itemgetter(*arrays) if len(arrays) > 1 else (lambda xs, i=arrays[0]: (xs[i],))
+            if len(arrays) > 1:
+                getter = operator.itemgetter(*arrays)
+            else:  # one array, or none (arrays in structs: a new struct is a changed scalar)
+                getter = lambda xs, i=tuple(arrays): tuple(xs[k] for k in i)
             layout = self._arrays_of[kernel] = (getter, scalars)
         getter, scalars = layout
         key = (kernel, dim, *map(id, getter(inputs)))

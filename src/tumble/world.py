@@ -545,7 +545,8 @@ class World:
             contact_solver.prepare(bodies, contacts, self.gravity)
             integrate.begin_step(bodies)
 
-        # substeps: integrate velocities (+ warm start) -> solve -> integrate positions -> relax -> cloth
+        # substeps: integrate velocities (+ warm start) -> impacts (restitution) -> solve -> integrate positions
+        # -> relax -> cloth
         launches = self._launch_cache()
         for substep in range(self.substeps):
             with self._timer("integrate"):
@@ -554,20 +555,23 @@ class World:
                 if substep == 0:
                     contact_solver.warm_start(bodies, contacts)
                     self.joints.warm_start(bodies, h, cache=launches)
+                    contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=False,
+                                           cache=launches)
                 self.joints.solve(bodies, h, use_bias=True, cache=launches)
                 contact_solver.solve(bodies, contacts, h, use_bias=True, cache=launches)
             with self._timer("integrate"):
                 integrate.integrate_positions(bodies, h, cache=launches)
             with self._timer("solver"):
                 self.joints.solve(bodies, h, use_bias=False, cache=launches)
+                contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True,
+                                       cache=launches)
                 contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             if cloth is not None:
                 with self._timer("cloth"):
                     cloth.substep(h)
 
-        # restitution: bounce contacts that approached faster than the threshold; keep impulses
+        # keep this step's impulses for the next step's warm start
         with self._timer("solver"):
-            contact_solver.restitution(bodies, contacts, self.restitution_threshold)
             contacts.store_impulses(bodies)
             self.joints.finish(dt, cache=launches)  # joint forces; joints over their break force break
             integrate.clear_forces(bodies)

@@ -37,7 +37,7 @@ def spin(w0, duration, *, dt=1 / 240, substeps=8, half=HALF):
     world = tumble.World(gravity=(0, 0, 0), dt=dt, substeps=substeps)
     world.add_box(position=(0, 0, 0), half_extents=tuple(half), mass=MASS, angular_velocity=tuple(w0))
     out = {"w": [], "L": [], "E": [], "R": []}
-    for _ in range(int(round(duration / dt))):
+    for _ in range(round(duration / dt)):
         world.step()
         R = quat_to_matrix(world.body_orientation[:1])[0]
         w = world.body_angular_velocity[0]

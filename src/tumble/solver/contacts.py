@@ -6,8 +6,7 @@ the per-contact accumulated impulses. One pass costs O(contacts).
 The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
 - per step, `prepare` fixes each contact's anchors r_a, r_b, tangents, effective masses
   m_n = 1 / (1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + (r_b x n) . I_b^-1 (r_b x n)),
-  the combined friction mu = sqrt(mu_a mu_b) and restitution e = max(e_a, e_b), and the
-  approach speed used for restitution;
+  the combined friction mu = sqrt(mu_a mu_b) and restitution e = max(e_a, e_b);
 - per substep: warm start (the first substep applies last step's matched impulses in a pass of
   its own; later ones get the previous substep's, summed per body by its relax pass, through
   `integrate_velocities`), `solve` (friction first, then the normal, since non-penetration
@@ -18,8 +17,15 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
 - contacts with a static body are twice as stiff (they carry whole piles), as in Box2D;
 - overlaps up to `LINEAR_SLOP` are held rigidly (no push-out), so resting stacks do not jitter;
-- after the substeps, `restitution` sets the normal velocity to -e times the approach speed for
-  contacts that approached faster than the threshold, so resting contacts never bounce.
+- restitution is a collision pass at the start of every substep, before the solve (`impacts`,
+  as in the collision/contact split of Guendelman, Bridson & Fedkiw, SIGGRAPH 2003): every
+  contact that closes within the substep faster than the threshold collides once, as a
+  two-body collision with its own impact speed (normal impulse to -e v_impact, then Coulomb
+  friction of at most mu times it). The sweep runs forward then backward, so a collision
+  travels along a chain of touching bodies in either direction within the substep; each
+  impulse alone cannot add energy, so no sequence of them can. The contact is then
+  separating, and the inelastic solve that follows leaves it alone; resting contacts
+  (approach below the threshold) never bounce.
 
 Soft constraint coefficients for stiffness f [Hz] and damping ratio zeta at substep h:
 omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1, a3 = 1 / (1 + a2);
@@ -55,6 +61,8 @@ CONTACT_DAMPING_RATIO = 10.0
 LINEAR_SLOP = 2.0e-5
 #: largest speed [m/s] at which overlapping bodies are pushed apart
 MAX_PUSH_VELOCITY = 3.0
+#: most collision sweeps per pass (CPU); a resting scene takes one, a cluster of impacts a few
+IMPACT_SWEEPS = wp.constant(16)
 #: anchors on the owner closer than this fraction of its bound radius are the same contact
 MATCH_TOLERANCE = 0.5
 
@@ -84,7 +92,7 @@ CONTACT_FIELDS = {
     "contact_mass_t2": float_t,
     "contact_friction": float_t,
     "contact_restitution": float_t,
-    "contact_relative_velocity": float_t,  # approach speed along n at impact [m/s]
+    "contact_relative_velocity": float_t,  # normal speed at this step's last impact [m/s] (< 0), else 0
     "contact_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
     # accumulated impulses of one substep [N s]
     "contact_impulse_n": float_t,
@@ -337,22 +345,7 @@ def _prepare(
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
-    # approach speed at impact: a gap s closed under relative acceleration g_n along n gives
-    # vn_impact^2 = vn^2 - 2 g_n s, so restitution does not lose the speed gained within the step
-    vn = _speed_along(b, ia, ib, ra, rb, n)
-    s = c.separation[k]
-    if s > float_t(0.0):
-        ga = float_t(0.0)
-        gb = float_t(0.0)
-        if b.inv_mass[ia] > float_t(0.0):
-            ga = float_t(1.0)
-        if b.inv_mass[ib] > float_t(0.0):
-            gb = float_t(1.0)
-        gn = (gb - ga) * wp.dot(gravity, n)
-        v2 = vn * vn - float_t(2.0) * gn * s
-        if (vn < float_t(0.0) or gn < float_t(0.0)) and v2 > float_t(0.0):
-            vn = -wp.sqrt(v2)
-    c.relative_velocity[k] = vn
+    c.relative_velocity[k] = float_t(0.0)  # set by _impact when the contact collides
     # warm start values arrive as a world friction vector; project on the new tangents
     jt = jt_world[k]
     c.jt1[k] = wp.dot(jt, t1)
@@ -539,24 +532,131 @@ def _solve(
         _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
-@wp.kernel
-def _restitution(c: Contacts, b: Bodies, threshold: float_t, serial: int):
-    k = wp.tid()
-    vrel = c.relative_velocity[k]
-    if vrel > -threshold or c.jn_max[k] == float_t(0.0) or c.restitution[k] == float_t(0.0):
-        return
+@wp.func
+def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t,
+            ahead: int, serial: int):
+    """Collide contact k now if it closes within the substep faster than `threshold` [m/s].
+
+    One two-body collision: the normal impulse j = m_n (u - v_n) turns the approach speed v_n
+    into the separating speed u, then a Coulomb friction impulse of at most mu j along the
+    sliding direction. Each impulse is applied alone along one direction d with at most the
+    impulse that would stop the motion along d twice (restitution e <= 1), so it cannot add
+    kinetic energy: dKE = j v_d + j^2 / (2 m_d) <= 0 for 0 <= j <= -2 m_d v_d.
+    `ahead`: the velocities are those of the next substep but for its gravity kick (the pass
+    before the relax, whose speculative clamp would otherwise land the contact inelastically).
+    """
+    e = c.restitution[k]
+    if e == float_t(0.0):
+        return 0
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
-    # drive the normal velocity to -e times the approach speed
-    vn = _speed_along(b, ia, ib, c.r_a[k], c.r_b[k], n)
-    jn_old = c.jn[k]
-    jn = wp.max(jn_old - c.mass_n[k] * (vn + c.restitution[k] * vrel) * c.scale[k], float_t(0.0))
-    c.jn[k] = jn
-    dj = jn - jn_old
-    P = n * dj
-    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -c.ang_a_n[k] * dj, P * b.inv_mass[ib],
-              c.ang_b_n[k] * dj, serial)
+    ra = c.r_a[k]
+    rb = c.r_b[k]
+    vn = _speed_along(b, ia, ib, ra, rb, n)
+    if vn >= float_t(0.0):
+        return 0
+    # current gap, linearised in the motion since the step began (as in _solve)
+    s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
+    # relative acceleration along n from gravity on the dynamic bodies (< 0: closing)
+    ga = float_t(0.0)
+    gb = float_t(0.0)
+    if b.inv_mass[ia] > float_t(0.0):
+        ga = float_t(1.0)
+    if b.inv_mass[ib] > float_t(0.0):
+        gb = float_t(1.0)
+    gn = wp.min((gb - ga) * wp.dot(gravity, n), float_t(0.0))
+    if s + (vn + float_t(ahead) * gn * h) * h > float_t(0.0):
+        return 0  # still apart at the end of the substep: a later pass collides it
+    # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
+    # acceleration g_n (v' = v + g_n h, then s' = s + v' h) keeps E = v^2 / 2 - g_n s + g_n h v / 2
+    # exactly (not v^2 / 2 - g_n s), taken over (s, v) at the end of a substep. A contact at gap
+    # s arriving with v_n (< 0) rebounds with the u that makes E after e^2 times E before
+    # (both measured from the contact, s = 0), so the next apex of the discrete flight is e^2
+    # times the last, wherever in the substep the impact falls and whatever h is:
+    #   u^2 / 2 + g_n h u / 2 = e^2 E_b + g_n s,   E_b = v^2 / 2 - g_n s + g_n h v / 2,
+    # and never faster than the elastic rebound |v_n| (no kinetic energy gain). Without
+    # gravity along n this is u = e |v_n|. Before the first solve the velocity has this
+    # substep's kick already: take it off for the pair (s, v), put it back on u.
+    kick = float_t(1 - ahead) * gn * h
+    vp = vn - kick
+    eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * h * vp
+    vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
+    # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
+    # contact that carries none is a fresh impact and bounces down to `floor`, the approach
+    # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
+    limit = threshold
+    if c.jn[k] == float_t(0.0):
+        limit = wp.min(threshold, floor)
+    if vi2 <= limit * limit:
+        return 0
+    rhs = e * e * eb + gn * s
+    u = float_t(0.0)
+    if rhs > float_t(0.0):
+        gh = gn * h
+        u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)) + kick
+    u = wp.min(wp.max(u, float_t(0.0)), -vn)
+    c.relative_velocity[k] = -wp.sqrt(vi2)
+    relax = c.scale[k]
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    # normal: v_n -> u, j = m_n (u - v_n), 1 / m_n = 1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + ...,
+    # with the inertia at the current orientations (a fast-spinning box turns far in a step; with
+    # the step start's, the impulse would not keep the energy exactly)
+    qa = b.q[ia]
+    qb = b.q[ib]
+    ca = wp.cross(ra, n)
+    cb = wp.cross(rb, n)
+    dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
+    dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
+    j = (u - vn) / (ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)) * relax
+    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -n * (j * ima), -dwa * j, n * (j * imb), dwb * j, serial)
+    # friction: along the sliding velocity d = -v_t / |v_t|, at most mu j and at most the
+    # impulse m_d |v_t| that stops the sliding, 1 / m_d = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...
+    t1 = c.t1[k]
+    t2 = c.t2[k]
+    v1 = _speed_along(b, ia, ib, ra, rb, t1)
+    v2 = _speed_along(b, ia, ib, ra, rb, t2)
+    vt = wp.sqrt(v1 * v1 + v2 * v2)
+    if vt == float_t(0.0) or c.friction[k] == float_t(0.0):
+        return 1
+    a1 = -v1 / vt
+    a2 = -v2 / vt
+    d = t1 * a1 + t2 * a2
+    ca = wp.cross(ra, d)
+    cb = wp.cross(rb, d)
+    dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
+    dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
+    k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
+    jt = wp.min(vt / k_d, c.friction[k] * j / relax) * relax
+    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -d * (jt * ima), -dwa * jt, d * (jt * imb), dwb * jt, serial)
+    return 1
+
+
+@wp.kernel
+def _impacts_serial(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t, ahead: int,
+                    count: int):
+    # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
+    # (a collision passes along a chain of touching bodies in either direction within a sweep;
+    # a body caught between two others needs several); at most IMPACT_SWEEPS
+    sweep = int(0)
+    hits = int(1)
+    while hits > 0 and sweep < IMPACT_SWEEPS:
+        hits = int(0)
+        for i in range(count):
+            k = i
+            if sweep % 2 == 1:
+                k = count - 1 - i
+            hits += _impact(k, c, b, gravity, h, threshold, floor, ahead, 1)
+        sweep += 1
+
+
+@wp.kernel
+def _impacts_parallel(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t,
+                      ahead: int, count: int):
+    k = wp.tid()
+    if k < count:
+        _impact(k, c, b, gravity, h, threshold, floor, ahead, 0)
 
 
 # ---------------------------------------------------------------------------- host side
@@ -571,6 +671,7 @@ class ContactSet(ArraySet):
         self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=1024)
         self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=device)
         self._owner_capacity = 0
+        self.step_structs = None
 
     def grow(self, count: int) -> None:
         self.count = 0
@@ -694,7 +795,8 @@ def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:
 
 
 def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
-    """Anchors, tangents, effective masses, combined materials and approach speeds, once per step."""
+    """Anchors, tangents, effective masses and combined materials, once per step."""
+    contacts.step_structs = None  # the solver structs of this step (arrays may have been replaced)
     if contacts.count == 0:
         return
     jacobi = 0 if contacts.device == "cpu" else 1
@@ -743,8 +845,25 @@ _SOLVE_BODY_ARRAYS = (
 )
 
 
-def restitution(bodies, contacts: ContactSet, threshold: float) -> None:
-    """Bounce the contacts that approached faster than `threshold` [m/s]."""
-    if contacts.count:
-        wp.launch(_restitution, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies), threshold, _serial(contacts)])
+def impacts(bodies, contacts: ContactSet, gravity: np.ndarray, h: float, threshold: float, *, ahead: bool,
+            cache: LaunchCache | None = None) -> None:
+    """Collide the contacts that close within the substep faster than `threshold` [m/s] (restitution).
+
+    Called before the first substep's solve (`ahead` False: the contacts that close within it)
+    and before every relax pass (`ahead` True: those that close within the next substep, its
+    gravity kick included), so that no speculative clamp lands a bouncing contact first.
+
+    On the CPU one thread sweeps the contacts forward then backward (Gauss-Seidel); on CUDA one
+    thread per contact, with atomics and the Jacobi scale.
+    """
+    if contacts.count == 0:
+        return
+    structs = contacts.step_structs
+    if structs is None:
+        structs = contacts.step_structs = (contacts.struct(), body_struct(bodies))
+    floor = 2.0 * float(np.linalg.norm(gravity)) * h
+    args = [*structs, vec3(*gravity), h, threshold, floor, int(ahead), contacts.count]
+    if _serial(contacts):
+        launch(_impacts_serial, 1, args, contacts.device, cache)
+    else:
+        launch(_impacts_parallel, contacts.capacity, args, contacts.device, cache)
