@@ -553,15 +553,9 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
     n = c.normal[k]
     ra = c.r_a[k]
     rb = c.r_b[k]
-    # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
-    # contact that carries none is a fresh impact and bounces down to `floor`, the approach
-    # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
-    limit = threshold
-    if c.jn[k] == float_t(0.0):
-        limit = wp.min(threshold, floor)
     vn = _speed_along(b, ia, ib, ra, rb, n)
-    if vn >= -limit:
-        return 0  # resting or separating: most contacts leave here
+    if vn >= float_t(0.0):
+        return 0
     # current gap, linearised in the motion since the step began (as in _solve)
     s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
     # relative acceleration along n from gravity on the dynamic bodies (< 0: closing)
@@ -588,6 +582,12 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
     vp = vn - kick
     eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * h * vp
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
+    # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
+    # contact that carries none is a fresh impact and bounces down to `floor`, the approach
+    # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
+    limit = threshold
+    if c.jn[k] == float_t(0.0):
+        limit = wp.min(threshold, floor)
     if vi2 <= limit * limit:
         return 0
     rhs = e * e * eb + gn * s
