@@ -145,8 +145,9 @@ class World:
         substeps: solver substeps per step (more = stiffer stacks, less penetration).
         seed: seed of the world's random generator (emitters, turbulence).
         device: Warp device, "cpu" (default) or "cuda".
-        restitution_threshold: relative normal speed [m/s] below which contacts do not bounce,
-            so that resting bodies stay at rest.
+        restitution_threshold: impact speed [m/s] below which contacts that carry load do not
+            bounce, so that resting bodies stay at rest (a contact carrying none bounces down to
+            2 |g| h, h = dt / substeps).
     """
 
     def __init__(
