@@ -547,8 +547,9 @@ class Renderer:
         """Box [m] that walls and ramps are cut to: the scene's bounds (grown over the frames drawn),
         widened sideways, a little higher on top, and down to the highest level floor."""
         box = scene_box(world)
-        if self._wall_world is not world:
-            self._wall_world, self._wall_box = world, None
+        source = getattr(world, "source", world)  # a viewer's snapshot stands for its world
+        if self._wall_world is not source:
+            self._wall_world, self._wall_box = source, None
         if box is not None:
             if self._wall_box is None:
                 self._wall_box = (box[0].copy(), box[1].copy())
