@@ -226,7 +226,7 @@ class Renderer:
         shadow_size: shadow map size in texels.
 
     Attributes you may change between frames: `ground_cell_size` [m] (checker square size),
-    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB).
+    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB), `dither`.
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
@@ -241,6 +241,9 @@ class Renderer:
         self.ground_cell_size = 1.0
         self.light_direction = np.array([0.6, -0.15, 1.0]) / np.linalg.norm([0.6, -0.15, 1.0])
         self.cloth_color = CLOTH_COLOR
+        # +-1/255 of noise on every output colour, so gradients show no 8-bit bands; GIF export
+        # turns it off (its 256-colour palette quantises anyway, and noise costs it 3-4x the size)
+        self.dither = True
         self._fbo = self._resolve = None
         self._fbo_size = None
         # box that walls are cut to: the union of the scene's bounds over the frames drawn of
@@ -383,6 +386,7 @@ class Renderer:
             self._set(prog, "u_light_dir", light)
             self._set_mat(prog, "u_light_vp", light_vp)
             self._set(prog, "u_shadow_on", 1.0 if shadow_on else 0.0)
+            self._set(prog, "u_dither", 1.0 if self.dither else 0.0)
             if "u_shadow_map" in prog:
                 prog["u_shadow_map"].value = 0
         self._shadow_tex.use(location=0)

@@ -12,6 +12,7 @@ uniform vec3 u_light_dir;  // unit vector towards the sun (world)
 uniform sampler2D u_shadow_map;
 uniform mat4 u_light_vp;   // world -> sun clip space
 uniform float u_shadow_on; // 1 when the shadow map is valid
+uniform float u_dither;    // 1: add the output dither (off for GIFs, whose palette decides)
 
 const vec3 SUN = vec3(1.00, 0.96, 0.90) * 1.25;
 const vec3 SKY_ZENITH = vec3(0.30, 0.50, 0.80);
@@ -35,7 +36,7 @@ float pixel_noise(uint salt) {
 // an sRGB colour about to be stored in 8 bits, plus triangular noise of +-1 step: a smooth
 // gradient (the sky, a large sphere) then shows no bands, its mean still exact (no bias)
 vec3 dither(vec3 c) {
-    return c + (pixel_noise(1u) + pixel_noise(2u) - 1.0) / 255.0;
+    return c + u_dither * (pixel_noise(1u) + pixel_noise(2u) - 1.0) / 255.0;
 }
 
 // sky colour (sRGB) seen along a unit direction: horizon to zenith above, a haze below
