@@ -10,7 +10,7 @@ import time
 from .. import limits
 from ..errors import TumbleError
 from ..io.atomic import check_output
-from ..runtime import init_warp, kernels_to_compile, prepare_kernels
+from ..runtime import init_warp, prepare_kernels
 
 HELP = "simulate a scene headless and print a summary"
 
@@ -97,15 +97,7 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
     err = Console(stderr=True)
 
     # load every kernel the world uses before the clock starts, compiling on a machine's first run
-    missing = kernels_to_compile(world.device)
-    if missing:
-        err.print(f"compiling {len(missing)} Warp kernel modules (only on the first run on this machine; "
-                  "up to a minute)...", highlight=False)
-        start = time.perf_counter()
-        prepare_kernels(world.device)
-        err.print(f"kernels compiled in {time.perf_counter() - start:.1f} s", highlight=False)
-    else:
-        prepare_kernels(world.device)
+    prepare_kernels(world.device, report=lambda line: err.print(line, highlight=False))
     start = time.perf_counter()
     world.step()
     if recorder is not None:
