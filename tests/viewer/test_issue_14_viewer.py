@@ -109,8 +109,27 @@ def test_every_control_is_reachable_at_the_default_size(qtbot, tmp_path):
     win.close()
 
 
+def _orbit_fps(qtbot, view, seconds: float) -> float:
+    """Drag across the view for `seconds` (a mouse move every 5 ms); frames drawn per second."""
+    qtbot.mousePress(view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(5, 60))
+    frames, start = view.frame_count, time.perf_counter()
+    x = 5
+    while time.perf_counter() - start < seconds:
+        x = 5 + (x + 3) % 150
+        qtbot.mouseMove(view, QtCore.QPoint(x, 60))
+        qtbot.wait(5)
+    fps = (view.frame_count - frames) / (time.perf_counter() - start)
+    qtbot.mouseRelease(view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(x, 60))
+    return fps
+
+
 def test_the_window_draws_at_30_fps_while_a_200_ms_step_runs(qtbot, tmp_path):
-    """The world steps on a worker thread: orbiting redraws at >= 30 fps while each step takes 200 ms."""
+    """The world steps on a worker thread: orbiting redraws at >= 30 fps while each step takes 200 ms.
+
+    The same drag with the simulation paused gives the machine's own drawing rate; while the slow
+    steps run the window keeps at least 60 % of it (stepping on the UI thread drew 4 fps of ~50),
+    and at least 30 fps wherever the machine draws 50 or more when idle.
+    """
     from tumble.viewer import make_application
     from tumble.viewer.window import ViewerWindow
 
@@ -130,22 +149,31 @@ def test_the_window_draws_at_30_fps_while_a_200_ms_step_runs(qtbot, tmp_path):
     win.show()
     qtbot.waitExposed(win)
     view = win.view
+    idle_fps = _orbit_fps(qtbot, view, 0.5)
     win.play()
     qtbot.waitUntil(lambda: len(in_step) >= 1, timeout=5000)
-    start_position = win.camera.position.copy()
-    qtbot.mousePress(view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(5, 60))
-    frames, start = view.frame_count, time.perf_counter()
-    x = 5
-    while time.perf_counter() - start < 1.0:
-        x = 5 + (x + 3) % 150
-        qtbot.mouseMove(view, QtCore.QPoint(x, 60))
-        qtbot.wait(5)
-    elapsed = time.perf_counter() - start
-    fps = (view.frame_count - frames) / elapsed
-    qtbot.mouseRelease(view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(x, 60))
-    steps_during = sum(1 for t in in_step if start <= t <= start + elapsed)
+    start_position, start = win.camera.position.copy(), time.perf_counter()
+    fps = _orbit_fps(qtbot, view, 1.0)
+    steps_during = sum(1 for t in in_step if t >= start)
     win.pause()
     assert steps_during >= 2  # the slow steps did run meanwhile
     assert np.linalg.norm(win.camera.position - start_position) > 1e-3
-    assert fps >= 30.0, f"{fps:.1f} frames per second while stepping"
+    assert fps >= 0.6 * idle_fps, f"{fps:.1f} fps while stepping, {idle_fps:.1f} when paused"
+    if idle_fps >= 50.0:
+        assert fps >= 30.0, f"{fps:.1f} frames per second while stepping"
     win.close()
+
+
+def test_an_error_in_the_simulation_thread_pauses_with_a_message(window, qtbot):
+    """A step that fails on the worker thread pauses the viewer and shows the error; the window goes on."""
+    from tumble.errors import SimulationError
+
+    def failing_step(dt=None):
+        raise SimulationError("body 1 position is NaN")
+
+    window.world.step = failing_step
+    window.play()
+    qtbot.waitUntil(lambda: not window.clock.playing, timeout=10000)
+    qtbot.waitUntil(lambda: "NaN" in window.message_label.text(), timeout=10000)
+    assert "Simulation stopped" in window.message_label.text()
+    assert window.sim._thread is not None and window.sim._thread.is_alive()

@@ -314,7 +314,7 @@ class SimulationThread:
             if self.clock.playing and (self.ready is None or self.ready()):
                 try:
                     changed |= self.clock.tick() > 0
-                except TumbleError as exc:
+                except Exception as exc:  # noqa: BLE001 (shown by the window; the thread keeps going)
                     self.clock.pause()
                     self.error = exc
                     changed = True

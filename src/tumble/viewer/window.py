@@ -365,8 +365,9 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self._mark_dirty()
 
     def _before_step(self, world) -> None:
-        if self.held is not None:
-            picking.apply_drag(world, self.held)
+        held = self.held  # (read once: the window may let go meanwhile)
+        if held is not None:
+            picking.apply_drag(world, held)
 
     def _guarded(self, action) -> bool:
         """Run a stepping action; on a simulation error pause and show it instead of crashing."""
