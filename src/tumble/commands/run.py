@@ -103,6 +103,7 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
     if recorder is not None:
         recorder(world)
     first_step = time.perf_counter() - start
+    err.print(f"first step done in {first_step:.2f} s", highlight=False)
 
     # the remaining steps, with a progress bar when stderr is a terminal
     start = time.perf_counter()
