@@ -73,7 +73,7 @@ def test_reset_rebuilds_the_world_and_keeps_changed_controls(window, qtbot):
     assert window.world is not old
     assert window.world.step_count == 0 and window.world.time == 0.0
     assert window.world.gravity[2] == pytest.approx(-3.0)
-    assert window.view.world is window.world
+    assert window.view.world.source is window.world
 
 
 def test_sliders_change_the_running_world(window):

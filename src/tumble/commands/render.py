@@ -82,6 +82,7 @@ def main(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.video import FORMATS, export, output_kind, parse_size
     from ..render import Renderer, create_context
+    from ..runtime import prepare_kernels
 
     # cheap checks first: the output kind and folder, the size, then an OpenGL context (TumbleError -> exit 2)
     kind = output_kind(args.output)
@@ -91,6 +92,7 @@ def main(args: argparse.Namespace) -> int:
     renderer = Renderer(ctx, width, height, samples=4)
     try:
         world = tumble.load_scene(args.scene)
+        prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
         duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)

@@ -10,7 +10,7 @@ import time
 from .. import limits
 from ..errors import TumbleError
 from ..io.atomic import check_output
-from ..runtime import init_warp
+from ..runtime import init_warp, prepare_kernels
 
 HELP = "simulate a scene headless and print a summary"
 
@@ -96,8 +96,8 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
 
     err = Console(stderr=True)
 
-    # first step: Warp loads its kernels (and compiles them the first time on this machine)
-    err.print("preparing kernels (compiled on the first run only)...", highlight=False)
+    # load every kernel the world uses before the clock starts, compiling on a machine's first run
+    prepare_kernels(world.device, report=lambda line: err.print(line, highlight=False))
     start = time.perf_counter()
     world.step()
     if recorder is not None:

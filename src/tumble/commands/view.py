@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 from pathlib import Path
 
 HELP = "open a scene in the interactive viewer (orbit, play, tune parameters live, record)"
@@ -44,6 +45,10 @@ def main(args: argparse.Namespace) -> int:
     # load once before opening any window, so that a missing or broken scene is one line on
     # stderr (from the CLI), not a window that opens and fails
     world = tumble.load_scene(scene)
+    # compile any kernel not yet cached now, saying so, rather than in the window's first step
+    from ..runtime import prepare_kernels
+
+    prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
 
     from tumble.viewer import run_viewer
 

@@ -616,7 +616,7 @@ SCHEMA: dict[str, TableSpec] = {
             {
                 "position": Field(vector(3), [3.0, -3.0, 2.0], "m", "eye position"),
                 "target": Field(vector(3), [0.0, 0.0, 0.5], "m", "point looked at"),
-                "fov": Field(number(low=0, high=179, low_open=True), 45.0, "deg", "vertical field of view"),
+                "fov": Field(number(low=0, high=179, low_open=True), 25.0, "deg", "vertical field of view"),
             },
         ),
         TableSpec(

@@ -80,6 +80,7 @@ def render_frames(
     size: Sequence[int] | str = (1280, 720),
     camera=None,
     renderer=None,
+    dither: bool = True,
 ) -> Iterator[np.ndarray]:
     """Step `world` and yield one RGB image (height, width, 3) uint8 every 1/fps simulated seconds.
 
@@ -92,6 +93,7 @@ def render_frames(
             of the first frame (kept fixed afterwards, so the view does not jump).
         renderer: a `tumble.render.Renderer` to reuse (its size is set to `size`); default a new
             one on a new headless context, 4x multisampled (smooth edges, ~1.3-1.8x the time).
+        dither: add the renderer's +-1/255 output noise (no banding); GIFs leave it off.
 
     Raises:
         TumbleError: no OpenGL context could be made.
@@ -111,6 +113,7 @@ def render_frames(
         camera = Camera.from_dict(camera)
     start = float(world.time)
     dt = float(world.dt)
+    dither_before, renderer.dither = renderer.dither, bool(dither)
     try:
         for k in range(n):
             # step until the world reaches this frame's time (within half a step)
@@ -119,6 +122,7 @@ def render_frames(
                 world.step()
             yield renderer.render(world, camera)
     finally:
+        renderer.dither = dither_before
         if own:  # the context made here goes with the renderer
             ctx = renderer.ctx
             renderer.release()
@@ -177,8 +181,10 @@ def export(
     width, height = parse_size(size)
     # the output is checked before the first frame is simulated (OutputError names it)
     check_output(out, suffixes=tuple(FORMATS), folder=kind == "png", option="")
+    if kind == "gif":
+        gif_delays_ms(n, fps)  # (refuses a rate a GIF cannot play before rendering anything)
     frames = render_frames(world, duration=duration, fps=fps, size=(width, height), camera=camera,
-                           renderer=renderer)
+                           renderer=renderer, dither=kind != "gif")
     label = f"rendering {out.name or out}"
 
     # every kind is written beside `out` and renamed into place when complete (tumble.io.atomic)
@@ -203,12 +209,32 @@ def export(
                 images.append(Image.fromarray(image).quantize(colors=256, method=Image.Quantize.MEDIANCUT,
                                                               dither=Image.Dither.NONE))
                 advance()
-            # GIF delays are in hundredths of a second
-            delay_ms = max(20, int(round(100.0 / float(fps))) * 10)
             with atomic_path(out) as tmp:
-                images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=delay_ms,
-                               loop=0, optimize=False, disposal=1)
+                images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
+                               duration=gif_delays_ms(len(images), fps), loop=0, optimize=False, disposal=1)
     return out
+
+
+#: the fastest frame rate a GIF plays: browsers slow delays under 2/100 s down to 1/10 s
+GIF_MAX_FPS = 50.0
+
+
+def gif_delays_ms(n: int, fps: float) -> list[int]:
+    """Per-frame GIF delays [ms] (whole hundredths of a second) that keep time at `fps`.
+
+    A GIF stores each delay in centiseconds, so 30 fps (33.3 ms) cannot be one delay: frame k
+    lasts round(100 (k + 1) / fps) - round(100 k / fps) cs (3, 3, 4, 3, 3, 4, ... at 30 fps),
+    and frame k starts within 5 ms of k / fps; the n frames last round(100 n / fps) cs in all.
+
+    Raises:
+        ValueError: `fps` above `GIF_MAX_FPS` (delays under 2 cs are not honoured by viewers).
+    """
+    fps = float(fps)
+    if fps > GIF_MAX_FPS:
+        raise ValueError(f"a GIF plays at most {GIF_MAX_FPS:g} frames per second, got --fps {fps:g}; "
+                         "use a lower fps or an .mp4")
+    ends = np.round(100.0 * np.arange(n + 1) / fps).astype(np.int64)
+    return [int(10 * d) for d in np.diff(ends)]
 
 
 class FfmpegWriter:

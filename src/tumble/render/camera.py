@@ -13,6 +13,10 @@ import numpy as np
 
 from ..shapes import ShapeType
 
+#: default vertical field of view [degrees]: about a 50 mm lens. Perspective stretches a sphere
+#: at angle a off the view axis by 1 / cos(a) along the radial direction; at 25 degrees and 16:9
+#: that is 7.5 % at the left and right edges (45 degrees gave 30 %)
+DEFAULT_FOV = 25.0
 #: direction from the target to the camera used when there is no better one (front, right, above)
 DEFAULT_DIRECTION = np.array([0.55, -1.0, 0.5])
 
@@ -45,7 +49,7 @@ class Camera:
         position: Sequence[float] = (2.2, -4.0, 2.0),
         target: Sequence[float] = (0.0, 0.0, 0.3),
         up: Sequence[float] = (0.0, 0.0, 1.0),
-        fov_deg: float = 45.0,
+        fov_deg: float = DEFAULT_FOV,
         *,
         near: float | None = None,
         far: float | None = None,
@@ -61,6 +65,9 @@ class Camera:
         self.fov_deg = fov
         self.near = near
         self.far = far
+        #: height along `up` [m] the eye never goes below in `orbit`, `pan` and `zoom` (the
+        #: viewer sets it to its ground plane); None: no limit
+        self.floor: float | None = None
         if np.linalg.norm(self.position - self.target) < 1e-9:
             raise ValueError("camera position and target must differ")
 
@@ -110,7 +117,9 @@ class Camera:
 
     def copy(self) -> Camera:
         """An independent copy (e.g. to keep as the reset view)."""
-        return Camera(self.position, self.target, self.up, self.fov_deg, near=self.near, far=self.far)
+        cam = Camera(self.position, self.target, self.up, self.fov_deg, near=self.near, far=self.far)
+        cam.floor = self.floor
+        return cam
 
     def to_dict(self) -> dict:
         """The camera as a scene-file `[camera]` table."""
@@ -226,7 +235,12 @@ class Camera:
         # yaw: rotate the horizontal direction about up (Rodrigues' formula in the up-normal plane)
         horizontal = _normalize(math.cos(dx) * horizontal + math.sin(dx) * side)
         limit = math.radians(89.0)
-        elevation = max(-limit, min(limit, elevation + dy))
+        lowest = -limit
+        if self.floor is not None:
+            # the eye stays above the floor: sin(elevation) >= (floor + clearance - target height) / r
+            above = (self._eye_floor(r) - float(np.dot(self.target, up))) / r
+            lowest = max(lowest, math.asin(max(-1.0, min(1.0, above)))) if above < 1.0 else limit
+        elevation = max(lowest, min(limit, elevation + dy))
         self.position = self.target + r * (math.cos(elevation) * horizontal + math.sin(elevation) * up)
 
     def pan(self, dx: float, dy: float) -> None:
@@ -239,6 +253,11 @@ class Camera:
         right, up, _ = self.basis()
         visible = 2.0 * self.distance * math.tan(math.radians(self.fov_deg) / 2.0)
         shift = (dx * right + dy * up) * visible
+        if self.floor is not None:
+            # slide no lower than the floor allows (the sideways part of the move stays)
+            low = self._eye_floor(self.distance) - float(np.dot(self.position + shift, self.up))
+            if low > 0.0:
+                shift = shift + min(low, max(0.0, -float(np.dot(shift, self.up)))) * self.up
         self.position = self.position + shift
         self.target = self.target + shift
 
@@ -253,7 +272,17 @@ class Camera:
             offset *= 1e-4 / d
         elif d > 1e6:
             offset *= 1e6 / d
+        if self.floor is not None:
+            # zooming out while looking up stops where the eye would reach the floor
+            drop = -float(np.dot(offset, self.up))
+            room = float(np.dot(self.target, self.up)) - self._eye_floor(float(np.linalg.norm(offset)))
+            if drop > 0.0 and 0.0 < room < drop:
+                offset *= room / drop
         self.position = self.target + offset
+
+    def _eye_floor(self, distance: float) -> float:
+        """The lowest eye height allowed: the floor plus 1 cm or 2 % of the target distance."""
+        return float(self.floor) + max(0.01, 0.02 * distance)
 
     def frame(self, world, *, aspect: float = 16 / 9, margin: float = 1.15, direction=None) -> None:
         """Aim at and fit every non-plane body and the cloth (and emitters' sources) in view.
@@ -272,6 +301,17 @@ class Camera:
         dist = margin * radius / math.sin(half_min)
         self.target = centre
         self.position = centre + d * max(dist, 1e-3)
+
+
+def ground_level(world) -> float | None:
+    """Height [m] of the highest level plane (normal +z) of a world, or None when it has none."""
+    if world is None or not world.body_count:
+        return None
+    shape = np.asarray(world.body_shape)
+    level = np.flatnonzero((shape == ShapeType.PLANE) & (np.asarray(world.body_plane_normal)[:, 2] > 0.99))
+    if not len(level):
+        return None
+    return float(np.max(np.asarray(world.body_position)[level, 2]))
 
 
 def scene_box(world) -> tuple[np.ndarray, np.ndarray] | None:

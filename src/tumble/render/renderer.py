@@ -26,6 +26,7 @@ from ..shapes import ShapeType
 from . import shaders
 from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
+from .supports import cloth_supports
 
 #: OpenGL enum of alpha-to-coverage (moderngl has no named flag for it)
 GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
@@ -69,7 +70,8 @@ class SceneArrays:
         spheres: instance data, shape (n_spheres, 11), float32: centre, radius, quaternion, colour.
         sphere_body: body index of each sphere, shape (n_spheres,).
         boxes: instance data, shape (n_boxes, 13), float32: centre, quaternion, half extents, colour.
-        box_body: body index of each box, shape (n_boxes,).
+        box_body: body index of each box, shape (n_boxes,); -1 for the supports drawn under
+            pinned cloth (`tumble.render.supports`).
         planes: unit normal and offset of each plane, shape (n_planes, 4), float64.
         cloth_position: cloth particle positions [m], shape (P, 3), or None.
         cloth_triangles: cloth triangles, shape (T, 3), int, or None.
@@ -137,7 +139,27 @@ def scene_arrays(world) -> SceneArrays:
         t = np.asarray(cloth.triangles).reshape(-1, 3)
         if len(p) and len(t):
             cloth_position, cloth_triangles = p, t
+        # posts and rails under pinned cloth: drawn as boxes of no body (index -1)
+        supports = cloth_supports(world, BOX_FLOATS)
+        if len(supports):
+            boxes = np.concatenate([boxes, supports])
+            box_body = np.concatenate([box_body, np.full(len(supports), -1, dtype=box_body.dtype)])
     return SceneArrays(spheres, sphere_body, boxes, box_body, planes, cloth_position, cloth_triangles)
+
+
+def _container_width(planes: np.ndarray) -> float | None:
+    """Largest gap [m] between two upright walls facing each other (n_i . n_j < -0.99), or None.
+
+    Planes are rows (unit normal, offset) with the inside at n . x >= offset, so two opposite
+    walls enclose -(offset_i + offset_j) of space between them.
+    """
+    upright = planes[np.abs(planes[:, 2]) < 0.1]
+    if len(upright) < 2:
+        return None
+    facing = upright[:, :3] @ upright[:, :3].T < -0.99
+    gap = -(upright[:, 3][:, None] + upright[:, 3][None, :])
+    gaps = gap[facing & (gap > 0.0)]
+    return float(gaps.max()) if len(gaps) else None
 
 
 def vertex_normals(position: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -204,7 +226,7 @@ class Renderer:
         shadow_size: shadow map size in texels.
 
     Attributes you may change between frames: `ground_cell_size` [m] (checker square size),
-    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB).
+    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB), `dither`.
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
@@ -219,6 +241,9 @@ class Renderer:
         self.ground_cell_size = 1.0
         self.light_direction = np.array([0.6, -0.15, 1.0]) / np.linalg.norm([0.6, -0.15, 1.0])
         self.cloth_color = CLOTH_COLOR
+        # +-1/255 of noise on every output colour, so gradients show no 8-bit bands; GIF export
+        # turns it off (its 256-colour palette quantises anyway, and noise costs it 3-4x the size)
+        self.dither = True
         self._fbo = self._resolve = None
         self._fbo_size = None
         # box that walls are cut to: the union of the scene's bounds over the frames drawn of
@@ -361,6 +386,7 @@ class Renderer:
             self._set(prog, "u_light_dir", light)
             self._set_mat(prog, "u_light_vp", light_vp)
             self._set(prog, "u_shadow_on", 1.0 if shadow_on else 0.0)
+            self._set(prog, "u_dither", 1.0 if self.dither else 0.0)
             if "u_shadow_map" in prog:
                 prog["u_shadow_map"].value = 0
         self._shadow_tex.use(location=0)
@@ -547,8 +573,9 @@ class Renderer:
         """Box [m] that walls and ramps are cut to: the scene's bounds (grown over the frames drawn),
         widened sideways, a little higher on top, and down to the highest level floor."""
         box = scene_box(world)
-        if self._wall_world is not world:
-            self._wall_world, self._wall_box = world, None
+        source = getattr(world, "source", world)  # a viewer's snapshot stands for its world
+        if self._wall_world is not source:
+            self._wall_world, self._wall_box = source, None
         if box is not None:
             if self._wall_box is None:
                 self._wall_box = (box[0].copy(), box[1].copy())
@@ -564,6 +591,11 @@ class Renderer:
         floors = planes[planes[:, 2] > 0.99]  # level floors: z = offset
         if len(floors):
             lo[2] = min(lo[2], float(floors[:, 3].max()) - 1e-3)
+            # a container's walls stand about as high as it is wide, not as high as the bodies
+            # dropped into it came from (its emitter, above it)
+            width = _container_width(planes)
+            if width is not None:
+                hi[2] = max(lo[2] + 0.05, min(hi[2], float(floors[:, 3].max()) + 1.25 * width))
         return lo, hi
 
     def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int) -> np.ndarray:

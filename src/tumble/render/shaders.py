@@ -12,6 +12,7 @@ uniform vec3 u_light_dir;  // unit vector towards the sun (world)
 uniform sampler2D u_shadow_map;
 uniform mat4 u_light_vp;   // world -> sun clip space
 uniform float u_shadow_on; // 1 when the shadow map is valid
+uniform float u_dither;    // 1: add the output dither (off for GIFs, whose palette decides)
 
 const vec3 SUN = vec3(1.00, 0.96, 0.90) * 1.25;
 const vec3 SKY_ZENITH = vec3(0.30, 0.50, 0.80);
@@ -22,6 +23,21 @@ vec3 to_linear(vec3 c) { return pow(c, vec3(2.2)); }
 vec3 to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
 // exposure tone curve 1 - exp(-k c): linear near black, rolls off highlights instead of clipping
 vec3 tonemap(vec3 c) { return 1.0 - exp(-1.5 * c); }
+
+// screen-space noise in [0, 1) from the pixel position: an integer hash (the "lowbias32" mixer's
+// constants), the same for a pixel in every frame, so renders stay byte-identical
+float pixel_noise(uint salt) {
+    uvec2 p = uvec2(gl_FragCoord.xy);
+    uint h = p.x * 0x8da6b343u ^ p.y * 0xd8163841u ^ salt * 0xcb1ab31fu;
+    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
+    return float(h >> 8) / 16777216.0;
+}
+
+// an sRGB colour about to be stored in 8 bits, plus triangular noise of +-1 step: a smooth
+// gradient (the sky, a large sphere) then shows no bands, its mean still exact (no bias)
+vec3 dither(vec3 c) {
+    return c + u_dither * (pixel_noise(1u) + pixel_noise(2u) - 1.0) / 255.0;
+}
 
 // sky colour (sRGB) seen along a unit direction: horizon to zenith above, a haze below
 vec3 sky_color(vec3 dir) {
@@ -96,7 +112,7 @@ out vec4 f_color;
 void main() {
     vec4 far_point = u_inv_vp * vec4(v_ndc, 1.0, 1.0);
     vec3 dir = normalize(far_point.xyz / far_point.w - u_eye);
-    f_color = vec4(sky_color(dir), 1.0);
+    f_color = vec4(dither(sky_color(dir)), 1.0);
 }
 """
 )
@@ -150,7 +166,7 @@ void main() {
     if (t <= 0.0 || (u_glass < 0.5 ? denom >= -1e-6 : denom <= 1e-6)) {
         // the first level floor also paints the sky where it misses (one full-screen pass less)
         if (u_sky_on_miss < 0.5) discard;
-        f_color = vec4(sky_color(dir), 1.0);
+        f_color = vec4(dither(sky_color(dir)), 1.0);
         gl_FragDepth = 1.0;
         return;
     }
@@ -181,7 +197,7 @@ void main() {
     float r = t / u_fade;
     float fog = 1.0 - exp(-r * r);
     if (fog > 0.002) c = mix(c, sky_color(dir), fog);
-    f_color = vec4(c, 1.0);
+    f_color = vec4(dither(c), 1.0);
     vec4 clip = u_vp * vec4(p, 1.0);
     gl_FragDepth = min(clip.z / clip.w * 0.5 + 0.5, 0.9999999);
 }
@@ -267,7 +283,7 @@ void main() {
     vec3 local = rotate_inv(v_quat, n);
     float band = smoothstep(0.07, 0.10, abs(local.x));
     vec3 albedo = v_color * mix(0.84, 1.0, band);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35))), u_coverage < 0.5 ? 1.0 : alpha);
+    f_color = vec4(dither(to_srgb(tonemap(shade(albedo, p, n, 48.0, 0.35)))), u_coverage < 0.5 ? 1.0 : alpha);
 }
 """
 )
@@ -322,7 +338,7 @@ void main() {
     float rim = smoothstep(width - aa, width + aa, edge);
     vec3 albedo = v_color * mix(0.72, 1.0, rim);
     vec3 n = normalize(v_normal);
-    f_color = vec4(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.12))), 1.0);
+    f_color = vec4(dither(to_srgb(tonemap(shade(albedo, v_world, n, 32.0, 0.12)))), 1.0);
 }
 """
 )
@@ -352,15 +368,41 @@ out vec4 f_color;
 """
     + COMMON
     + """
+// the cloth's sun shadow, blurred: 5 x 5 taps two texels apart, looked up a centimetre towards
+// the sun (a crumpled cloth shadows itself along every wrinkle; sharp, those edges are jagged blotches)
+float cloth_sun_visibility(vec3 p) {
+    if (u_shadow_on < 0.5) return 1.0;
+    vec4 c = u_light_vp * vec4(p + u_light_dir * 0.01, 1.0);
+    vec3 s = c.xyz / c.w * 0.5 + 0.5;
+    if (s.x <= 0.0 || s.x >= 1.0 || s.y <= 0.0 || s.y >= 1.0 || s.z >= 1.0) return 1.0;
+    vec2 texel = 2.0 / vec2(textureSize(u_shadow_map, 0));
+    float lit = 0.0;
+    for (int i = -2; i <= 2; i++) {
+        for (int j = -2; j <= 2; j++) {
+            lit += (s.z - 0.002 <= texture(u_shadow_map, s.xy + vec2(i, j) * texel).r) ? 1.0 : 0.0;
+        }
+    }
+    return lit / 25.0;
+}
+
 void main() {
     // two-sided: the back face uses the flipped normal and a lighter tint
     vec3 n = normalize(v_normal);
     vec3 albedo = u_front;
     if (!gl_FrontFacing) { n = -n; albedo = u_back; }
-    // thin fabric lets some sunlight through: the side facing away from the sun still glows
-    float through = 0.35 * max(-dot(n, u_light_dir), 0.0);
-    vec3 c = shade(albedo, v_world, n, 12.0, 0.06) + to_linear(albedo) * SUN * through;
-    f_color = vec4(to_srgb(tonemap(c)), 1.0);
+    vec3 a = to_linear(albedo);
+    float ndl = dot(n, u_light_dir);
+    // fabric has a soft terminator ("wrap" lighting: (n.l + w) / (1 + w), w = 0.4), and thin
+    // cloth in its own shadow still gets some light through: a wrinkle's far side is a shade, not a hole
+    float diffuse = max((ndl + 0.4) / 1.4, 0.0);
+    float vis = mix(0.45, 1.0, cloth_sun_visibility(v_world));
+    float up = dot(n, u_up) * 0.5 + 0.5;
+    vec3 ambient = mix(vec3(0.09, 0.08, 0.07), vec3(0.26, 0.29, 0.35), up);
+    float through = 0.35 * max(-ndl, 0.0);
+    vec3 c = a * (SUN * (diffuse * vis + through) + ambient);
+    vec3 h = normalize(u_light_dir + normalize(u_eye - v_world));
+    c += SUN * (0.05 * pow(max(dot(n, h), 0.0), 12.0) * vis * step(0.0, ndl));
+    f_color = vec4(dither(to_srgb(tonemap(c))), 1.0);
 }
 """
 )

@@ -301,6 +301,9 @@ class ControlsPanel(QtWidgets.QWidget):
     def __init__(self, parent=None):
         super().__init__(parent)
         self.world = None
+        # runs a change to the world; the viewer passes its simulation thread's `submit`,
+        # so that a change made while a step runs waits for that step's end
+        self.apply: Callable[[Callable[[], None]], object] = lambda change: change()
         self.controls: dict[str, ParamControl] = {}
         self.groups: dict[str, QtWidgets.QGroupBox] = {}
         self._group_of: dict[str, str] = {}
@@ -387,10 +390,13 @@ class ControlsPanel(QtWidgets.QWidget):
             control = self.controls[key]
             control.set_value(value)
             control.touched = False
-            if self.world is not None:
-                control.param.write(self.world, value)
+            self._write(key, value)
 
     def _on_change(self, key: str, value: float) -> None:
-        if self.world is not None:
-            self.controls[key].param.write(self.world, value)
+        self._write(key, value)
         self.changed.emit(key, value)
+
+    def _write(self, key: str, value: float) -> None:
+        world, write = self.world, self.controls[key].param.write
+        if world is not None:
+            self.apply(lambda: write(world, value))

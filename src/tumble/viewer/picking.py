@@ -102,12 +102,14 @@ def pick(world, origin, direction, view_forward=None) -> Grab | None:
                 local = quat_rotate(quat_conjugate(world.body_orientation[body]), hit - world.body_position[body])
                 best = Grab("body", body, local, t, hit)
     cloth = cloth_of(world)
-    if cloth is not None and hasattr(cloth, "apply_force"):
+    # (a snapshot's cloth answers for the cloth it was copied from)
+    system = getattr(cloth, "source", cloth)
+    if cloth is not None and hasattr(system, "apply_force"):
         points = np.asarray(cloth.particle_position)
         j, t = ray_points(origin, direction, points, _particle_reach(points))
         if j >= 0 and (best is None or t < best.distance):
             # a pinned particle (inverse mass 0) is moved, pin and all; a free one is pulled
-            pinned = hasattr(cloth, "set_pin_target") and float(np.asarray(cloth.particle_inv_mass)[j]) == 0.0
+            pinned = hasattr(system, "set_pin_target") and float(np.asarray(cloth.particle_inv_mass)[j]) == 0.0
             best = Grab("pin" if pinned else "particle", j, np.zeros(3), t, np.asarray(points[j], dtype=np.float64).copy())
     if best is not None:
         forward = direction if view_forward is None else np.asarray(view_forward, dtype=np.float64)

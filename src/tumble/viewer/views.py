@@ -249,7 +249,8 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
             self.renderer.draw(self.world, self.camera, framebuffer, viewport=(0, 0, width, height))
         except Exception as exc:  # noqa: BLE001
             self.renderer = None
-            QtCore.QTimer.singleShot(0, lambda: self.failed.emit(f"drawing failed: {exc}"))
+            message = f"drawing failed: {exc}"  # (`exc` is unbound once the except block ends)
+            QtCore.QTimer.singleShot(0, lambda: self.failed.emit(message))
             return
         if self.spring_line is not None:
             # Qt's painter draws over the scene in the same framebuffer: hand it a plain GL state

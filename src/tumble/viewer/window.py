@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
@@ -24,7 +25,7 @@ from ..errors import TumbleError
 from . import picking
 from .controls import ControlsPanel
 from .recorder import VideoRecorder, output_path, save_png
-from .sim import SimulationClock
+from .sim import SimulationClock, SimulationThread, WorldSnapshot
 from .views import GLSceneView, ImageSceneView, is_software_name, probe_gl_window
 
 #: timer period [ms]: the simulation and the view are updated at most this often (~60 Hz)
@@ -33,6 +34,8 @@ TICK_MS = 16
 PANEL_WIDTH = 290
 #: frames per second of recorded video (one frame per 1/fps of simulated time)
 VIDEO_FPS = 30.0
+#: the simulation waits while this many recorded frames are waiting to be drawn
+VIDEO_FRAMES_AHEAD = 8
 
 _STYLE = """
 QLabel#note { color: palette(mid); font-size: 9pt; font-style: italic; }
@@ -102,6 +105,20 @@ def make_scene_view(kind: str = "auto", *, size: tuple[int, int] = (960, 640)):
     return view
 
 
+#: room left around the window on the screen for the window manager's frame and title [px]
+SCREEN_MARGIN = (16, 48)
+
+
+def fit_on_screen(size: tuple[int, int], chrome: tuple[int, int], screen: QtCore.QRect) -> tuple[int, int]:
+    """The view size, scaled down (same aspect) so that view + `chrome` fits in `screen`."""
+    room_w = screen.width() - chrome[0] - SCREEN_MARGIN[0]
+    room_h = screen.height() - chrome[1] - SCREEN_MARGIN[1]
+    scale = min(1.0, room_w / size[0], room_h / size[1])
+    if scale >= 1.0 or room_w <= 0 or room_h <= 0:
+        return size
+    return max(160, int(size[0] * scale)), max(120, int(size[1] * scale))
+
+
 class ViewerWindow(QtWidgets.QMainWindow):
     """The interactive viewer around one world.
 
@@ -134,13 +151,21 @@ class ViewerWindow(QtWidgets.QMainWindow):
                 raise ValueError("give a world or a factory that builds one")
             world = factory()
         from ..render import Camera
+        from ..render.camera import ground_level
 
         self.title = title
         self.output_dir = Path(output_dir)
-        self.clock = SimulationClock(world, factory=factory, before_step=self._before_step)
+        self.clock = SimulationClock(world, factory=factory, before_step=self._before_step, after_step=self._after_step)
+        # the world steps on this worker thread; the window draws its snapshots
+        self.sim = SimulationThread(
+            self.clock, period=TICK_MS / 1000.0, ready=lambda: len(self._video_frames) < VIDEO_FRAMES_AHEAD
+        )
+        self._drawn_version = self.sim.version
         self.held: picking.Grab | None = None
         self.recorder: VideoRecorder | None = None
         self._next_frame_time = 0.0
+        self._video_frames: deque[WorldSnapshot] = deque()  # taken by the simulation, drawn by the window
+        self._video_start = 0.0
         self._mouse_mode: str | None = None
         self._mouse_last = QtCore.QPointF()
         self._dirty = True
@@ -170,13 +195,15 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.view = make_scene_view(view, size=size)
         self._install_view(self.view)
         aspect = size[0] / size[1]
-        self.camera = Camera.for_world(world, aspect=aspect)
+        self.camera = Camera.for_world(self.scene, aspect=aspect)
+        self.camera.floor = ground_level(self.scene)  # orbit, pan and zoom stay above the ground
         self.home_camera = self.camera.copy()
         self.view.camera = self.camera
 
         # controls on the right
         self.controls = ControlsPanel()
         self.controls.bind(world)
+        self.controls.apply = self.sim.submit
         self.controls.changed.connect(self._on_control_changed)
         self.controls.timeScaleChanged.connect(self._on_time_scale)
         self.controls.shadowsToggled.connect(self._on_shadows)
@@ -196,12 +223,12 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
         self._build_actions()
         self._build_status()
-        # make the 3D view itself `size`, with the toolbar, panel and status bar around it
+        # make the 3D view itself `size`, with the toolbar, panel and status bar around it,
+        # shrunk (keeping its shape) where that window would not fit on the screen
+        chrome = (PANEL_WIDTH + 8, self.toolbar.sizeHint().height() + 2 * self.statusBar().sizeHint().height() + 4)
+        size = fit_on_screen(size, chrome, self.screen().availableGeometry())
         self._view_size = size
-        self.resize(
-            size[0] + PANEL_WIDTH + 8,
-            size[1] + self.toolbar.sizeHint().height() + 2 * self.statusBar().sizeHint().height() + 4,
-        )
+        self.resize(size[0] + chrome[0], size[1] + chrome[1])
         self._fit_view()
 
         # one timer drives both the simulation and the repaints
@@ -209,6 +236,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.timer.setTimerType(QtCore.Qt.TimerType.PreciseTimer)
         self.timer.timeout.connect(self._on_tick)
         self.timer.start(TICK_MS)
+        self.sim.start()
         if not paused:
             self.play()
         self._update_play_action()
@@ -218,7 +246,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
     # ------------------------------------------------------------------ construction
 
     def _install_view(self, view) -> None:
-        view.world = self.clock.world
+        view.world = self.scene
         if hasattr(self, "controls"):
             view.shadows = self.controls.shadows.isChecked()
         view.installEventFilter(self)
@@ -249,7 +277,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.home_action = self._action("Reset view", "Home", self.reset_view, "Back to the starting camera")
         self.sphere_action = self._action("Drop sphere", "1", self.drop_sphere, "Drop a sphere from above the scene")
         self.box_action = self._action("Drop box", "2", self.drop_box, "Drop a box from above the scene")
-        self.shot_action = self._action("Screenshot", "S", self.screenshot, "Save the view as a PNG")
+        # (triggered(bool) would pass its `checked` flag as the path)
+        self.shot_action = self._action("Screenshot", "S", lambda: self.screenshot(), "Save the view as a PNG")
         self.record_action = self._action(
             "Record", "V", self.toggle_recording, "Record the view to an MP4 while playing", checkable=True
         )
@@ -284,12 +313,18 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     @property
     def world(self):
-        """The world being shown (replaced by Reset)."""
+        """The world being shown (replaced by Reset). It steps on the worker thread: read `scene`."""
         return self.clock.world
 
+    @property
+    def scene(self) -> WorldSnapshot:
+        """The latest snapshot of the world, taken between steps: what is drawn and picked."""
+        return self.sim.snapshot
+
     def play(self) -> None:
-        """Run the simulation in real time (× the time scale)."""
+        """Run the simulation in real time (× the time scale), on the worker thread."""
         self.clock.play()
+        self.sim.wake()
         self._update_play_action()
 
     def pause(self) -> None:
@@ -306,7 +341,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if self.clock.playing:
             self.pause()
         self._guarded(self.clock.step)
-        self._after_steps(1)
+        self.sim.publish()
+        self._show_snapshot()
 
     def reset(self) -> None:
         """Rebuild the world from its scene (R); the camera, the play state and changed controls stay."""
@@ -314,21 +350,24 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.show_message("This world was built in Python without a factory: it cannot be reset.", error=True)
             return
         self.held = None
-        try:
-            world = self.clock.reset()
-        except (TumbleError, ValueError, OSError) as exc:
-            self.show_message(f"Reset failed, the old world stays: {exc}", error=True)
-            return
-        self.view.world = world
-        self.controls.bind(world, keep_user_values=True)
-        self._next_frame_time = 0.0
+        with self.clock.lock:
+            try:
+                world = self.clock.reset()
+            except (TumbleError, ValueError, OSError) as exc:
+                self.show_message(f"Reset failed, the old world stays: {exc}", error=True)
+                return
+            self.controls.bind(world, keep_user_values=True)
+            self._next_frame_time = world.time
+            self.sim.publish()
+        self.view.world = self.scene
         self._sim_seen = world.time
         self.show_message("World reset.")
         self._mark_dirty()
 
     def _before_step(self, world) -> None:
-        if self.held is not None:
-            picking.apply_drag(world, self.held)
+        held = self.held  # (read once: the window may let go meanwhile)
+        if held is not None:
+            picking.apply_drag(world, held)
 
     def _guarded(self, action) -> bool:
         """Run a stepping action; on a simulation error pause and show it instead of crashing."""
@@ -341,13 +380,13 @@ class ViewerWindow(QtWidgets.QMainWindow):
             return False
 
     def _on_tick(self) -> None:
-        steps = 0
-        if self.clock.playing:
-            before = self.world.step_count
-            self._guarded(self.clock.tick)
-            steps = self.world.step_count - before
-        if steps:
-            self._after_steps(steps)
+        error, self.sim.error = self.sim.error, None
+        if error is not None:
+            self.pause()
+            self.show_message(f"Simulation stopped: {error}", error=True)
+        self._draw_video_frames(limit=2)
+        if self.sim.version != self._drawn_version:
+            self._show_snapshot()
         elif self._dirty:
             self._update_spring_line()
             self.view.update()
@@ -356,8 +395,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if now - self._stats_time >= 0.5:
             period = now - self._stats_time
             self._fps = (self.view.frame_count - self._frames_seen) / period
-            self._realtime = max(0.0, self.world.time - self._sim_seen) / period
-            self._frames_seen, self._sim_seen = self.view.frame_count, self.world.time
+            self._realtime = max(0.0, self.scene.time - self._sim_seen) / period
+            self._frames_seen, self._sim_seen = self.view.frame_count, self.scene.time
             self._stats_time = now
             self._update_status()
 
@@ -367,7 +406,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         held = self.held
         if held is not None:
             w, h = self.view.width(), self.view.height()
-            anchor = picking.held_point(self.world, held)
+            anchor = picking.held_point(self.scene, held)
             if anchor is not None:
                 a = self.camera.project(anchor, w, h)
                 c = self.camera.project(held.target, w, h)
@@ -375,12 +414,13 @@ class ViewerWindow(QtWidgets.QMainWindow):
                     line = ((float(a[0]), float(a[1])), (float(c[0]), float(c[1])))
         self.view.spring_line = line
 
-    def _after_steps(self, steps: int) -> None:
+    def _show_snapshot(self) -> None:
+        """Draw the latest snapshot of the world."""
+        self._drawn_version = self.sim.version
+        self.view.world = self.scene
         self._update_spring_line()
         self.view.update()
         self._dirty = False
-        if self.recorder is not None and self.world.time + 1e-12 >= self._next_frame_time:
-            self._capture_video_frame()
         if not self.clock.playing:
             self._update_status()
 
@@ -419,7 +459,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
     def frame_scene(self) -> None:
         """Fit the whole scene in view, keeping the viewing direction (F)."""
         w, h = self.view.pixel_size()
-        self.camera.frame(self.world, aspect=w / h)
+        self.camera.frame(self.scene, aspect=w / h)
         self._mark_dirty()
 
     def reset_view(self) -> None:
@@ -469,7 +509,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.view.setFocus()
         if event.button() == buttons.LeftButton and not shift:
             origin, direction = self._ray(event.position())
-            grab = picking.pick(self.world, origin, direction, self.camera.basis()[2])
+            grab = picking.pick(self.scene, origin, direction, self.camera.basis()[2])
             if grab is not None:
                 self.held = grab
                 self._mouse_mode = "drag"
@@ -509,7 +549,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def _drop_spot(self) -> tuple[np.ndarray, float, float]:
         """Where to drop a new body: above the scene's top, near its centre. (position, size, density)"""
-        world = self.world
+        world = self.scene
         dynamic = np.asarray(world.body_inv_mass) > 0.0
         size, density = 0.1, 1000.0
         top = 0.0
@@ -540,9 +580,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
     def drop_sphere(self) -> None:
         """Drop a sphere (typical size of the scene's bodies) from above the scene (1)."""
         position, size, density = self._drop_spot()
-        body = self.world.add_sphere(position=position, radius=size, density=density, **self._material_kwargs())
-        self.show_message(f"Dropped sphere {int(body)}.")
-        self._mark_dirty()
+        material = self._material_kwargs()
+        self._drop(lambda: self.world.add_sphere(position=position, radius=size, density=density, **material), "sphere")
 
     def drop_box(self) -> None:
         """Drop a box (typical size of the scene's bodies), turned a little, from above the scene (2)."""
@@ -552,11 +591,19 @@ class ViewerWindow(QtWidgets.QMainWindow):
         axis /= np.linalg.norm(axis)
         angle = self._drop_rng.uniform(0.2, 0.8)
         q = np.r_[axis * math.sin(angle / 2), math.cos(angle / 2)]
-        body = self.world.add_box(
-            position=position, half_extents=(half, half, half), density=density, orientation=q,
-            **self._material_kwargs(),
+        material = self._material_kwargs()
+        self._drop(
+            lambda: self.world.add_box(
+                position=position, half_extents=(half, half, half), density=density, orientation=q, **material
+            ),
+            "box",
         )
-        self.show_message(f"Dropped box {int(body)}.")
+
+    def _drop(self, add: Callable[[], object], what: str) -> None:
+        """Add a body between two steps (at once when no step is running)."""
+        added = []
+        now = self.sim.submit(lambda: added.append(add()))
+        self.show_message(f"Dropped {what} {int(added[0])}." if now else f"Dropping a {what}...")
         self._mark_dirty()
 
     # ------------------------------------------------------------------ output
@@ -585,19 +632,27 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if self.recorder is not None:
             return self.recorder.path
         path = Path(path) if path is not None else output_path(self.output_dir, self._file_stem(), ".mp4")
-        self.recorder = VideoRecorder(path, fps=VIDEO_FPS)
-        self._next_frame_time = self.world.time
+        with self.clock.lock:
+            # frame 0 is the world now; frame k is taken by the step that reaches t0 + k / fps
+            self._video_frames.clear()
+            self._video_frames.append(WorldSnapshot(self.world))
+            self._next_frame_time = self.world.time + 1.0 / VIDEO_FPS
+            self._video_start = self.world.time
+            self.recorder = VideoRecorder(path, fps=VIDEO_FPS)
         if hasattr(self.view, "adaptive"):
             # draw at full size while recording, so frames are not rendered twice at two sizes
             self.view.adaptive, self.view.render_scale = False, 1.0
         self.record_action.setChecked(True)
         self.record_action.setText("Stop")
-        self.show_message(f"Recording to {path} (frames are taken while playing)")
+        self.show_message(f"Recording to {path}: one frame per 1/{VIDEO_FPS:g} s of simulated time, while playing")
         return path
 
     def stop_recording(self) -> Path | None:
         """Finish the MP4. Returns its path (None when no frame was taken)."""
-        recorder, self.recorder = self.recorder, None
+        with self.clock.lock:
+            recorder, self.recorder = self.recorder, None
+        if recorder is not None:
+            self._draw_video_frames(recorder=recorder)
         self.record_action.setChecked(False)
         if hasattr(self.view, "adaptive"):
             self.view.adaptive = True
@@ -616,17 +671,37 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.show_message(f"Saved {path} ({recorder.frame_count} frames)")
         return path
 
-    def _capture_video_frame(self) -> None:
+    def _after_step(self, world) -> None:
+        """After each step (on the simulation's thread): keep a snapshot for every video frame now due."""
+        if self.recorder is None:
+            return
+        snapshot = None
+        while world.time + 1e-9 >= self._next_frame_time:
+            # a step longer than a frame gives that frame twice, so the video keeps time
+            snapshot = snapshot or WorldSnapshot(world)
+            self._video_frames.append(snapshot)
+            self._next_frame_time += 1.0 / VIDEO_FPS
+
+    def _draw_video_frames(self, *, limit: int | None = None, recorder: VideoRecorder | None = None) -> None:
+        """Draw the waiting video frames (at most `limit`) into the recorder, as the current camera sees them."""
+        recorder = recorder or self.recorder
+        if recorder is None:
+            return
+        drawn = 0
+        shown = self.view.world
         try:
-            self.recorder.add(self.view.render_image())
-        except Exception as exc:  # noqa: BLE001
+            while self._video_frames and (limit is None or drawn < limit):
+                self.view.world = self._video_frames.popleft()
+                recorder.add(self.view.render_image())
+                drawn += 1
+        except Exception as exc:  # noqa: BLE001 (an encoder failure is shown, not raised into Qt)
             self.show_message(f"Recording stopped: {exc}", error=True)
             self.recorder = None
+            self._video_frames.clear()
             self.record_action.setChecked(False)
-            return
-        # the next frame is due 1/fps of simulated time later (skipping any missed ones)
-        period = 1.0 / VIDEO_FPS
-        self._next_frame_time += period * max(1, math.floor((self.world.time - self._next_frame_time) / period) + 1)
+        finally:
+            self.view.world = shown
+        self.sim.wake()
 
     # ------------------------------------------------------------------ status and errors
 
@@ -647,7 +722,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def status_text(self) -> str:
         """The status line: bodies, particles, contacts, time, steps/s and fps."""
-        world = self.world
+        world = self.scene
         cloth = picking.cloth_of(world)
         particles = cloth.particle_count if cloth is not None else 0
         if self.clock.playing:
@@ -657,6 +732,8 @@ class ViewerWindow(QtWidgets.QMainWindow):
                 state += f" (asked {self.clock.time_scale:g}×)"
         else:
             state = "paused"
+        if self.recorder is not None:
+            state += f", recording {max(0.0, world.time - self._video_start):.2f} s"
         return "   ".join([
             f"bodies {world.body_count:,}",
             f"particles {particles:,}",
@@ -713,6 +790,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def closeEvent(self, event) -> None:  # noqa: N802 (Qt name)
         self.timer.stop()
+        self.sim.stop()
         if self.recorder is not None:
             self.stop_recording()
         super().closeEvent(event)

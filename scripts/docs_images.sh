@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Render the pictures of the docs: every sample's GIF (docs/rendering.md) and the README's
+# animation. Run from the repository root; takes some minutes on a CPU (EGL, Mesa llvmpipe).
+#
+#   ./scripts/docs_images.sh            # all of them
+#   ./scripts/docs_images.sh readme     # only docs/images/readme.gif
+set -euo pipefail
+cd "$(dirname "$0")/.."
+tumble() { python -m tumble "$@"; }
+
+# the README's first screen: balls dropped into a hammock, 3 s at 12 fps, 384 x 216
+tumble render samples/hammock.toml -o docs/images/readme.gif --size 384x216 --fps 12 --duration 3 --no-progress
+[ "${1:-}" = "readme" ] && exit 0
+
+for name in bouncing_ball rolling_ball friction_slide ramp box_tower pyramid rain sphere_pile \
+            cloth_drape flag hammock pebbles; do
+    tumble render "samples/$name.toml" -o "docs/images/$name.gif" --size 320x180 --fps 12 --duration 3 --no-progress
+done
