@@ -18,13 +18,14 @@ class ShapeType(enum.IntEnum):
     PLANE = 0
     SPHERE = 1
     BOX = 2
+    CAPSULE = 3
 
 
 SHAPE_NAMES: tuple[str, ...] = tuple(s.name.lower() for s in ShapeType)
 
 
 def shape_from_name(name: str) -> ShapeType:
-    """Return the `ShapeType` called `name` ("plane", "sphere" or "box").
+    """Return the `ShapeType` called `name` ("plane", "sphere", "box", "capsule", ...).
 
     Raises:
         ValueError: for any other name, listing the known ones.
@@ -60,3 +61,31 @@ def box_inertia(mass, half_extents) -> np.ndarray:
     h2 = np.asarray(half_extents, dtype=np.float64) ** 2
     m = np.asarray(mass, dtype=np.float64)[..., None]
     return m / 3.0 * (np.sum(h2, axis=-1, keepdims=True) - h2)
+
+
+def capsule_volume(radius, half_height):
+    """Volume of capsules [m^3]: a cylinder of length 2 a and two hemispheres, pi r^2 (2 a + 4/3 r)."""
+    r = np.asarray(radius, dtype=np.float64)
+    a = np.asarray(half_height, dtype=np.float64)
+    return np.pi * r**2 * (2.0 * a + 4.0 / 3.0 * r)
+
+
+def capsule_inertia(mass, radius, half_height) -> np.ndarray:
+    """Principal moments of solid capsules about their centre [kg m^2], shape (..., 3); axis along z.
+
+    With radius r and cylinder half length a, the mass splits by volume into the cylinder
+    m_c = m 2a / (2a + 4/3 r) and two hemispheres m_h = (m - m_c) / 2 each. Then
+    Izz = m_c r^2 / 2 + 2 (2/5 m_h r^2), and about a transverse axis through the centre
+    Ixx = m_c (3 r^2 + (2a)^2) / 12 + 2 m_h (2/5 r^2 + a^2 + 3/4 a r): a hemisphere's moment about
+    a diameter of its flat face is 2/5 m_h r^2, its centre of mass lies 3r/8 from that face, so
+    moving it to the capsule's centre (distance a + 3r/8) by the parallel-axis theorem gives
+    2/5 m_h r^2 - m_h (3r/8)^2 + m_h (a + 3r/8)^2.
+    """
+    m = np.asarray(mass, dtype=np.float64)
+    r = np.asarray(radius, dtype=np.float64)
+    a = np.asarray(half_height, dtype=np.float64)
+    m_c = m * 2.0 * a / (2.0 * a + 4.0 / 3.0 * r)
+    m_h = 0.5 * (m - m_c)
+    i_z = 0.5 * m_c * r**2 + 0.8 * m_h * r**2
+    i_x = m_c * (3.0 * r**2 + 4.0 * a**2) / 12.0 + 2.0 * m_h * (0.4 * r**2 + a**2 + 0.75 * a * r)
+    return np.stack(np.broadcast_arrays(i_x, i_x, i_z), axis=-1)

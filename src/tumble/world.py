@@ -45,8 +45,8 @@ BODY_FIELDS = {
     # model
     "body_id": wp.int32,  # the BodyId given at creation; rows are reordered in space (see _sort_bodies)
     "body_shape": wp.int32,  # ShapeType
-    "body_radius": float_t,  # sphere radius [m] (0 for other shapes)
-    "body_half_extents": vec3,  # box half extents [m] (0 for other shapes)
+    "body_radius": float_t,  # sphere and capsule radius [m] (0 for other shapes)
+    "body_half_extents": vec3,  # box half extents [m]; for capsules, of the bounding box (r, r, a + r)
     "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
     "body_mass": float_t,  # [kg] (0 for static bodies)
     "body_inv_mass": float_t,  # [1/kg] (0 for static bodies)
@@ -321,12 +321,55 @@ class World:
                                 half_extents=h, mass=m, inertia=inertia, restitution=restitution,
                                 friction=friction, static=static)
 
+    def add_capsule(
+        self,
+        *,
+        position: Sequence[float],
+        radius: float,
+        half_height: float,
+        mass: float | None = None,
+        density: float | None = None,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+    ) -> BodyId:
+        """Add a solid capsule: the points within `radius` of a segment along the body's z axis.
+
+        Args:
+            radius: [m], > 0.
+            half_height: half the length of the segment [m], > 0 (the capsule is
+                2 (half_height + radius) long).
+            Others as `add_sphere`.
+        """
+        return self.add_capsules(
+            position=_vec(position, "position")[None], radius=radius, half_height=half_height, mass=mass,
+            density=density, velocity=velocity, orientation=orientation, angular_velocity=angular_velocity,
+            restitution=restitution, friction=friction, static=static,
+        )[0]
+
+    def add_capsules(self, *, position, radius, half_height, mass=None, density=None, velocity=(0.0, 0.0, 0.0),
+                     orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), restitution: float = 0.5,
+                     friction: float = 0.5, static: bool = False) -> list[BodyId]:
+        """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
+        x = _rows(position, "position", 3)
+        r = _positive_rows(radius, "radius", len(x))
+        a = _positive_rows(half_height, "half_height", len(x))
+        m = self._masses(mass, density, _shapes.capsule_volume(r, a))
+        inertia = _shapes.capsule_inertia(m, r, a)
+        # half extents of the body-frame bounding box; the kernels read the half height as h_z - r
+        h = np.stack([r, r, a + r], axis=1)
+        return self._add_solids(ShapeType.CAPSULE, x, velocity, orientation, angular_velocity, radius=r,
+                                half_extents=h, mass=m, inertia=inertia, restitution=restitution,
+                                friction=friction, static=static)
+
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(shape)
-        return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box}[
-            kind
-        ](**kwargs)
+        return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box,
+                ShapeType.CAPSULE: self.add_capsule}[kind](**kwargs)
 
     def add_emitter(self, **kwargs):
         """Add an emitter that releases bodies over time; see `tumble.emitters.Emitter` for keywords.
@@ -448,6 +491,7 @@ class World:
             radius,
             np.where(shape == ShapeType.BOX, np.linalg.norm(half_extents, axis=1), np.inf),
         )
+        bound = np.where(shape == ShapeType.CAPSULE, half_extents[:, 2], bound)  # half height + radius
         with np.errstate(divide="ignore"):
             inv_mass = np.where(mass > 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
             inv_inertia = np.where(inertia > 0.0, 1.0 / np.where(inertia > 0.0, inertia, 1.0), 0.0)

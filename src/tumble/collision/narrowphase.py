@@ -6,7 +6,7 @@ surface points in each body's frame, `contact_local_a/b`). Cost: O(pairs), at mo
 contacts per pair.
 
 Conventions:
-- `collide_<a>_<b>` handles shapes a <= b in `ShapeType` order (PLANE < SPHERE < BOX); the
+- `collide_<a>_<b>` handles shapes a <= b in `ShapeType` order (PLANE < SPHERE < BOX < CAPSULE); the
   dispatch kernel swaps a pair into that order, so the normal always points from body a to b;
 - each contact carries one surface point on each body; their separation along the normal is
   s = n . (p_b - p_a) (negative when overlapping); contacts with s below the pair's
@@ -436,6 +436,206 @@ def collide_box_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3
         _face_contacts(c, a, b, A, B, ha, hb, best_kind == 0, best_i, max_sep)
 
 
+# ---------------------------------------------------------------------------- capsules
+# A capsule of radius r and half height a is the set of points within r of the segment
+# x + t u, t in [-a, a], u = the body's z axis; it is stored with body_radius = r and
+# body_half_extents = (r, r, a + r), the half extents of its bounding box.
+
+
+@wp.func
+def _capsule_half_height(r: float_t, h: vec3):
+    return h[2] - r
+
+
+@wp.func
+def _perpendicular(u: vec3):
+    """A unit vector perpendicular to the unit vector u."""
+    t = vec3(_ONE, _ZERO, _ZERO)
+    if wp.abs(u[0]) > float_t(0.9):
+        t = vec3(_ZERO, _ONE, _ZERO)
+    t = t - u * wp.dot(u, t)
+    return wp.normalize(t)
+
+
+@wp.func
+def _sphere_pair(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ca: vec3, ra: float_t, cb: vec3, rb: float_t,
+                 fallback: vec3, max_sep: float_t):
+    """Contact of two spheres (centres ca on a, cb on b); `fallback` is the normal for coincident centres."""
+    d = cb - ca
+    dist = wp.length(d)
+    n = fallback
+    if dist > float_t(1e-12):
+        n = d / dist
+    emit(c, a, b, A, B, n, ca + n * ra, cb - n * rb, max_sep)
+
+
+@wp.func
+def collide_plane_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
+    # the two end spheres against the plane: at most two contacts, a line contact when lying flat
+    n = _axis(A.q, 2)
+    u = _axis(B.q, 2)
+    hh = _capsule_half_height(r, h)
+    for k in range(2):
+        e = B.x + u * hh
+        if k == 1:
+            e = B.x - u * hh
+        d = wp.dot(n, e - A.x)
+        emit(c, a, b, A, B, n, e - n * d, e - n * r, max_sep)
+
+
+@wp.func
+def collide_sphere_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, h: vec3,
+                           max_sep: float_t):
+    # the sphere against the nearest point of the capsule's segment
+    u = _axis(B.q, 2)
+    hh = _capsule_half_height(rb, h)
+    t = wp.clamp(wp.dot(A.x - B.x, u), -hh, hh)
+    _sphere_pair(c, a, b, A, B, A.x, ra, B.x + u * t, rb, _perpendicular(u), max_sep)
+
+
+@wp.func
+def _golden_min_box(p0: vec3, u: vec3, lo: float_t, hi: float_t, hb: vec3):
+    """Parameter t in [lo, hi] minimising the signed distance of p0 + t u from a box (half extents hb).
+
+    The signed distance from a convex set is a convex function, and so is its restriction to a
+    line, so golden-section search finds the minimum: 40 steps shrink [lo, hi] by 0.618^40 ~ 4e-9.
+    """
+    g = float_t(0.6180339887498949)
+    x1 = hi - g * (hi - lo)
+    x2 = lo + g * (hi - lo)
+    _q1, _o1, f1 = box_closest(p0 + u * x1, hb)
+    _q2, _o2, f2 = box_closest(p0 + u * x2, hb)
+    for _it in range(40):
+        if f1 <= f2:
+            hi = x2
+            x2 = x1
+            f2 = f1
+            x1 = hi - g * (hi - lo)
+            _q1, _o1, f1 = box_closest(p0 + u * x1, hb)
+        else:
+            lo = x1
+            x1 = x2
+            f1 = f2
+            x2 = lo + g * (hi - lo)
+            _q2, _o2, f2 = box_closest(p0 + u * x2, hb)
+    return (lo + hi) * float_t(0.5)
+
+
+@wp.func
+def collide_box_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, rb: float_t, hb: vec3,
+                        max_sep: float_t):
+    # the capsule's segment in the box frame: p(t) = p0 + t u, t in [-a, a]
+    hh = _capsule_half_height(rb, hb)
+    p0 = wp.quat_rotate_inv(A.q, B.x - A.x)
+    u = wp.quat_rotate_inv(A.q, _axis(B.q, 2))
+    t = _golden_min_box(p0, u, -hh, hh, ha)
+    q, out, d = box_closest(p0 + u * t, ha)
+    # the box face nearest the contact normal; a segment nearly parallel to it (within ~11 deg)
+    # is clipped to the face rectangle, and its two ends are the manifold (a line contact)
+    k = int(0)
+    for j in range(1, 3):
+        if wp.abs(out[j]) > wp.abs(out[k]):
+            k = j
+    side = _ONE
+    if out[k] < _ZERO:
+        side = -_ONE
+    if wp.abs(u[k]) < float_t(0.2):
+        lo = -hh
+        hi = hh
+        for j in range(3):
+            if j != k:
+                # |p0_j + t u_j| <= ha_j
+                if wp.abs(u[j]) > float_t(1e-12):
+                    t1 = (-ha[j] - p0[j]) / u[j]
+                    t2 = (ha[j] - p0[j]) / u[j]
+                    lo = wp.max(lo, wp.min(t1, t2))
+                    hi = wp.min(hi, wp.max(t1, t2))
+                elif wp.abs(p0[j]) > ha[j]:
+                    hi = lo - _ONE
+        # (only when the deepest point is over the face: f is linear there, so an end is deepest)
+        tol = float_t(1e-6) * (_ONE + hh)
+        if hi - lo > float_t(1e-9) * (_ONE + hh) and t >= lo - tol and t <= hi + tol:
+            f = vec3(_ZERO, _ZERO, _ZERO)
+            f[k] = side
+            n = wp.quat_rotate(A.q, f)
+            for e in range(2):
+                te = lo
+                if e == 1:
+                    te = hi
+                p = p0 + u * te
+                on_box = vec3(p[0], p[1], p[2])
+                on_box[k] = side * ha[k]
+                pw = A.x + wp.quat_rotate(A.q, p)
+                emit(c, a, b, A, B, n, A.x + wp.quat_rotate(A.q, on_box), pw - n * rb, max_sep)
+            return
+    n = wp.quat_rotate(A.q, out)
+    emit(c, a, b, A, B, n, A.x + wp.quat_rotate(A.q, q), A.x + wp.quat_rotate(A.q, p0 + u * t) - n * rb, max_sep)
+
+
+@wp.func
+def _segment_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3, hb: float_t):
+    """Parameters (s, t) of the closest points pa + s ua, pb + t ub of two segments, |s| <= ha, |t| <= hb.
+
+    Unit directions; minimise |r + s ua - t ub|^2 with r = pa - pb: the free optimum solves
+    s = e t - f, t = e s + g (e = ua.ub, f = ua.r, g = ub.r); clamp s, take the best t for it,
+    and if t clamps, the best s for that t (Ericson, Real-Time Collision Detection, 5.1.9).
+    """
+    r = pa - pb
+    e = wp.dot(ua, ub)
+    f = wp.dot(ua, r)
+    g = wp.dot(ub, r)
+    den = _ONE - e * e
+    s = _ZERO
+    if den > float_t(1e-12):
+        s = wp.clamp((e * g - f) / den, -ha, ha)
+    t = e * s + g
+    if t < -hb:
+        t = -hb
+        s = wp.clamp(e * t - f, -ha, ha)
+    elif t > hb:
+        t = hb
+        s = wp.clamp(e * t - f, -ha, ha)
+    return s, t
+
+
+@wp.func
+def collide_capsule_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t,
+                            hb: vec3, max_sep: float_t):
+    la = _capsule_half_height(ra, ha)
+    lb = _capsule_half_height(rb, hb)
+    ua = _axis(A.q, 2)
+    ub = _axis(B.q, 2)
+    s, t = _segment_closest(A.x, ua, la, B.x, ub, lb)
+    d = B.x + ub * t - (A.x + ua * s)
+    dist = wp.length(d)
+    n = wp.cross(ua, ub)
+    if wp.length(n) > float_t(1e-9):
+        n = wp.normalize(n)
+        if wp.dot(n, B.x - A.x) < _ZERO:
+            n = -n
+    else:
+        n = _perpendicular(ua)
+    if dist > float_t(1e-12):
+        n = d / dist
+    # nearly parallel segments (within ~11 deg) that overlap along A's axis: a contact at each end
+    # of the overlap, each with the closest point of B's segment, so a capsule lies still on another
+    e = wp.dot(ua, ub)
+    if _ONE - e * e < float_t(0.04):
+        c0 = wp.dot(B.x - A.x, ua)
+        lo = wp.max(-la, c0 - wp.abs(e) * lb)
+        hi = wp.min(la, c0 + wp.abs(e) * lb)
+        if hi - lo > float_t(1e-9) * (_ONE + la):
+            for k in range(2):
+                sk = lo
+                if k == 1:
+                    sk = hi
+                pa = A.x + ua * sk
+                tk = wp.clamp(wp.dot(pa - B.x, ub), -lb, lb)
+                _sphere_pair(c, a, b, A, B, pa, ra, B.x + ub * tk, rb, n, max_sep)
+            return
+    _sphere_pair(c, a, b, A, B, A.x + ua * s, ra, B.x + ub * t, rb, n, max_sep)
+
+
 # ---------------------------------------------------------------------------- dispatch
 
 
@@ -482,13 +682,22 @@ def _collide_pairs(
             collide_plane_sphere(c, a, b, A, B, radius[b], max_sep)
         elif sb == int(ShapeType.BOX):
             collide_plane_box(c, a, b, A, B, half_extents[b], max_sep)
+        elif sb == int(ShapeType.CAPSULE):
+            collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
     elif sa == int(ShapeType.SPHERE):
         if sb == int(ShapeType.SPHERE):
             collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], max_sep)
-        else:
+        elif sb == int(ShapeType.BOX):
             collide_sphere_box(c, a, b, A, B, radius[a], half_extents[b], max_sep)
-    else:
-        collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CAPSULE):
+            collide_sphere_capsule(c, a, b, A, B, radius[a], radius[b], half_extents[b], max_sep)
+    elif sa == int(ShapeType.BOX):
+        if sb == int(ShapeType.BOX):
+            collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CAPSULE):
+            collide_box_capsule(c, a, b, A, B, half_extents[a], radius[b], half_extents[b], max_sep)
+    elif sa == int(ShapeType.CAPSULE):
+        collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
 
 
 def collide(bodies, pairs, contacts, dt: float) -> None:

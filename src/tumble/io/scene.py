@@ -508,6 +508,14 @@ SCHEMA: dict[str, TableSpec] = {
             _mass_or_density,
         ),
         TableSpec(
+            "capsule",
+            True,
+            "Solid capsules: the points within radius of a segment of length 2 half_height along the body z axis.",
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"))
+            | {"half_height": Field(number(low=0, low_open=True), REQUIRED, "m", "half length of the segment")},
+            _mass_or_density,
+        ),
+        TableSpec(
             "emitter",
             True,
             "Sources releasing bodies over time; a new body never overlaps an existing one.",
@@ -645,8 +653,9 @@ SCHEMA: dict[str, TableSpec] = {
     ]
 }
 
-# bodies are created in this order: every [[plane]], then [[sphere]], then [[box]], each in file order
-BODY_TABLES = ("plane", "sphere", "box")
+# bodies are created in this order: every [[plane]], then [[sphere]], then [[box]], then [[capsule]],
+# each in file order
+BODY_TABLES = ("plane", "sphere", "box", "capsule")
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -914,9 +923,10 @@ def build_world(scene: Scene, **overrides):
     if scene.table("camera") is not None:
         world.metadata["camera"] = dict(scene.table("camera"))
 
-    # bodies: planes, then spheres, then boxes, each in file order
+    # bodies: planes, then spheres, then boxes, then capsules, each in file order
     made = {}
-    for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box)):
+    for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box),
+                      ("capsule", world.add_capsule)):
         made[name] = []
         for i, values in enumerate(scene.items(name)):
             with _api_errors(path, _table_label(name, i)):
