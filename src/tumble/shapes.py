@@ -19,6 +19,7 @@ class ShapeType(enum.IntEnum):
     SPHERE = 1
     BOX = 2
     CAPSULE = 3
+    CONVEX = 4
 
 
 SHAPE_NAMES: tuple[str, ...] = tuple(s.name.lower() for s in ShapeType)

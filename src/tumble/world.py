@@ -26,6 +26,7 @@ import warp as wp
 from . import shapes as _shapes
 from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
+from .collision.hulls import HullSet
 from .errors import SimulationError
 from .launch import LaunchCache
 from .runtime import init_warp
@@ -48,6 +49,7 @@ BODY_FIELDS = {
     "body_radius": float_t,  # sphere and capsule radius [m] (0 for other shapes)
     "body_half_extents": vec3,  # box half extents [m]; for capsules, of the bounding box (r, r, a + r)
     "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
+    "body_geometry": wp.int32,  # convex bodies: row of their hull in world.hulls (0 for other shapes)
     "body_mass": float_t,  # [kg] (0 for static bodies)
     "body_inv_mass": float_t,  # [1/kg] (0 for static bodies)
     "body_inv_inertia": vec3,  # principal inverse moments in the body frame [1/(kg m^2)]
@@ -125,6 +127,18 @@ def _unit_quat(value, name: str = "orientation") -> np.ndarray:
     return q / norm
 
 
+def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product p q of quaternions (x, y, z, w): rotate by q, then by p."""
+    pv, pw, qv, qw = p[:3], p[3], q[:3], q[3]
+    return np.r_[pw * qv + qw * pv + np.cross(pv, qv), pw * qw - pv @ qv]
+
+
+def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """v rotated by the unit quaternion q (x, y, z, w): v + 2 u x (u x v + w v)."""
+    u = q[:3]
+    return v + 2.0 * np.cross(u, np.cross(u, v) + q[3] * v)
+
+
 def _quat_from_z(normal: np.ndarray) -> np.ndarray:
     """Unit quaternion (x, y, z, w) rotating +z onto `normal` (unit)."""
     z = np.array([0.0, 0.0, 1.0])
@@ -185,6 +199,7 @@ class World:
         self.broadphase = broadphase.BroadPhase(self.device)
         self.contacts = contact_solver.ContactSet(self.device)
         self.joints = joint_solver.JointSet(self.device)
+        self.hulls = HullSet(self.device)  # convex prototypes, row 0 the unit box
         self._cloth = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
@@ -365,11 +380,71 @@ class World:
                                 half_extents=h, mass=m, inertia=inertia, restitution=restitution,
                                 friction=friction, static=static)
 
+    def add_convex(
+        self,
+        *,
+        points=None,
+        file=None,
+        scale: float | Sequence[float] = 1.0,
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        mass: float | None = None,
+        density: float | None = None,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        angular_velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+    ) -> BodyId:
+        """Add a solid convex body: the convex hull of `points`, or of the vertices of a mesh `file`.
+
+        The points are given in a frame of the user's ("user frame"), placed at `position` with
+        `orientation`. The body's own frame has its origin at the hull's centre of mass and its
+        axes along the principal axes of inertia, so `body_position` is the centre of mass;
+        `world.hulls.prototypes[world.body_geometry[i]]` keeps the user frame (`offset_com`,
+        `rotation`). Mass properties come from the hull's exact polyhedron integrals.
+
+        Args:
+            points: shape (n, 3) [m], n >= 4, spanning a volume.
+            file: a mesh file (OBJ, STL, PLY, OFF, glTF/GLB) read with trimesh; a mesh that is
+                not watertight still gives its hull, with a one-line notice.
+            scale: one factor or three (per user axis) applied to the points first.
+            position, orientation: the user frame's pose (x, y, z, w).
+            Others as `add_sphere`.
+        """
+        from .collision.hulls import hull_from_points
+        from .io.meshfile import notice, read_mesh_file
+
+        if (points is None) == (file is None):
+            raise ValueError("add_convex takes points or file, not both")
+        name = "points"
+        if file is not None:
+            points, _triangles, mesh = read_mesh_file(file)
+            name = str(file)
+            if not getattr(mesh, "is_watertight", False):
+                notice(f"{file}: the mesh is not watertight; its convex hull is used")
+        factor = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,))
+        if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
+            raise ValueError(f"scale must be one positive number or three, got {scale!r}")
+        proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
+        q_user = _unit_quat(orientation)
+        x = _vec(position, "position") + _quat_rotate(q_user, proto.offset_com)
+        q = _quat_mul(q_user, proto.rotation)
+        m = self._masses(mass, density, np.array([proto.volume]))
+        inertia = proto.inertia[None] * (m[0] / proto.volume)
+        index = self.hulls.add(proto)
+        ids = self._add_solids(ShapeType.CONVEX, x[None], velocity, q, angular_velocity, radius=np.zeros(1),
+                               half_extents=np.abs(proto.vertex).max(axis=0)[None], mass=m, inertia=inertia,
+                               restitution=restitution, friction=friction, static=static,
+                               bound=np.array([proto.bound_radius]))
+        self.bodies.write("body_geometry", self._slot(ids[0]), index)
+        return ids[0]
+
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(shape)
         return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box,
-                ShapeType.CAPSULE: self.add_capsule}[kind](**kwargs)
+                ShapeType.CAPSULE: self.add_capsule, ShapeType.CONVEX: self.add_convex}[kind](**kwargs)
 
     def add_emitter(self, **kwargs):
         """Add an emitter that releases bodies over time; see `tumble.emitters.Emitter` for keywords.
@@ -465,7 +540,7 @@ class World:
         return _positive_rows(1000.0 if density is None else density, "density", len(volume)) * volume
 
     def _add_solids(self, shape, position, velocity, orientation, angular_velocity, *, radius, half_extents,
-                    mass, inertia, restitution, friction, static) -> list[BodyId]:
+                    mass, inertia, restitution, friction, static, bound=None) -> list[BodyId]:
         n = len(position)
         q = _rows(orientation, "orientation", 4, n)
         norm = np.linalg.norm(q, axis=1, keepdims=True)
@@ -479,19 +554,23 @@ class World:
             shape=shape, position=position, velocity=v, orientation=q / norm, angular_velocity=w, radius=radius,
             half_extents=half_extents, mass=mass, inertia=inertia,
             restitution=_unit_interval(restitution, "restitution"), friction=_unit_interval(friction, "friction"),
+            bound=bound,
         )
 
     def _add_bodies(self, *, shape, position, orientation, radius, half_extents, mass, inertia,
-                    restitution, friction, velocity=None, angular_velocity=None) -> list[BodyId]:
+                    restitution, friction, velocity=None, angular_velocity=None, bound=None) -> list[BodyId]:
         """Append k bodies given as arrays with k rows (vectorised; used by emitters too)."""
         k = len(position)
         shape = np.broadcast_to(np.asarray(shape, dtype=np.int32), (k,))
+        given = bound
         bound = np.where(
             shape == ShapeType.SPHERE,
             radius,
             np.where(shape == ShapeType.BOX, np.linalg.norm(half_extents, axis=1), np.inf),
         )
         bound = np.where(shape == ShapeType.CAPSULE, half_extents[:, 2], bound)  # half height + radius
+        if given is not None:  # convex bodies: the hull's bounding sphere
+            bound = np.where(np.isfinite(given), given, bound)
         with np.errstate(divide="ignore"):
             inv_mass = np.where(mass > 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
             inv_inertia = np.where(inertia > 0.0, 1.0 / np.where(inertia > 0.0, inertia, 1.0), 0.0)
@@ -582,7 +661,7 @@ class World:
 
         # narrow phase: pair table -> contact points with normal, separation and anchors
         with self._timer("narrow_phase"):
-            narrowphase.collide(bodies, pairs, contacts, dt)
+            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls)
 
         # contact prepare: match last step's contacts for warm starting, effective masses
         with self._timer("solver"):
@@ -634,7 +713,7 @@ class World:
         """
         dt = self.dt if dt is None else _positive(dt, "dt")
         pairs = self.broadphase.find_pairs(self.bodies, dt)
-        narrowphase.collide(self.bodies, pairs, self.contacts, dt)
+        narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls)
         return self.contacts.count
 
     def _launch_cache(self) -> LaunchCache:
@@ -697,7 +776,9 @@ class World:
         return self.contacts.count
 
     body_shape = property(lambda self: self._view("body_shape"), doc="Shape types (ShapeType), shape (n,), int32.")
-    body_radius = property(lambda self: self._view("body_radius"), doc="Sphere radii [m], shape (n,).")
+    body_radius = property(lambda self: self._view("body_radius"), doc="Sphere and capsule radii [m], shape (n,).")
+    body_geometry = property(lambda self: self._view("body_geometry"),
+                             doc="Row of each convex body's hull in `hulls.prototypes`, shape (n,), int32.")
     body_half_extents = property(lambda self: self._view("body_half_extents"), doc="Box half extents [m], shape (n, 3).")
     body_mass = property(lambda self: self._view("body_mass"), doc="Masses [kg], shape (n,); 0 for static bodies.")
     body_inv_mass = property(lambda self: self._view("body_inv_mass"), doc="Inverse masses [1/kg], shape (n,).")

@@ -6,7 +6,8 @@ surface points in each body's frame, `contact_local_a/b`). Cost: O(pairs), at mo
 contacts per pair.
 
 Conventions:
-- `collide_<a>_<b>` handles shapes a <= b in `ShapeType` order (PLANE < SPHERE < BOX < CAPSULE); the
+- `collide_<a>_<b>` handles shapes a <= b in `ShapeType` order (PLANE < SPHERE < BOX < CAPSULE <
+  CONVEX; `hull` in a name stands for CONVEX, and for a box meeting one); the
   dispatch kernel swaps a pair into that order, so the normal always points from body a to b;
 - each contact carries one surface point on each body; their separation along the normal is
   s = n . (p_b - p_a) (negative when overlapping); contacts with s below the pair's
@@ -23,6 +24,7 @@ import warp as wp
 
 from ..shapes import ShapeType
 from ..state import float_t, quat, vec3
+from .hulls import Hulls, HullSet
 
 #: speculative distance added to the relative motion of a pair in one step [m]
 SPECULATIVE_MARGIN = 0.002
@@ -222,6 +224,45 @@ def _clip(p: Polygon, axis: int, sign: float_t, limit: float_t):
 
 
 @wp.func
+def _reduce_manifold(u2: vec8, v2: vec8, d2: vec8, m: int):
+    """Bit mask of at most four of m points (u, v, depth d): the deepest, the farthest from it,
+    then the largest triangles on either side of the line through those two."""
+    chosen = int(0)
+    if m <= 4:
+        chosen = (1 << m) - 1
+    else:
+        i0 = int(0)
+        for k in range(1, m):
+            if d2[k] < d2[i0]:
+                i0 = k
+        i1 = int(0)
+        far = float_t(-1.0)
+        for k in range(m):
+            dd = (u2[k] - u2[i0]) * (u2[k] - u2[i0]) + (v2[k] - v2[i0]) * (v2[k] - v2[i0])
+            if dd > far:
+                far = dd
+                i1 = k
+        i2 = int(-1)
+        i3 = int(-1)
+        amax = _ZERO
+        amin = _ZERO
+        for k in range(m):
+            area = (u2[i1] - u2[i0]) * (v2[k] - v2[i0]) - (v2[i1] - v2[i0]) * (u2[k] - u2[i0])
+            if area > amax:
+                amax = area
+                i2 = k
+            if area < amin:
+                amin = area
+                i3 = k
+        chosen = (1 << i0) | (1 << i1)
+        if i2 >= 0:
+            chosen = chosen | (1 << i2)
+        if i3 >= 0:
+            chosen = chosen | (1 << i3)
+    return chosen
+
+
+@wp.func
 def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool,
                    axis: int, max_sep: float_t):
     """Manifold for a face axis: `axis` of the reference box (A if ref_is_a) against the other box."""
@@ -304,38 +345,7 @@ def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3,
     if m == 0:
         return
     # reduce to at most four: deepest, farthest from it, then the largest triangles either side
-    chosen = int(0)
-    if m <= 4:
-        chosen = (1 << m) - 1
-    else:
-        i0 = int(0)
-        for k in range(1, m):
-            if d2[k] < d2[i0]:
-                i0 = k
-        i1 = int(0)
-        far = float_t(-1.0)
-        for k in range(m):
-            dd = (u2[k] - u2[i0]) * (u2[k] - u2[i0]) + (v2[k] - v2[i0]) * (v2[k] - v2[i0])
-            if dd > far:
-                far = dd
-                i1 = k
-        i2 = int(-1)
-        i3 = int(-1)
-        amax = _ZERO
-        amin = _ZERO
-        for k in range(m):
-            area = (u2[i1] - u2[i0]) * (v2[k] - v2[i0]) - (v2[i1] - v2[i0]) * (u2[k] - u2[i0])
-            if area > amax:
-                amax = area
-                i2 = k
-            if area < amin:
-                amin = area
-                i3 = k
-        chosen = (1 << i0) | (1 << i1)
-        if i2 >= 0:
-            chosen = chosen | (1 << i2)
-        if i3 >= 0:
-            chosen = chosen | (1 << i3)
+    chosen = _reduce_manifold(u2, v2, d2, m)
     for k in range(m):
         if chosen & (1 << k):
             on_inc = face + U * u2[k] + V * v2[k] + n * d2[k]
@@ -636,6 +646,461 @@ def collide_capsule_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, 
     _sphere_pair(c, a, b, A, B, A.x + ua * s, ra, B.x + ub * t, rb, n, max_sep)
 
 
+# ---------------------------------------------------------------------------- convex hulls
+# A hull is a slice of the `Hulls` arrays (see collision.hulls) in its body frame; `sc` scales
+# its vertices per axis, so the unit-cube prototype 0 stands for any box that meets a hull.
+
+vec16 = wp.types.vector(length=16, dtype=float_t)
+
+
+@wp.func
+def _hull_vertex(H: Hulls, i: int, sc: vec3):
+    return wp.cw_mul(H.vertex[i], sc)
+
+
+@wp.func
+def _hull_face(H: Hulls, f: int, sc: vec3):
+    """Outward unit normal and offset (n . x = d) of face f, scaled: n ~ n0 / sc."""
+    n = wp.normalize(wp.cw_div(H.face_normal[f], sc))
+    return n, wp.dot(n, _hull_vertex(H, H.face_vertex[H.face_start[f]], sc))
+
+
+@wp.func
+def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
+    """Signed distance of a point from a hull's surface, hull frame; as `box_closest`.
+
+    Returns (closest surface point, outward unit normal there, signed distance d). Inside, d < 0
+    is the largest face-plane distance (the point leaves through that face). Outside, the
+    nearest point lies inside a face the point is in front of, or on an edge: all are tried.
+    Cost O(faces x face vertices + edges).
+    """
+    f0 = H.hull_face_start[h]
+    nf = H.hull_face_count[h]
+    dmax = float_t(-1.0e30)
+    nmax = vec3(_ZERO, _ZERO, _ONE)
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        if wp.dot(n, p) - d > dmax:
+            dmax = wp.dot(n, p) - d
+            nmax = n
+    if dmax <= _ZERO:
+        return p - nmax * dmax, nmax, dmax
+    best = float_t(1.0e30)
+    q = p
+    out = nmax
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        dist = wp.dot(n, p) - d
+        if dist > _ZERO and dist < best:
+            proj = p - n * dist
+            inside = bool(True)
+            start = H.face_start[f]
+            count = H.face_count[f]
+            for k in range(count):
+                v0 = _hull_vertex(H, H.face_vertex[start + k], sc)
+                v1 = _hull_vertex(H, H.face_vertex[start + (k + 1) % count], sc)
+                if wp.dot(wp.cross(v1 - v0, proj - v0), n) < _ZERO:
+                    inside = False
+            if inside:
+                best = dist
+                q = proj
+                out = n
+    e0 = H.edge_start[h]
+    for e in range(e0, e0 + H.edge_count[h]):
+        ed = H.edge[e]
+        v0 = _hull_vertex(H, ed[0], sc)
+        v1 = _hull_vertex(H, ed[1], sc)
+        seg = v1 - v0
+        t = wp.clamp(wp.dot(p - v0, seg) / wp.max(wp.dot(seg, seg), float_t(1e-30)), _ZERO, _ONE)
+        cp = v0 + seg * t
+        dd = wp.length(p - cp)
+        if dd < best:
+            best = dd
+            q = cp
+            out = (p - cp) / wp.max(dd, float_t(1e-30))
+    return q, out, best
+
+
+@wp.func
+def collide_plane_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, sc: vec3,
+                       max_sep: float_t):
+    # the deepest vertex, the vertex farthest from it along the plane, then the largest triangles
+    # on either side of that line: up to four of the vertices within the speculative distance
+    n = _axis(A.q, 2)
+    v0 = H.vertex_start[h]
+    nv = H.vertex_count[h]
+    i0 = int(-1)
+    d0 = float_t(1.0e30)
+    for i in range(v0, v0 + nv):
+        d = wp.dot(n, B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc)) - A.x)
+        if d < d0:
+            d0 = d
+            i0 = i
+    if d0 > max_sep:
+        return
+    p0 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i0, sc))
+    i1 = i0
+    far = float_t(1e-12)
+    for i in range(v0, v0 + nv):
+        pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
+        if wp.dot(n, pi - A.x) <= max_sep:
+            t = (pi - p0) - n * wp.dot(n, pi - p0)
+            if wp.dot(t, t) > far:
+                far = wp.dot(t, t)
+                i1 = i
+    p1 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i1, sc))
+    i2 = int(-1)
+    i3 = int(-1)
+    amax = float_t(1e-12) * far
+    amin = -amax
+    for i in range(v0, v0 + nv):
+        pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
+        if wp.dot(n, pi - A.x) <= max_sep:
+            area = wp.dot(n, wp.cross(p1 - p0, pi - p0))
+            if area > amax:
+                amax = area
+                i2 = i
+            if area < amin:
+                amin = area
+                i3 = i
+    for k in range(4):
+        i = i0
+        if k == 1:
+            i = i1
+        elif k == 2:
+            i = i2
+        elif k == 3:
+            i = i3
+        if i >= 0 and (k == 0 or i != i0):
+            pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
+            emit(c, a, b, A, B, n, pi - n * wp.dot(n, pi - A.x), pi, max_sep)
+
+
+@wp.func
+def collide_sphere_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, H: Hulls, h: int,
+                        max_sep: float_t):
+    # nearest point of the hull to the sphere centre, in the hull frame
+    q, out, _d = hull_closest(H, h, vec3(_ONE, _ONE, _ONE), wp.quat_rotate_inv(B.q, A.x - B.x))
+    n = -wp.quat_rotate(B.q, out)  # sphere (a) -> hull (b)
+    emit(c, a, b, A, B, n, A.x + n * r, B.x + wp.quat_rotate(B.q, q), max_sep)
+
+
+@wp.func
+def _golden_min_hull(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int):
+    """As `_golden_min_box`, for the signed distance from a hull (convex too)."""
+    g = float_t(0.6180339887498949)
+    one = vec3(_ONE, _ONE, _ONE)
+    x1 = hi - g * (hi - lo)
+    x2 = lo + g * (hi - lo)
+    _q1, _o1, f1 = hull_closest(H, h, one, p0 + u * x1)
+    _q2, _o2, f2 = hull_closest(H, h, one, p0 + u * x2)
+    for _it in range(40):
+        if f1 <= f2:
+            hi = x2
+            x2 = x1
+            f2 = f1
+            x1 = hi - g * (hi - lo)
+            _q1, _o1, f1 = hull_closest(H, h, one, p0 + u * x1)
+        else:
+            lo = x1
+            x1 = x2
+            f1 = f2
+            x2 = lo + g * (hi - lo)
+            _q2, _o2, f2 = hull_closest(H, h, one, p0 + u * x2)
+    return (lo + hi) * float_t(0.5)
+
+
+@wp.func
+def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls,
+                         h: int, max_sep: float_t):
+    # the capsule's segment in the hull frame, its deepest point by golden-section search
+    hh = _capsule_half_height(ra, ha)
+    one = vec3(_ONE, _ONE, _ONE)
+    p0 = wp.quat_rotate_inv(B.q, A.x - B.x)
+    u = wp.quat_rotate_inv(B.q, _axis(A.q, 2))
+    t = _golden_min_hull(p0, u, -hh, hh, H, h)
+    q, out, _d = hull_closest(H, h, one, p0 + u * t)
+    # a segment nearly parallel to the face nearest the normal is clipped to that face's prism
+    # (side planes through its edges): the two ends are the manifold, as for boxes
+    f0 = H.hull_face_start[h]
+    fb = f0
+    for f in range(f0, f0 + H.hull_face_count[h]):
+        if wp.dot(H.face_normal[f], out) > wp.dot(H.face_normal[fb], out):
+            fb = f
+    nf, df = _hull_face(H, fb, one)
+    if wp.abs(wp.dot(u, nf)) < float_t(0.2):
+        lo = -hh
+        hi = hh
+        start = H.face_start[fb]
+        count = H.face_count[fb]
+        for k in range(count):
+            v0 = H.vertex[H.face_vertex[start + k]]
+            v1 = H.vertex[H.face_vertex[start + (k + 1) % count]]
+            m = wp.cross(v1 - v0, nf)  # outward side normal (counter-clockwise face)
+            # keep m . (p0 + t u - v0) <= 0
+            c0 = wp.dot(m, p0 - v0)
+            cu = wp.dot(m, u)
+            if wp.abs(cu) > float_t(1e-12):
+                if cu > _ZERO:
+                    hi = wp.min(hi, -c0 / cu)
+                else:
+                    lo = wp.max(lo, -c0 / cu)
+            elif c0 > _ZERO:
+                hi = lo - _ONE
+        tol = float_t(1e-6) * (_ONE + hh)
+        if hi - lo > float_t(1e-9) * (_ONE + hh) and t >= lo - tol and t <= hi + tol:
+            n = -wp.quat_rotate(B.q, nf)  # capsule (a) -> hull (b)
+            for e in range(2):
+                te = lo
+                if e == 1:
+                    te = hi
+                pe = p0 + u * te
+                dist = wp.dot(nf, pe) - df
+                emit(c, a, b, A, B, n, B.x + wp.quat_rotate(B.q, pe - nf * ra),
+                     B.x + wp.quat_rotate(B.q, pe - nf * dist), max_sep)
+            return
+    n = -wp.quat_rotate(B.q, out)
+    emit(c, a, b, A, B, n, B.x + wp.quat_rotate(B.q, p0 + u * t) + n * ra, B.x + wp.quat_rotate(B.q, q), max_sep)
+
+
+@wp.struct
+class Polygon3:
+    """Up to sixteen points in the world frame (a clipped incident face)."""
+
+    x: vec16
+    y: vec16
+    z: vec16
+    count: int
+
+
+@wp.func
+def _poly_point(p: Polygon3, k: int):
+    return vec3(p.x[k], p.y[k], p.z[k])
+
+
+@wp.func
+def _clip3(p: Polygon3, m: vec3, o: float_t):
+    """Clip polygon p against the half space m . x <= o (Sutherland-Hodgman), at most 16 points."""
+    out = Polygon3()
+    k2 = int(0)
+    for k in range(p.count):
+        a = _poly_point(p, k)
+        b = _poly_point(p, (k + 1) % p.count)
+        ca = wp.dot(m, a) - o
+        cb = wp.dot(m, b) - o
+        if ca <= _ZERO and k2 < 16:
+            out.x[k2] = a[0]
+            out.y[k2] = a[1]
+            out.z[k2] = a[2]
+            k2 += 1
+        if (ca <= _ZERO) != (cb <= _ZERO) and k2 < 16:
+            x = a + (b - a) * (ca / (ca - cb))
+            out.x[k2] = x[0]
+            out.y[k2] = x[1]
+            out.z[k2] = x[2]
+            k2 += 1
+    out.count = k2
+    return out
+
+
+@wp.func
+def _hull_face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int,
+                        sb: vec3, ref_is_a: bool, fref: int, max_sep: float_t):
+    """Manifold for a face axis: face `fref` of the reference hull clips the other hull's incident face."""
+    R = A
+    I = B
+    hr = ha
+    sr = sa
+    hi = hb
+    si = sb
+    if not ref_is_a:
+        R = B
+        I = A
+        hr = hb
+        sr = sb
+        hi = ha
+        si = sa
+    nl, dl = _hull_face(H, fref, sr)
+    n = wp.quat_rotate(R.q, nl)
+    # incident face: the face of I most anti-parallel to n
+    fi0 = H.hull_face_start[hi]
+    finc = fi0
+    best = float_t(2.0)
+    for f in range(fi0, fi0 + H.hull_face_count[hi]):
+        nf, _df = _hull_face(H, f, si)
+        dn = wp.dot(wp.quat_rotate(I.q, nf), n)
+        if dn < best:
+            best = dn
+            finc = f
+    poly = Polygon3()
+    start = H.face_start[finc]
+    count = wp.min(H.face_count[finc], 16)
+    for k in range(count):
+        x = I.x + wp.quat_rotate(I.q, _hull_vertex(H, H.face_vertex[start + k], si))
+        poly.x[k] = x[0]
+        poly.y[k] = x[1]
+        poly.z[k] = x[2]
+    poly.count = count
+    # clip against the side planes through the reference face's edges
+    rstart = H.face_start[fref]
+    rcount = H.face_count[fref]
+    for k in range(rcount):
+        v0 = R.x + wp.quat_rotate(R.q, _hull_vertex(H, H.face_vertex[rstart + k], sr))
+        v1 = R.x + wp.quat_rotate(R.q, _hull_vertex(H, H.face_vertex[rstart + (k + 1) % rcount], sr))
+        side = wp.cross(v1 - v0, n)
+        if poly.count > 0:
+            poly = _clip3(poly, side, wp.dot(side, v0))
+    origin = R.x + wp.quat_rotate(R.q, _hull_vertex(H, H.face_vertex[rstart], sr))
+    U = _perpendicular(n)
+    V = wp.cross(n, U)
+    # keep points within the speculative distance, merging near-duplicates, at most eight
+    u2 = vec8()
+    v2 = vec8()
+    d2 = vec8()
+    merge = float_t(1e-4) * wp.max(wp.length(sr), wp.length(si))
+    m = int(0)
+    # the incident hull's deepest vertex first: the clipped face need not hold it (a small or
+    # tilted incident face), and without it the manifold would miss the axis' full depth
+    deepest = I.x
+    dmin = float_t(1.0e30)
+    for i in range(H.vertex_start[hi], H.vertex_start[hi] + H.vertex_count[hi]):
+        x = I.x + wp.quat_rotate(I.q, _hull_vertex(H, i, si))
+        if wp.dot(x - origin, n) < dmin:
+            dmin = wp.dot(x - origin, n)
+            deepest = x
+    for k in range(-1, poly.count):
+        x = deepest - origin
+        if k >= 0:
+            x = _poly_point(poly, k) - origin
+        d = wp.dot(x, n)
+        if d <= max_sep:
+            uk = wp.dot(x, U)
+            vk = wp.dot(x, V)
+            fresh = bool(True)
+            for e in range(m):
+                if wp.abs(u2[e] - uk) < merge and wp.abs(v2[e] - vk) < merge:
+                    fresh = False
+                    d2[e] = wp.min(d2[e], d)
+            if fresh and m < 8:
+                u2[m] = uk
+                v2[m] = vk
+                d2[m] = d
+                m += 1
+    chosen = _reduce_manifold(u2, v2, d2, m)
+    for k in range(m):
+        if chosen & (1 << k):
+            on_inc = origin + U * u2[k] + V * v2[k] + n * d2[k]
+            on_ref = on_inc - n * d2[k]
+            if ref_is_a:
+                emit(c, a, b, A, B, n, on_ref, on_inc, max_sep)
+            else:
+                emit(c, a, b, A, B, -n, on_inc, on_ref, max_sep)
+
+
+@wp.func
+def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq: vec3):
+    """Largest separation over P's face normals of Q from P, and that face: min over Q's vertices."""
+    best = float_t(-1.0e30)
+    fbest = H.hull_face_start[hp]
+    q0 = H.vertex_start[hq]
+    for f in range(H.hull_face_start[hp], H.hull_face_start[hp] + H.hull_face_count[hp]):
+        nl, dl = _hull_face(H, f, sp)
+        n = wp.quat_rotate(P.q, nl)
+        nq = wp.quat_rotate_inv(Q.q, n)
+        lowest = float_t(1.0e30)
+        for i in range(q0, q0 + H.vertex_count[hq]):
+            lowest = wp.min(lowest, wp.dot(nq, _hull_vertex(H, i, sq)))
+        s = lowest + wp.dot(n, Q.x - P.x) - dl
+        if s > best:
+            best = s
+            fbest = f
+    return best, fbest
+
+
+@wp.func
+def collide_hulls(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int,
+                  sb: vec3, max_sep: float_t):
+    """Separating axis test over both hulls' face normals and their Minkowski-face edge pairs
+    (Gregorius, "The Separating Axis Test between Convex Polyhedra", GDC 2013), then face
+    clipping (up to four points) or the closest points of two edges."""
+    sep_a, fa = _hull_face_query(H, A, ha, sa, B, hb, sb)
+    if sep_a > max_sep:
+        return
+    sep_b, fb = _hull_face_query(H, B, hb, sb, A, ha, sa)
+    if sep_b > max_sep:
+        return
+    # B's faces must beat A's clearly, so the reference face does not flip between steps
+    ref_is_a = bool(True)
+    face_sep = sep_a
+    if sep_b > float_t(0.98) * sep_a + float_t(0.0005):
+        ref_is_a = False
+        face_sep = sep_b
+    # edge pairs whose arcs cross on the Gauss map (the others cannot give a separating axis)
+    best_sep = face_sep
+    best_ea = int(-1)
+    best_eb = int(-1)
+    best_axis = vec3()
+    for ea in range(H.edge_start[ha], H.edge_start[ha] + H.edge_count[ha]):
+        ia = H.edge[ea]
+        pa0 = A.x + wp.quat_rotate(A.q, _hull_vertex(H, ia[0], sa))
+        pa1 = A.x + wp.quat_rotate(A.q, _hull_vertex(H, ia[1], sa))
+        fa_ = H.edge_face[ea]
+        na1, _d1 = _hull_face(H, fa_[0], sa)
+        na2, _d2 = _hull_face(H, fa_[1], sa)
+        n1 = wp.quat_rotate(A.q, na1)
+        n2 = wp.quat_rotate(A.q, na2)
+        bxa = wp.cross(n2, n1)
+        for eb in range(H.edge_start[hb], H.edge_start[hb] + H.edge_count[hb]):
+            ib = H.edge[eb]
+            fb_ = H.edge_face[eb]
+            nb1, _d3 = _hull_face(H, fb_[0], sb)
+            nb2, _d4 = _hull_face(H, fb_[1], sb)
+            m1 = -wp.quat_rotate(B.q, nb1)
+            m2 = -wp.quat_rotate(B.q, nb2)
+            dxc = wp.cross(m2, m1)
+            cba = wp.dot(m1, bxa)
+            dba = wp.dot(m2, bxa)
+            adc = wp.dot(n1, dxc)
+            bdc = wp.dot(n2, dxc)
+            if cba * dba < _ZERO and adc * bdc < _ZERO and cba * bdc > _ZERO:
+                pb0 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, ib[0], sb))
+                pb1 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, ib[1], sb))
+                axis = wp.cross(pa1 - pa0, pb1 - pb0)
+                length = wp.length(axis)
+                if length > float_t(1e-6) * wp.length(pa1 - pa0) * wp.length(pb1 - pb0):
+                    axis = axis / length
+                    if wp.dot(axis, pa0 - A.x) < _ZERO:
+                        axis = -axis
+                    s = wp.dot(axis, pb0 - pa0)
+                    if s > max_sep:
+                        return
+                    # prefer faces unless an edge axis separates clearly more (stable manifolds)
+                    if s > float_t(0.95) * face_sep + float_t(0.001) and s > best_sep:
+                        best_sep = s
+                        best_ea = ea
+                        best_eb = eb
+                        best_axis = axis
+    if best_ea >= 0:
+        ia = H.edge[best_ea]
+        ib = H.edge[best_eb]
+        pa0 = A.x + wp.quat_rotate(A.q, _hull_vertex(H, ia[0], sa))
+        pa1 = A.x + wp.quat_rotate(A.q, _hull_vertex(H, ia[1], sa))
+        pb0 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, ib[0], sb))
+        pb1 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, ib[1], sb))
+        la = wp.length(pa1 - pa0) * float_t(0.5)
+        lb = wp.length(pb1 - pb0) * float_t(0.5)
+        ua = (pa1 - pa0) / (float_t(2.0) * la)
+        ub = (pb1 - pb0) / (float_t(2.0) * lb)
+        ca = (pa0 + pa1) * float_t(0.5)
+        cb = (pb0 + pb1) * float_t(0.5)
+        s, t = _segment_closest(ca, ua, la, cb, ub, lb)
+        emit(c, a, b, A, B, best_axis, ca + ua * s, cb + ub * t, max_sep)
+    elif ref_is_a:
+        _hull_face_contacts(c, a, b, A, B, H, ha, sa, hb, sb, True, fa, max_sep)
+    else:
+        _hull_face_contacts(c, a, b, A, B, H, ha, sa, hb, sb, False, fb, max_sep)
+
+
 # ---------------------------------------------------------------------------- dispatch
 
 
@@ -647,6 +1112,8 @@ def _collide_pairs(
     radius: wp.array(dtype=float_t),
     half_extents: wp.array(dtype=vec3),
     bound: wp.array(dtype=float_t),
+    geometry: wp.array(dtype=wp.int32),
+    hulls: Hulls,
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
@@ -677,6 +1144,7 @@ def _collide_pairs(
         reach += wp.length(w[a]) * bound[a]
     reach += wp.length(w[b]) * bound[b]
     max_sep = dt * reach + margin
+    one = vec3(_ONE, _ONE, _ONE)
     if sa == int(ShapeType.PLANE):
         if sb == int(ShapeType.SPHERE):
             collide_plane_sphere(c, a, b, A, B, radius[b], max_sep)
@@ -684,6 +1152,8 @@ def _collide_pairs(
             collide_plane_box(c, a, b, A, B, half_extents[b], max_sep)
         elif sb == int(ShapeType.CAPSULE):
             collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CONVEX):
+            collide_plane_hull(c, a, b, A, B, hulls, geometry[b], one, max_sep)
     elif sa == int(ShapeType.SPHERE):
         if sb == int(ShapeType.SPHERE):
             collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], max_sep)
@@ -691,17 +1161,36 @@ def _collide_pairs(
             collide_sphere_box(c, a, b, A, B, radius[a], half_extents[b], max_sep)
         elif sb == int(ShapeType.CAPSULE):
             collide_sphere_capsule(c, a, b, A, B, radius[a], radius[b], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CONVEX):
+            collide_sphere_hull(c, a, b, A, B, radius[a], hulls, geometry[b], max_sep)
     elif sa == int(ShapeType.BOX):
         if sb == int(ShapeType.BOX):
             collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
         elif sb == int(ShapeType.CAPSULE):
             collide_box_capsule(c, a, b, A, B, half_extents[a], radius[b], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CONVEX):
+            # the box as the unit-cube hull (prototype 0) scaled by its half extents
+            collide_hulls(c, a, b, A, B, hulls, 0, half_extents[a], geometry[b], one, max_sep)
     elif sa == int(ShapeType.CAPSULE):
-        collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
+        if sb == int(ShapeType.CAPSULE):
+            collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
+        elif sb == int(ShapeType.CONVEX):
+            collide_capsule_hull(c, a, b, A, B, radius[a], half_extents[a], hulls, geometry[b], max_sep)
+    elif sa == int(ShapeType.CONVEX):
+        collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
 
 
-def collide(bodies, pairs, contacts, dt: float) -> None:
-    """Run the pair table over the broad phase's pairs, filling `contacts` (grown as needed)."""
+_default_hulls: dict[str, HullSet] = {}
+
+
+def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None) -> None:
+    """Run the pair table over the broad phase's pairs, filling `contacts` (grown as needed).
+
+    `hulls` holds the convex prototypes the bodies' `body_geometry` rows name (default: the box only).
+    """
+    if hulls is None:
+        hulls = _default_hulls.setdefault(bodies.device, HullSet(bodies.device))
+    hull_struct = hulls.struct()
     contacts.begin_step()
     if pairs.pair_count == 0:
         contacts.count = 0
@@ -714,7 +1203,7 @@ def collide(bodies, pairs, contacts, dt: float) -> None:
             dim=pairs.pair_count,
             device=bodies.device,
             inputs=[pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
-                    b["body_bound_radius"], b["body_position"], b["body_orientation"], b["body_velocity"],
+                    b["body_bound_radius"], b["body_geometry"], hull_struct, b["body_position"], b["body_orientation"], b["body_velocity"],
                     b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, writer],
         )
         count = int(writer.count.numpy()[0])
