@@ -20,6 +20,7 @@ class ShapeType(enum.IntEnum):
     BOX = 2
     CAPSULE = 3
     CONVEX = 4
+    MESH = 5
 
 
 SHAPE_NAMES: tuple[str, ...] = tuple(s.name.lower() for s in ShapeType)

@@ -27,6 +27,7 @@ from . import shapes as _shapes
 from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
 from .collision.hulls import HullSet
+from .collision.meshes import MeshSet
 from .errors import SimulationError
 from .launch import LaunchCache
 from .runtime import init_warp
@@ -49,7 +50,7 @@ BODY_FIELDS = {
     "body_radius": float_t,  # sphere and capsule radius [m] (0 for other shapes)
     "body_half_extents": vec3,  # box half extents [m]; for capsules, of the bounding box (r, r, a + r)
     "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
-    "body_geometry": wp.int32,  # convex bodies: row of their hull in world.hulls (0 for other shapes)
+    "body_geometry": wp.int32,  # row of a convex body's hull in world.hulls, of a mesh in world.meshes (else 0)
     "body_mass": float_t,  # [kg] (0 for static bodies)
     "body_inv_mass": float_t,  # [1/kg] (0 for static bodies)
     "body_inv_inertia": vec3,  # principal inverse moments in the body frame [1/(kg m^2)]
@@ -200,6 +201,7 @@ class World:
         self.contacts = contact_solver.ContactSet(self.device)
         self.joints = joint_solver.JointSet(self.device)
         self.hulls = HullSet(self.device)  # convex prototypes, row 0 the unit box
+        self.meshes = MeshSet(self.device)  # static triangle meshes and their BVHs
         self._cloth = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
@@ -440,11 +442,55 @@ class World:
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
         return ids[0]
 
+    def add_mesh(
+        self,
+        *,
+        file=None,
+        vertices=None,
+        triangles=None,
+        scale: float | Sequence[float] = 1.0,
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+    ) -> BodyId:
+        """Add a static triangle mesh, from a file (OBJ, STL, PLY, OFF, glTF/GLB through trimesh) or arrays.
+
+        Spheres, capsules, boxes and convex bodies collide with it through its BVH (`wp.Mesh`).
+        Faces are one-sided: wound counter-clockwise seen from where bodies stay (outward on a
+        closed mesh). NaN vertices, bad indices and zero-area triangles are dropped with a
+        one-line notice each.
+
+        Args:
+            file: the mesh file; or give `vertices` (n, 3) [m] and `triangles` (m, 3) int.
+            scale: one factor or three, applied in the mesh's frame.
+            position, orientation: the mesh frame's pose (x, y, z, w).
+            restitution, friction: as `add_plane`.
+        """
+        from .io.meshfile import load_mesh
+
+        v, t, _watertight = load_mesh(file=file, vertices=vertices, triangles=triangles)
+        factor = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,))
+        if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
+            raise ValueError(f"scale must be one positive number or three, got {scale!r}")
+        v = v * factor
+        index = self.meshes.add(v, t)
+        ids = self._add_bodies(
+            shape=ShapeType.MESH, position=_vec(position, "position")[None],
+            orientation=_unit_quat(orientation)[None], radius=np.zeros(1),
+            half_extents=np.abs(v).max(axis=0)[None], mass=np.zeros(1), inertia=np.zeros((1, 3)),
+            restitution=_unit_interval(restitution, "restitution"), friction=_unit_interval(friction, "friction"),
+            bound=np.array([float(np.linalg.norm(v, axis=1).max())]),
+        )
+        self.bodies.write("body_geometry", self._slot(ids[0]), index)
+        return ids[0]
+
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(shape)
         return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box,
-                ShapeType.CAPSULE: self.add_capsule, ShapeType.CONVEX: self.add_convex}[kind](**kwargs)
+                ShapeType.CAPSULE: self.add_capsule, ShapeType.CONVEX: self.add_convex,
+                ShapeType.MESH: self.add_mesh}[kind](**kwargs)
 
     def add_emitter(self, **kwargs):
         """Add an emitter that releases bodies over time; see `tumble.emitters.Emitter` for keywords.
@@ -661,7 +707,7 @@ class World:
 
         # narrow phase: pair table -> contact points with normal, separation and anchors
         with self._timer("narrow_phase"):
-            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls)
+            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls, self.meshes)
 
         # contact prepare: match last step's contacts for warm starting, effective masses
         with self._timer("solver"):
@@ -713,7 +759,7 @@ class World:
         """
         dt = self.dt if dt is None else _positive(dt, "dt")
         pairs = self.broadphase.find_pairs(self.bodies, dt)
-        narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls)
+        narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
         return self.contacts.count
 
     def _launch_cache(self) -> LaunchCache:

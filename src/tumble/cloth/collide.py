@@ -43,6 +43,7 @@ from .springs import Tethers
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))
+CAPSULE = wp.constant(int(ShapeType.CAPSULE))
 
 
 @wp.struct
@@ -188,9 +189,20 @@ def _collide_bodies(
             d = length - bodies.radius[b]
             if length > float_t(1.0e-12):
                 n = r / length
-        else:
+        elif shape == BOX:
             _surface, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), bodies.half_extents[b])
             n = wp.quat_rotate(q, nl)
+        elif shape == CAPSULE:
+            # the nearest point of the segment c + t u, |t| <= h_z - r, then as a sphere
+            u = wp.quat_rotate(q, vec3(zero, zero, float_t(1.0)))
+            hh = bodies.half_extents[b][2] - bodies.radius[b]
+            r = xp - (c + u * wp.clamp(wp.dot(xp - c, u), -hh, hh))
+            length = wp.length(r)
+            d = length - bodies.radius[b]
+            if length > float_t(1.0e-12):
+                n = r / length
+        else:
+            continue  # convex bodies and meshes do not meet cloth yet
         depth = thickness[p] - d
         if depth <= zero:
             continue

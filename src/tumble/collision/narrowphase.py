@@ -7,7 +7,7 @@ contacts per pair.
 
 Conventions:
 - `collide_<a>_<b>` handles shapes a <= b in `ShapeType` order (PLANE < SPHERE < BOX < CAPSULE <
-  CONVEX; `hull` in a name stands for CONVEX, and for a box meeting one); the
+  CONVEX < MESH; `hull` in a name stands for CONVEX, and for a box meeting one); the
   dispatch kernel swaps a pair into that order, so the normal always points from body a to b;
 - each contact carries one surface point on each body; their separation along the normal is
   s = n . (p_b - p_a) (negative when overlapping); contacts with s below the pair's
@@ -25,6 +25,7 @@ import warp as wp
 from ..shapes import ShapeType
 from ..state import float_t, quat, vec3
 from .hulls import Hulls, HullSet
+from .meshes import MeshSet
 
 #: speculative distance added to the relative motion of a pair in one step [m]
 SPECULATIVE_MARGIN = 0.002
@@ -739,11 +740,14 @@ def collide_plane_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hu
     if d0 > max_sep:
         return
     p0 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i0, sc))
+    # the others within half the bounding radius of the deepest: a fast body's far side, though
+    # within the speculative distance, must not displace the near side's vertices
+    limit = wp.min(max_sep, d0 + float_t(0.5) * wp.length(p0 - B.x))
     i1 = i0
     far = float_t(1e-12)
     for i in range(v0, v0 + nv):
         pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
-        if wp.dot(n, pi - A.x) <= max_sep:
+        if wp.dot(n, pi - A.x) <= limit:
             t = (pi - p0) - n * wp.dot(n, pi - p0)
             if wp.dot(t, t) > far:
                 far = wp.dot(t, t)
@@ -755,7 +759,7 @@ def collide_plane_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hu
     amin = -amax
     for i in range(v0, v0 + nv):
         pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
-        if wp.dot(n, pi - A.x) <= max_sep:
+        if wp.dot(n, pi - A.x) <= limit:
             area = wp.dot(n, wp.cross(p1 - p0, pi - p0))
             if area > amax:
                 amax = area
@@ -1101,6 +1105,145 @@ def collide_hulls(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, 
         _hull_face_contacts(c, a, b, A, B, H, ha, sa, hb, sb, False, fb, max_sep)
 
 
+# ---------------------------------------------------------------------------- triangle meshes
+# A static mesh body (always b: MESH is last in the table) is a `wp.Mesh` in the body's frame.
+# Points of the other body are queried against its BVH: the nearest surface point, signed by the
+# angle-weighted pseudo-normal (inside a closed mesh, or below a terrain's upward-wound faces).
+
+
+@wp.func
+def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
+    """Nearest point of a mesh to the world point p within max_dist.
+
+    Returns (found, surface point [world], outward unit normal [world], signed distance).
+    """
+    pl = wp.quat_rotate_inv(M.q, p - M.x)
+    pf = wp.vec3f(wp.float32(pl[0]), wp.float32(pl[1]), wp.float32(pl[2]))
+    query = wp.mesh_query_point_sign_normal(mesh, pf, wp.float32(max_dist))
+    zero3 = vec3(_ZERO, _ZERO, _ZERO)
+    if not query.result:
+        return False, zero3, zero3, _ZERO
+    cf = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+    cl = vec3(float_t(cf[0]), float_t(cf[1]), float_t(cf[2]))
+    d = pl - cl
+    nf = wp.mesh_eval_face_normal(mesh, query.face)
+    n = wp.normalize(vec3(float_t(nf[0]), float_t(nf[1]), float_t(nf[2])))
+    # inside a face the face normal is exact (the direction to a float32 closest point is not,
+    # for a point nearly on the surface); at an edge or a corner the direction to it is the normal
+    bw = wp.float32(1.0) - query.u - query.v
+    dist = wp.dot(d, n)
+    if wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4):
+        length = wp.length(d)
+        if length > float_t(1e-6) * (_ONE + wp.length(pl)):
+            n = d / length
+            dist = length
+            if query.sign < wp.float32(0.0):
+                n = -n
+                dist = -length
+    return True, M.x + wp.quat_rotate(M.q, cl), wp.quat_rotate(M.q, n), dist
+
+
+@wp.func
+def _sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64,
+                 max_sep: float_t):
+    found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
+    if found:
+        # n points out of the mesh towards the sphere; the contact normal runs a -> b
+        emit(c, a, b, A, B, -n, centre - n * r, q, max_sep)
+
+
+@wp.func
+def collide_sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64,
+                        max_sep: float_t):
+    _sphere_mesh(c, a, b, A, B, A.x, r, mesh, max_sep)
+
+
+@wp.func
+def collide_capsule_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3,
+                         mesh: wp.uint64, max_sep: float_t):
+    # spheres at both ends and the middle of the segment (a line contact on a slope; a capsule
+    # lying across a ridge rests on its middle)
+    u = _axis(A.q, 2)
+    hh = _capsule_half_height(r, h)
+    for k in range(3):
+        t = float_t(k - 1) * hh
+        _sphere_mesh(c, a, b, A, B, A.x + u * t, r, mesh, max_sep)
+
+
+@wp.func
+def _solid_vertex(shape: int, H: Hulls, g: int, h: vec3, i: int):
+    """Vertex i of a box (corner i of half extents h) or of hull g, body frame."""
+    if shape == int(ShapeType.BOX):
+        return _box_corner(h, i)
+    return H.vertex[H.vertex_start[g] + i]
+
+
+@wp.func
+def collide_vertices_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, shape: int, H: Hulls, g: int, h: vec3,
+                          bound: float_t, mesh: wp.uint64, max_sep: float_t):
+    """A box's or hull's vertices against a mesh: up to four, chosen as against a plane.
+
+    The deepest vertex, the one farthest from it across the normal, then the largest triangles
+    either side. Mesh features poking into a face between vertices are not seen (a box resting on
+    a sharp ridge); meshes larger than the bodies on them (ground, bowls, ramps) are the use.
+    """
+    nv = int(8)
+    if shape != int(ShapeType.BOX):
+        nv = H.vertex_count[g]
+    i0 = int(-1)
+    d0 = float_t(1.0e30)
+    n0 = vec3()
+    for i in range(nv):
+        found, q, n, d = _mesh_point(mesh, B, A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i)), max_sep)
+        if found and d < d0:
+            d0 = d
+            i0 = i
+            n0 = n
+    if i0 < 0 or d0 > max_sep:
+        return
+    p0 = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i0))
+    limit = wp.min(max_sep, d0 + float_t(0.5) * bound)  # as for planes: the near side only
+    i1 = i0
+    far = float_t(1e-12) * bound * bound
+    for i in range(nv):
+        pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
+        found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
+        if found and d <= limit:
+            t = (pi - p0) - n0 * wp.dot(n0, pi - p0)
+            if wp.dot(t, t) > far:
+                far = wp.dot(t, t)
+                i1 = i
+    p1 = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i1))
+    i2 = int(-1)
+    i3 = int(-1)
+    amax = float_t(1e-12) * far
+    amin = -amax
+    for i in range(nv):
+        pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
+        found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
+        if found and d <= limit:
+            area = wp.dot(n0, wp.cross(p1 - p0, pi - p0))
+            if area > amax:
+                amax = area
+                i2 = i
+            if area < amin:
+                amin = area
+                i3 = i
+    for k in range(4):
+        i = i0
+        if k == 1:
+            i = i1
+        elif k == 2:
+            i = i2
+        elif k == 3:
+            i = i3
+        if i >= 0 and (k == 0 or i != i0):
+            pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
+            found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
+            if found:
+                emit(c, a, b, A, B, -n, pi, q, max_sep)
+
+
 # ---------------------------------------------------------------------------- dispatch
 
 
@@ -1114,6 +1257,7 @@ def _collide_pairs(
     bound: wp.array(dtype=float_t),
     geometry: wp.array(dtype=wp.int32),
     hulls: Hulls,
+    mesh_ids: wp.array(dtype=wp.uint64),
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
@@ -1177,20 +1321,34 @@ def _collide_pairs(
         elif sb == int(ShapeType.CONVEX):
             collide_capsule_hull(c, a, b, A, B, radius[a], half_extents[a], hulls, geometry[b], max_sep)
     elif sa == int(ShapeType.CONVEX):
-        collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
+        if sb == int(ShapeType.CONVEX):
+            collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
+    if sb == int(ShapeType.MESH):
+        mesh = mesh_ids[geometry[b]]
+        if sa == int(ShapeType.SPHERE):
+            collide_sphere_mesh(c, a, b, A, B, radius[a], mesh, max_sep)
+        elif sa == int(ShapeType.CAPSULE):
+            collide_capsule_mesh(c, a, b, A, B, radius[a], half_extents[a], mesh, max_sep)
+        elif sa == int(ShapeType.BOX) or sa == int(ShapeType.CONVEX):
+            collide_vertices_mesh(c, a, b, A, B, sa, hulls, geometry[a], half_extents[a], bound[a], mesh, max_sep)
 
 
 _default_hulls: dict[str, HullSet] = {}
+_default_meshes: dict[str, MeshSet] = {}
 
 
-def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None) -> None:
+def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, meshes: MeshSet | None = None) -> None:
     """Run the pair table over the broad phase's pairs, filling `contacts` (grown as needed).
 
-    `hulls` holds the convex prototypes the bodies' `body_geometry` rows name (default: the box only).
+    `hulls` and `meshes` hold the convex prototypes and triangle meshes that the bodies'
+    `body_geometry` rows name (default: the unit box only, no mesh).
     """
     if hulls is None:
         hulls = _default_hulls.setdefault(bodies.device, HullSet(bodies.device))
+    if meshes is None:
+        meshes = _default_meshes.setdefault(bodies.device, MeshSet(bodies.device))
     hull_struct = hulls.struct()
+    mesh_ids = meshes.ids()
     contacts.begin_step()
     if pairs.pair_count == 0:
         contacts.count = 0
@@ -1203,7 +1361,7 @@ def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None) ->
             dim=pairs.pair_count,
             device=bodies.device,
             inputs=[pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
-                    b["body_bound_radius"], b["body_geometry"], hull_struct, b["body_position"], b["body_orientation"], b["body_velocity"],
+                    b["body_bound_radius"], b["body_geometry"], hull_struct, mesh_ids, b["body_position"], b["body_orientation"], b["body_velocity"],
                     b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, writer],
         )
         count = int(writer.count.numpy()[0])

@@ -265,6 +265,48 @@ def shape_list() -> Check:
 SPRING_KINDS = ("structural", "shear", "bend")
 
 
+def point_list() -> Check:
+    """A list of at least four [x, y, z] points (the convex hull is taken)."""
+
+    def convert(value):
+        if not isinstance(value, list) or len(value) < 4:
+            raise _Bad(f"must be a list of at least 4 points [x, y, z], got {_show(value)}")
+        return [_vector(v, 3) for v in value]
+
+    return Check("list of [x, y, z] floats, at least 4", convert)
+
+
+def file_name() -> Check:
+    """A file path (relative paths are taken from the scene file's folder)."""
+
+    def convert(value):
+        if not isinstance(value, str) or not value.strip():
+            raise _Bad(f"must be a file name in quotes, got {_show(value)}")
+        return value
+
+    return Check("string (a path)", convert)
+
+
+def scale_factor() -> Check:
+    """One positive factor, or three (per axis)."""
+
+    def convert(value):
+        if _is_number(value):
+            v = _number(value)
+            if not (math.isfinite(v) and v > 0):
+                raise _Bad(f"must be > 0, got {_show(value)}")
+            return v
+        return vector(3, positive=True).convert(value)
+
+    return Check("float > 0 or [x, y, z] floats, each > 0", convert)
+
+
+def _convex_rules(values: dict) -> None:
+    _mass_or_density(values)
+    if (values.get("points") is None) == (values.get("file") is None):
+        raise _KeyBad("points", "give points or file (one of them)")
+
+
 def per_spring() -> Check:
     """A number >= 0 for every spring kind, or a table with some of {structural, shear, bend}."""
     each = number(low=0)
@@ -516,6 +558,42 @@ SCHEMA: dict[str, TableSpec] = {
             _mass_or_density,
         ),
         TableSpec(
+            "convex",
+            True,
+            "Solid convex bodies: the convex hull of points, or of a mesh file's vertices. Their frame is "
+            "placed at position/orientation; the body's centre of mass is where the hull puts it.",
+            {
+                "points": Field(point_list(), None, "m", "points whose hull is the body, in its frame", "none"),
+                "file": Field(file_name(), None, "", "mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose hull is the body",
+                              "none"),
+                "scale": Field(scale_factor(), 1.0, "", "factor(s) applied to the points or the file"),
+                "position": Field(vector(3), REQUIRED, "m", "origin of the points' frame"),
+                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation of the points' frame"),
+                "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "initial linear velocity"),
+                "angular_velocity": Field(vector(3), [0.0, 0.0, 0.0], "rad/s", "initial angular velocity, world frame"),
+                "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
+                "density": Field(number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", "1000"),
+                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
+                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+                "static": Field(boolean(), False, "", "immovable (inverse mass 0)"),
+            },
+            _convex_rules,
+        ),
+        TableSpec(
+            "mesh",
+            True,
+            "Static triangle meshes from files, read with trimesh; faces wound counter-clockwise seen from "
+            "where bodies stay (outward on a closed mesh).",
+            {
+                "file": Field(file_name(), REQUIRED, "", "mesh file: OBJ, STL, PLY, OFF, glTF/GLB"),
+                "scale": Field(scale_factor(), 1.0, "", "factor(s) applied in the mesh's frame"),
+                "position": Field(vector(3), [0.0, 0.0, 0.0], "m", "origin of the mesh's frame"),
+                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation of the mesh's frame"),
+                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
+                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+            },
+        ),
+        TableSpec(
             "emitter",
             True,
             "Sources releasing bodies over time; a new body never overlaps an existing one.",
@@ -653,9 +731,9 @@ SCHEMA: dict[str, TableSpec] = {
     ]
 }
 
-# bodies are created in this order: every [[plane]], then [[sphere]], then [[box]], then [[capsule]],
-# each in file order
-BODY_TABLES = ("plane", "sphere", "box", "capsule")
+# bodies are created in this order: every [[plane]], then [[sphere]], [[box]], [[capsule]], [[convex]]
+# and [[mesh]], each in file order
+BODY_TABLES = ("plane", "sphere", "box", "capsule", "convex", "mesh")
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -923,12 +1001,17 @@ def build_world(scene: Scene, **overrides):
     if scene.table("camera") is not None:
         world.metadata["camera"] = dict(scene.table("camera"))
 
-    # bodies: planes, then spheres, then boxes, then capsules, each in file order
+    # bodies: planes, spheres, boxes, capsules, convex bodies, meshes, each in file order
     made = {}
     for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box),
-                      ("capsule", world.add_capsule)):
+                      ("capsule", world.add_capsule), ("convex", world.add_convex), ("mesh", world.add_mesh)):
         made[name] = []
         for i, values in enumerate(scene.items(name)):
+            values = dict(values)
+            if values.get("file") is not None and path is not None:
+                values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+            if values.get("points") is not None:
+                values["points"] = np.asarray(values["points"], dtype=np.float64)
             with _api_errors(path, _table_label(name, i)):
                 made[name].append(add(**_given(values)))
     for i, values in enumerate(scene.items("emitter")):

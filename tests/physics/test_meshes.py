@@ -1,0 +1,127 @@
+"""Static triangle meshes against analytic references: a bowl, a ramp like a plane, no tunnelling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tumble
+
+G = 9.81
+
+
+def quat_axis_angle(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
+
+
+def grid_mesh(height, n=41, half=1.0):
+    """A height field z = height(x, y) on an n x n grid over [-half, half]^2, wound upwards."""
+    xs = np.linspace(-half, half, n)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), height(X, Y).ravel()], axis=1)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    return v, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def slab_mesh(hx, hy, hz):
+    """A closed box mesh (12 triangles, outward) of half sizes hx, hy, hz."""
+    v = np.array([[x, y, z] for z in (-hz, hz) for y in (-hy, hy) for x in (-hx, hx)])
+    quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3]]
+    return v, np.array([t for q in quads for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]])])
+
+
+def test_sphere_settles_at_the_lowest_point_of_a_bowl():
+    """A sphere dropped into a paraboloid bowl comes to rest on its lowest face, the flat middle cell.
+
+    On a 40 x 40 grid over [-1, 1]^2 the middle cell's corners are all at x, y = +-1/39, so it is
+    flat at z = (1/39)^2 and the lowest part of the mesh; the sphere's centre rests r above it.
+    """
+    v, t = grid_mesh(lambda x, y: 0.5 * (x * x + y * y), n=40)
+    w = tumble.World()
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0)
+    r = 0.05
+    w.add_sphere(position=(0.01, -0.005, 0.3), radius=r, restitution=0.0)
+    w.run(2.0)
+    x = w.body_position[1]
+    assert abs(x[0]) < 1 / 39 and abs(x[1]) < 1 / 39
+    assert x[2] == pytest.approx((1 / 39) ** 2 + r, abs=1e-4)
+    assert np.linalg.norm(w.body_velocity[1]) < 1e-3
+
+
+def test_sphere_released_on_a_bowl_side_oscillates_about_the_lowest_point():
+    """A sphere released on the bowl's side rolls to and fro about the bottom, gaining no energy.
+
+    Rolling in a bowl of curvature radius R = 1 / (2 k) its centre swings with
+    omega^2 = g / ((R - r)(1 + 2/5)) for small amplitudes: period 2.31 s for R = 1 m, r = 5 cm.
+    """
+    v, t = grid_mesh(lambda x, y: 0.5 * (x * x + y * y))
+    w = tumble.World()
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=0.8)
+    r, x0 = 0.05, 0.2
+    z0 = 0.5 * x0 * x0 + r  # near the surface (the centre rides r above it)
+    w.add_sphere(position=(x0, 0.0, z0 + 0.002), radius=r, restitution=0.0, friction=0.8)
+    e0 = w.kinetic_energy() + w.potential_energy()
+    xs = []
+    w.run(4.62, callback=lambda world: xs.append(world.body_position[1, 0]))
+    xs = np.array(xs)
+    # two periods: the swing is centred on the lowest point and returns near its start
+    assert abs(xs.mean()) < 0.02
+    assert xs.min() < -0.15
+    assert w.kinetic_energy() + w.potential_energy() <= e0 + 1e-9
+    period = 2 * np.pi * np.sqrt((1.0 - r) * 1.4 / G)
+    crossings = np.flatnonzero(np.diff(np.sign(xs)) != 0) * w.dt
+    assert np.diff(crossings[:3]).sum() == pytest.approx(period, rel=0.05)
+
+
+@pytest.mark.parametrize("theta_deg, mu", [(30.0, 0.3), (40.0, 0.5)])
+def test_box_slides_down_a_mesh_ramp_as_down_a_plane(theta_deg, mu):
+    """A box on a two-triangle mesh ramp slides with the acceleration it has on an equal plane, within 1 %."""
+    theta = np.radians(theta_deg)
+    n = np.array([0.0, -np.sin(theta), np.cos(theta)])
+    down = np.array([0.0, -np.cos(theta), -np.sin(theta)])
+    q = quat_axis_angle((1, 0, 0), theta)
+    result = {}
+    for kind in ("plane", "mesh"):
+        w = tumble.World()
+        if kind == "plane":
+            w.add_plane(normal=n, friction=mu, restitution=0.0)
+        else:
+            v = np.array([[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], float)
+            w.add_mesh(vertices=v, triangles=[[0, 1, 2], [0, 2, 3]], orientation=q, friction=mu, restitution=0.0)
+        w.add_box(position=n * 0.1 + 1.5 * np.cross(n, [1, 0, 0]) * 0, half_extents=(0.1,) * 3, orientation=q,
+                  mass=1.0, friction=mu, restitution=0.0)
+        w.run(0.25)
+        v1 = np.dot(w.body_velocity[1], down)
+        w.run(1.0)
+        result[kind] = (np.dot(w.body_velocity[1], down) - v1) / 1.0
+    a = G * (np.sin(theta) - mu * np.cos(theta))
+    assert result["mesh"] == pytest.approx(result["plane"], rel=0.01)
+    assert result["mesh"] == pytest.approx(a, rel=0.01)
+
+
+@pytest.mark.parametrize("shape", [
+    "sphere",
+    pytest.param("box", marks=pytest.mark.xfail(strict=True, reason=(
+        "known bug: the box is caught on top at 50 m/s, but once resting there a corner's mesh query "
+        "returns a sideways normal after ~0.2 s and the box then sinks through the slab"))),
+    "capsule",
+])
+def test_no_tunnelling_through_a_thin_mesh_at_50_m_s(shape):
+    """A body hitting a 5 mm thick mesh slab at 50 m/s stops on top of it (speculative contacts)."""
+    v, t = slab_mesh(0.5, 0.5, 0.0025)
+    w = tumble.World(gravity=(0, 0, -9.81))
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0)
+    kwargs = dict(position=(0, 0, 0.5), velocity=(0, 0, -50.0), restitution=0.0)
+    if shape == "sphere":
+        w.add_sphere(radius=0.02, **kwargs)
+        rest = 0.02
+    elif shape == "box":
+        w.add_box(half_extents=(0.02,) * 3, **kwargs)
+        rest = 0.02
+    else:
+        w.add_capsule(radius=0.02, half_height=0.05, orientation=quat_axis_angle((1, 0, 0), np.pi / 2), **kwargs)
+        rest = 0.02
+    w.run(0.5)
+    assert w.body_position[1, 2] == pytest.approx(0.0025 + rest, abs=1e-3)
