@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+import tumble
 from tumble.cli import main
 from tumble.io.scene import SAMPLES_DIR
 
@@ -62,7 +63,7 @@ def test_record_writes_the_documented_arrays(write_scene, tmp_path, capsys):
     n = 2 + 4  # plane, sphere, 4 emitted spheres
     expected = {
         "time": (f,), "position": (f, n, 3), "velocity": (f, n, 3), "orientation": (f, n, 4),
-        "angular_velocity": (f, n, 3), "shape": (n,), "shape_names": (3,), "radius": (n,),
+        "angular_velocity": (f, n, 3), "shape": (n,), "shape_names": (len(tumble.ShapeType),), "radius": (n,),
         "half_extents": (n, 3), "mass": (n,), "gravity": (3,), "dt": (), "contact_count": (f,),
         "kinetic_energy": (f,),
     }

@@ -10,18 +10,9 @@ from hypothesis import strategies as st
 import tumble
 from tumble import shapes
 
+from .test_narrowphase import quat_axis_angle, rotate
+
 MARGIN = 0.002
-
-
-def quat_axis_angle(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
-
-
-def rotate(q, v):
-    x, y, z, w = q
-    u = np.array([x, y, z])
-    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
 
 
 LYING = quat_axis_angle((1, 0, 0), np.pi / 2)  # capsule axis along world y

@@ -13,19 +13,9 @@ import tumble
 from tumble import shapes
 from tumble.collision.hulls import hull_from_points
 
+from .test_narrowphase import quat_axis_angle, rotate
+
 CUBE = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
-
-
-def quat_axis_angle(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
-
-
-def rotate(q, v):
-    x, y, z, w = q
-    u = np.array([x, y, z])
-    v = np.asarray(v, float)
-    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
 
 
 def fibonacci_sphere(n):

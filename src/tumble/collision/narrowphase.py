@@ -563,9 +563,9 @@ def collide_box_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: 
                     hi = wp.min(hi, wp.max(t1, t2))
                 elif wp.abs(p0[j]) > ha[j]:
                     hi = lo - _ONE
-        # (only when the deepest point is over the face: f is linear there, so an end is deepest)
+        # (when the deepest point is beyond the face, over an edge, it is added as a third contact)
         tol = float_t(1e-6) * (_ONE + hh)
-        if hi - lo > float_t(1e-9) * (_ONE + hh) and t >= lo - tol and t <= hi + tol:
+        if hi - lo > float_t(1e-9) * (_ONE + hh):
             f = vec3(_ZERO, _ZERO, _ZERO)
             f[k] = side
             n = wp.quat_rotate(A.q, f)
@@ -578,7 +578,8 @@ def collide_box_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: 
                 on_box[k] = side * ha[k]
                 pw = A.x + wp.quat_rotate(A.q, p)
                 emit(c, a, b, A, B, n, A.x + wp.quat_rotate(A.q, on_box), pw - n * rb, max_sep)
-            return
+            if t >= lo - tol and t <= hi + tol:
+                return
     n = wp.quat_rotate(A.q, out)
     emit(c, a, b, A, B, n, A.x + wp.quat_rotate(A.q, q), A.x + wp.quat_rotate(A.q, p0 + u * t) - n * rb, max_sep)
 
@@ -636,14 +637,18 @@ def collide_capsule_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, 
         lo = wp.max(-la, c0 - wp.abs(e) * lb)
         hi = wp.min(la, c0 + wp.abs(e) * lb)
         if hi - lo > float_t(1e-9) * (_ONE + la):
+            nearest = float_t(1.0e30)
             for k in range(2):
                 sk = lo
                 if k == 1:
                     sk = hi
                 pa = A.x + ua * sk
                 tk = wp.clamp(wp.dot(pa - B.x, ub), -lb, lb)
+                nearest = wp.min(nearest, wp.length(B.x + ub * tk - pa))
                 _sphere_pair(c, a, b, A, B, pa, ra, B.x + ub * tk, rb, n, max_sep)
-            return
+            # crossing segments are nearest between the ends: that point is a third contact
+            if dist >= nearest - float_t(1e-9) * (_ONE + la):
+                return
     _sphere_pair(c, a, b, A, B, A.x + ua * s, ra, B.x + ub * t, rb, n, max_sep)
 
 
@@ -852,7 +857,7 @@ def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra:
             elif c0 > _ZERO:
                 hi = lo - _ONE
         tol = float_t(1e-6) * (_ONE + hh)
-        if hi - lo > float_t(1e-9) * (_ONE + hh) and t >= lo - tol and t <= hi + tol:
+        if hi - lo > float_t(1e-9) * (_ONE + hh):
             n = -wp.quat_rotate(B.q, nf)  # capsule (a) -> hull (b)
             for e in range(2):
                 te = lo
@@ -862,7 +867,8 @@ def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra:
                 dist = wp.dot(nf, pe) - df
                 emit(c, a, b, A, B, n, B.x + wp.quat_rotate(B.q, pe - nf * ra),
                      B.x + wp.quat_rotate(B.q, pe - nf * dist), max_sep)
-            return
+            if t >= lo - tol and t <= hi + tol:
+                return  # else the deepest point, over an edge, is a third contact
     n = -wp.quat_rotate(B.q, out)
     emit(c, a, b, A, B, n, B.x + wp.quat_rotate(B.q, p0 + u * t) + n * ra, B.x + wp.quat_rotate(B.q, q), max_sep)
 

@@ -10,7 +10,7 @@ The file format (documented in docs/scenes.md, "Recordings"), with F frames and 
 final body count, in creation order; rows of bodies that did not exist yet at a frame are NaN):
 
     time (F,), position (F, N, 3), velocity (F, N, 3), orientation (F, N, 4) as (x, y, z, w),
-    angular_velocity (F, N, 3), shape (N,) int32 indexing shape_names, shape_names (3,),
+    angular_velocity (F, N, 3), shape (N,) int32 indexing shape_names, shape_names (6,) (ShapeType order),
     radius (N,), half_extents (N, 3), mass (N,), gravity (3,), dt (), fps (),
     contact_count (F,) int32, kinetic_energy (F,), momentum (F, 3) [kg m/s] (bodies and cloth)
     with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3),
