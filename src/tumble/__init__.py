@@ -18,6 +18,7 @@ from .errors import SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
 from .state import BodyId
 from .world import World
+from .wedge import wedge  # noqa: E402  (the function; the module stays importable as tumble.wedge)
 
 __all__ = [
     "BodyId",
@@ -27,6 +28,7 @@ __all__ = [
     "TumbleError",
     "World",
     "load_scene",
+    "wedge",
 ]
 __version__ = "0.1.0"
 
