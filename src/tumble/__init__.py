@@ -14,11 +14,12 @@ import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
 
+# `tumble.wedge` is the function below; the names of its module import as usual (from tumble.wedge import ...)
 from .errors import SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
 from .state import BodyId
+from .wedge import wedge
 from .world import World
-from .wedge import wedge  # noqa: E402  (the function; the module stays importable as tumble.wedge)
 
 __all__ = [
     "BodyId",

@@ -33,6 +33,7 @@ Every file is written to a temporary name beside its target and renamed into pla
 from __future__ import annotations
 
 import contextlib
+import copy
 import csv
 import difflib
 import hashlib
@@ -436,7 +437,7 @@ def plan_wedge(scene, vary: Mapping[str, object] | Sequence[tuple[str, object]],
     # each value alone first, so that a bad one is named by itself
     for key, vals in zip(keys, values):
         for v in vals:
-            trial = json.loads(json.dumps(doc))
+            trial = copy.deepcopy(doc)
             apply_value(trial, key, v)
             try:
                 parse_scene(scene_text(trial), path=source)
@@ -446,7 +447,7 @@ def plan_wedge(scene, vary: Mapping[str, object] | Sequence[tuple[str, object]],
     names = set()
     for combo in itertools.product(*values):
         chosen = dict(zip(plan.labels, combo))
-        trial = json.loads(json.dumps(doc))
+        trial = copy.deepcopy(doc)
         for key, v in zip(keys, combo):
             apply_value(trial, key, v)
         header = f"variant of {source} with " + ", ".join(f"{k} = {format_value(v)}" for k, v in chosen.items())
@@ -759,10 +760,11 @@ def warp_cache_dir() -> str:
 
 
 @contextlib.contextmanager
-def cluster(address: str | None = None, *, workers: int | None = None, timeout: float = CONNECT_TIMEOUT):
-    """A Dask client: on an existing scheduler (`address`, or a scheduler file .json), or on a
-    new local cluster of `workers` single-threaded processes (default: one per core) that share
-    this process's Warp kernel cache.
+def cluster(address=None, *, workers: int | None = None, timeout: float = CONNECT_TIMEOUT):
+    """A Dask client: on an existing scheduler (`address`, or a scheduler file .json), the
+    `distributed.Client` given as `address` itself (left open), or on a new local cluster of
+    `workers` single-threaded processes (default: one per core) sharing this process's Warp
+    kernel cache.
 
     Raises:
         WedgeError: no scheduler answered at `address` within `timeout` seconds.
@@ -771,6 +773,9 @@ def cluster(address: str | None = None, *, workers: int | None = None, timeout: 
 
     from distributed import Client, LocalCluster
 
+    if address is not None and not isinstance(address, str):  # a distributed.Client made by the caller
+        yield address
+        return
     if address:
         try:
             if address.endswith(".json"):
@@ -798,7 +803,7 @@ def cluster(address: str | None = None, *, workers: int | None = None, timeout: 
 
 def check_address(address: str | None) -> None:
     """Reject a malformed --address before connecting (WedgeError)."""
-    if address is None:
+    if address is None or not isinstance(address, str):
         return
     if address.endswith(".json"):
         if not Path(address).is_file():
@@ -885,8 +890,9 @@ def wedge(scene, vary, *, out, duration: float = 2.0, fps: float = 30.0, keep: I
         fps: rate of the recording, the video and the sampling of overlaps and strain.
         keep: any of "record" (record.npz), "video" (video.mp4), "usd" (scene.usdc, needs
             tumble.io.usd), "figures" (plot.png per variant and OUTDIR/summary.png).
-        address: an existing Dask scheduler ("tcp://host:8786" or a scheduler file .json);
-            default a local cluster of `workers` processes (default one per core).
+        address: an existing Dask scheduler ("tcp://host:8786" or a scheduler file .json), or
+            a `distributed.Client` (e.g. of a dask-jobqueue SLURMCluster); default a local
+            cluster of `workers` processes (default one per core).
         yes: allow more than `MAX_VARIANTS` variants.
         image_size: (width, height) of each variant's final frame on the contact sheet.
         device: Warp device of every variant ("cpu" or "cuda").

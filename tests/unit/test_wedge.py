@@ -193,3 +193,17 @@ def test_plan_limit_needs_yes(scene_file):
     with pytest.raises(WedgeError, match=f"{n:,} variants is more than the limit"):
         plan_wedge(scene_file, {"seed": f"0..{n - 1}"})
     assert len(plan_wedge(scene_file, {"seed": f"0..{n - 1}"}, yes=True).variants) == n
+
+
+def test_contact_sheet_without_frames_says_why(scene_file, tmp_path):
+    """Write no sheet, and say why in one line, when no variant has a final frame (no EGL)."""
+    from tumble.wedge import write_contact_sheet
+
+    plan = plan_wedge(scene_file, {"seed": "0..1"})
+    for v in plan.variants:
+        (tmp_path / v.name).mkdir()
+        (tmp_path / v.name / "result.json").write_text('{"status": "ok", "image_error": "TumbleError: no EGL"}')
+    rows = [{"variant": v.name, "status": "ok", **v.values} for v in plan.variants]
+    message = write_contact_sheet(plan, rows, tmp_path)
+    assert message == "no contact sheet: no variant has a final frame (TumbleError: no EGL)"
+    assert not (tmp_path / "contact_sheet.png").exists()
