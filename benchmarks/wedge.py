@@ -20,6 +20,12 @@ for an idle machine. Figures:
   i.e. what the wedge costs per variant beyond the simulation itself;
 - the load average before and after (other processes on the machine distort every figure).
 
+On Linux with autogroup scheduling (/proc/sys/kernel/sched_autogroup_enabled = 1) a busy CPU is
+shared equally between sessions, so on a machine shared with other users the two workers of one
+wedge get no more CPU than a single serial process: the ratio then says nothing about the
+parallelism. `--own-sessions` (under `setsid`) puts each worker in a session of its own, as on a
+machine where they would have a core each.
+
 A row is appended to benchmarks/results/wedge.csv.
 """
 
@@ -66,8 +72,15 @@ def main() -> int:
     parser.add_argument("--end-to-end", action="store_true",
                         help="all serial runs, then one wedge of every variant (for an idle machine); by default "
                              "the two alternate in rounds of --workers variants on one cluster")
+    parser.add_argument("--own-sessions", action="store_true",
+                        help="put each worker in a session of its own (setsid); run this script under setsid too. "
+                             "Linux's autogroup scheduler shares a busy CPU between sessions, not processes, so "
+                             "on a shared machine all the workers of one session get one session's share")
     parser.add_argument("--no-csv", action="store_true")
     args = parser.parse_args()
+    if args.own_sessions and os.getsid(0) != os.getpid():
+        print("--own-sessions: run this script as `setsid python benchmarks/wedge.py --own-sessions`")
+        return 2
 
     load_before = os.getloadavg()
     vary = {"world.seed": f"0..{args.variants - 1}"}
@@ -103,6 +116,8 @@ def main() -> int:
             # the wedge on one cluster (its start-up counted once, above)
             with cluster(workers=args.workers) as client:
                 client.submit(_noop, pure=False).result()
+                if args.own_sessions:
+                    client.run(os.setsid)
                 for k in range(0, args.variants, args.workers):
                     seeds = f"{k}..{min(k + args.workers, args.variants) - 1}"
                     t, rows = _serial(plan, plan.variants[k:k + args.workers], settings)
@@ -136,7 +151,8 @@ def main() -> int:
         row = {
             "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M"),
             "scene": plan.source.stem, "variants": args.variants, "duration_s": args.duration,
-            "workers": args.workers, "cores": os.cpu_count(), "mode": "end-to-end" if args.end_to_end else "rounds",
+            "workers": args.workers, "cores": os.cpu_count(),
+            "mode": ("end-to-end" if args.end_to_end else "rounds") + (", own sessions" if args.own_sessions else ""),
             "serial_s": round(serial, 3), "wedge_s": round(wall, 3), "ratio": round(ratio, 4),
             "startup_s": round(startup, 3), "overhead_ms_per_task": round(1000 * overhead, 1), "identical": same,
             "load_before": f"{load_before[0]:.2f}", "load_after": f"{load_after[0]:.2f}",

@@ -865,12 +865,12 @@ def _read_result(folder: Path) -> dict | None:
 def _is_done(result: dict | None, variant: Variant, settings: Settings, retry_failed: bool) -> bool:
     """Whether a variant's earlier result stands: same scene text and settings, and ok, or failed
     in the simulation itself (Tumble is deterministic, so it would fail the same way again)
-    unless `retry_failed`; a variant whose worker was lost is always run again."""
+    unless `retry_failed`; a variant that never finished on a worker (`lost`) is run again."""
     if result is None or result.get("scene_sha") != variant.scene_sha or result.get("settings") != settings.identity():
         return False
     if result.get("status") == "ok":
         return True
-    return result.get("status") == "failed" and not retry_failed and not result.get("worker_lost")
+    return result.get("status") == "failed" and not retry_failed and not result.get("lost")
 
 
 def wedge(scene, vary, *, out, duration: float = 2.0, fps: float = 30.0, keep: Iterable[str] = (),
@@ -975,9 +975,8 @@ def _run_all(client, plan: Plan, todo: list[Variant], settings: Settings, out: P
         v = futures[future]
         try:
             row = future.result()
-        except Exception as exc:  # noqa: BLE001 - the worker died (killed, out of memory) or the task failed to run
-            row = {"status": "failed", "error": f"worker lost: {_one_line(exc)}", "worker_lost": True,
-                   "final_png": None}
+        except Exception as exc:  # noqa: BLE001 - the worker died (killed, out of memory) or the task could not run
+            row = {"status": "failed", "error": _lost(exc), "lost": True, "final_png": None}
         png = row.pop("final_png", None)
         if png:
             atomic_write(out / v.name / "final.png", png)
@@ -987,6 +986,17 @@ def _run_all(client, plan: Plan, todo: list[Variant], settings: Settings, out: P
         future.release()
         report.advance(v, row)
         write(results)
+
+
+def _lost(exc: BaseException) -> str:
+    """One line for a variant that never finished on a worker (killed, or an environment problem)."""
+    from distributed.scheduler import KilledWorker
+
+    text = " ".join(str(exc).split())
+    text = text if len(text) <= 240 else text[:237] + "..."
+    if isinstance(exc, KilledWorker):
+        return f"worker lost (killed, e.g. out of memory): {text}"
+    return f"not run: {type(exc).__name__}: {text}"
 
 
 def _json_default(value):
