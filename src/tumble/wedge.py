@@ -663,11 +663,11 @@ def run_variant(task: dict) -> dict:
 
         row.update({
             "steps": steps,
-            "steps_per_s": steps / stepping if stepping > 0 else math.nan,
+            "steps_per_s": steps / stepping if stepping > 0 else None,
             "kinetic_energy_J": world.kinetic_energy(),
             "max_overlap_m": overlap,
             "max_penetration_m": penetration,
-            "max_strain": strain if cloth is not None else math.nan,
+            "max_strain": strain if cloth is not None else None,  # JSON null, an empty CSV cell
             "body_count": int(world.body_count),
             "contact_count": int(world.contact_count),
             "state_hash": world.state_hash(),
@@ -981,7 +981,7 @@ def _run_all(client, plan: Plan, todo: list[Variant], settings: Settings, out: P
         if png:
             atomic_write(out / v.name / "final.png", png)
         row.update({"variant": v.name, **v.values, "scene_sha": v.scene_sha, "settings": settings.identity()})
-        atomic_write(out / v.name / "result.json", json.dumps(row, indent=1, default=_json_default))
+        atomic_write(out / v.name / "result.json", json.dumps(_finite(row), indent=1, default=_json_default))
         results[v.name] = row
         future.release()
         report.advance(v, row)
@@ -997,6 +997,17 @@ def _lost(exc: BaseException) -> str:
     if isinstance(exc, KilledWorker):
         return f"worker lost (killed, e.g. out of memory): {text}"
     return f"not run: {type(exc).__name__}: {text}"
+
+
+def _finite(value):
+    """`value` with every NaN or infinite float replaced by None (JSON has neither)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 def _json_default(value):
@@ -1032,7 +1043,7 @@ class _ManifestWriter:
             "columns": self.columns,
             "variants": rows,
         }
-        atomic_write(self.out / "manifest.json", json.dumps(meta, indent=1, default=_json_default))
+        atomic_write(self.out / "manifest.json", json.dumps(_finite(meta), indent=1, default=_json_default))
         text = io.StringIO()
         w = csv.writer(text, lineterminator="\n")
         w.writerow(self.columns)
@@ -1043,6 +1054,8 @@ class _ManifestWriter:
 
 
 def _csv_cell(value) -> str:
+    if value is None:
+        return ""
     if isinstance(value, float):
         return "" if math.isnan(value) else repr(value)
     if isinstance(value, (list, tuple, dict, bool)):
