@@ -373,7 +373,8 @@ def _slug(values: Mapping[str, object]) -> str:
     parts = []
     for label, v in values.items():
         k = label.replace("[*]", "").replace("[", "").replace("]", "")
-        parts.append(f"{k}={format_value(v)}".replace(", ", ","))
+        text = ",".join(format_value(x) for x in v) if isinstance(v, (list, tuple)) else format_value(v)
+        parts.append(f"{k}={text}".replace(", ", ","))
     name = re.sub(r"[^A-Za-z0-9._=,+-]", "_", "__".join(parts)) or "base"
     if len(name) > 100:
         name = name[:80] + "-" + hashlib.sha1(name.encode()).hexdigest()[:8]
