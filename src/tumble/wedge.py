@@ -493,8 +493,12 @@ def check_settings(settings: Settings) -> Settings:
     for k in settings.keep:
         if k not in KEEP:
             raise WedgeError(f"unknown --keep {k!r}{_suggest(k, KEEP)}; choose from {', '.join(KEEP)}")
-    if "usd" in settings.keep and usd_exporter() is None:
-        raise WedgeError("--keep usd: this Tumble has no USD exporter (tumble.io.usd.export) yet")
+    if "usd" in settings.keep:
+        if usd_exporter() is None:
+            raise WedgeError("--keep usd: this Tumble has no USD exporter (tumble.io.usd.export)")
+        from .io.usd import require_pxr
+
+        require_pxr()  # one line naming the pip command when usd-core is missing
     w, h = settings.image_size
     if not (16 <= w <= 4096 and 16 <= h <= 4096):
         raise WedgeError(f"image size must be between 16x16 and 4096x4096, got {w}x{h}")
@@ -507,7 +511,7 @@ def _suggest(word: str, options) -> str:
 
 
 def usd_exporter():
-    """`tumble.io.usd.export` when this checkout has it (issue 17), else None: the hook of --keep usd."""
+    """`tumble.io.usd.export` (issue 17), else None: the hook of --keep usd, given the variant's recording."""
     try:
         from .io import usd
     except ImportError:
@@ -723,9 +727,7 @@ def _write_kept(world, folder: Path, keep: set, recorder, frames, fps: float) ->
                     writer.close()
             written.append("video.mp4")
         if "usd" in keep:
-            export = usd_exporter()
-            with atomic_path(folder / "scene.usdc") as tmp:
-                export(str(record), str(tmp))
+            usd_exporter()(record, folder / "scene.usdc")  # the recording, at its fps; written atomically
             written.append("scene.usdc")
         if "figures" in keep:
             from .io.plot import plot_record

@@ -52,8 +52,17 @@ def run(tmp_path_factory):
     scene = root / "balls.toml"
     scene.write_text(SCENE, encoding="utf-8")
     out = root / "out"
-    table = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=2, keep=["record"], progress=False)
+    keep = ["record", "usd"] if _has_pxr() else ["record"]
+    table = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=2, keep=keep, progress=False)
     return scene, out, table
+
+
+def _has_pxr() -> bool:
+    try:
+        import pxr  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _variant(table, seed, diverging):
@@ -102,6 +111,7 @@ def test_folders_and_contact_sheet(run):
         assert (folder / "scene.toml").is_file() and (folder / "result.json").is_file()
         if row["status"] == "ok":
             assert (folder / "record.npz").is_file()
+            assert (folder / "scene.usdc").is_file() == _has_pxr()
     sheet = out / "contact_sheet.png"
     if not any((out / row["variant"] / "final.png").is_file() for row in table):
         pytest.skip("no EGL here: no final frames, no contact sheet")
@@ -128,7 +138,8 @@ def test_rerun_resumes(run):
     kept = _variant(table, 1, False)["variant"]
     (out / lost / "result.json").unlink()
     stamp = os.stat(out / kept / "result.json").st_mtime_ns
-    again = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=["record"], progress=False)
+    keep = json.loads((out / kept / "result.json").read_text())["settings"]["keep"]
+    again = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
     assert os.stat(out / kept / "result.json").st_mtime_ns == stamp  # not run again
     assert (out / lost / "result.json").is_file()
     assert again["state_hash"] == table["state_hash"]
@@ -136,7 +147,7 @@ def test_rerun_resumes(run):
 
     # nothing left to do: no cluster is started, and the table is read back
     stamps = {p: os.stat(p).st_mtime_ns for p in out.glob("*/result.json")}
-    third = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=["record"], progress=False)
+    third = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
     assert {p: os.stat(p).st_mtime_ns for p in out.glob("*/result.json")} == stamps
     assert third["state_hash"] == table["state_hash"]
 
