@@ -158,3 +158,21 @@ def test_plot_draws_summary_figures(run, tmp_path):
     target = tmp_path / "summary.png"
     assert cli_main(["plot", str(out), "-o", str(target)]) == 0
     assert target.stat().st_size > 10_000
+
+
+def test_run_variant_keeps_a_video(tmp_path):
+    """Write video.mp4 with one frame per 1/fps of simulated time, the first at t = 0 (in this process)."""
+    from tumble.io.scene import SAMPLES_DIR
+    from tumble.wedge import Settings, run_variant
+
+    settings = Settings(duration=0.25, fps=20, keep=("video",)).identity()
+    row = run_variant({"name": "v", "text": (SAMPLES_DIR / "bouncing_ball.toml").read_text(), "path": "ball.toml",
+                       "folder": str(tmp_path), "settings": settings})
+    if row.get("image_error"):
+        pytest.skip(f"no EGL here: {row['image_error']}")
+    assert row["status"] == "ok" and row["files"] == ["video.mp4"]
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(str(tmp_path / "video.mp4"))
+    assert reader.count_frames() == 6  # t = 0, 0.05, ..., 0.25 s
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["video.mp4"]
