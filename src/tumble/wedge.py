@@ -914,6 +914,11 @@ def wedge(scene, vary, *, out, duration: float = 2.0, fps: float = 30.0, keep: I
     Raises:
         WedgeError, SceneError: bad input, before anything runs or is written.
     """
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise WedgeError("wedges run on Dask distributed, which is not installed: pip install 'tumble[wedge]'") \
+            from None
     settings = check_settings(Settings(duration=float(duration), fps=float(fps), keep=tuple(sorted(set(keep))),
                                        image_size=tuple(int(v) for v in image_size), device=device))
     check_address(address)
