@@ -31,7 +31,7 @@ def main(args: argparse.Namespace) -> int:
     if not 10 <= args.dpi <= 2000:
         raise ValueError(f"--dpi must be between 10 and 2000, got {args.dpi}")
 
-    if Path(args.record).is_dir():  # a wedge's folder: its summary figures (tumble.wedge)
+    if (Path(args.record) / "manifest.json").is_file():  # a wedge's folder: its summary figures (tumble.wedge)
         from ..wedge import plot_wedge
 
         out = plot_wedge(args.record, args.output, dpi=args.dpi)

@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--size", default="320x180", metavar="WxH", help="size of each final frame (default 320x180)")
     parser.add_argument("--yes", action="store_true", help=f"run more than {MAX_VARIANTS:,} variants")
-    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="Warp device (default cpu)")
+    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device (default cpu)")
     parser.add_argument("--no-progress", action="store_true", help="no progress display (on a terminal a bar, elsewhere one line per variant)")
 
 
