@@ -14,9 +14,11 @@ import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
 
+# `tumble.wedge` is the function below; the names of its module import as usual (from tumble.wedge import ...)
 from .errors import SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
 from .state import BodyId
+from .wedge import wedge
 from .world import World
 
 __all__ = [
@@ -27,6 +29,7 @@ __all__ = [
     "TumbleError",
     "World",
     "load_scene",
+    "wedge",
 ]
 __version__ = "0.1.0"
 

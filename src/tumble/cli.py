@@ -34,6 +34,7 @@ COMMANDS = {
     "render": "render",
     "plot": "plot",
     "export": "export",
+    "wedge": "wedge",
 }
 
 #: environment variable that turns on tracebacks (as --debug does)

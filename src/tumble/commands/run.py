@@ -146,6 +146,7 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
         ("speed", f"{rate:,.1f} steps/s ({wall:.2f} s wall after a first step of {first_step:.2f} s)"),
         ("kinetic energy", f"{world.kinetic_energy():.6g} J"),
         ("contacts", f"{world.contact_count:,}"),
+        ("state hash", world.state_hash()),
     ]
     if recorder is not None:
         lines.append(("recorded", f"{args.record} ({recorder.frame_count} frames at {recorder.fps:g} fps)"))
