@@ -14,17 +14,26 @@ import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
 
-from .errors import SceneError, SimulationError, TumbleError
+from .cloth import ClothSystem, Wind
+from .emitters import Emitter
+from .errors import HandleError, SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
-from .state import BodyId
-from .world import World
+from .state import BodyId, BodyKind, ClothId
+from .world import BodyState, World
 
 __all__ = [
     "BodyId",
+    "BodyKind",
+    "BodyState",
+    "ClothId",
+    "ClothSystem",
+    "Emitter",
+    "HandleError",
     "SceneError",
     "ShapeType",
     "SimulationError",
     "TumbleError",
+    "Wind",
     "World",
     "load_scene",
 ]

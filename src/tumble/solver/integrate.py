@@ -3,7 +3,8 @@
 Reads and writes body positions, orientations and velocities; costs O(bodies).
 
 - velocities first: v += (g + F / m) h, w += I^-1 tau h (static bodies, inverse mass 0, skip);
-- then positions with the new velocities: x += v h, and the orientation by the exponential
+- then positions with the new velocities: x += v h (kinematic bodies too: inverse mass 0, moved
+  only by the velocity the user gives them), and the orientation by the exponential
   of the rotation vector w h, q' = exp(w h / 2) q, which keeps |q| = 1 to rounding (we also
   renormalise);
 - torque-free rotation: the world angular momentum L = I_world(q) w is carried across the
@@ -74,8 +75,10 @@ def _integrate_positions(
     count: int,
 ):
     i = wp.tid()
-    if i >= count or inv_mass[i] == float_t(0.0):
+    if i >= count:
         return
+    if inv_mass[i] == float_t(0.0) and wp.length_sq(v[i]) == float_t(0.0) and wp.length_sq(w[i]) == float_t(0.0):
+        return  # static (a kinematic body, inverse mass 0 too, moves with the velocity it was given)
     x[i] = x[i] + v[i] * h
     dx[i] = dx[i] + v[i] * h
     wi = w[i]
@@ -119,7 +122,7 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
 
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
-    """x += v h and q' = exp(w h / 2) q for every dynamic body, conserving angular momentum."""
+    """x += v h and q' = exp(w h / 2) q for every dynamic or kinematic body, conserving angular momentum."""
     if bodies.count == 0:
         return
     a = bodies.arrays
