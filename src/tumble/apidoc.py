@@ -182,7 +182,7 @@ def _class_section(cls) -> list[str]:
         return parts
     fields = ()
     if issubclass(cls, tuple) and hasattr(cls, "_fields"):
-        fields = cls._fields
+        fields = cls._fields  # type: ignore[attr-defined]  (a NamedTuple)
     elif dataclasses.is_dataclass(cls):
         parts += ["```python", _signature(name, cls), "```", ""]
         fields = tuple(f.name for f in dataclasses.fields(cls))

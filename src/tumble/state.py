@@ -167,6 +167,8 @@ class Handle(int):
     """
 
     _noun = "entity"
+    generation: int
+    world_key: int | None
 
     def __new__(cls, index, generation: int = 0, world_key: int | None = None):
         self = super().__new__(cls, operator.index(index))

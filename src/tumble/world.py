@@ -747,7 +747,7 @@ class World:
     def _new_ids(self, k: int) -> np.ndarray:
         """Ids for k new bodies: freed ids first (lowest first), then new ones."""
         reused = np.zeros(0, dtype=np.int64)
-        if self._free_ids:
+        if self._free_ids and self._slot_of_id is not None:
             reused = np.flatnonzero(self._slot_of_id < 0)[:k]
         fresh = np.arange(self._id_count, self._id_count + k - len(reused))
         if len(self._body_generation) < self._id_count + len(fresh):
@@ -822,6 +822,8 @@ class World:
         `kind` (BodyKind) defaults to static for bodies of mass 0, else dynamic.
         """
         k = len(position)
+        if k == 0:
+            return []
         shape = np.broadcast_to(np.asarray(shape, dtype=np.int32), (k,))
         bound = np.where(
             shape == ShapeType.SPHERE,
