@@ -156,7 +156,17 @@ class Emitter:
         self._owed = 0.0
         self.reset_rng()
 
+    @property
+    def rate(self) -> float:
+        """Bodies released per second (> 0); may be changed while the world runs."""
+        return self._rate
+
+    @rate.setter
+    def rate(self, value: float) -> None:
+        self._rate = validate.positive(value, "rate")
+
     def reset_rng(self) -> None:
+        """Restart the emitter's random generator from its `seed` (done when it is added to a world)."""
         self.rng = np.random.default_rng(self.seed)
 
     @property

@@ -22,6 +22,8 @@ def show(value) -> str:
     """`repr(value)`, shortened for messages (arrays of a million rows stay one line)."""
     if isinstance(value, np.ndarray) and value.size > 8:
         return f"an array of shape {value.shape}"
+    if isinstance(value, np.generic):
+        value = value.item()  # 2.0, not np.float64(2.0)
     text = repr(value)
     return text if len(text) <= _SHOWN else text[: _SHOWN - 3] + "..."
 
@@ -123,7 +125,7 @@ def positive_rows(value, name: str, n: int) -> np.ndarray:
     """One positive number for all n rows, or n of them, shape (n,)."""
     a = array(value, name, "a positive number")
     if a.ndim == 0:
-        return np.full(n, positive(float(a), name))
+        return np.full(n, positive(value if isinstance(value, numbers.Real) else float(a), name))
     if a.shape != (n,):
         raise ValueError(f"{name} must be one positive number or {n} of them, got {show(value)}")
     if not np.all(np.isfinite(a) & (a > 0.0)):

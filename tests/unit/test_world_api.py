@@ -358,6 +358,9 @@ def _world_with_body():
         (lambda w: w.set_wind(turbulence="gusty"), TypeError, r"turbulence must be a number, got 'gusty'"),
         (lambda w: w.set_wind(seed=1.5), ValueError, r"seed must be an integer >= 0, got 1.5"),
         (lambda w: w.set_wind(velocity=(1, 0)), ValueError, r"velocity must have 3 components"),
+        (lambda w: w.cloth.apply_force(2.5, (0, 0, 1)), ValueError, r"particle must be an integer >= 0, got 2.5"),
+        (lambda w: w.cloth.pin("corner"), TypeError, r"particle must be an integer >= 0, got 'corner'"),
+        (lambda w: w.cloth.set_state(position="flat"), TypeError, r"position must be finite numbers"),
     ],
 )
 def test_calls_check_their_arguments_by_name(call, error, message):
@@ -382,6 +385,9 @@ def test_settings_are_checked_when_changed():
         w.restitution_threshold = -1
     w.substeps = 4.0  # an integral float is an integer
     assert w.substeps == 4 and isinstance(w.substeps, int)
+    em = w.add_emitter()
+    with pytest.raises(ValueError, match="rate must be a positive number, got 0"):
+        em.rate = 0
 
 
 def test_forwarding_calls_have_the_real_signatures():

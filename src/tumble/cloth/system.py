@@ -640,7 +640,7 @@ class ClothSystem:
         self._update_pins()
 
     def _particle(self, particle) -> int:
-        i = int(particle)
+        i = validate.integer(particle, "particle", low=0)
         if not 0 <= i < self._particle_count:
             raise ValueError(f"particle index {particle!r} out of range 0..{self._particle_count - 1}")
         return i
@@ -661,7 +661,7 @@ class ClothSystem:
         for name, values in (("particle_position", position), ("particle_velocity", velocity)):
             if values is None:
                 continue
-            a = np.asarray(values, dtype=np.float64)
+            a = validate.array(values, name.split("_")[1], f"finite numbers of shape ({p}, 3)")
             if a.shape != (p, 3) or not np.all(np.isfinite(a)):
                 raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
             self._arrays[name].assign(a)
