@@ -110,7 +110,7 @@ class Emitter:
         self.shapes = [shape_from_name(validate.text(s, "shape")) for s in names]
         if ShapeType.PLANE in self.shapes:
             raise ValueError("an emitter cannot emit planes: use shape 'sphere' or 'box'")
-        self.rate = validate.positive(rate, "rate")
+        self.rate = validate.positive(rate, "rate")  # > 0 to start with; the setter allows 0 (paused)
         self.count = validate.integer(count, "count", low=1)
         self.position = validate.vector(position, "position")
         self.region = validate.text(region, "region", ("point", "box", "disc"))
@@ -158,12 +158,12 @@ class Emitter:
 
     @property
     def rate(self) -> float:
-        """Bodies released per second (> 0); may be changed while the world runs."""
+        """Bodies released per second; may be changed while the world runs (>= 0: 0 pauses the emitter)."""
         return self._rate
 
     @rate.setter
     def rate(self, value: float) -> None:
-        self._rate = validate.positive(value, "rate")
+        self._rate = validate.number(value, "rate", low=0.0)
 
     def reset_rng(self) -> None:
         """Restart the emitter's random generator from its `seed` (done when it is added to a world)."""
