@@ -40,6 +40,7 @@ WORLD_ATTRIBUTES = {
     "bodies": "Engine internals: the body arrays (`ArraySet`, rows in storage order, not id order). Not a stable API.",
     "contacts": "Engine internals: the contact arrays (`ContactSet`). Not a stable API; read `contact_*` views.",
     "broadphase": "Engine internals: the broad phase's grid and pair buffers. Not a stable API.",
+    "joints": "The joint arrays (`tumble.solver.joints.JointSet`); add joints with `add_joint`.",
 }
 INTRO = """\
 # Python API reference

@@ -438,3 +438,14 @@ def test_views_are_fresh_copies_never_stale():
     assert not np.shares_memory(now, w.body_position)
     with pytest.raises(ValueError):
         now[0, 0] = 1.0  # read-only: write through set_body_state
+
+
+def test_a_jointed_body_cannot_be_removed_yet():
+    """Removing a body held by a joint is refused (the joint would lose its body), and nothing changes."""
+    w = _free_world()
+    w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
+    with pytest.raises(ValueError, match="body 1 is held by a joint"):
+        w.remove_bodies([2, 1])
+    assert w.body_alive.all() and w.body_count == 3
+    w.remove_body(2)
+    assert w.body_count == 2
