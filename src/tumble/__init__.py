@@ -15,18 +15,27 @@ import warp as _wp
 _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
 
 # `tumble.wedge` is the function below; the names of its module import as usual (from tumble.wedge import ...)
-from .errors import SceneError, SimulationError, TumbleError
+from .cloth import ClothSystem, Wind
+from .emitters import Emitter
+from .errors import HandleError, SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
-from .state import BodyId
+from .state import BodyId, BodyKind, ClothId
 from .wedge import wedge
-from .world import World
+from .world import BodyState, World
 
 __all__ = [
     "BodyId",
+    "BodyKind",
+    "BodyState",
+    "ClothId",
+    "ClothSystem",
+    "Emitter",
+    "HandleError",
     "SceneError",
     "ShapeType",
     "SimulationError",
     "TumbleError",
+    "Wind",
     "World",
     "load_scene",
     "wedge",

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from . import validate
 from .limits import MAX_RELEASE_PER_STEP
 from .shapes import ShapeType, box_inertia, box_volume, shape_from_name, sphere_inertia, sphere_volume
 
@@ -29,7 +30,8 @@ CLEARANCE = 1e-3
 
 def _range(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) from a value or a [min, max] pair; vectors have `width` components."""
-    a = np.asarray(value, dtype=np.float64)
+    a = validate.array(value, name, "a number or a [min, max] pair" if width is None else
+                       f"a {width}-vector or a pair of them [min, max]")
     if width is None:
         if a.shape == ():
             lo = hi = a
@@ -100,25 +102,19 @@ class Emitter:
         angular_speed: float | Sequence[float] = 0.0,
         seed: int | None = None,
     ):
+        if not isinstance(shape, (str, list, tuple)):
+            raise TypeError(f"shape must be a shape name or a list of them, got {validate.show(shape)}")
         names = [shape] if isinstance(shape, str) else list(shape)
         if not names:
             raise ValueError("shape must name at least one shape")
-        self.shapes = [shape_from_name(s) for s in names]
+        self.shapes = [shape_from_name(validate.text(s, "shape")) for s in names]
         if ShapeType.PLANE in self.shapes:
             raise ValueError("an emitter cannot emit planes: use shape 'sphere' or 'box'")
-        self.rate = float(rate)
-        if not math.isfinite(self.rate) or self.rate <= 0:
-            raise ValueError(f"rate must be a positive number, got {rate!r}")
-        self.count = int(count)
-        if self.count <= 0 or self.count != count:
-            raise ValueError(f"count must be a positive integer, got {count!r}")
-        self.position = np.asarray(position, dtype=np.float64)
-        if self.position.shape != (3,) or not np.all(np.isfinite(self.position)):
-            raise ValueError(f"position must be a finite 3-vector, got {position!r}")
-        if region not in ("point", "box", "disc"):
-            raise ValueError(f"region must be 'point', 'box' or 'disc', got {region!r}")
-        self.region = region
-        ext = np.asarray(extent, dtype=np.float64)
+        self.rate = validate.positive(rate, "rate")  # > 0 to start with; the setter allows 0 (paused)
+        self.count = validate.integer(count, "count", low=1)
+        self.position = validate.vector(position, "position")
+        self.region = validate.text(region, "region", ("point", "box", "disc"))
+        ext = validate.array(extent, "extent", "a number or [x, y, z] half sizes")
         if region == "box":
             ext = np.broadcast_to(ext, (3,)).copy() if ext.shape in ((), (3,)) else None
             if ext is None:
@@ -128,16 +124,14 @@ class Emitter:
         if ext is not None and (not np.all(np.isfinite(ext)) or np.any(ext < 0)):
             raise ValueError(f"extent must be finite and >= 0, got {extent!r}")
         self.extent = ext
-        d = np.asarray(direction, dtype=np.float64)
-        if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-12:
+        d = validate.vector(direction, "direction")
+        if np.linalg.norm(d) < 1e-12:
             raise ValueError(f"direction must be a non-zero finite 3-vector, got {direction!r}")
         self.direction = d / np.linalg.norm(d)
-        self.cone_angle = float(cone_angle)
-        if not 0.0 <= self.cone_angle <= 180.0:
-            raise ValueError(f"cone_angle must be in [0, 180] degrees, got {cone_angle!r}")
+        self.cone_angle = validate.number(cone_angle, "cone_angle", low=0.0, high=180.0)
         self.speed = _range(speed, "speed")
         self.radius = _range(radius, "radius")
-        h = np.asarray(half_extents, dtype=np.float64)
+        h = validate.array(half_extents, "half_extents", "a number, a 3-vector or a [min, max] pair")
         if h.shape == (2,):  # random cubes: [min, max] of one half extent
             self.half_extents = (np.full(3, h[0]), np.full(3, h[1]))
             self._cubes = True
@@ -152,20 +146,27 @@ class Emitter:
                                 ("density", self.density)) + ((("mass", self.mass),) if self.mass else ()):
             if np.any(lo < 0) or (name != "speed" and np.any(lo <= 0)):
                 raise ValueError(f"{name} must be > 0, got {lo!r}")
-        if not 0.0 <= restitution <= 1.0:
-            raise ValueError(f"restitution must be in [0, 1], got {restitution!r}")
-        if not (math.isfinite(friction) and friction >= 0.0):
-            raise ValueError(f"friction must be >= 0, got {friction!r}")
-        self.restitution = float(restitution)
-        self.friction = float(friction)
-        self.random_orientation = bool(random_orientation)
+        self.restitution = validate.number(restitution, "restitution", low=0.0, high=1.0)
+        self.friction = validate.number(friction, "friction", low=0.0)
+        self.random_orientation = validate.flag(random_orientation, "random_orientation")
         self.angular_speed = _range(angular_speed, "angular_speed")
-        self.seed = seed
+        self.seed = None if seed is None else validate.integer(seed, "seed", low=0)
+        self.world_key: int | None = None  # the World it was added to (`World.add_emitter`)
         self.emitted = 0
         self._owed = 0.0
         self.reset_rng()
 
+    @property
+    def rate(self) -> float:
+        """Bodies released per second; may be changed while the world runs (>= 0: 0 pauses the emitter)."""
+        return self._rate
+
+    @rate.setter
+    def rate(self, value: float) -> None:
+        self._rate = validate.number(value, "rate", low=0.0)
+
     def reset_rng(self) -> None:
+        """Restart the emitter's random generator from its `seed` (done when it is added to a world)."""
         self.rng = np.random.default_rng(self.seed)
 
     @property
@@ -263,7 +264,8 @@ class Emitter:
         sphere_x, sphere_r = x_all[spheres], bodies.numpy("body_radius")[spheres]
         box_x, box_h = x_all[boxes], bodies.numpy("body_half_extents")[boxes]
         box_rot = _matrices(bodies.numpy("body_orientation")[boxes])
-        plane_n, plane_x = world.body_plane_normal[planes], x_all[planes]
+        plane_n = _matrices(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
+        plane_x = x_all[planes]
         accepted = []
         placed_x, placed_r = [], []
         for i in range(k):

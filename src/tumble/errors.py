@@ -34,3 +34,7 @@ class SceneError(TumbleError, ValueError):
 
 class SimulationError(TumbleError, RuntimeError):
     """The simulation state became invalid (NaN or infinite values)."""
+
+
+class HandleError(TumbleError, ValueError):
+    """A handle (BodyId, ClothId, Emitter) that belongs to another World, or to a removed entity."""

@@ -8,7 +8,10 @@ kernel, so kernels never allocate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import enum
+import itertools
+import operator
+import weakref
 
 import numpy as np
 import warp as wp
@@ -98,11 +101,20 @@ class ArraySet:
 
     def permute(self, order: np.ndarray) -> None:
         """Reorder the first `count` rows of every array: new row k is old row `order[k]`."""
-        for name, arr in self.arrays.items():
+        self.take(order)
+
+    def take(self, rows: np.ndarray) -> None:
+        """Keep only the rows `rows` of the first `count`, in that order: new row k is old row `rows[k]`.
+
+        A permutation of all rows reorders them; a shorter list also drops the rows it leaves out.
+        """
+        k = len(rows)
+        for arr in self.arrays.values():
             host = arr.numpy()
-            host[: self.count] = host[order]
+            host[:k] = host[rows]
             if self.device != "cpu":
                 arr.assign(host)
+        self.count = k
 
     def write(self, name: str, rows, values) -> None:
         """Overwrite the rows `rows` (an index array or slice) of one array from host values."""
@@ -119,14 +131,177 @@ def readonly(a: np.ndarray) -> np.ndarray:
     return v
 
 
-@dataclass(frozen=True)
-class BodyId:
-    """Public handle to one body: its creation index. Planes, spheres and boxes share the index space."""
+class BodyKind(enum.IntEnum):
+    """How a body moves. Static and kinematic bodies both have inverse mass 0 (infinite mass to contacts)."""
 
-    index: int
+    DYNAMIC = 0  # moved by gravity, forces and contacts
+    STATIC = 1  # never moves (planes; static=True)
+    KINEMATIC = 2  # moved only by its velocity, which the user's script sets (kinematic=True)
 
-    def __index__(self) -> int:
-        return self.index
 
-    def __int__(self) -> int:
-        return self.index
+# ---------------------------------------------------------------------------- handles
+
+#: every live World by its key, so that a handle can find its world without keeping it alive
+_worlds: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+_world_keys = itertools.count(1)
+
+
+def register_world(world) -> int:
+    """A new key for `world`, carried by every handle it gives out."""
+    key = next(_world_keys)
+    _worlds[key] = world
+    return key
+
+
+class Handle(int):
+    """Public handle: an int (the entity's index, so it indexes the views) carrying a generation and its world.
+
+    Two handles are equal when index, generation and world all match; a handle equals a plain
+    int with its index. Handles are immutable and picklable; the world checks each one it is
+    given and raises `tumble.HandleError` for one from another world or of a removed entity.
+
+    Args:
+        index: the entity's index (body id, cloth index).
+        generation: how many entities held this index before (removals count them).
+        world_key: key of the world that made the handle; None: any world (a bare id).
+    """
+
+    _noun = "entity"
+    generation: int
+    world_key: int | None
+
+    def __new__(cls, index, generation: int = 0, world_key: int | None = None):
+        self = super().__new__(cls, operator.index(index))
+        object.__setattr__(self, "generation", int(generation))
+        object.__setattr__(self, "world_key", None if world_key is None else int(world_key))
+        return self
+
+    @property
+    def index(self) -> int:
+        """The index as a plain int (rows of the views are in index order)."""
+        return int(self)
+
+    @property
+    def world(self):
+        """The `World` this handle belongs to."""
+        from .errors import HandleError
+
+        world = None if self.world_key is None else _worlds.get(self.world_key)
+        if world is None:
+            raise HandleError(f"{self._noun} {int(self)}: its World no longer exists (or it is a bare id)")
+        return world
+
+    def __setattr__(self, name, value):
+        attr = getattr(type(self), name, None)
+        if isinstance(attr, property) and attr.fset is not None:
+            attr.fset(self, value)
+            return
+        raise AttributeError(f"{type(self).__name__} is immutable: {name!r} cannot be set")
+
+    def __delattr__(self, name):
+        raise AttributeError(f"{type(self).__name__} is immutable: {name!r} cannot be deleted")
+
+    def __eq__(self, other):
+        if isinstance(other, Handle):
+            return (type(self) is type(other) and int(self) == int(other) and self.generation == other.generation
+                    and self.world_key == other.world_key)
+        return int.__eq__(self, other)
+
+    def __ne__(self, other):
+        equal = self.__eq__(other)
+        return equal if equal is NotImplemented else not equal
+
+    __hash__ = int.__hash__
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({int(self)}, generation={self.generation})"
+
+    def __str__(self) -> str:
+        return str(int(self))
+
+
+class BodyId(Handle):
+    """Handle to one body (planes, spheres and boxes share the index space).
+
+    Read and set the body's state through it, as in Pymunk and Rapier::
+
+        ball.position = (0, 0, 2)      # same as world.set_body_state(ball, position=(0, 0, 2))
+        print(ball.velocity)           # same as world.body_state(ball).velocity
+
+    Each read is a copy of that moment's value.
+    """
+
+    _noun = "body"
+
+    def _get(self, field: str) -> np.ndarray:
+        return getattr(self.world.body_state(self), field)
+
+    position = property(lambda self: self._get("position"),
+                        lambda self, v: self.world.set_body_state(self, position=v),
+                        doc="Centre of mass [m], shape (3,).")
+    orientation = property(lambda self: self._get("orientation"),
+                           lambda self, v: self.world.set_body_state(self, orientation=v),
+                           doc="Body-to-world rotation, unit quaternion (x, y, z, w), shape (4,).")
+    velocity = property(lambda self: self._get("velocity"),
+                        lambda self, v: self.world.set_body_state(self, velocity=v),
+                        doc="Linear velocity [m/s], shape (3,).")
+    angular_velocity = property(lambda self: self._get("angular_velocity"),
+                                lambda self, v: self.world.set_body_state(self, angular_velocity=v),
+                                doc="Angular velocity, world frame [rad/s], shape (3,).")
+
+    @property
+    def kind(self) -> BodyKind:
+        """DYNAMIC, STATIC or KINEMATIC."""
+        return self.world.body_state(self).kind
+
+
+class ClothId(Handle):
+    """Handle to one cloth: its index (creation order) and where its particles are.
+
+    `world.cloth` holds every cloth's particles in one set of arrays; a cloth's particles are
+    rows `particle_start` to `particle_start + particle_count` of them, grid point (i, j) at
+    `particle(i, j)`.
+    """
+
+    _noun = "cloth"
+
+    def _record(self):
+        return self.world.cloth.cloth(self)
+
+    @property
+    def particle_start(self) -> int:
+        """First particle of this cloth in `world.cloth`'s arrays."""
+        return self._record().particle_start
+
+    @property
+    def particle_count(self) -> int:
+        """nx * ny."""
+        return self._record().particle_count
+
+    @property
+    def resolution(self) -> tuple[int, int]:
+        """(nx, ny) particles."""
+        record = self._record()
+        return record.nx, record.ny
+
+    def particle(self, i: int, j: int) -> int:
+        """Index in `world.cloth`'s arrays of grid point (i, j) of this cloth (i along its width)."""
+        record = self._record()
+        from .validate import integer
+
+        i, j = integer(i, "i", low=0), integer(j, "j", low=0)
+        if i >= record.nx or j >= record.ny:
+            raise IndexError(f"grid point ({i}, {j}) is outside cloth {int(self)} of {record.nx} x {record.ny}")
+        return record.particle(i, j)
+
+    @property
+    def particle_position(self) -> np.ndarray:
+        """Positions of this cloth's particles [m], shape (nx * ny, 3), a copy."""
+        record = self._record()
+        return self.world.cloth.particle_position[record.particle_start:record.particle_start + record.particle_count]
+
+    @property
+    def particle_velocity(self) -> np.ndarray:
+        """Velocities of this cloth's particles [m/s], shape (nx * ny, 3), a copy."""
+        record = self._record()
+        return self.world.cloth.particle_velocity[record.particle_start:record.particle_start + record.particle_count]

@@ -16,26 +16,42 @@ says so). Orientations are unit quaternions stored as (x, y, z, w).
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 from collections.abc import Callable, Sequence
+from typing import NamedTuple
 
 import numpy as np
 import warp as wp
+from numpy.typing import ArrayLike
 
 from . import shapes as _shapes
+from . import validate
+from .cloth.system import ClothSystem
+from .cloth.wind import AIR_DENSITY
 from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
 from .collision.hulls import HullSet
 from .collision.meshes import MeshSet
-from .errors import SimulationError
+from .emitters import Emitter
+from .errors import HandleError, SimulationError
 from .launch import LaunchCache
 from .runtime import init_warp
 from .shapes import ShapeType
 from .solver import contacts as contact_solver
 from .solver import integrate
 from .solver import joints as joint_solver
-from .state import ArraySet, BodyId, float_t, quat, readonly, vec3
+from .state import (
+    ArraySet,
+    BodyId,
+    BodyKind,
+    ClothId,
+    Handle,
+    float_t,
+    quat,
+    readonly,
+    register_world,
+    vec3,
+)
 
 #: worlds with fewer bodies keep their rows in id order (their state fits in cache anyway)
 SORT_MIN_BODIES = 8192
@@ -47,6 +63,7 @@ BODY_FIELDS = {
     # model
     "body_id": wp.int32,  # the BodyId given at creation; rows are reordered in space (see _sort_bodies)
     "body_shape": wp.int32,  # ShapeType
+    "body_kind": wp.int32,  # BodyKind: dynamic, static or kinematic (the solver reads only inverse masses)
     "body_radius": float_t,  # sphere and capsule radius [m] (0 for other shapes)
     "body_half_extents": vec3,  # box half extents [m]; for capsules, of the bounding box (r, r, a + r)
     "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
@@ -72,60 +89,43 @@ BODY_FIELDS = {
 }
 
 
-def _vec(value, name: str, n: int = 3) -> np.ndarray:
-    a = np.asarray(value, dtype=np.float64).reshape(-1)
-    if a.shape != (n,):
-        raise ValueError(f"{name} must have {n} components, got {value!r}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return a
+class BodyState(NamedTuple):
+    """One body's state (copies), from `World.body_state`."""
+
+    position: np.ndarray  #: centre of mass [m], shape (3,)
+    orientation: np.ndarray  #: (x, y, z, w), shape (4,)
+    velocity: np.ndarray  #: [m/s], shape (3,)
+    angular_velocity: np.ndarray  #: world frame [rad/s], shape (3,)
+    kind: BodyKind
 
 
-def _rows(value, name: str, width: int, n: int | None = None) -> np.ndarray:
-    """`value` as n rows of `width` floats: one row is repeated; n rows are taken as they are."""
-    a = np.asarray(value, dtype=np.float64)
-    if a.ndim == 1 and a.shape[0] == width and n is not None:
-        a = np.broadcast_to(a, (n, width))
-    if a.ndim != 2 or a.shape[1] != width or (n is not None and a.shape[0] != n):
-        rows = "n" if n is None else str(n)
-        raise ValueError(f"{name} must have {width} components (or shape ({rows}, {width})), got {value!r}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return np.array(a)
+#: BodyState field -> body array
+_STATE_NAMES = {"position": "body_position", "orientation": "body_orientation", "velocity": "body_velocity",
+                "angular_velocity": "body_angular_velocity"}
 
 
-def _positive_rows(value, name: str, n: int) -> np.ndarray:
-    """`value` (one number, or n of them) as n positive finite floats."""
-    a = np.asarray(value, dtype=np.float64)
-    if a.ndim == 0:
-        a = np.full(n, float(a))
-    if a.shape != (n,) or not np.all(np.isfinite(a)) or np.any(a <= 0.0):
-        raise ValueError(f"{name} must be a positive number (or {n} of them), got {value!r}")
-    return a
+def _restitution(value) -> float:
+    return validate.number(value, "restitution", low=0.0, high=1.0)
 
 
-def _positive(value, name: str) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return v
+def _friction(value) -> float:
+    return validate.number(value, "friction", low=0.0)
 
 
-def _unit_interval(value, name: str) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-    if name == "restitution" and v > 1.0:
-        raise ValueError(f"restitution must be in [0, 1], got {value!r}")
-    return v
-
-
-def _unit_quat(value, name: str = "orientation") -> np.ndarray:
-    q = _vec(value, name, 4)
-    norm = np.linalg.norm(q)
-    if norm < 1e-12:
-        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {value!r}")
-    return q / norm
+def _rotation_vector(q_to: np.ndarray, q_from: np.ndarray) -> np.ndarray:
+    """Rotation vectors (axis * angle [rad]) of the rotations q_to q_from^-1, the shorter way, shape (k, 3)."""
+    x1, y1, z1, w1 = q_to.T
+    x0, y0, z0, w0 = -q_from[:, 0], -q_from[:, 1], -q_from[:, 2], q_from[:, 3]  # conjugate
+    d = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
+                  w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
+                  w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0,
+                  w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0], axis=1)
+    d = np.where(d[:, 3:] < 0.0, -d, d)  # q and -q are one rotation: take the one of angle <= pi
+    s = np.linalg.norm(d[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(s, d[:, 3])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        axis = np.where(s[:, None] > 1e-300, d[:, :3] / s[:, None], 0.0)
+    return axis * angle[:, None]
 
 
 def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -157,12 +157,18 @@ class World:
     Args:
         gravity: gravitational acceleration [m/s^2], shape (3,).
         dt: fixed time step [s] used by `step()` and `run()`.
-        substeps: solver substeps per step (more = stiffer stacks, less penetration).
-        seed: seed of the world's random generator (emitters, turbulence).
+        substeps: solver substeps per step (more = stiffer stacks, less penetration), an integer >= 1.
+        seed: seed of the world's random generator (emitters, turbulence), an integer >= 0.
         device: Warp device, "cpu" (default) or "cuda".
         restitution_threshold: impact speed [m/s] below which contacts that carry load do not
             bounce, so that resting bodies stay at rest (a contact carrying none bounces down to
-            2 |g| h, h = dt / substeps).
+            2 |g| h, h = dt / substeps; >= 0).
+
+    Raises:
+        TypeError, ValueError: naming the argument and the value, for a bad argument.
+
+    `gravity`, `dt`, `substeps` and `restitution_threshold` may be set at any time (checked as
+    here) and take effect on the next step.
     """
 
     def __init__(
@@ -175,38 +181,94 @@ class World:
         device: str = "cpu",
         restitution_threshold: float = 0.5,
     ):
+        self.gravity = gravity
+        self.dt = dt
+        self.substeps = substeps
+        self.restitution_threshold = restitution_threshold
+        self.seed = validate.integer(seed, "seed", low=0)
+        validate.text(device, "device")
         init_warp()
-        if str(device).startswith("cuda") and not wp.is_cuda_available():
+        if device.startswith("cuda") and not wp.is_cuda_available():
             raise ValueError(f"device {device!r}: Warp finds no CUDA device on this machine; use device='cpu'")
         try:
             self.device = str(wp.get_device(device))
         except (RuntimeError, ValueError) as exc:
             raise ValueError(f"device {device!r}: {exc}") from None
-        self.gravity = _vec(gravity, "gravity")
-        self.dt = _positive(dt, "dt")
-        self.substeps = int(substeps)
-        if self.substeps < 1:
-            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
-        self.seed = int(seed)
-        self.restitution_threshold = float(restitution_threshold)
         self.rng = np.random.default_rng(self.seed)
-        self.time = 0.0
         self.step_count = 0
+        # time = sum over runs of equal dt of (steps in the run) * dt, so it is exact to one rounding
+        self._time_base = 0.0
+        self._segment_dt = self.dt
+        self._segment_steps = 0
         self.profile: dict[str, float] = {}
         self.metadata: dict = {}
+        self._key = register_world(self)
 
         self.bodies = ArraySet(BODY_FIELDS, device=self.device)
-        self.emitters: list = []
+        self.emitters: list[Emitter] = []
         self.broadphase = broadphase.BroadPhase(self.device)
         self.contacts = contact_solver.ContactSet(self.device)
         self.joints = joint_solver.JointSet(self.device)
         self.hulls = HullSet(self.device)  # convex prototypes, row 0 the unit box
         self.meshes = MeshSet(self.device)  # static triangle meshes and their BVHs
-        self._cloth = None  # created on the first add_cloth
+        self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
-        self._slot_of_id: np.ndarray | None = None  # row of each body id; None while rows are in id order
+        # body ids: `body_count` of them; rows hold only live bodies, so after a reorder or a
+        # removal `_slot_of_id` maps each id to its row (-1 for a removed body)
+        self._slot_of_id: np.ndarray | None = None  # None while row i holds id i
+        self._id_count = 0
+        self._free_ids = 0
+        self._body_generation = np.zeros(16, dtype=np.int64)  # removals of each id so far
         self._sorted_at = -SORT_INTERVAL
+
+    # ------------------------------------------------------------------ settings
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravitational acceleration [m/s^2], shape (3,); may be set (or changed in place)."""
+        return self._gravity
+
+    @gravity.setter
+    def gravity(self, value: Sequence[float]) -> None:
+        self._gravity = validate.vector(value, "gravity")
+
+    @property
+    def dt(self) -> float:
+        """Time step [s] of `step()` and `run()`, > 0."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        self._dt = validate.positive(value, "dt")
+
+    @property
+    def substeps(self) -> int:
+        """Solver substeps per step, an integer >= 1."""
+        return self._substeps
+
+    @substeps.setter
+    def substeps(self, value: int) -> None:
+        self._substeps = validate.integer(value, "substeps", low=1)
+
+    @property
+    def restitution_threshold(self) -> float:
+        """Approach speed [m/s] below which contacts do not bounce, >= 0."""
+        return self._restitution_threshold
+
+    @restitution_threshold.setter
+    def restitution_threshold(self, value: float) -> None:
+        self._restitution_threshold = validate.number(value, "restitution_threshold", low=0.0)
+
+    @property
+    def key(self) -> int:
+        """This world's identity, carried by the handles it gives out (unique in the process)."""
+        return self._key
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]: steps taken times their dt, summed over runs of equal dt (exact to one rounding)."""
+        return self._time_base + self._segment_steps * self._segment_dt
 
     # ------------------------------------------------------------------ bodies
 
@@ -226,14 +288,12 @@ class World:
             restitution: coefficient of restitution in [0, 1].
             friction: Coulomb friction coefficient (>= 0).
         """
-        n = _vec(normal, "normal")
+        n = validate.vector(normal, "normal")
         length = np.linalg.norm(n)
         if length < 1e-12:
             raise ValueError(f"normal must not be zero, got {normal!r}")
         n = n / length
-        offset = float(offset)
-        if not math.isfinite(offset):
-            raise ValueError(f"offset must be finite, got {offset!r}")
+        offset = validate.number(offset, "offset")
         return self._add_bodies(
             shape=ShapeType.PLANE,
             position=(n * offset)[None],
@@ -242,8 +302,8 @@ class World:
             half_extents=np.zeros((1, 3)),
             mass=np.zeros(1),
             inertia=np.zeros((1, 3)),
-            restitution=_unit_interval(restitution, "restitution"),
-            friction=_unit_interval(friction, "friction"),
+            restitution=_restitution(restitution),
+            friction=_friction(friction),
         )[0]
 
     def add_sphere(
@@ -259,6 +319,7 @@ class World:
         restitution: float = 0.5,
         friction: float = 0.5,
         static: bool = False,
+        kinematic: bool = False,
     ) -> BodyId:
         """Add a solid sphere.
 
@@ -273,11 +334,18 @@ class World:
             restitution: coefficient of restitution in [0, 1].
             friction: Coulomb friction coefficient (>= 0).
             static: if True the sphere never moves (inverse mass 0).
+            kinematic: if True the sphere moves only with the velocity it is given (at creation or
+                by `set_body_state` / `set_kinematic_target`), unaffected by gravity and contacts,
+                and pushes dynamic bodies as a body of infinite mass would.
+
+        Returns:
+            The sphere's `BodyId`.
         """
+        validate.positive(radius, "radius")
         return self.add_spheres(
-            position=_vec(position, "position")[None], radius=radius, mass=mass, density=density, velocity=velocity,
-            orientation=orientation, angular_velocity=angular_velocity, restitution=restitution, friction=friction,
-            static=static,
+            position=validate.vector(position, "position")[None], radius=radius, mass=mass, density=density,
+            velocity=velocity, orientation=orientation, angular_velocity=angular_velocity, restitution=restitution,
+            friction=friction, static=static, kinematic=kinematic,
         )[0]
 
     def add_box(
@@ -293,17 +361,31 @@ class World:
         restitution: float = 0.5,
         friction: float = 0.5,
         static: bool = False,
+        kinematic: bool = False,
     ) -> BodyId:
         """Add a solid box. Arguments as `add_sphere`, with half extents [m], shape (3,), all > 0."""
         return self.add_boxes(
-            position=_vec(position, "position")[None], half_extents=_vec(half_extents, "half_extents"), mass=mass,
-            density=density, velocity=velocity, orientation=orientation, angular_velocity=angular_velocity,
-            restitution=restitution, friction=friction, static=static,
+            position=validate.vector(position, "position")[None],
+            half_extents=validate.vector(half_extents, "half_extents"), mass=mass, density=density,
+            velocity=velocity, orientation=orientation, angular_velocity=angular_velocity, restitution=restitution,
+            friction=friction, static=static, kinematic=kinematic,
         )[0]
 
-    def add_spheres(self, *, position, radius, mass=None, density=None, velocity=(0.0, 0.0, 0.0),
-                    orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), restitution: float = 0.5,
-                    friction: float = 0.5, static: bool = False) -> list[BodyId]:
+    def add_spheres(
+        self,
+        *,
+        position: ArrayLike,
+        radius: float | ArrayLike,
+        mass: float | ArrayLike | None = None,
+        density: float | ArrayLike | None = None,
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+        kinematic: bool = False,
+    ) -> list[BodyId]:
         """Add n spheres in one call, much faster than n calls of `add_sphere`.
 
         Args:
@@ -311,32 +393,44 @@ class World:
             radius, mass, density: one value for all, or shape (n,); see `add_sphere`.
             velocity, angular_velocity: shape (3,) for all, or (n, 3).
             orientation: shape (4,) for all, or (n, 4), (x, y, z, w).
-            restitution, friction, static: one value for all.
+            restitution, friction, static, kinematic: one value for all.
 
         Returns:
             The new bodies' ids, in order.
         """
-        x = _rows(position, "position", 3)
-        r = _positive_rows(radius, "radius", len(x))
+        x = validate.rows(position, "position", 3)
+        r = validate.positive_rows(radius, "radius", len(x))
         m = self._masses(mass, density, _shapes.sphere_volume(r))
         inertia = _shapes.sphere_inertia(m, r)
         return self._add_solids(ShapeType.SPHERE, x, velocity, orientation, angular_velocity, radius=r,
                                 half_extents=np.zeros((len(x), 3)), mass=m, inertia=inertia,
-                                restitution=restitution, friction=friction, static=static)
+                                restitution=restitution, friction=friction, static=static, kinematic=kinematic)
 
-    def add_boxes(self, *, position, half_extents, mass=None, density=None, velocity=(0.0, 0.0, 0.0),
-                  orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), restitution: float = 0.5,
-                  friction: float = 0.5, static: bool = False) -> list[BodyId]:
+    def add_boxes(
+        self,
+        *,
+        position: ArrayLike,
+        half_extents: ArrayLike,
+        mass: float | ArrayLike | None = None,
+        density: float | ArrayLike | None = None,
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+        kinematic: bool = False,
+    ) -> list[BodyId]:
         """Add n boxes in one call; arguments as `add_spheres`, with half extents [m], shape (3,) or (n, 3)."""
-        x = _rows(position, "position", 3)
-        h = _rows(half_extents, "half_extents", 3, len(x))
+        x = validate.rows(position, "position", 3)
+        h = validate.rows(half_extents, "half_extents", 3, len(x))
         if np.any(h <= 0.0):
-            raise ValueError(f"half_extents must all be > 0, got {half_extents!r}")
+            raise ValueError(f"half_extents must all be > 0, got {validate.show(half_extents)}")
         m = self._masses(mass, density, _shapes.box_volume(h))
         inertia = _shapes.box_inertia(m, h)
         return self._add_solids(ShapeType.BOX, x, velocity, orientation, angular_velocity, radius=np.zeros(len(x)),
                                 half_extents=h, mass=m, inertia=inertia, restitution=restitution,
-                                friction=friction, static=static)
+                                friction=friction, static=static, kinematic=kinematic)
 
     def add_capsule(
         self,
@@ -362,7 +456,7 @@ class World:
             Others as `add_sphere`.
         """
         return self.add_capsules(
-            position=_vec(position, "position")[None], radius=radius, half_height=half_height, mass=mass,
+            position=validate.vector(position, "position")[None], radius=radius, half_height=half_height, mass=mass,
             density=density, velocity=velocity, orientation=orientation, angular_velocity=angular_velocity,
             restitution=restitution, friction=friction, static=static,
         )[0]
@@ -371,9 +465,9 @@ class World:
                      orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), restitution: float = 0.5,
                      friction: float = 0.5, static: bool = False) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
-        x = _rows(position, "position", 3)
-        r = _positive_rows(radius, "radius", len(x))
-        a = _positive_rows(half_height, "half_height", len(x))
+        x = validate.rows(position, "position", 3)
+        r = validate.positive_rows(radius, "radius", len(x))
+        a = validate.positive_rows(half_height, "half_height", len(x))
         m = self._masses(mass, density, _shapes.capsule_volume(r, a))
         inertia = _shapes.capsule_inertia(m, r, a)
         # half extents of the body-frame bounding box; the kernels read the half height as h_z - r
@@ -429,8 +523,8 @@ class World:
         if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
             raise ValueError(f"scale must be one positive number or three, got {scale!r}")
         proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
-        q_user = _unit_quat(orientation)
-        x = _vec(position, "position") + _quat_rotate(q_user, proto.offset_com)
+        q_user = validate.quaternion(orientation)
+        x = validate.vector(position, "position") + _quat_rotate(q_user, proto.offset_com)
         q = _quat_mul(q_user, proto.rotation)
         m = self._masses(mass, density, np.array([proto.volume]))
         inertia = proto.inertia[None] * (m[0] / proto.volume)
@@ -476,10 +570,10 @@ class World:
         v = v * factor
         index = self.meshes.add(v, t)
         ids = self._add_bodies(
-            shape=ShapeType.MESH, position=_vec(position, "position")[None],
-            orientation=_unit_quat(orientation)[None], radius=np.zeros(1),
+            shape=ShapeType.MESH, position=validate.vector(position, "position")[None],
+            orientation=validate.quaternion(orientation)[None], radius=np.zeros(1),
             half_extents=np.abs(v).max(axis=0)[None], mass=np.zeros(1), inertia=np.zeros((1, 3)),
-            restitution=_unit_interval(restitution, "restitution"), friction=_unit_interval(friction, "friction"),
+            restitution=_restitution(restitution), friction=_friction(friction),
             bound=np.array([float(np.linalg.norm(v, axis=1).max())]),
         )
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
@@ -487,50 +581,115 @@ class World:
 
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
-        kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(shape)
+        kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(validate.text(shape, "shape"))
         return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box,
                 ShapeType.CAPSULE: self.add_capsule, ShapeType.CONVEX: self.add_convex,
                 ShapeType.MESH: self.add_mesh}[kind](**kwargs)
 
-    def add_emitter(self, **kwargs):
-        """Add an emitter that releases bodies over time; see `tumble.emitters.Emitter` for keywords.
+    def add_emitter(
+        self,
+        *,
+        shape: str | Sequence[str] = "sphere",
+        rate: float = 100.0,
+        count: int = 100,
+        position: Sequence[float] = (0.0, 0.0, 1.0),
+        region: str = "point",
+        extent: float | Sequence[float] = 0.0,
+        direction: Sequence[float] = (0.0, 0.0, -1.0),
+        cone_angle: float = 0.0,
+        speed: float | Sequence[float] = 0.0,
+        radius: float | Sequence[float] = 0.05,
+        half_extents: float | Sequence = 0.05,
+        mass: float | Sequence[float] | None = None,
+        density: float | Sequence[float] | None = None,
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        random_orientation: bool = False,
+        angular_speed: float | Sequence[float] = 0.0,
+        seed: int | None = None,
+    ) -> Emitter:
+        """Add an emitter that releases bodies over time; the keywords are `tumble.Emitter`'s.
 
         Returns:
-            The `Emitter`, whose `rate` may be changed while the world runs.
+            The `Emitter` (the emitter's handle), whose `rate` may be changed while the world runs.
         """
-        from .emitters import Emitter
-
-        emitter = Emitter(**kwargs)
+        emitter = Emitter(shape=shape, rate=rate, count=count, position=position, region=region, extent=extent,
+                          direction=direction, cone_angle=cone_angle, speed=speed, radius=radius,
+                          half_extents=half_extents, mass=mass, density=density, restitution=restitution,
+                          friction=friction, random_orientation=random_orientation, angular_speed=angular_speed,
+                          seed=seed)
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
+        emitter.world_key = self._key
         self.emitters.append(emitter)
         return emitter
 
-    def add_cloth(self, **kwargs):
-        """Add a rectangular mass-spring cloth; see `tumble.cloth.ClothSystem.add_cloth` for keywords."""
-        return self.cloth.add_cloth(**kwargs)
+    def remove_emitter(self, emitter: Emitter) -> None:
+        """Stop and forget an emitter of this world (the bodies it released stay)."""
+        if not isinstance(emitter, Emitter):
+            raise TypeError(f"emitter must be an Emitter, got {validate.show(emitter)}")
+        if emitter.world_key != self._key or not any(e is emitter for e in self.emitters):
+            raise HandleError("emitter does not belong to this World (added to another one, or removed)")
+        self.emitters = [e for e in self.emitters if e is not emitter]
+        emitter.world_key = None
+
+    def add_cloth(
+        self,
+        *,
+        size: Sequence[float] = (1.0, 1.0),
+        resolution: Sequence[int] = (32, 32),
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        mass: float | None = None,
+        areal_density: float | None = None,
+        stiffness: float | dict[str, float] | None = None,
+        damping: float | dict[str, float] | None = None,
+        max_stretch: float | None = 0.1,
+        pins: str | Sequence[Sequence[int]] | None = None,
+        thickness: float = 0.01,
+        friction: float = 0.3,
+    ) -> ClothId:
+        """Add a rectangular mass-spring cloth; the keywords are `ClothSystem.add_cloth`'s.
+
+        Returns:
+            The cloth's `ClothId` (an int, its index in creation order); `world.cloth` holds the
+            particles of every cloth.
+        """
+        index = self.cloth.add_cloth(size=size, resolution=resolution, position=position, orientation=orientation,
+                                     mass=mass, areal_density=areal_density, stiffness=stiffness, damping=damping,
+                                     max_stretch=max_stretch, pins=pins, thickness=thickness, friction=friction)
+        return ClothId(index, 0, self._key)
 
     @property
-    def cloth(self):
+    def cloth(self) -> ClothSystem:
         """The world's `ClothSystem` (created on first use)."""
         if self._cloth is None:
-            from .cloth import ClothSystem
-
             self._cloth = ClothSystem(self)
         return self._cloth
 
-    def set_wind(self, **kwargs) -> None:
-        """Set the wind acting on cloth; see `tumble.cloth.Wind` for keywords."""
-        self.cloth.set_wind(**kwargs)
+    def set_wind(
+        self,
+        *,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        turbulence: float = 0.0,
+        scale: float = 1.0,
+        seed: int = 0,
+        drag: float = 1.2,
+        lift: float = 0.3,
+        air_density: float = AIR_DENSITY,
+    ) -> None:
+        """Set the wind acting on cloth; the keywords are `ClothSystem.set_wind`'s (model: `tumble.Wind`)."""
+        self.cloth.set_wind(velocity=velocity, turbulence=turbulence, scale=scale, seed=seed, drag=drag, lift=lift,
+                            air_density=air_density)
 
     def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
         """Set restitution and/or friction of every body (planes included), effective at once."""
         n = self.bodies.count
         if restitution is not None:
-            self.bodies.write("body_restitution", slice(0, n), _unit_interval(restitution, "restitution"))
+            self.bodies.write("body_restitution", slice(0, n), _restitution(restitution))
         if friction is not None:
-            self.bodies.write("body_friction", slice(0, n), _unit_interval(friction, "friction"))
+            self.bodies.write("body_friction", slice(0, n), _friction(friction))
 
     def add_joint(self, kind: str, body_a, body_b, **kwargs):
         """Join two bodies (either may be None: the world, a fixed frame); see `tumble.solver.joints`.
@@ -569,44 +728,269 @@ class World:
         return joint_solver.JointBody(i, b.numpy("body_position")[i].copy(), b.numpy("body_orientation")[i].copy(),
                                       bool(b.numpy("body_inv_mass")[i] > 0.0))
 
-    def apply_force(self, body, force: Sequence[float], *, point: Sequence[float] | None = None) -> None:
-        """Apply a force [N] (at a world `point`, default the centre of mass) during the next step only."""
-        i = self._slot(body)
-        f = _vec(force, "force")
+    def apply_force(self, body: BodyId | int, force: Sequence[float], *,
+                    point: Sequence[float] | None = None) -> None:
+        """Apply a force [N] (at a world `point`, default the centre of mass) during the next step only.
+
+        Static and kinematic bodies are not moved by forces.
+        """
+        i = self._row(body)
+        f = validate.vector(force, "force")
         self.bodies.write("body_force", i, self.bodies.numpy("body_force")[i] + f)
         if point is not None:
-            r = _vec(point, "point") - self.bodies.numpy("body_position")[i]
+            r = validate.vector(point, "point") - self.bodies.numpy("body_position")[i]
             self.bodies.write("body_torque", i, self.bodies.numpy("body_torque")[i] + np.cross(r, f))
+
+    # ------------------------------------------------------------------ body state and removal
+
+    def body_state(self, body: BodyId | int) -> BodyState:
+        """One body's position, orientation, velocity, angular velocity and kind, as copies.
+
+        As PyBullet's `getBasePositionAndOrientation` and `getBaseVelocity` in one call;
+        `body.position` and the other handle properties read the same.
+        """
+        i = self._row(body)
+        b = self.bodies
+        return BodyState(*(np.array(b.numpy(name)[i]) for name in _STATE_NAMES.values()),
+                         kind=BodyKind(int(b.numpy("body_kind")[i])))
+
+    def set_body_state(
+        self,
+        body: BodyId | int | Sequence[BodyId | int],
+        *,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        velocity: ArrayLike | None = None,
+        angular_velocity: ArrayLike | None = None,
+    ) -> None:
+        """Set the pose and/or velocities of one body, or of several at once; effective at once.
+
+        As PyBullet's `resetBasePositionAndOrientation` and `resetBaseVelocity`, and Rapier's
+        `set_translation` / `set_linvel`; the handle properties (`ball.position = ...`) call this.
+        A moved body teleports: contacts are found anew at the next step (a contact that is
+        still there keeps its warm start). Static bodies may be moved but not given a velocity;
+        make them kinematic for that.
+
+        Args:
+            body: a `BodyId` (or int id), or a sequence of k of them.
+            position: centre of mass [m], shape (3,), or (k, 3) for k bodies.
+            orientation: unit quaternion (x, y, z, w), shape (4,) or (k, 4) (normalised here).
+            velocity: [m/s], shape (3,) or (k, 3).
+            angular_velocity: world frame [rad/s], shape (3,) or (k, 3).
+
+        Raises:
+            TypeError, ValueError: a bad value, named; HandleError: a removed or foreign body.
+        """
+        ids, rows = self._rows(body)
+        k = len(rows)
+        values = {}
+        if position is not None:
+            values["body_position"] = validate.rows(position, "position", 3, k)
+        if orientation is not None:
+            values["body_orientation"] = validate.quaternion(orientation, "orientation", k)
+        if velocity is not None:
+            values["body_velocity"] = validate.rows(velocity, "velocity", 3, k)
+        if angular_velocity is not None:
+            values["body_angular_velocity"] = validate.rows(angular_velocity, "angular_velocity", 3, k)
+        if velocity is not None or angular_velocity is not None:
+            static = self.bodies.numpy("body_kind")[rows] == BodyKind.STATIC
+            if np.any(static):
+                raise ValueError(f"body {int(ids[np.argmax(static)])} is static and cannot be given a velocity; "
+                                 "add it with kinematic=True to move it by a velocity")
+        for name, v in values.items():
+            self.bodies.write(name, rows, v)
+
+    def set_kinematic_target(
+        self,
+        body: BodyId | int | Sequence[BodyId | int],
+        *,
+        position: ArrayLike | None = None,
+        orientation: ArrayLike | None = None,
+        dt: float | None = None,
+    ) -> None:
+        """Give kinematic bodies the velocities that carry them to a pose by the end of the next step.
+
+        As Rapier's `set_next_kinematic_translation` / `_rotation`: the body sweeps there at a
+        constant velocity, so dynamic bodies in its way are pushed, not tunnelled through.
+        v = (target - x) / dt; w = axis * angle / dt for the rotation from the current orientation
+        to the target (the shorter way).
+
+        Args:
+            body: a kinematic body's `BodyId` (or int id), or a sequence of k of them.
+            position: target centre [m], shape (3,) or (k, 3); None keeps the linear velocity.
+            orientation: target orientation (x, y, z, w), shape (4,) or (k, 4); None keeps the
+                angular velocity.
+            dt: the next step's length [s] (default `world.dt`).
+        """
+        ids, rows = self._rows(body)
+        k = len(rows)
+        h = self.dt if dt is None else validate.positive(dt, "dt")
+        kinds = self.bodies.numpy("body_kind")[rows]
+        if np.any(kinds != BodyKind.KINEMATIC):
+            raise ValueError(f"body {int(ids[np.argmax(kinds != BodyKind.KINEMATIC)])} is not kinematic; "
+                             "add it with kinematic=True to drive it by targets")
+        if position is not None:
+            target = validate.rows(position, "position", 3, k)
+            self.bodies.write("body_velocity", rows, (target - self.bodies.numpy("body_position")[rows]) / h)
+        if orientation is not None:
+            target = validate.quaternion(orientation, "orientation", k)
+            rotation = _rotation_vector(target, self.bodies.numpy("body_orientation")[rows])
+            self.bodies.write("body_angular_velocity", rows, rotation / h)
+
+    def remove_body(self, body: BodyId | int) -> None:
+        """Remove one body; see `remove_bodies`."""
+        self.remove_bodies([body])
+
+    def remove_bodies(self, bodies: Sequence[BodyId | int]) -> None:
+        """Remove bodies from the world, effective at once.
+
+        Their contacts (and warm starts) go with them; other bodies keep their ids. A removed
+        body's id is given to the next body added, with its generation one higher, so its old
+        handle raises `HandleError`. Until then the id's row in the views is NaN (shape and
+        kind -1) and `body_alive` is False there; removing the highest ids shortens the views.
+        """
+        ids, rows = self._rows(bodies)
+        if len(np.unique(ids)) != len(ids):
+            raise ValueError("bodies lists a body twice")
+        # joints and cloth pins on a body would lose their body: refused until they can be removed too
+        held = [self.joints.numpy(name) for name in ("joint_body_a", "joint_body_b")]
+        if self._cloth is not None:
+            held.append(np.asarray(self._cloth.body_pins._body))
+        for attached in held:
+            if np.isin(rows, attached).any():
+                raise ValueError(f"body {int(ids[np.isin(rows, attached)][0])} is held by a joint or a cloth pin; "
+                                 "bodies with joints or pins cannot be removed yet")
+        n = self.bodies.count
+        keep = np.ones(n, dtype=bool)
+        keep[rows] = False
+        order = np.flatnonzero(keep)
+        slot = np.full(n, -1, dtype=np.int64)  # new row of each old row, -1 for a removed one
+        slot[order] = np.arange(len(order))
+        self.bodies.take(order)
+        self.contacts.remap_bodies(slot, current=True)
+        if self._cloth is not None:
+            self._cloth.remap_bodies(slot)
+        self.broadphase.bodies_changed()
+        # ids: removed ones are freed (generation + 1); the others follow their rows
+        of_id = np.arange(self._id_count) if self._slot_of_id is None else self._slot_of_id
+        live = of_id >= 0
+        of_id = of_id.copy()
+        of_id[live] = slot[of_id[live]]
+        self._body_generation[ids] += 1
+        self._set_id_rows(of_id)
+
+    def has_body(self, body: BodyId | int) -> bool:
+        """True if `body` names a live body of this world (False for a removed or foreign handle)."""
+        try:
+            self._row(body)
+        except (HandleError, IndexError):
+            return False
+        return True
+
+    def body(self, index: int) -> BodyId:
+        """The handle of the live body with id `index` (e.g. from `contact_pair` or a picked row)."""
+        i = validate.integer(index, "index", low=0)
+        self._row(i)
+        return BodyId(i, int(self._body_generation[i]), self._key)
+
+    @property
+    def body_alive(self) -> np.ndarray:
+        """True for ids of live bodies, False for removed ones, shape (body_count,), bool."""
+        if self._slot_of_id is None:
+            return readonly(np.ones(self._id_count, dtype=bool))
+        return readonly(self._slot_of_id >= 0)
+
+    def _set_id_rows(self, of_id: np.ndarray) -> None:
+        """Take `of_id` (row of each id, -1 = free) as the id table: trailing free ids are dropped."""
+        alive = np.flatnonzero(of_id >= 0)
+        count = int(alive[-1]) + 1 if len(alive) else 0
+        of_id = of_id[:count]
+        self._id_count = count
+        self._free_ids = count - len(alive)
+        self._slot_of_id = None if self._free_ids == 0 and np.array_equal(of_id, np.arange(count)) else of_id
+
+    def _new_ids(self, k: int) -> np.ndarray:
+        """Ids for k new bodies: freed ids first (lowest first), then new ones."""
+        reused = np.zeros(0, dtype=np.int64)
+        if self._free_ids and self._slot_of_id is not None:
+            reused = np.flatnonzero(self._slot_of_id < 0)[:k]
+        fresh = np.arange(self._id_count, self._id_count + k - len(reused))
+        if len(self._body_generation) < self._id_count + len(fresh):
+            grown = np.zeros(max(2 * len(self._body_generation), self._id_count + len(fresh)), dtype=np.int64)
+            grown[: len(self._body_generation)] = self._body_generation
+            self._body_generation = grown
+        return np.concatenate([reused, fresh])
+
+    def _row(self, body) -> int:
+        """Row of one body in the body arrays, after checking its handle."""
+        return int(self._rows(body, single=True)[1][0])
+
+    def _rows(self, body, *, single: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(ids, rows) of one body or a sequence of bodies, each checked: a live body of this world."""
+        many = not single and isinstance(body, (list, tuple, range, np.ndarray))
+        items = list(body) if many else [body]
+        ids = np.empty(len(items), dtype=np.int64)
+        for k, b in enumerate(items):
+            if isinstance(b, (bool, np.bool_)) or not isinstance(b, (int, np.integer)):
+                raise TypeError(f"body must be a BodyId (or an int id), got {validate.show(b)}")
+            i = int(b)
+            if not 0 <= i < self._id_count:
+                raise IndexError(f"body {i} does not exist (the world has {self._id_count} body ids)")
+            if isinstance(b, Handle):
+                if not isinstance(b, BodyId):
+                    raise TypeError(f"body must be a BodyId, got the {type(b).__name__} {b!r}")
+                if b.world_key is not None and b.world_key != self._key:
+                    raise HandleError(f"body {i} belongs to another World")
+                if b.generation != self._body_generation[i]:
+                    raise HandleError(f"body {i} was removed from this World (its id now names a newer body)"
+                                      if self._slot_of_id is None or self._slot_of_id[i] >= 0
+                                      else f"body {i} was removed from this World")
+            ids[k] = i
+        rows = ids if self._slot_of_id is None else self._slot_of_id[ids]
+        if np.any(rows < 0):
+            raise HandleError(f"body {int(ids[np.argmax(rows < 0)])} was removed from this World")
+        return ids, rows
 
     def _masses(self, mass, density, volume: np.ndarray) -> np.ndarray:
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
         if mass is not None:
-            return _positive_rows(mass, "mass", len(volume))
-        return _positive_rows(1000.0 if density is None else density, "density", len(volume)) * volume
+            return validate.positive_rows(mass, "mass", len(volume))
+        return validate.positive_rows(1000.0 if density is None else density, "density", len(volume)) * volume
 
     def _add_solids(self, shape, position, velocity, orientation, angular_velocity, *, radius, half_extents,
-                    mass, inertia, restitution, friction, static, bound=None) -> list[BodyId]:
+                    mass, inertia, restitution, friction, static, kinematic=False, bound=None) -> list[BodyId]:
         n = len(position)
-        q = _rows(orientation, "orientation", 4, n)
-        norm = np.linalg.norm(q, axis=1, keepdims=True)
-        if np.any(norm < 1e-12):
-            raise ValueError(f"orientation must be a non-zero quaternion (x, y, z, w), got {orientation!r}")
-        v = _rows(velocity, "velocity", 3, n)
-        w = _rows(angular_velocity, "angular_velocity", 3, n)
+        q = validate.quaternion(orientation, "orientation", n)
+        v = validate.rows(velocity, "velocity", 3, n)
+        w = validate.rows(angular_velocity, "angular_velocity", 3, n)
+        restitution, friction = _restitution(restitution), _friction(friction)
+        static, kinematic = validate.flag(static, "static"), validate.flag(kinematic, "kinematic")
+        if static and kinematic:
+            raise ValueError("a body is static or kinematic, not both")
+        kind = BodyKind.DYNAMIC
+        if static or kinematic:
+            kind = BodyKind.STATIC if static else BodyKind.KINEMATIC
+            mass, inertia = np.zeros(n), np.zeros((n, 3))
         if static:
-            mass, inertia, v, w = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+            v, w = np.zeros((n, 3)), np.zeros((n, 3))
         return self._add_bodies(
-            shape=shape, position=position, velocity=v, orientation=q / norm, angular_velocity=w, radius=radius,
-            half_extents=half_extents, mass=mass, inertia=inertia,
-            restitution=_unit_interval(restitution, "restitution"), friction=_unit_interval(friction, "friction"),
-            bound=bound,
+            shape=shape, position=position, velocity=v, orientation=q, angular_velocity=w, radius=radius,
+            half_extents=half_extents, mass=mass, inertia=inertia, restitution=restitution, friction=friction,
+            kind=kind, bound=bound,
         )
 
     def _add_bodies(self, *, shape, position, orientation, radius, half_extents, mass, inertia,
-                    restitution, friction, velocity=None, angular_velocity=None, bound=None) -> list[BodyId]:
-        """Append k bodies given as arrays with k rows (vectorised; used by emitters too)."""
+                    restitution, friction, velocity=None, angular_velocity=None, kind=None,
+                    bound=None) -> list[BodyId]:
+        """Append k bodies given as arrays with k rows (vectorised; used by emitters too).
+
+        `kind` (BodyKind) defaults to static for bodies of mass 0, else dynamic; `bound` (k,)
+        overrides the bounding radius where finite (convex bodies: the hull's bounding sphere).
+        """
         k = len(position)
+        if k == 0:
+            return []
         shape = np.broadcast_to(np.asarray(shape, dtype=np.int32), (k,))
         given = bound
         bound = np.where(
@@ -620,11 +1004,14 @@ class World:
         with np.errstate(divide="ignore"):
             inv_mass = np.where(mass > 0.0, 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
             inv_inertia = np.where(inertia > 0.0, 1.0 / np.where(inertia > 0.0, inertia, 1.0), 0.0)
-        first = self.bodies.count  # ids are creation order, and bodies are never removed
+        if kind is None:
+            kind = np.where(mass > 0.0, BodyKind.DYNAMIC, BodyKind.STATIC)
+        ids = self._new_ids(k)
         rows = self.bodies.append(
             {
-                "body_id": np.arange(first, first + k, dtype=np.int32),
+                "body_id": ids,
                 "body_shape": shape,
+                "body_kind": np.broadcast_to(np.asarray(kind, dtype=np.int32), (k,)),
                 "body_radius": radius,
                 "body_half_extents": half_extents,
                 "body_bound_radius": bound,
@@ -639,16 +1026,20 @@ class World:
                 "body_angular_velocity": np.zeros((k, 3)) if angular_velocity is None else angular_velocity,
             }
         )
-        if self._slot_of_id is not None:
-            self._slot_of_id = np.concatenate([self._slot_of_id, np.arange(first, first + k)])
-        return [BodyId(i) for i in rows]
+        if self._slot_of_id is None and len(ids) and ids[0] == self._id_count:
+            self._id_count += k  # the common case: new ids at the end, rows in id order
+        else:
+            of_id = np.arange(self._id_count) if self._slot_of_id is None else self._slot_of_id
+            grown = np.full(max(self._id_count, int(ids.max()) + 1), -1, dtype=np.int64)
+            grown[: len(of_id)] = of_id
+            grown[ids] = np.asarray(rows)
+            self._set_id_rows(grown)
+        generation = self._body_generation[ids]
+        return [BodyId(i, g, self._key) for i, g in zip(ids.tolist(), generation.tolist())]
 
     def _slot(self, body) -> int:
-        """Row of the body with id `body` in the body arrays."""
-        i = int(body)
-        if not 0 <= i < self.bodies.count:
-            raise IndexError(f"body {i} does not exist (the world has {self.bodies.count} bodies)")
-        return i if self._slot_of_id is None else int(self._slot_of_id[i])
+        """Row of the body with id `body` in the body arrays (kept for callers of the old name)."""
+        return self._row(body)
 
     def _sort_bodies(self) -> None:
         """Renumber the body rows along a space-filling curve (ids stay the same).
@@ -675,14 +1066,19 @@ class World:
         if self._cloth is not None:
             self._cloth.remap_bodies(slot)
         self.joints.remap_bodies(slot)
-        self._slot_of_id = np.empty(n, dtype=np.int64)
-        self._slot_of_id[self.bodies.numpy("body_id")] = np.arange(n)
+        of_id = np.full(self._id_count, -1, dtype=np.int64)
+        of_id[self.bodies.numpy("body_id")] = np.arange(n)
+        self._slot_of_id = of_id
 
     # ------------------------------------------------------------------ stepping
 
     def step(self, dt: float | None = None) -> None:
         """Advance the world by one step of `dt` seconds (default `self.dt`)."""
-        dt = self.dt if dt is None else _positive(dt, "dt")
+        dt = self.dt if dt is None else validate.positive(dt, "dt")
+        if dt != self._segment_dt:
+            # a new run of steps of another length: bank the time of the last run
+            self._time_base = self.time
+            self._segment_dt, self._segment_steps = dt, 0
         h = dt / self.substeps
         bodies, contacts = self.bodies, self.contacts
         cloth = self._cloth
@@ -746,7 +1142,7 @@ class World:
             self.joints.finish(dt, cache=launches)  # joint forces; joints over their break force break
             integrate.clear_forces(bodies)
 
-        self.time += dt
+        self._segment_steps += 1
         self.step_count += 1
 
     def collide(self, dt: float | None = None) -> int:
@@ -757,7 +1153,7 @@ class World:
         Returns:
             The number of contacts; read them with `contact_point`, `contact_normal`, ...
         """
-        dt = self.dt if dt is None else _positive(dt, "dt")
+        dt = self.dt if dt is None else validate.positive(dt, "dt")
         pairs = self.broadphase.find_pairs(self.bodies, dt)
         narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
         return self.contacts.count
@@ -776,7 +1172,8 @@ class World:
         Returns:
             The number of steps taken.
         """
-        steps = int(round(_positive(duration, "duration") / self.dt))
+        steps = int(round(validate.positive(duration, "duration") / self.dt))
+        validate.callable_or_none(callback, "callback")
         for _ in range(steps):
             self.step()
             if callback is not None:
@@ -805,16 +1202,31 @@ class World:
                 )
 
     # ------------------------------------------------------------------ read-only views
+    #
+    # Every view is read afresh on each access: a read-only copy of that moment's state, one
+    # row per body id. An array kept from an earlier access is a snapshot: it never changes
+    # (not when the world steps, grows or reorders its rows); read the property again.
 
     def _view(self, name: str) -> np.ndarray:
-        """Rows in id order (a copy once the rows have been reordered), read-only."""
+        """A read-only copy of one body array, rows in id order; NaN (or -1) in the rows of removed ids."""
         values = self.bodies.numpy(name)
-        return readonly(values if self._slot_of_id is None else values[self._slot_of_id])
+        slot = self._slot_of_id
+        if slot is None:
+            return readonly(values.copy())
+        if not self._free_ids:
+            return readonly(values[slot])
+        out = np.full((len(slot),) + values.shape[1:], -1 if values.dtype.kind in "iu" else np.nan, values.dtype)
+        live = slot >= 0
+        out[live] = values[slot[live]]
+        return readonly(out)
 
     @property
     def body_count(self) -> int:
-        """Number of bodies, planes included."""
-        return self.bodies.count
+        """Number of body ids, planes included: the rows of every per-body view.
+
+        Without removals this is the number of bodies; see `remove_bodies` and `body_alive`.
+        """
+        return self._id_count
 
     @property
     def contact_count(self) -> int:
@@ -822,6 +1234,8 @@ class World:
         return self.contacts.count
 
     body_shape = property(lambda self: self._view("body_shape"), doc="Shape types (ShapeType), shape (n,), int32.")
+    body_kind = property(lambda self: self._view("body_kind"),
+                         doc="How each body moves (BodyKind: dynamic, static, kinematic), shape (n,), int32.")
     body_radius = property(lambda self: self._view("body_radius"), doc="Sphere and capsule radii [m], shape (n,).")
     body_geometry = property(lambda self: self._view("body_geometry"),
                              doc="Row of each convex body's hull in `hulls.prototypes`, shape (n,), int32.")
@@ -857,12 +1271,8 @@ class World:
 
     @property
     def body_inertia_world(self) -> np.ndarray:
-        """World-frame inertia tensors [kg m^2], shape (n, 3, 3) (zero for static bodies)."""
-        inv_i = self._view("body_inv_inertia")
-        with np.errstate(divide="ignore"):
-            inertia = np.where(inv_i > 0.0, 1.0 / np.where(inv_i > 0.0, inv_i, 1.0), 0.0)
-        rot = quat_to_matrix(self.body_orientation)
-        return np.einsum("nij,nj,nkj->nik", rot, inertia, rot)
+        """World-frame inertia tensors [kg m^2], shape (n, 3, 3) (zero for static and kinematic bodies)."""
+        return _inertia_world(self._view("body_inv_inertia"), self.body_orientation)
 
     @property
     def contact_point(self) -> np.ndarray:
@@ -895,7 +1305,8 @@ class World:
         w = self.bodies.numpy("body_angular_velocity")
         energy = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
         if len(m):
-            energy += 0.5 * float(np.einsum("ni,nij,nj->", w, self.body_inertia_world, w))
+            inertia = _inertia_world(self.bodies.numpy("body_inv_inertia"), self.bodies.numpy("body_orientation"))
+            energy += 0.5 * float(np.einsum("ni,nij,nj->", w, inertia, w))
         if self._cloth is not None:
             energy += self._cloth.kinetic_energy()
         return energy
@@ -922,6 +1333,14 @@ class World:
         if self._cloth is not None:
             digest.update(np.ascontiguousarray(self._cloth.particle_position_numpy()).tobytes())
         return digest.hexdigest()
+
+
+def _inertia_world(inv_inertia: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """World-frame inertia tensors R diag(I) R^T [kg m^2], shape (n, 3, 3), from principal inverse moments."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inertia = np.where(inv_inertia > 0.0, 1.0 / np.where(inv_inertia > 0.0, inv_inertia, 1.0), 0.0)
+    rot = quat_to_matrix(q)
+    return np.einsum("nij,nj,nkj->nik", rot, inertia, rot)
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:

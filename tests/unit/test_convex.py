@@ -71,7 +71,7 @@ def test_add_convex_puts_the_body_frame_at_the_centre_of_mass():
     pts = np.vstack([np.zeros(3), np.eye(3)])
     c = w.add_convex(points=pts, position=(1, 0, 2), orientation=q, density=600)
     proto = w.hulls.prototypes[w.body_geometry[c]]
-    np.testing.assert_allclose(w.body_position[c], np.array([1, 0, 2]) + rotate(q, [0.25] * 3), atol=1e-12)
+    np.testing.assert_allclose(w.body_position[c], np.array([1, 0, 2]) + rotate(q, np.full(3, 0.25)), atol=1e-12)
     assert w.body_mass[c] == pytest.approx(600 / 6)
     # the world inertia, rotated back into the user frame, is the tetrahedron's
     inertia = w.body_inertia_world[c]

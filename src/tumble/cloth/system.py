@@ -32,8 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..errors import SimulationError
-from ..state import float_t, readonly, vec3
+from .. import validate
+from ..errors import HandleError, SimulationError
+from ..state import ClothId, Handle, float_t, readonly, vec3
 from . import collide, grid, springs
 from .attach import BodyPins
 from ..launch import LaunchCache
@@ -174,10 +175,10 @@ class ClothSystem:
         orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
         mass: float | None = None,
         areal_density: float | None = None,
-        stiffness: float | dict | None = None,
-        damping: float | dict | None = None,
+        stiffness: float | dict[str, float] | None = None,
+        damping: float | dict[str, float] | None = None,
         max_stretch: float | None = 0.1,
-        pins=None,
+        pins: str | Sequence[Sequence[int]] | None = None,
         thickness: float = 0.01,
         friction: float = 0.3,
     ) -> int:
@@ -227,13 +228,9 @@ class ClothSystem:
         ks = grid.per_kind(DEFAULT_STIFFNESS if stiffness is None else stiffness, "stiffness")
         kd = grid.per_kind(DEFAULT_DAMPING if damping is None else damping, "damping")
         if max_stretch is not None:
-            max_stretch = float(max_stretch)
-            if not math.isfinite(max_stretch) or max_stretch < 0.0:
-                raise ValueError(f"max_stretch must be a finite number >= 0 (0.1 = 10 %), got {max_stretch!r}")
+            max_stretch = validate.number(max_stretch, "max_stretch", low=0.0)
         thickness = _positive(thickness, "thickness")
-        friction = float(friction)
-        if not math.isfinite(friction) or friction < 0.0:
-            raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        friction = validate.number(friction, "friction", low=0.0)
         pinned = grid.pin_indices(pins, nx, ny)
 
         # particles
@@ -313,8 +310,11 @@ class ClothSystem:
             drag, lift: aerodynamic coefficients of a cloth face.
             air_density: [kg/m^3].
         """
-        self.wind = Wind(velocity=velocity, turbulence=turbulence, scale=scale, seed=seed, drag=drag, lift=lift,
-                         air_density=air_density)
+        self.wind = Wind(velocity=validate.vector(velocity, "velocity"),
+                         turbulence=validate.number(turbulence, "turbulence", low=0.0),
+                         scale=validate.positive(scale, "scale"), seed=validate.integer(seed, "seed", low=0),
+                         drag=validate.number(drag, "drag", low=0.0), lift=validate.number(lift, "lift", low=0.0),
+                         air_density=validate.number(air_density, "air_density", low=0.0))
         wave, amplitude, omega, phase = self.wind.mode_arrays()
         self._wind_modes = (
             wp.array(wave, dtype=vec3, device=self.device),
@@ -577,14 +577,17 @@ class ClothSystem:
             self._contacts_next = wp.zeros(size, dtype=wp.int32, device=self.device)
 
     def remap_bodies(self, slot: np.ndarray) -> None:
-        """The world renumbered its body rows (row i is now `slot[i]`): move the last substep's
-        per-body contact counts (the next substep's are zeroed before use)."""
+        """The world renumbered its body rows (row i is now `slot[i]`, -1 for a removed body): move
+        the last substep's per-body contact counts (the next substep's are zeroed before use)."""
         self.body_pins.remap_bodies(slot)
         n = len(slot)
         size = self._contacts_prev.shape[0]
         host = np.zeros(max(size, n), dtype=np.int32)
         host[:size] = self._contacts_prev.numpy()
-        host[slot] = host[:n].copy()
+        kept = slot >= 0  # a removed body (-1) takes its counts with it
+        moved = host[:n][kept]
+        host[:n] = 0
+        host[slot[kept]] = moved
         if len(host) == size:
             self._contacts_prev.assign(host)
         else:
@@ -637,7 +640,7 @@ class ClothSystem:
         self._update_pins()
 
     def _particle(self, particle) -> int:
-        i = int(particle)
+        i = validate.integer(particle, "particle", low=0)
         if not 0 <= i < self._particle_count:
             raise ValueError(f"particle index {particle!r} out of range 0..{self._particle_count - 1}")
         return i
@@ -658,7 +661,7 @@ class ClothSystem:
         for name, values in (("particle_position", position), ("particle_velocity", velocity)):
             if values is None:
                 continue
-            a = np.asarray(values, dtype=np.float64)
+            a = validate.array(values, name.split("_")[1], f"finite numbers of shape ({p}, 3)")
             if a.shape != (p, 3) or not np.all(np.isfinite(a)):
                 raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
             self._arrays[name].assign(a)
@@ -672,9 +675,23 @@ class ClothSystem:
     # ------------------------------------------------------------------ views and diagnostics
 
     def _view(self, name: str) -> np.ndarray:
+        """A read-only copy of one particle array (read afresh on each access, as the World's views)."""
         if not self._arrays:
             return readonly(np.zeros((0, 3)))
-        return readonly(self._arrays[name].numpy()[: self._particle_count])
+        return readonly(self._arrays[name].numpy()[: self._particle_count].copy())
+
+    def cloth(self, handle: ClothId | int) -> Cloth:
+        """Where the cloth `handle` (from `World.add_cloth`) lives in the particle arrays."""
+        if isinstance(handle, (bool, np.bool_)) or not isinstance(handle, (int, np.integer)):
+            raise TypeError(f"cloth must be a ClothId (or an int index), got {validate.show(handle)}")
+        if isinstance(handle, Handle):
+            if not isinstance(handle, ClothId):
+                raise TypeError(f"cloth must be a ClothId, got the {type(handle).__name__} {handle!r}")
+            if handle.world_key is not None and handle.world_key != self.world.key:
+                raise HandleError(f"cloth {int(handle)} belongs to another World")
+        if not 0 <= int(handle) < len(self.cloths):
+            raise IndexError(f"cloth {int(handle)} does not exist (the world has {len(self.cloths)} cloths)")
+        return self.cloths[int(handle)]
 
     @property
     def particle_count(self) -> int:

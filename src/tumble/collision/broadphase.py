@@ -177,6 +177,10 @@ class BroadPhase:
         self._body_capacity = 0
         self._ordinary_limit = np.inf
 
+    def bodies_changed(self) -> None:
+        """Bodies were removed (or replaced): size the grid afresh at the next `find_pairs`."""
+        self._sized_for = -1
+
     def _resize(self, bodies) -> None:
         """Size the buffers and find the ordinary bodies when the body count changed (not every step)."""
         n = bodies.count

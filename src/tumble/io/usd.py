@@ -153,7 +153,9 @@ def select_frames(rec: dict, *, fps: float | None = None, duration: float | None
     fps, n = frame_times(fps, duration, frames, default_fps=rec_fps,
                          default_duration=length if length > 0 else 1.0 / rec_fps)
     if duration is None and frames is None:
-        n = round(length * fps) + 1
+        # every output frame that falls within the recording (0.5 s at 15 fps: 8 frames, not
+        # round(7.5) + 1 = 9); the 1e-6 absorbs a clock that falls short by a rounding
+        n = math.floor(length * fps + 1e-6) + 1
     if fps > rec_fps * (1 + 1e-9):
         raise TumbleError(f"fps {fps:g} is more than the recording's {rec_fps:g}")
     want = times[0] + np.arange(n) / fps

@@ -741,16 +741,22 @@ class ContactSet(ArraySet):
                           p.previous_body_b, p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t,
                           self.jt_world])
 
-    def remap_bodies(self, slot: np.ndarray) -> None:
-        """The body rows were renumbered (row i is now `slot[i]`): follow them in last step's contacts.
+    def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
+        """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them in
+        last step's contacts, and with `current` in this step's too (what the views show).
 
-        Pairs are ordered by body id, not row, so a renumbering never swaps a pair's bodies and
-        every contact keeps its warm start.
+        Contacts of a removed body are dropped. Pairs are ordered by body id, not row, so a
+        renumbering never swaps a pair's bodies and every other contact keeps its warm start.
         """
-        p = self.previous
-        for name in ("previous_body_a", "previous_body_b"):
-            rows = p.numpy(name)
-            p.write(name, slice(0, p.count), slot[rows])
+        for contacts, a, b in ((self.previous, "previous_body_a", "previous_body_b"),) + (
+                ((self, "contact_body_a", "contact_body_b"),) if current else ()):
+            if slot.min(initial=0) < 0:
+                kept = np.flatnonzero((slot[contacts.numpy(a)] >= 0) & (slot[contacts.numpy(b)] >= 0))
+                if len(kept) < contacts.count:
+                    contacts.take(kept)
+            for name in (a, b):
+                rows = contacts.numpy(name)
+                contacts.write(name, slice(0, contacts.count), slot[rows])
 
     def store_impulses(self, bodies) -> None:
         """Keep this step's contacts and impulses for the next step's warm start."""

@@ -4,7 +4,8 @@ Reads and writes body positions, orientations and velocities; costs O(bodies).
 
 - velocities first: v += (g + F / m) h, w += I^-1 tau h (static bodies, inverse mass 0, skip);
   the contact solver then changes v and w by impulses;
-- then positions with the new velocities: x += v h;
+- then positions with the new velocities: x += v h (kinematic bodies too: inverse mass 0, moved
+  only by the velocity the user gives them);
 - rotation: the torque-free flow of the rigid body over h, by the symplectic splitting of
   Reich (1994) and Dullweber, Leimkuhler & McLachlan (J. Chem. Phys. 107, 1997). In the body
   frame the kinetic energy H = sum_k P_k^2 / (2 I_k) of the angular momentum P = I w_body is a
@@ -92,8 +93,10 @@ def _integrate_positions(
     count: int,
 ):
     i = wp.tid()
-    if i >= count or inv_mass[i] == float_t(0.0):
+    if i >= count:
         return
+    if inv_mass[i] == float_t(0.0) and wp.length_sq(v[i]) == float_t(0.0) and wp.length_sq(w[i]) == float_t(0.0):
+        return  # static (a kinematic body, inverse mass 0 too, moves with the velocity it was given)
     x[i] = x[i] + v[i] * h
     dx[i] = dx[i] + v[i] * h
     wi = w[i]
@@ -145,7 +148,8 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
 
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
-    """x += v h and the torque-free rotation over h (splitting into body-axis turns) for every dynamic body."""
+    """x += v h and the torque-free rotation over h (splitting into body-axis turns) for every dynamic or
+    kinematic body."""
     if bodies.count == 0:
         return
     a = bodies.arrays

@@ -1,0 +1,151 @@
+"""Argument checks for the public Python API: each names the argument and the value it got.
+
+A wrong type (a string for a radius, a float for a count, 1 for a flag) raises `TypeError`;
+a value of the right type out of its range (a negative radius, NaN, 2.5 substeps) raises
+`ValueError`. Both messages read "<name> must be <what>, got <value>", so a caller (the scene
+loader, a CLI) can pass them on as one line. Every check returns the value in the engine's
+own type (float, int, bool or a float64 array).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+#: longest repr of a bad value quoted in a message
+_SHOWN = 60
+
+
+def show(value) -> str:
+    """`repr(value)`, shortened for messages (arrays of a million rows stay one line)."""
+    if isinstance(value, np.ndarray) and value.size > 8:
+        return f"an array of shape {value.shape}"
+    if isinstance(value, np.generic):
+        value = value.item()  # 2.0, not np.float64(2.0)
+    text = repr(value)
+    return text if len(text) <= _SHOWN else text[: _SHOWN - 3] + "..."
+
+
+def _real(value, name: str, what: str) -> float:
+    """`value` as a float if it is a real number (not a bool, not a string), else TypeError."""
+    if isinstance(value, (bool, np.bool_)) or not (
+        isinstance(value, numbers.Real) or (isinstance(value, np.ndarray) and value.ndim == 0
+                                            and value.dtype.kind in "iuf")):
+        raise TypeError(f"{name} must be {what}, got {show(value)}")
+    return float(value)
+
+
+def number(value, name: str, *, low: float | None = None, high: float | None = None, above: bool = False) -> float:
+    """A finite real number in [low, high] (or (low, high] with `above`)."""
+    if low is None:
+        what = "finite"
+    elif above:
+        what = "a positive number" if low == 0.0 else f"a number > {low:g}"
+    else:
+        what = f"a number >= {low:g}"
+    if high is not None:
+        what = f"in {'(' if above else '['}{low:g}, {high:g}]"
+    v = _real(value, name, "a number")
+    if not math.isfinite(v) or (low is not None and (v <= low if above else v < low)) or (
+            high is not None and v > high):
+        raise ValueError(f"{name} must be {what}, got {show(value)}")
+    return v
+
+
+def positive(value, name: str) -> float:
+    """A finite number > 0."""
+    return number(value, name, low=0.0, above=True)
+
+
+def integer(value, name: str, *, low: int | None = None) -> int:
+    """An integer >= low; an integral float (8.0) is taken, 2.5 is refused rather than truncated."""
+    what = "an integer" if low is None else f"an integer >= {low}"
+    v = _real(value, name, what)
+    if not math.isfinite(v) or v != math.floor(v):
+        raise ValueError(f"{name} must be {what}, got {show(value)}")
+    i = int(value) if isinstance(value, numbers.Integral) else int(v)
+    if low is not None and i < low:
+        raise ValueError(f"{name} must be {what}, got {show(value)}")
+    return i
+
+
+def flag(value, name: str) -> bool:
+    """True or False (NumPy booleans too); 0, 1 and strings are refused."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {show(value)}")
+    return bool(value)
+
+
+def text(value, name: str, choices: tuple[str, ...] | None = None) -> str:
+    """A string, one of `choices` when given."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be a string, got {show(value)}")
+    if choices is not None and value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, choices))}, got {show(value)}")
+    return value
+
+
+def array(value, name: str, what: str) -> np.ndarray:
+    """`value` as a float64 array; TypeError for strings, objects and booleans, ValueError for ragged lists."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {what}, got {show(value)}") from None
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be {what}, got {show(value)}")
+    return a.astype(np.float64)
+
+
+def vector(value, name: str, n: int = 3) -> np.ndarray:
+    """n finite numbers, shape (n,)."""
+    a = array(value, name, f"{n} finite numbers")
+    if a.shape != (n,):
+        raise ValueError(f"{name} must have {n} components, got {show(value)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {show(value)}")
+    return a
+
+
+def rows(value, name: str, width: int, n: int | None = None) -> np.ndarray:
+    """n rows of `width` finite numbers: one row is repeated n times; n rows are taken as they are."""
+    a = array(value, name, f"{width} finite numbers per row")
+    if a.ndim == 1 and a.shape[0] == width and n is not None:
+        a = np.broadcast_to(a, (n, width))
+    if a.ndim != 2 or a.shape[1] != width or (n is not None and a.shape[0] != n):
+        count = "n" if n is None else str(n)
+        raise ValueError(f"{name} must have {width} components (or shape ({count}, {width})), got {show(value)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {show(value)}")
+    return np.array(a)
+
+
+def positive_rows(value, name: str, n: int) -> np.ndarray:
+    """One positive number for all n rows, or n of them, shape (n,)."""
+    a = array(value, name, "a positive number")
+    if a.ndim == 0:
+        return np.full(n, positive(value if isinstance(value, numbers.Real) else float(a), name))
+    if a.shape != (n,):
+        raise ValueError(f"{name} must be one positive number or {n} of them, got {show(value)}")
+    if not np.all(np.isfinite(a) & (a > 0.0)):
+        bad = a[~(np.isfinite(a) & (a > 0.0))][0]
+        raise ValueError(f"{name} must be a positive number (each of the {n}), got {bad!r}")
+    return a
+
+
+def quaternion(value, name: str = "orientation", n: int | None = None) -> np.ndarray:
+    """Unit quaternions (x, y, z, w): shape (4,) when n is None, else (n, 4) (one row repeated)."""
+    q = vector(value, name, 4)[None] if n is None else rows(value, name, 4, n)
+    norm = np.linalg.norm(q, axis=1, keepdims=True)
+    if np.any(norm < 1e-12):
+        raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {show(value)}")
+    q = q / norm
+    return q[0] if n is None else q
+
+
+def callable_or_none(value, name: str):
+    """A callable, or None."""
+    if value is not None and not callable(value):
+        raise TypeError(f"{name} must be a function or None, got {show(value)}")
+    return value

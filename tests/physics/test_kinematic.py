@@ -1,0 +1,108 @@
+"""Kinematic bodies: moved only by the velocity the script gives them, infinite mass to contacts.
+
+References: a wall of infinite mass moving at V hits a resting ball of restitution e; the ball
+leaves at (1 + e) V and the wall keeps V (momentum exchange with m_wall -> infinity).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble import BodyKind
+
+
+def _wall_and_ball(e: float) -> tuple[tumble.World, tumble.BodyId, tumble.BodyId]:
+    w = tumble.World(gravity=(0, 0, 0))
+    box = w.add_box(position=(0, 0, 0), half_extents=(0.1, 0.1, 0.1), kinematic=True, velocity=(1, 0, 0),
+                    restitution=e, density=500.0)
+    ball = w.add_sphere(position=(0.5, 0, 0), radius=0.1, mass=1.0, restitution=e)
+    return w, box, ball
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5])
+def test_a_kinematic_box_pushes_a_sphere_as_an_infinite_mass(e):
+    """The box keeps x = V t exactly; the ball leaves at (1 + e) V once hit at t = gap / V = 0.3 s."""
+    w, box, ball = _wall_and_ball(e)
+    assert box.kind == BodyKind.KINEMATIC and w.body_mass[box] == 0.0 and w.body_inv_mass[box] == 0.0
+    w.run(1.0)
+    t = w.time
+    np.testing.assert_allclose(box.position, (t, 0, 0), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(box.velocity, (1, 0, 0))
+    np.testing.assert_array_equal(box.angular_velocity, (0, 0, 0))
+    # ball: at rest until the box front (x = V t + 0.1) meets it (x = 0.4) at t = 0.3, then (1 + e) V
+    v = (1.0 + e) * 1.0
+    h = w.dt / w.substeps
+    assert ball.velocity[0] == pytest.approx(v, abs=1e-9)
+    assert ball.position[0] == pytest.approx(0.5 + v * (t - 0.3), abs=2 * h * v)
+    assert abs(ball.velocity[1]) + abs(ball.velocity[2]) < 1e-12
+
+
+def test_a_kinematic_box_pushes_a_ball_along_the_floor():
+    """Gravity and friction on the ball, none on the box: the ball is pushed at the box's speed."""
+    w = tumble.World()
+    w.add_plane(friction=0.5)
+    box = w.add_box(position=(0, 0, 0.1), half_extents=(0.1, 0.1, 0.1), kinematic=True, velocity=(0.5, 0, 0),
+                    restitution=0.0)
+    ball = w.add_sphere(position=(0.3, 0, 0.05), radius=0.05, mass=0.1, restitution=0.0)
+    gaps = []
+    for _ in range(480):
+        w.step()
+        gaps.append(ball.position[0] - box.position[0] - 0.15)  # ball surface - box face
+    np.testing.assert_allclose(box.position, (0.5 * w.time, 0, 0.1), rtol=0, atol=1e-12)
+    assert min(gaps) > -1e-4  # never pushed into the box by more than 0.1 mm
+    assert max(gaps[240:]) < 1e-3  # kept touching the box once reached (at t = 0.3 s)
+    assert ball.velocity[0] == pytest.approx(0.5, abs=1e-3)
+    assert ball.position[2] == pytest.approx(0.05, abs=1e-4)  # still on the floor
+
+
+def test_gravity_and_forces_do_not_move_a_kinematic_body():
+    """Only its own velocity moves it: no fall, no push from forces or from what lands on it."""
+    w = tumble.World()
+    plate = w.add_box(position=(0, 0, 1), half_extents=(0.5, 0.5, 0.05), kinematic=True)
+    w.add_sphere(position=(0, 0, 1.2), radius=0.1, mass=5.0)
+    w.apply_force(plate, (0, 0, 1000.0))
+    w.run(1.0)
+    np.testing.assert_array_equal(plate.position, (0, 0, 1))
+    assert w.body_position[1][2] == pytest.approx(1.15, abs=1e-3)  # the ball rests on the plate
+
+
+def test_a_spinning_kinematic_body_turns_at_its_angular_velocity():
+    """q(t) = rotation by |w| t about w: exact for a constant w (integrated as exp(w h / 2) q)."""
+    w = tumble.World()
+    spinner = w.add_box(position=(0, 0, 0), half_extents=(0.5, 0.1, 0.1), kinematic=True, angular_velocity=(0, 0, 2))
+    w.run(1.0)
+    angle = 2.0 * w.time
+    np.testing.assert_allclose(spinner.orientation, (0, 0, math.sin(angle / 2), math.cos(angle / 2)), atol=1e-12)
+
+
+def test_kinematic_targets_are_reached_in_one_step():
+    """set_kinematic_target sets v = (x* - x) / dt and w from the rotation to q*: one step lands on them."""
+    w = tumble.World()
+    arm = w.add_box(position=(0, 0, 1), half_extents=(0.2, 0.05, 0.05), kinematic=True)
+    targets = [((0.1 * k, 0.0, 1.0), (0.0, 0.0, math.sin(0.1 * k), math.cos(0.1 * k))) for k in range(1, 30)]
+    for position, orientation in targets:
+        w.set_kinematic_target(arm, position=position, orientation=orientation)
+        w.step()
+        np.testing.assert_allclose(arm.position, position, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(arm.orientation, orientation, rtol=0, atol=1e-12)
+
+
+def test_a_kinematic_paddle_driven_each_step_sweeps_balls_aside():
+    """A script moving a paddle by targets each step pushes the balls in its way (no tunnelling)."""
+    w = tumble.World()
+    w.add_plane()
+    paddle = w.add_box(position=(-1, 0, 0.1), half_extents=(0.05, 0.5, 0.1), kinematic=True)
+    balls = w.add_spheres(position=[(0.2 * k, 0.0, 0.05) for k in range(5)], radius=0.05, mass=0.1)
+
+    def drive(world):
+        world.set_kinematic_target(paddle, position=(-1 + 2.0 * (world.time + world.dt), 0, 0.1))
+
+    drive(w)
+    w.run(1.5, callback=drive)
+    front = paddle.position[0] + 0.05
+    assert paddle.position[0] == pytest.approx(2.0, abs=1e-9)
+    assert np.all(w.body_position[balls, 0] > front - 1e-3)  # all ahead of the paddle's face

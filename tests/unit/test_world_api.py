@@ -1,0 +1,451 @@
+"""World API: handles, setting and reading body state, removal, time, argument checks, views."""
+
+from __future__ import annotations
+
+import inspect
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+import tumble
+import tumble.world as world_module
+from tumble import BodyId, BodyKind, ClothId, HandleError
+from tumble.cloth import ClothSystem
+
+
+def _free_world() -> tumble.World:
+    """No gravity, three spheres far apart (no contacts)."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_spheres(position=[(0, 0, 0), (1, 0, 0), (2, 0, 0)], radius=0.1, mass=1.0)
+    return w
+
+
+# ---------------------------------------------------------------- handles
+
+
+def test_body_handles_are_ints_with_generation_and_world():
+    """A BodyId indexes the views like an int and carries its generation and world."""
+    w = _free_world()
+    ball = w.add_sphere(position=(3, 0, 0), radius=0.1, mass=1.0)
+    assert isinstance(ball, BodyId) and isinstance(ball, int)
+    assert ball == 3 and ball.index == 3 and ball.generation == 0 and ball.world is w
+    assert w.body_position[ball][0] == 3.0 and w.body_position[ball.index][0] == 3.0
+    assert str(ball) == "3" and repr(ball) == "BodyId(3, generation=0)"
+    assert pickle.loads(pickle.dumps(ball)) == ball
+    with pytest.raises(AttributeError, match="immutable"):
+        ball.generation = 5
+
+
+def test_a_handle_from_another_world_is_refused():
+    """A handle names its world: another world refuses it instead of moving its own body 1."""
+    a, b = _free_world(), _free_world()
+    ball = a.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
+    other = b.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
+    assert ball == 3 and other == 3 and ball != other
+    for call in (lambda: b.set_body_state(ball, position=(0, 0, 1)), lambda: b.apply_force(ball, (1, 0, 0)),
+                 lambda: b.remove_body(ball), lambda: b.body_state(ball)):
+        with pytest.raises(HandleError, match="body 3 belongs to another World"):
+            call()
+    assert not b.has_body(ball) and a.has_body(ball)
+
+
+def test_a_removed_handle_is_refused_even_after_its_id_is_reused():
+    """Removal bumps the id's generation: the old handle raises, the new body gets the id."""
+    w = _free_world()
+    w.remove_body(1)
+    with pytest.raises(HandleError, match="body 1 was removed"):
+        w.set_body_state(1, velocity=(1, 0, 0))
+    old = BodyId(1, 0, w.key)
+    new = w.add_sphere(position=(7, 0, 0), radius=0.2, mass=2.0)
+    assert int(new) == 1 and new.generation == 1 and new != old
+    with pytest.raises(HandleError, match="now names a newer body"):
+        w.set_body_state(old, position=(0, 0, 0))
+    np.testing.assert_array_equal(w.body_position[new], (7, 0, 0))
+    assert w.body_radius[1] == 0.2 and w.body_mass[1] == 2.0
+
+
+@pytest.mark.parametrize("bad, error", [(1.0, TypeError), ("1", TypeError), (True, TypeError), (None, TypeError),
+                                        (17, IndexError), (-1, IndexError)])
+def test_bad_body_arguments_are_named(bad, error):
+    """Anything but a live body's handle or int id is refused, naming the body."""
+    w = _free_world()
+    with pytest.raises(error, match="body"):
+        w.set_body_state(bad, position=(0, 0, 0))
+
+
+def test_a_cloth_handle_is_not_a_body_handle():
+    """ClothId and BodyId are different kinds: a cloth handle does not name body 0."""
+    w = _free_world()
+    cloth = w.add_cloth(size=(0.2, 0.2), resolution=(3, 3), position=(0, 0, 5))
+    with pytest.raises(TypeError, match="must be a BodyId, got the ClothId"):
+        w.set_body_state(cloth, position=(0, 0, 0))
+
+
+def test_add_cloth_returns_a_cloth_handle():
+    """add_cloth gives a ClothId: the cloth's index, its world and where its particles are."""
+    w = tumble.World()
+    first = w.add_cloth(size=(1.0, 1.0), resolution=(4, 3))
+    second = w.add_cloth(size=(1.0, 1.0), resolution=(3, 3), position=(0, 0, 1))
+    assert isinstance(second, ClothId) and second == 1 and second.world is w
+    assert first.particle_start == 0 and second.particle_start == 12 and second.particle_count == 9
+    assert second.resolution == (3, 3) and second.particle(2, 1) == 12 + 1 * 3 + 2
+    np.testing.assert_array_equal(second.particle_position, w.cloth.particle_position[12:21])
+    with pytest.raises(IndexError, match=r"grid point \(3, 0\) is outside cloth 1"):
+        second.particle(3, 0)
+    with pytest.raises(HandleError, match="cloth 1 belongs to another World"):
+        tumble.World().cloth.cloth(second)
+
+
+def test_emitters_belong_to_their_world():
+    """add_emitter returns the Emitter, its handle; another world cannot remove it."""
+    w, other = tumble.World(), tumble.World()
+    em = w.add_emitter(rate=10.0, count=5)
+    assert isinstance(em, tumble.Emitter) and em.world_key == w.key
+    with pytest.raises(HandleError, match="does not belong to this World"):
+        other.remove_emitter(em)
+    w.remove_emitter(em)
+    w.run(1.0)
+    assert w.body_count == 0 and em.world_key is None
+    with pytest.raises(TypeError, match="emitter must be an Emitter"):
+        w.remove_emitter(3)
+
+
+# ---------------------------------------------------------------- setting state
+
+
+def test_set_body_state_moves_and_launches_a_body():
+    """set_body_state writes pose and velocities at once; the next step starts from them (free flight)."""
+    w = _free_world()
+    q = np.array([0.0, 0.0, math.sin(0.3), math.cos(0.3)])
+    w.set_body_state(1, position=(1, 2, 3), orientation=2 * q, velocity=(4, 0, 0), angular_velocity=(0, 0, 1))
+    state = w.body_state(1)
+    np.testing.assert_array_equal(state.position, (1, 2, 3))
+    np.testing.assert_allclose(state.orientation, q, rtol=0, atol=1e-15)  # normalised
+    assert state.kind == BodyKind.DYNAMIC
+    w.step()
+    # no forces: x = x0 + v dt (exact in binary for dt = 1/240 to rounding)
+    np.testing.assert_allclose(w.body_position[1], (1 + 4 * w.dt, 2, 3), rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(w.body_position[0], (0, 0, 0))
+
+
+def test_handle_properties_read_and_write_like_pymunk():
+    """ball.position = ... is set_body_state; ball.velocity reads a copy."""
+    w = _free_world()
+    ball = w.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
+    ball.position = (0, 0, 9)
+    ball.velocity = (1, 2, 3)
+    ball.angular_velocity = (0, 0, 4)
+    ball.orientation = (0, 0, 1, 0)
+    np.testing.assert_array_equal(w.body_position[ball], (0, 0, 9))
+    np.testing.assert_array_equal(ball.velocity, (1, 2, 3))
+    np.testing.assert_array_equal(ball.angular_velocity, (0, 0, 4))
+    np.testing.assert_array_equal(ball.orientation, (0, 0, 1, 0))
+    v = ball.velocity
+    v[0] = 100.0  # a copy: the world does not change
+    assert ball.velocity[0] == 1.0 and ball.kind == BodyKind.DYNAMIC
+
+
+def test_set_body_state_for_many_bodies():
+    """One call sets k bodies from (k, 3) arrays, or all of them from one row."""
+    w = _free_world()
+    w.set_body_state([0, 2], position=[(0, 0, 1), (0, 0, 2)], velocity=(0, 0, 1))
+    np.testing.assert_array_equal(w.body_position[:, 2], (1, 0, 2))
+    np.testing.assert_array_equal(w.body_velocity[:, 2], (1, 0, 1))
+    with pytest.raises(ValueError, match=r"position must have 3 components \(or shape \(2, 3\)\)"):
+        w.set_body_state([0, 2], position=np.zeros((3, 3)))
+
+
+def test_static_bodies_refuse_velocities_but_may_be_moved():
+    """A static body never moves by itself: a velocity is refused, a new position is taken."""
+    w = tumble.World()
+    floor = w.add_plane()
+    block = w.add_box(position=(0, 0, 0), half_extents=(1, 1, 0.1), static=True)
+    with pytest.raises(ValueError, match="body 1 is static"):
+        w.set_body_state(block, velocity=(1, 0, 0))
+    w.set_body_state(block, position=(0, 0, 0.5))
+    w.run(0.1)
+    np.testing.assert_array_equal(w.body_position[block], (0, 0, 0.5))
+    assert floor.kind == BodyKind.STATIC and block.kind == BodyKind.STATIC
+
+
+def test_moving_a_resting_body_keeps_the_others_resting():
+    """Teleporting the top box of a resting stack away leaves the lower box at rest on the floor."""
+    w = tumble.World()
+    w.add_plane()
+    low = w.add_box(position=(0, 0, 0.1), half_extents=(0.1, 0.1, 0.1), mass=1.0)
+    top = w.add_box(position=(0, 0, 0.3), half_extents=(0.1, 0.1, 0.1), mass=1.0)
+    w.run(0.5)
+    top.position = (3, 0, 0.1)
+    w.run(0.5)
+    assert abs(w.body_position[low][2] - 0.1) < 1e-3 and abs(w.body_position[top][2] - 0.1) < 1e-3
+    assert np.abs(w.body_velocity[[low, top]]).max() < 1e-2
+
+
+# ---------------------------------------------------------------- removal
+
+
+def test_remove_body_frees_its_id_and_keeps_the_others():
+    """Other bodies keep their ids and values; the removed id reads NaN until reused."""
+    w = _free_world()
+    w.set_body_state([0, 1, 2], velocity=[(1, 0, 0), (2, 0, 0), (3, 0, 0)])
+    w.remove_body(1)
+    assert w.body_count == 3 and not w.has_body(1)
+    np.testing.assert_array_equal(w.body_alive, (True, False, True))
+    assert np.isnan(w.body_position[1]).all() and w.body_shape[1] == -1 and w.body_kind[1] == -1
+    w.step()
+    np.testing.assert_allclose(w.body_position[[0, 2], 0], (w.dt, 2 + 3 * w.dt), rtol=0, atol=1e-15)
+    w.remove_body(2)  # the highest id: the views get shorter
+    assert w.body_count == 1 and w.body_position.shape == (1, 3)
+    w.remove_body(0)
+    assert w.body_count == 0
+    w.step()
+
+
+def test_removing_bodies_from_a_pile_drops_their_contacts():
+    """Contacts and warm starts of removed bodies go; the rest of the pile stays at rest."""
+    w = tumble.World()
+    w.add_plane()
+    x = np.array([(i * 0.21, 0.0, 0.1 + 0.2 * k) for i in range(4) for k in range(3)])
+    balls = w.add_spheres(position=x, radius=0.1, mass=1.0)
+    w.run(1.0)
+    top = [b for b in balls if w.body_position[b][2] > 0.45]
+    assert len(top) == 4
+    w.remove_bodies(top)
+    pairs = w.contact_pair
+    assert len(pairs) and not np.isin(pairs, [int(b) for b in top]).any()
+    w.run(1.0)
+    assert w.kinetic_energy() < 1e-6
+    assert np.nanmax(w.body_position[:, 2]) < 0.31
+
+
+def test_removal_through_reorders_and_with_cloth(monkeypatch):
+    """Removal follows reordered rows, and the cloth's per-body data follows the removal."""
+    monkeypatch.setattr(world_module, "SORT_MIN_BODIES", 2)
+    monkeypatch.setattr(world_module, "SORT_INTERVAL", 3)
+    w = tumble.World()
+    w.add_plane()
+    w.add_cloth(size=(1.0, 1.0), resolution=(12, 12), position=(0.0, 0.0, 1.0), pins="corners")
+    rng = np.random.default_rng(0)
+    x = np.column_stack([rng.uniform(1.5, 3.0, 30), rng.uniform(-1, 1, 30), rng.uniform(0.1, 1.0, 30)])
+    balls = w.add_spheres(position=x[rng.permutation(30)], radius=0.05, mass=0.1)
+    caught = w.add_sphere(position=(0.0, 0.0, 1.3), radius=0.1, mass=0.2)
+    w.run(0.5)
+    assert w._slot_of_id is not None  # the rows were reordered
+    gone = balls[::2]
+    w.remove_bodies(gone)
+    w.run(1.0)
+    assert 0.5 < w.body_position[caught][2] < 1.0  # still in the cloth
+    kept = [b for b in balls if b not in gone]
+    assert np.all(w.body_position[kept, 2] > 0.05 - 1e-3)
+    assert np.isnan(w.body_position[gone]).all() and w.has_body(caught)
+
+
+def test_emitters_keep_emitting_while_bodies_are_removed():
+    """An emitter fills the ids freed by removals; nothing is born inside another body."""
+    w = tumble.World()
+    w.add_plane()
+    em = w.add_emitter(rate=200.0, count=60, position=(0, 0, 0.5), region="disc", extent=0.3, radius=0.03,
+                       direction=(0, 0, 1))
+    for _ in range(6):
+        w.run(0.1)
+        alive = np.flatnonzero(w.body_alive)[1:]  # not the plane
+        w.remove_bodies(alive[: len(alive) // 2].tolist())
+    w.run(0.5)
+    assert em.done and w.body_count < 61
+    x = w.body_position[w.body_alive][1:]
+    gaps = np.linalg.norm(x[:, None] - x[None], axis=-1) + np.eye(len(x))
+    assert gaps.min() > 0.06 - 2e-3
+
+
+def test_removal_is_deterministic():
+    """The same removals give the same state, bit for bit."""
+
+    def run():
+        w = tumble.load_scene("rain")
+        w.run(0.5)
+        w.remove_bodies(np.flatnonzero(w.body_alive)[5::3].tolist())
+        w.run(0.5)
+        return w.state_hash()
+
+    assert run() == run()
+
+
+# ---------------------------------------------------------------- time
+
+
+def test_time_is_steps_times_dt():
+    """World.time is step_count * dt, not a running sum: 960 steps of 1/240 s read exactly 4 s."""
+    w = tumble.World()
+    w.run(4.0)
+    assert w.step_count == 960 and w.time == 4.0
+
+
+def test_time_sums_runs_of_different_dt():
+    """When dt changes, each run of equal steps counts as steps * dt."""
+    w = tumble.World(dt=1 / 240)
+    for _ in range(100):
+        w.step()
+    w.dt = 1 / 100
+    for _ in range(50):
+        w.step()
+    for _ in range(3):
+        w.step(0.25)
+    assert w.time == 100 * (1 / 240) + 50 * (1 / 100) + 3 * 0.25
+    assert abs(w.time - (100 / 240 + 0.5 + 0.75)) < 1e-15
+
+
+# ---------------------------------------------------------------- argument checks
+
+
+@pytest.mark.parametrize(
+    "call, error, message",
+    [
+        (lambda: tumble.World(substeps=2.5), ValueError, r"substeps must be an integer >= 1, got 2.5"),
+        (lambda: tumble.World(substeps="8"), TypeError, r"substeps must be an integer >= 1, got '8'"),
+        (lambda: tumble.World(seed=-1), ValueError, r"seed must be an integer >= 0, got -1"),
+        (lambda: tumble.World(restitution_threshold=float("nan")), ValueError, r"restitution_threshold must be"),
+        (lambda: tumble.World(dt="fast"), TypeError, r"dt must be a number, got 'fast'"),
+        (lambda: tumble.World(gravity="down"), TypeError, r"gravity must be 3 finite numbers, got 'down'"),
+        (lambda: tumble.World(device=0), TypeError, r"device must be a string, got 0"),
+    ],
+)
+def test_world_settings_are_checked_by_name(call, error, message):
+    """Each bad World setting raises TypeError or ValueError naming it and its value."""
+    with pytest.raises(error, match=message):
+        call()
+
+
+def _world_with_body():
+    w = tumble.World()
+    w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    return w
+
+
+@pytest.mark.parametrize(
+    "call, error, message",
+    [
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=-1), ValueError, r"radius must be a positive number, got -1$"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius="big"), TypeError, r"radius must be a .*got 'big'"),
+        (lambda w: w.add_sphere(position="here", radius=0.1), TypeError, r"position must be 3 finite numbers"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, static=1), TypeError, r"static must be True or False"),
+        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, static=True, kinematic=True), ValueError,
+         "static or kinematic, not both"),
+        (lambda w: w.add_box(position=(0, 0, 0), half_extents="big"), TypeError, r"half_extents must be 3"),
+        (lambda w: w.add_spheres(position=[(0, 0, 0), (1, 0)], radius=0.1), ValueError, r"position must be"),
+        (lambda w: w.add_plane(offset="low"), TypeError, r"offset must be a number, got 'low'"),
+        (lambda w: w.add_body(3), TypeError, r"shape must be a string, got 3"),
+        (lambda w: w.set_material(friction=-0.5), ValueError, r"friction must be a number >= 0, got -0.5"),
+        (lambda w: w.apply_force(0, "up"), TypeError, r"force must be 3 finite numbers"),
+        (lambda w: w.step(dt=-1), ValueError, r"dt must be a positive number, got -1"),
+        (lambda w: w.run("long"), TypeError, r"duration must be a number, got 'long'"),
+        (lambda w: w.run(0.1, callback=5), TypeError, r"callback must be a function or None, got 5"),
+        (lambda w: w.collide(dt=float("inf")), ValueError, r"dt must be a positive number, got inf"),
+        (lambda w: w.set_body_state(0, velocity=(0, 0, float("nan"))), ValueError, r"velocity must be finite"),
+        (lambda w: w.set_body_state(0, orientation=(0, 0, 0, 0)), ValueError, "non-zero quaternion"),
+        (lambda w: w.set_kinematic_target(0, position=(0, 0, 0)), ValueError, "body 0 is not kinematic"),
+        (lambda w: w.remove_bodies([0, 0]), ValueError, "lists a body twice"),
+        (lambda w: w.body("0"), TypeError, r"index must be an integer >= 0, got '0'"),
+        (lambda w: w.add_emitter(rate="fast"), TypeError, r"rate must be a number, got 'fast'"),
+        (lambda w: w.add_emitter(count=2.5), ValueError, r"count must be an integer >= 1, got 2.5"),
+        (lambda w: w.add_emitter(region=3), TypeError, r"region must be a string, got 3"),
+        (lambda w: w.add_emitter(radius="big"), TypeError, r"radius must be a number or a \[min, max\] pair"),
+        (lambda w: w.add_emitter(random_orientation="yes"), TypeError, r"random_orientation must be True or False"),
+        (lambda w: w.add_emitter(restitution=2), ValueError, r"restitution must be in \[0, 1\], got 2"),
+        (lambda w: w.add_cloth(friction="x"), TypeError, r"friction must be a number, got 'x'"),
+        (lambda w: w.add_cloth(max_stretch=-1), ValueError, r"max_stretch must be a number >= 0, got -1"),
+        (lambda w: w.set_wind(turbulence="gusty"), TypeError, r"turbulence must be a number, got 'gusty'"),
+        (lambda w: w.set_wind(seed=1.5), ValueError, r"seed must be an integer >= 0, got 1.5"),
+        (lambda w: w.set_wind(velocity=(1, 0)), ValueError, r"velocity must have 3 components"),
+        (lambda w: w.cloth.apply_force(2.5, (0, 0, 1)), ValueError, r"particle must be an integer >= 0, got 2.5"),
+        (lambda w: w.cloth.pin("corner"), TypeError, r"particle must be an integer >= 0, got 'corner'"),
+        (lambda w: w.cloth.set_state(position="flat"), TypeError, r"position must be finite numbers"),
+    ],
+)
+def test_calls_check_their_arguments_by_name(call, error, message):
+    """Each public call names the bad argument and its value, and changes nothing."""
+    w = _world_with_body()
+    before = w.state_hash()
+    with pytest.raises(error, match=message):
+        call(w)
+    assert w.body_count == 1 and w.state_hash() == before
+
+
+def test_settings_are_checked_when_changed():
+    """dt, substeps, gravity and restitution_threshold are checked when set later, too."""
+    w = tumble.World()
+    with pytest.raises(ValueError, match="substeps must be an integer >= 1, got 0"):
+        w.substeps = 0
+    with pytest.raises(ValueError, match="dt must be a positive number"):
+        w.dt = 0.0
+    with pytest.raises(ValueError, match="gravity must have 3 components"):
+        w.gravity = (0, 0)
+    with pytest.raises(ValueError, match="restitution_threshold"):
+        w.restitution_threshold = -1
+    w.substeps = 4.0  # an integral float is an integer
+    assert w.substeps == 4 and isinstance(w.substeps, int)
+    em = w.add_emitter()
+    with pytest.raises(ValueError, match=r"rate must be a number >= 0, got -1"):
+        em.rate = -1
+    em.rate = 0  # pauses it, as the viewer's control does
+
+
+def test_forwarding_calls_have_the_real_signatures():
+    """add_emitter, add_cloth and set_wind list the same keywords and defaults as what they build."""
+    pairs = [(tumble.World.add_emitter, tumble.Emitter.__init__), (tumble.World.add_cloth, ClothSystem.add_cloth),
+             (tumble.World.set_wind, ClothSystem.set_wind)]
+    for front, back in pairs:
+        a = [(p.name, p.default, p.kind) for p in inspect.signature(front).parameters.values()]
+        b = [(p.name, p.default, p.kind) for p in inspect.signature(back).parameters.values()]
+        assert a == b, front.__name__
+        assert all(p.kind != p.VAR_KEYWORD for p in inspect.signature(front).parameters.values())
+
+
+def test_the_package_ships_its_type_hints():
+    """py.typed sits in the package and pyproject.toml installs it."""
+    from pathlib import Path
+
+    package = Path(tumble.__file__).parent
+    assert (package / "py.typed").is_file()
+    pyproject = package.parents[1] / "pyproject.toml"
+    if pyproject.is_file():
+        assert '"py.typed"' in pyproject.read_text()
+
+
+# ---------------------------------------------------------------- views
+
+
+def test_views_are_fresh_copies_never_stale():
+    """Each access reads the state of that moment; an array kept from before is a snapshot that
+    does not change, not even when the world grows past its capacity and reallocates."""
+    w = tumble.World()
+    w.add_plane()
+    ball = w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    kept = w.body_position
+    w.run(0.25)
+    # free fall under semi-implicit Euler: z = z0 - g h^2 m (m + 1) / 2 after m substeps of h
+    m, h = w.step_count * w.substeps, w.dt / w.substeps
+    z = 1.0 - 9.81 * h * h * m * (m + 1) / 2
+    assert w.body_position[ball][2] == pytest.approx(z, abs=1e-12)
+    assert kept[ball][2] == 1.0  # the snapshot
+    before = w.body_position
+    w.add_spheres(position=[(i, 5, 1) for i in range(100)], radius=0.1, mass=1.0)  # grows the arrays
+    assert before.shape == (2, 3) and before[ball][2] == pytest.approx(z, abs=1e-12)
+    w.step()
+    now = w.body_position
+    assert now.shape == (102, 3) and now[ball][2] < before[ball][2]
+    assert not np.shares_memory(now, w.body_position)
+    with pytest.raises(ValueError):
+        now[0, 0] = 1.0  # read-only: write through set_body_state
+
+
+def test_a_jointed_body_cannot_be_removed_yet():
+    """Removing a body held by a joint is refused (the joint would lose its body), and nothing changes."""
+    w = _free_world()
+    w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
+    with pytest.raises(ValueError, match="body 1 is held by a joint"):
+        w.remove_bodies([2, 1])
+    assert w.body_alive.all() and w.body_count == 3
+    w.remove_body(2)
+    assert w.body_count == 2
