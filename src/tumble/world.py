@@ -24,6 +24,7 @@ import numpy as np
 import warp as wp
 from numpy.typing import ArrayLike
 
+from . import limits
 from . import shapes as _shapes
 from . import validate
 from .cloth.system import ClothSystem
@@ -156,8 +157,9 @@ class World:
 
     Args:
         gravity: gravitational acceleration [m/s^2], shape (3,).
-        dt: fixed time step [s] used by `step()` and `run()`.
-        substeps: solver substeps per step (more = stiffer stacks, less penetration), an integer >= 1.
+        dt: fixed time step [s] used by `step()` and `run()`, in (0, 0.1] (`tumble.limits.MAX_DT`).
+        substeps: solver substeps per step (more = stiffer stacks, less penetration), an integer in
+            [1, 1000] (`tumble.limits.MAX_SUBSTEPS`); `run` refuses more than 10^9 steps.
         seed: seed of the world's random generator (emitters, turbulence), an integer >= 0.
         device: Warp device, "cpu" (default) or "cuda".
         restitution_threshold: impact speed [m/s] below which contacts that carry load do not
@@ -240,7 +242,7 @@ class World:
 
     @dt.setter
     def dt(self, value: float) -> None:
-        self._dt = validate.positive(value, "dt")
+        self._dt = validate.number(value, "dt", low=0.0, high=limits.MAX_DT, above=True)
 
     @property
     def substeps(self) -> int:
@@ -249,7 +251,10 @@ class World:
 
     @substeps.setter
     def substeps(self, value: int) -> None:
-        self._substeps = validate.integer(value, "substeps", low=1)
+        substeps = validate.integer(value, "substeps", low=1)
+        if substeps > limits.MAX_SUBSTEPS:
+            raise ValueError(f"substeps must be an integer in [1, {limits.MAX_SUBSTEPS}], got {validate.show(value)}")
+        self._substeps = substeps
 
     @property
     def restitution_threshold(self) -> float:
@@ -1172,7 +1177,9 @@ class World:
         Returns:
             The number of steps taken.
         """
-        steps = int(round(validate.positive(duration, "duration") / self.dt))
+        duration = validate.positive(duration, "duration")
+        limits.check_steps("duration", duration, self.dt)  # no run of 10^12 steps that never ends
+        steps = int(round(duration / self.dt))
         validate.callable_or_none(callback, "callback")
         for _ in range(steps):
             self.step()

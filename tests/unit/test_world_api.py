@@ -449,3 +449,20 @@ def test_a_jointed_body_cannot_be_removed_yet():
     assert w.body_alive.all() and w.body_count == 3
     w.remove_body(2)
     assert w.body_count == 2
+
+
+def test_python_api_refuses_requests_beyond_the_solver_limits():
+    """World(dt=1e9), World(substeps=10**9) and run(duration=1e12) are refused by name, as the scene files are."""
+    from tumble import limits
+
+    with pytest.raises(ValueError, match=r"dt must be in \(0, 0.1\], got 1000000000.0"):
+        tumble.World(dt=1e9)
+    with pytest.raises(ValueError, match=r"substeps must be an integer in \[1, 1000\], got 1000000000"):
+        tumble.World(substeps=10**9)
+    world = tumble.World(dt=limits.MAX_DT, substeps=limits.MAX_SUBSTEPS)  # the limits themselves are allowed
+    with pytest.raises(limits.LimitError, match="duration: 1e\\+12 s .* the limit is 1,000,000,000 steps"):
+        world.run(duration=1e12)
+    assert world.step_count == 0
+    with pytest.raises(ValueError, match="dt must be in"):
+        world.dt = 0.5
+    assert world.dt == limits.MAX_DT
