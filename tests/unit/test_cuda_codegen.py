@@ -16,6 +16,12 @@ import warp as wp
 import tumble
 
 SM_90 = 90  # NVIDIA H100
+#: modules whose NVRTC compile takes too long for the default run: the narrow phase's one dispatch
+#: kernel inlines every collide_<a>_<b> (capsules, hull SAT, mesh BVH queries since issue 16) and
+#: took over 15 minutes to compile at -O3 on one core here (5.5 minutes before the hull and mesh
+#: pairs). `./scripts/test.sh -m slow tests/unit/test_cuda_codegen.py` still compiles it; splitting
+#: the dispatch kernel per shape pair is the way to bring it back into the default run.
+SLOW_TO_COMPILE = {"tumble.collision.narrowphase"}
 
 
 def _kernel_modules() -> list[str]:
@@ -36,7 +42,9 @@ def test_every_kernel_module_is_found():
         assert expected in names
 
 
-@pytest.mark.parametrize("name", _kernel_modules())
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_TO_COMPILE else n for n in _kernel_modules()]
+)
 def test_kernels_compile_for_cuda(name, tmp_path):
     files = wp.compile_aot_module(name, arch=SM_90, module_dir=tmp_path, use_ptx=True)
     ptx = [f for f in map(str, files) if f.endswith(".ptx")] or [str(p) for p in tmp_path.glob("*.ptx")]

@@ -518,7 +518,8 @@ SCHEMA: dict[str, TableSpec] = {
                                   "solver substeps per step"),
                 "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
                 "restitution_threshold": Field(
-                    number(low=0), 0.5, "m/s", "approach speed below which contacts do not bounce"
+                    number(low=0), 0.5, "m/s",
+                    "impact speed below which contacts that carry load do not bounce (others bounce down to 2 g h)"
                 ),
             },
         ),
