@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import TumbleError
+from .io.atomic import atomic_path
 
 #: most variants a wedge runs without `yes=True` / `--yes`
 MAX_VARIANTS = 1000
@@ -528,28 +529,10 @@ def step_count(duration: float, dt: float) -> int:
 
 
 def atomic_write(path, data: bytes | str) -> Path:
-    """Write `data` to `path` through a temporary file beside it and a rename."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data.encode() if isinstance(data, str) else data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    return path
-
-
-@contextlib.contextmanager
-def atomic_path(path):
-    """A temporary path with the same suffix as `path`, renamed onto it when the block succeeds."""
-    path = Path(path)
-    tmp = path.with_name(f".tmp-{os.getpid()}-{path.name}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
+    """Write `data` to `path` through `tumble.io.atomic.atomic_path` (a temporary file beside it, renamed)."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(data.encode() if isinstance(data, str) else data)
+    return Path(path)
 
 
 # ---------------------------------------------------------------------------------------- on a worker

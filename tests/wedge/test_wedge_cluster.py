@@ -119,7 +119,7 @@ def test_folders_and_contact_sheet(run):
     frame = Image.open(out / _variant(table, 1, False)["variant"] / "final.png")
     assert image.width == 2 * frame.width  # 4 variants: a 2 x 2 grid
     assert image.height > 2 * frame.height  # with a label strip under each frame
-    assert not [p for p in out.rglob("*.tmp")]  # every write renamed into place
+    assert not [p for p in out.rglob("*.tmp*")]  # every write renamed into place (tumble.io.atomic temp names)
 
 
 def test_variant_matches_plain_tumble_run(run, capsys):
