@@ -19,6 +19,7 @@ from .cloth import ClothSystem, Wind
 from .emitters import Emitter
 from .errors import HandleError, SceneError, SimulationError, TumbleError
 from .shapes import ShapeType
+from .snapshot import Snapshot, SnapshotError
 from .state import BodyId, BodyKind, ClothId
 from .wedge import wedge
 from .world import BodyState, World
@@ -34,10 +35,15 @@ __all__ = [
     "SceneError",
     "ShapeType",
     "SimulationError",
+    "Snapshot",
+    "SnapshotError",
     "TumbleError",
     "Wind",
     "World",
     "load_scene",
+    "load_snapshot",
+    "read_snapshot",
+    "save_snapshot",
     "wedge",
 ]
 __version__ = "0.1.0"
@@ -48,3 +54,25 @@ def load_scene(path, **overrides):
     from .io.scene import load_scene as _load
 
     return _load(path, **overrides)
+
+
+def save_snapshot(state: Snapshot, path):
+    """Write a `world.snapshot()` to `path` (.npz), atomically; returns the path. See `load_snapshot`."""
+    from . import snapshot
+
+    return snapshot.save(state, path)
+
+
+def read_snapshot(path) -> Snapshot:
+    """Read a snapshot file, for `world.restore` into a world built the same way (raises `SnapshotError`)."""
+    from . import snapshot
+
+    return snapshot.read(path)
+
+
+def load_snapshot(path, **overrides):
+    """Rebuild the world a snapshot file of a scene was taken from, at the saved moment; stepping it
+    continues the saved run bit for bit (`tumble run --resume FILE`). Overrides as in `load_scene` (device)."""
+    from . import snapshot
+
+    return snapshot.load(path, **overrides)

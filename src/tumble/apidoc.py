@@ -24,10 +24,10 @@ import tumble
 CLASSES = (
     tumble.World, tumble.BodyId, tumble.ClothId, tumble.BodyKind, tumble.BodyState, tumble.Emitter,
     tumble.ClothSystem, tumble.Wind, tumble.ShapeType, tumble.TumbleError, tumble.SceneError,
-    tumble.SimulationError, tumble.HandleError,
+    tumble.SimulationError, tumble.HandleError, tumble.Snapshot, tumble.SnapshotError,
 )
 #: functions of the package itself
-FUNCTIONS = (tumble.load_scene, tumble.wedge)
+FUNCTIONS = (tumble.load_scene, tumble.wedge, tumble.save_snapshot, tumble.read_snapshot, tumble.load_snapshot)
 #: attributes every World instance has (set in __init__, so not found on the class)
 WORLD_ATTRIBUTES = {
     "step_count": "Steps taken so far (int).",

@@ -123,6 +123,20 @@ class ArraySet:
         if self.device != "cpu":
             self.arrays[name].assign(host)
 
+    def load(self, arrays: dict[str, np.ndarray], *, count: int, capacity: int) -> None:
+        """Replace every row, capacity included, with whole arrays saved earlier (snapshots).
+
+        Arrays keep their identity when the capacity is unchanged (so recorded launches stay
+        valid); otherwise they are reallocated at exactly `capacity`, as after a `reserve`.
+        """
+        if capacity != self.capacity:
+            self.arrays = {name: wp.zeros(capacity, dtype=dtype, device=self.device)
+                           for name, dtype in self.fields.items()}
+            self.capacity = capacity
+        for name, arr in self.arrays.items():
+            arr.assign(arrays[name])
+        self.count = count
+
 
 def readonly(a: np.ndarray) -> np.ndarray:
     """A read-only view of `a`, so users cannot write engine state behind its back."""

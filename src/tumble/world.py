@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 
 from . import limits
 from . import shapes as _shapes
-from . import validate
+from . import snapshot, validate
 from .cloth.system import ClothSystem
 from .cloth.wind import AIR_DENSITY
 from .collision import broadphase, narrowphase
@@ -38,6 +38,7 @@ from .errors import HandleError, SimulationError
 from .launch import LaunchCache
 from .runtime import init_warp
 from .shapes import ShapeType
+from .snapshot import Snapshot
 from .solver import contacts as contact_solver
 from .solver import integrate
 from .solver import joints as joint_solver
@@ -1329,6 +1330,30 @@ class World:
     def momentum(self) -> np.ndarray:
         """Total linear momentum of bodies [kg m/s], shape (3,)."""
         return np.sum(self.bodies.numpy("body_mass")[:, None] * self.bodies.numpy("body_velocity"), axis=0)
+
+    def snapshot(self) -> Snapshot:
+        """The whole simulation state now, to `restore` later or write with `tumble.save_snapshot`.
+
+        It holds every body row (emitted ones included), contacts and joints with their warm-start
+        impulses, cloth particles, emitter counters, random generators and the clock. Restoring it
+        and stepping repeats this run bit for bit (docs/design.md#snapshots).
+        """
+        return snapshot.take(self)
+
+    def restore(self, state: Snapshot) -> None:
+        """Put back a state taken by `snapshot` from this world, or from one built the same way.
+
+        Raises:
+            tumble.snapshot.SnapshotError: the snapshot comes from a different kind of world (other
+                stages, emitters or cloth); nothing is changed then.
+        """
+        if not isinstance(state, Snapshot):
+            raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")
+        snapshot.restore(self, state)
+
+    def _after_restore(self) -> None:
+        """Forget what was derived from the arrays that a restore replaced."""
+        self._launch_sizes = None
 
     def state_hash(self) -> str:
         """SHA-256 of the state arrays, to check determinism bit for bit."""

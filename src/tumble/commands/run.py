@@ -7,7 +7,7 @@ import math
 import sys
 import time
 
-from .. import limits
+from .. import limits, snapshot
 from ..errors import TumbleError
 from ..io.atomic import check_output
 from ..runtime import init_warp, prepare_kernels
@@ -21,9 +21,17 @@ SCENE_HELP = "scene file (.toml), or the name of a bundled sample (e.g. sphere_p
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
+    parser.add_argument("scene", metavar="SCENE", nargs="?", default=None,
+                        help=SCENE_HELP + "; left out with --resume")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, metavar="S",
-                        help=f"simulated time in seconds (default {DEFAULT_DURATION:g})")
+                        help=f"simulated time in seconds (default {DEFAULT_DURATION:g}); with --resume, the time "
+                             "to run on from the saved moment")
+    parser.add_argument("--save-state", default=None, metavar="FILE.npz",
+                        help="at the end, save the whole simulation state to FILE.npz, to continue later with "
+                             "--resume (written atomically, also on Ctrl-C)")
+    parser.add_argument("--resume", default=None, metavar="FILE.npz",
+                        help="continue the run saved by --save-state in FILE.npz, bit for bit as if it had not "
+                             "stopped (the scene is stored in the file)")
     parser.add_argument("--seed", type=int, default=None, metavar="N",
                         help="replace the scene's [world] seed (emitters without their own seed follow it)")
     parser.add_argument("--record", default=None, metavar="FILE.npz",
@@ -42,9 +50,15 @@ def _check_arguments(args: argparse.Namespace) -> None:
         raise TumbleError(f"--fps must be a positive number, got {args.fps:g}")
     if args.seed is not None and args.seed < 0:
         raise TumbleError(f"--seed must be >= 0, got {args.seed}")
+    if (args.scene is None) == (args.resume is None):
+        raise TumbleError("give a SCENE to run, or --resume FILE.npz to continue a saved run (not both)")
+    if args.resume is not None and args.seed is not None:
+        raise TumbleError("--seed cannot change a resumed run: its random state is in the saved file")
     if args.record is not None:
         # before anything is simulated: a run is never lost to an unwritable output
         check_output(args.record, suffixes=(".npz",), option="--record")
+    if args.save_state is not None:
+        check_output(args.save_state, suffixes=(".npz",), option="--save-state")
     if args.device == "cuda":
         import warp as wp
 
@@ -58,7 +72,11 @@ def main(args: argparse.Namespace) -> int:
     from ..io.scene import load_scene
 
     _check_arguments(args)
-    world = load_scene(args.scene, seed=args.seed, device=args.device)
+    if args.resume is not None:
+        world = snapshot.load(args.resume, device=args.device)
+        args.scene = str(world.metadata.get("path") or args.resume)
+    else:
+        world = load_scene(args.scene, seed=args.seed, device=args.device)
     steps = limits.check_steps("--duration", args.duration, world.dt)
     if args.record:
         _check_record_memory(args, world, steps)
@@ -66,13 +84,23 @@ def main(args: argparse.Namespace) -> int:
     try:
         _simulate(args, world, steps, recorder)
     except KeyboardInterrupt:
-        if recorder is None:
+        if recorder is None and args.save_state is None:
             raise
         # Ctrl-C: keep what was recorded (written atomically; a second Ctrl-C leaves no partial file)
-        recorder.save(args.record)
-        print(f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,} of {steps:,}); "
-              f"saved the {recorder.frame_count:,} frames recorded so far to {args.record}", file=sys.stderr)
+        saved = []
+        if recorder is not None:
+            recorder.save(args.record)
+            saved.append(f"the {recorder.frame_count:,} frames recorded so far to {args.record}")
+        if args.save_state is not None:
+            snapshot.save(world.snapshot(), args.save_state)
+            saved.append(f"the state to {args.save_state}")
+        print(f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,}); "
+              f"saved {' and '.join(saved)}", file=sys.stderr)
         return 130
+    if args.save_state is not None:
+        snapshot.save(world.snapshot(), args.save_state)
+        print(f"{'saved state':<14}  {args.save_state} (t = {world.time:.6g} s, step {world.step_count:,}; "
+              f"continue with: tumble run --resume {args.save_state})")
     return 0
 
 

@@ -750,6 +750,7 @@ class Scene:
 
     path: str | None
     tables: dict[str, object] = field(default_factory=dict)
+    text: str | None = None  # the TOML it was parsed from (kept so that snapshots can rebuild the world)
 
     def items(self, name: str) -> list[dict]:
         """The entries of an array table (empty when absent)."""
@@ -845,7 +846,7 @@ def parse_scene(text: str, path=None) -> Scene:
         raise SceneError(f"invalid TOML: {exc}", path=path) from None
     except RecursionError:
         raise SceneError("invalid TOML: arrays or tables nested too deeply", path=path) from None
-    scene = Scene(path=None if path is None else str(path))
+    scene = Scene(path=None if path is None else str(path), text=text)
     for name, raw in doc.items():
         spec = SCHEMA.get(name)
         if spec is None:
@@ -997,6 +998,7 @@ def build_world(scene: Scene, **overrides):
     with _api_errors(path, "world"):
         world = World(**settings)
     world.metadata["path"] = path
+    world.metadata["overrides"] = {k: v for k, v in overrides.items() if v is not None}
     world.metadata["scene"] = scene
     world.metadata["check"] = scene.table("check") or _parse_table(SCHEMA["check"], {}, path, None)
     if scene.table("camera") is not None:

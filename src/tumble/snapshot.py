@@ -1,0 +1,436 @@
+"""Snapshots: the whole simulation state of a world, to restore in place or save and resume later.
+
+A snapshot holds everything a step reads and later steps depend on: body rows (bodies emitted
+since the start included), the contact and joint rows with their warm-start impulses, the cloth
+particles and its collision lists, the emitters' counters and random generators, the world's
+clock and random generator. Restoring it and stepping gives the same trajectory, bit for bit,
+as the run it was taken from, in the same process or in a new one.
+
+What is not in it: recorded kernel launches and other caches (rebuilt on demand), Warp BVHs of
+static meshes (built from the scene), and `world.metadata`.
+
+The state is found by walking the world's attributes: Warp and NumPy arrays, `ArraySet`s, random
+generators and plain values, inside every object of Tumble's own classes that the world holds.
+So a new stage's arrays are in snapshots without being listed here. A value of a type the walk
+does not know is an error (`SnapshotError`), never silently left out.
+
+File format (`.npz`): one array per state array under its path ("bodies/body_position", ...)
+and a JSON manifest under "manifest" with the plain values, the format version and, for a world
+built from a scene file, the scene's text, so that `load` can rebuild the world first.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+from .errors import TumbleError
+from .launch import LaunchCache
+from .state import ArraySet, Handle, numpy_dtype
+
+FORMAT = 1
+
+# World attributes that are not simulation state: identity, bookkeeping of the user's session,
+# diagnostics, the Warp device (a snapshot can be restored on another device of the same world)
+_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "device", "_launch_sizes"})
+
+
+# what `ArraySet` itself keeps beside its arrays (captured through its markers)
+_ARRAYSET_OWN = frozenset({"fields", "arrays", "count", "capacity", "device"})
+
+
+class SnapshotError(TumbleError):
+    """A snapshot that cannot be taken, written, read or restored into this world."""
+
+
+@dataclass
+class Snapshot:
+    """The state of a world at one moment; `World.snapshot()` makes one, `World.restore` puts it back.
+
+    Two snapshots compare equal when every value and array is identical (caches are not compared).
+
+    Attributes:
+        arrays: path -> NumPy array of every state array.
+        values: path -> plain value (numbers, strings, generator states, ...).
+        step_count: the world's step count when it was taken.
+        time: the world's simulated time [s] when it was taken.
+        scene: the scene file's text, when the world was built from one.
+        scene_path: that file's path (meshes and other files named in it are found beside it).
+        overrides: keyword overrides the scene was loaded with (seed, device, ...).
+    """
+
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    values: dict[str, object] = field(default_factory=dict)
+    step_count: int = 0
+    time: float = 0.0
+    scene: str | None = None
+    scene_path: str | None = None
+    overrides: dict = field(default_factory=dict)
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Snapshot):
+            return NotImplemented
+        return not self.differences(other)
+
+    def differences(self, other: Snapshot) -> list[str]:
+        """Paths whose value differs between two snapshots (empty when equal); caches are not compared."""
+        derived = {p.rpartition("/:")[0] for p in self.values.keys() | other.values.keys() if p.endswith("/:derived")}
+        out = sorted(k for k in self.values.keys() | other.values.keys()
+                     if self.values.get(k, _MISSING) != other.values.get(k, _MISSING)
+                     and k.rpartition("/:")[0] not in derived and k not in derived)
+        out += sorted(k for k in self.arrays.keys() | other.arrays.keys()
+                      if k not in self.arrays or k not in other.arrays
+                      or not _same_array(self.arrays[k], other.arrays[k]))
+        return out
+
+    def copy(self) -> Snapshot:
+        """A deep copy (arrays copied), so that restoring one snapshot twice is safe."""
+        return Snapshot({k: a.copy() for k, a in self.arrays.items()}, json.loads(json.dumps(self.values)),
+                        self.step_count, self.time, self.scene, self.scene_path, dict(self.overrides))
+
+
+_MISSING = object()
+
+
+def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+# --- taking a snapshot -------------------------------------------------------------------------
+# Paths name attributes ("cloth/_contacts_prev"), list items ("emitters/0") and dict entries; a
+# segment starting with ":" is a marker of the walk itself (":class", ":dtype", ...), never a name.
+
+def take(world) -> Snapshot:
+    """Capture `world`'s state (see `World.snapshot`)."""
+    snap = Snapshot(step_count=world.step_count, time=world.time)
+    seen: set[int] = {id(world)}
+    for name, value in sorted(vars(world).items()):
+        if name not in _WORLD_SKIP:
+            _capture(value, name, snap, seen)
+    scene = world.metadata.get("scene")
+    if scene is not None and getattr(scene, "text", None) is not None:
+        snap.scene = scene.text
+        snap.scene_path = None if scene.path is None else str(Path(scene.path).resolve())
+        snap.overrides = dict(world.metadata.get("overrides", {}))
+    return snap
+
+
+def _capture(value, path: str, snap: Snapshot, seen: set[int]) -> None:
+    if _is_plain(value):
+        snap.values[path] = _plain(value)
+    elif _is_derived(value):
+        snap.values[path + "/:derived"] = True  # kept by name only: a restore leaves it to be rebuilt
+    elif isinstance(value, ArraySet):
+        snap.values[path + "/:fields"] = list(value.fields)
+        snap.values[path + "/:count"] = value.count
+        snap.values[path + "/:capacity"] = value.capacity
+        for name, arr in value.arrays.items():
+            snap.arrays[f"{path}/{name}"] = arr.numpy().copy()
+        if id(value) not in seen:  # a subclass's own attributes (ContactSet's matching data, ...)
+            seen.add(id(value))
+            for name, item in sorted(vars(value).items()):
+                if name not in _ARRAYSET_OWN:
+                    _capture(item, f"{path}/{name}", snap, seen)
+    elif isinstance(value, wp.array):
+        snap.arrays[path] = value.numpy().copy()
+        snap.values[path + "/:dtype"] = _dtype_name(value.dtype)
+    elif isinstance(value, np.ndarray):
+        snap.arrays[path] = value.copy()
+    elif isinstance(value, np.random.Generator):
+        snap.values[path + "/:rng"] = value.bit_generator.state
+    elif isinstance(value, (list, tuple)):
+        snap.values[path + "/:len"] = len(value)
+        for i, item in enumerate(value):
+            _capture(item, f"{path}/{i}", snap, seen)
+    elif isinstance(value, dict):
+        keys = list(value)
+        if not all(isinstance(k, (str, int)) and not isinstance(k, bool) for k in keys):
+            raise SnapshotError(f"cannot snapshot {path}: a dict with keys of type {type(keys[0]).__name__}")
+        snap.values[path + "/:keys"] = keys
+        for k in keys:
+            _capture(value[k], f"{path}/{k}", snap, seen)
+    elif _is_ours(value):
+        if id(value) in seen:  # a back-reference (cloth -> world) or an object reached twice
+            return
+        seen.add(id(value))
+        snap.values[path + "/:class"] = type(value).__qualname__
+        for name, item in sorted(vars(value).items()):
+            _capture(item, f"{path}/{name}", snap, seen)
+    else:
+        raise SnapshotError(f"cannot snapshot {path}: a value of type "
+                            f"{type(value).__module__}.{type(value).__qualname__}")
+
+
+def _is_plain(value) -> bool:
+    if isinstance(value, Handle):
+        return False
+    if isinstance(value, (bool, int, float, str, type(None), np.integer, np.floating, np.bool_)):
+        return True
+    return isinstance(value, tuple) and type(value) is tuple and all(_is_plain(v) for v in value)
+
+
+def _plain(value):
+    """A JSON-safe copy of a plain value (tuples and floats tagged, so they come back exactly)."""
+    if isinstance(value, enum.Enum):
+        return {"enum": value.value}
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, (float, np.floating)):
+        return {"float": float(value).hex()}  # exact, and inf/nan safe
+    if isinstance(value, tuple):
+        return {"tuple": [_plain(v) for v in value]}
+    return value
+
+
+def _unplain(value, current=None):
+    if isinstance(value, dict):
+        if "float" in value:
+            return float.fromhex(value["float"])
+        if "tuple" in value:
+            return tuple(_unplain(v) for v in value["tuple"])
+        if "enum" in value:
+            return type(current)(value["enum"]) if isinstance(current, enum.Enum) else value["enum"]
+    return value
+
+
+def _is_ours(value) -> bool:
+    module = type(value).__module__ or ""
+    return module == "tumble" or module.startswith("tumble.")
+
+
+def _is_derived(value) -> bool:
+    """Derived data or code, rebuilt when needed: recorded launches, Warp structs, BVHs, kernels, functions,
+    and caches holding any of them (a tuple of a struct and the arrays it was built from)."""
+    if isinstance(value, LaunchCache):
+        return True
+    if isinstance(value, (tuple, list)):
+        return any(_is_derived(v) for v in value)
+    module = type(value).__module__ or ""
+    return module.startswith("warp") and not isinstance(value, wp.array) or callable(value) and not _is_ours(value)
+
+
+def _refers_to(value, replaced: dict[int, wp.array]) -> bool:
+    """True for a derived value (a Warp struct, or a cache holding one) that holds an array in `replaced`."""
+    if isinstance(value, (tuple, list)):
+        return any(_refers_to(v, replaced) for v in value)
+    if isinstance(value, wp.array):
+        return replaced.get(id(value)) is value
+    if _is_warp_struct(value):
+        return any(_refers_to(getattr(value, name), replaced) for name in value._cls.vars)
+    return False
+
+
+def _is_warp_struct(value) -> bool:
+    return any(c.__name__ == "StructInstance" and c.__module__.startswith("warp") for c in type(value).__mro__)
+
+
+def _dtype_name(dtype) -> str:
+    name = getattr(dtype, "__name__", "")
+    if getattr(wp, name, None) is not dtype:
+        raise SnapshotError(f"cannot snapshot a Warp array of dtype {dtype}")
+    return name
+
+
+# --- restoring ---------------------------------------------------------------------------------
+
+def restore(world, snap: Snapshot) -> None:
+    """Put `snap` back into `world` (see `World.restore`). Raises `SnapshotError` when they do not match."""
+    _check_layout(world, snap)
+    children: dict[str, set[str]] = {}
+    for p in snap.values.keys() | snap.arrays.keys():
+        parts = p.split("/")
+        for depth, leaf in enumerate(parts):
+            if not leaf.startswith(":"):
+                children.setdefault("/".join(parts[:depth]), set()).add(leaf)
+    walk = _Restore(snap, children, world.device)
+    walk.seen.add(id(world))
+    walk.members(world, "", skip=_WORLD_SKIP)
+    for owner, name, value in walk.derived:
+        if isinstance(value, LaunchCache):
+            value.clear()
+        elif _refers_to(value, walk.replaced):
+            _assign(owner, name, None)  # a struct over arrays the restore replaced: rebuilt on first use
+    world._after_restore()
+
+
+def _check_layout(world, snap: Snapshot) -> None:
+    """Refuse a snapshot of another kind of world (other stages, emitters, cloth) before changing anything."""
+    def layout(s: Snapshot) -> dict[str, object]:
+        return {p: v for p, v in s.values.items() if p.endswith(("/:class", "/:fields", "/:len"))}
+
+    have, want = layout(take(world)), layout(snap)
+    if have != want:
+        diff = sorted(p.rpartition("/")[0] for p in have.keys() | want.keys() if have.get(p) != want.get(p))
+        raise SnapshotError(f"the snapshot does not match this world: {_few(diff)} differ (restore into a world "
+                            "built the same way as the one it was taken from)")
+
+
+def _few(paths: list[str]) -> str:
+    return ", ".join(paths[:3]) + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+
+
+class _Restore:
+    """Writes a snapshot back along the same walk that took it."""
+
+    def __init__(self, snap: Snapshot, children: dict[str, set[str]], device: str):
+        self.snap, self.children, self.device = snap, children, device
+        self.derived: list[tuple] = []  # (owner, name, value) of every cache met on the way
+        self.replaced: dict[int, wp.array] = {}  # arrays this restore replaced by new ones (kept alive here)
+        self.seen: set[int] = set()
+
+    def members(self, obj, path: str, skip=frozenset()) -> None:
+        """Restore the attributes of `obj`: those the snapshot has, and none that it lacks."""
+        prefix = path + "/" if path else ""
+        saved = self.children.get(path, set()) - skip
+        for name, value in sorted(vars(obj).items()):
+            if name in skip:
+                continue
+            if name in saved:
+                self.value(obj, name, value, prefix + name)
+            elif _is_plain(value) or isinstance(value, (np.ndarray, wp.array)):
+                delattr(obj, name)  # made after the snapshot was taken (a lazily sized buffer)
+        for name in sorted(saved - set(vars(obj))):
+            if prefix + name + "/:derived" not in self.snap.values:  # a cache is rebuilt, not restored
+                object.__setattr__(obj, name, self.new(prefix + name))
+
+    def new(self, path: str):
+        """A value the object does not hold now: a plain value or an array, made from the snapshot."""
+        snap = self.snap
+        if path in snap.values:
+            return _unplain(snap.values[path])
+        if path in snap.arrays:
+            data = snap.arrays[path].copy()
+            dtype = snap.values.get(path + "/:dtype")
+            return data if dtype is None else wp.array(data, dtype=getattr(wp, dtype), device=self.device)
+        raise SnapshotError(f"cannot restore {path}: this world has nothing there to restore it into")
+
+    def value(self, owner, name, value, path: str) -> None:
+        """Write the snapshot's data at `path` into `value`, the attribute (or item) `name` of `owner`.
+
+        What the snapshot holds at `path` decides, so that an attribute that was None then and is an
+        array now (or the other way round) comes back as it was.
+        """
+        snap = self.snap
+        if path + "/:derived" in snap.values or _is_derived(value):
+            self.derived.append((owner, name, value))
+        elif path in snap.values:
+            _assign(owner, name, _unplain(snap.values[path], value))
+        elif path in snap.arrays and not isinstance(value, ArraySet):
+            data = snap.arrays[path]
+            if isinstance(value, wp.array) and tuple(value.shape) == data.shape and value.numpy().dtype == data.dtype:
+                value.assign(data)  # in place: recorded launches that hold this array stay valid
+            elif isinstance(value, np.ndarray) and value.shape == data.shape and value.dtype == data.dtype \
+                    and value.flags.writeable:
+                value[...] = data
+            else:
+                if isinstance(value, wp.array):
+                    self.replaced[id(value)] = value
+                _assign(owner, name, self.new(path))
+        elif isinstance(value, ArraySet):
+            before = dict(value.arrays)
+            value.load({n: snap.arrays[f"{path}/{n}"] for n in value.fields},
+                       count=snap.values[path + "/:count"], capacity=snap.values[path + "/:capacity"])
+            self.replaced.update((id(a), a) for n, a in before.items() if value.arrays[n] is not a)
+            if id(value) not in self.seen:
+                self.seen.add(id(value))
+                self.members(value, path, skip=_ARRAYSET_OWN | set(value.fields))
+        elif isinstance(value, np.random.Generator):
+            value.bit_generator.state = snap.values[path + "/:rng"]
+        elif isinstance(value, (list, tuple)):
+            items = list(value)
+            for i, item in enumerate(items):
+                self.value(items, i, item, f"{path}/{i}")
+            if isinstance(value, list):
+                value[:] = items
+            elif type(value) is tuple and any(a is not b for a, b in zip(items, value)):
+                _assign(owner, name, tuple(items))
+        elif isinstance(value, dict):
+            saved = snap.values[path + "/:keys"]
+            for k in [k for k in value if k not in saved]:
+                del value[k]
+            for k in saved:
+                if k in value:
+                    self.value(value, k, value[k], f"{path}/{k}")
+                else:
+                    value[k] = self.new(f"{path}/{k}")
+        elif _is_ours(value):
+            if id(value) not in self.seen:
+                self.seen.add(id(value))
+                self.members(value, path)
+        else:
+            raise SnapshotError(f"cannot restore {path}: a value of type {type(value).__qualname__}")
+
+
+def _assign(owner, name, value) -> None:
+    if isinstance(owner, (list, dict)):
+        owner[name] = value
+    else:
+        object.__setattr__(owner, name, value)
+
+
+# --- files -------------------------------------------------------------------------------------
+
+def save(snap: Snapshot, path) -> Path:
+    """Write `snap` to `path` (.npz), atomically."""
+    from .io.atomic import atomic_path
+
+    path = Path(path)
+    manifest = {"format": FORMAT, "values": snap.values, "step_count": snap.step_count,
+                "time": float(snap.time).hex(), "scene": snap.scene, "scene_path": snap.scene_path,
+                "overrides": snap.overrides, "arrays": sorted(snap.arrays)}
+    payload = {f"a{i}": a for i, a in enumerate(snap.arrays[k] for k in manifest["arrays"])}
+    payload["manifest"] = np.frombuffer(json.dumps(manifest).encode(), dtype=np.uint8)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, **payload)
+    return path
+
+
+def read(path) -> Snapshot:
+    """Read a snapshot file written by `save`. Raises `SnapshotError` naming the file on any problem."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            manifest = json.loads(bytes(data["manifest"]).decode())
+            if not isinstance(manifest, dict) or "format" not in manifest:
+                raise ValueError("no manifest")
+            if manifest["format"] != FORMAT:
+                raise SnapshotError(f"{path}: snapshot format {manifest['format']} is not the format {FORMAT} "
+                                    "this version of Tumble reads")
+            arrays = {k: data[f"a{i}"] for i, k in enumerate(manifest["arrays"])}
+    except SnapshotError:
+        raise
+    except FileNotFoundError:
+        raise SnapshotError(f"{path}: no such snapshot file") from None
+    except IsADirectoryError:
+        raise SnapshotError(f"{path}: is a directory, not a snapshot file") from None
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile, json.JSONDecodeError,
+            UnicodeDecodeError) as exc:
+        raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
+    time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
+    return Snapshot(arrays, manifest["values"], int(manifest["step_count"]), time, manifest.get("scene"),
+                    manifest.get("scene_path"), dict(manifest.get("overrides") or {}))
+
+
+def load(path, **overrides):
+    """Rebuild the world a snapshot file was taken from (it must come from a scene) and restore it.
+
+    Keyword overrides are those of `tumble.load_scene` (e.g. device) and replace the saved ones.
+    """
+    from .io.scene import build_world, parse_scene
+
+    snap = read(path)
+    if snap.scene is None:
+        raise SnapshotError(f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
+                            "build the same world and call world.restore(tumble.snapshot.read(path))")
+    scene = parse_scene(snap.scene, snap.scene_path)
+    world = build_world(scene, **{**snap.overrides, **overrides})
+    restore(world, snap)
+    return world

@@ -1,0 +1,163 @@
+"""Snapshots (tumble/snapshot.py): restore in place, into a new world, and from a file in a new process,
+each giving the trajectory of the uninterrupted run bit for bit."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble import snapshot
+from tumble.snapshot import SnapshotError
+
+ROOT = Path(__file__).resolve().parents[2]
+# a pile with an emitter, the box tower, the rain (emitter, random sizes) and the hammock (cloth + bodies)
+SCENES = ["sphere_pile", "box_tower", "rain", "hammock"]
+
+
+def _steps(world, seconds: float) -> None:
+    for _ in range(round(seconds / world.dt)):
+        world.step()
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_saved_run_resumes_in_a_new_process_bit_for_bit(name, tmp_path):
+    """Run 2 s in one process against 1 s, save, load in a new process and run 1 s: same state hash."""
+    world = tumble.load_scene(name)
+    _steps(world, 1.0)
+    path = tumble.save_snapshot(world.snapshot(), tmp_path / "state.npz")
+    _steps(world, 1.0)
+    code = ("import sys, tumble; w = tumble.load_snapshot(sys.argv[1]); "
+            "[w.step() for _ in range(round(1.0 / w.dt))]; print(w.state_hash(), w.step_count, w.time)")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env,
+                         timeout=600, check=True).stdout.split()
+    assert out[0] == world.state_hash()
+    assert int(out[1]) == world.step_count
+    assert float(out[2]) == world.time
+
+
+def test_restore_in_place_repeats_the_run():
+    """Restoring into the world the snapshot came from (after it ran on, emitting more bodies) repeats it."""
+    world = tumble.load_scene("rain")
+    _steps(world, 0.25)
+    state = world.snapshot()
+    bodies_then = world.body_count
+    _steps(world, 0.5)
+    first = world.state_hash(), world.body_count, world.time
+    assert world.body_count > bodies_then  # the emitter kept going: rows, ids and rng all moved on
+    world.restore(state)
+    assert world.body_count == bodies_then and world.step_count == state.step_count
+    assert world.snapshot() == state
+    _steps(world, 0.5)
+    assert (world.state_hash(), world.body_count, world.time) == first
+
+
+def test_snapshot_is_a_copy():
+    """Stepping after a snapshot does not change it; a restored world does not share arrays with it."""
+    world = tumble.load_scene("bouncing_ball")
+    state = world.snapshot()
+    kept = state.copy()
+    _steps(world, 0.1)
+    assert state == kept
+    world.restore(state)
+    _steps(world, 0.1)
+    assert state == kept
+
+
+def test_world_built_in_python_restores(tmp_path):
+    """A world built with the API (no scene) restores into a world built the same way; `load` says it can't."""
+    def build():
+        w = tumble.World(seed=3)
+        w.add_plane()
+        for k in range(4):
+            w.add_box(position=(0.01 * k, 0, 0.3 + 0.25 * k), half_extents=(0.1, 0.1, 0.1), mass=1.0)
+        return w
+
+    a = build()
+    _steps(a, 0.2)
+    path = snapshot.save(a.snapshot(), tmp_path / "api.npz")
+    _steps(a, 0.2)
+    b = build()
+    b.restore(snapshot.read(path))
+    _steps(b, 0.2)
+    assert a.state_hash() == b.state_hash()
+    with pytest.raises(SnapshotError, match="built in Python"):
+        snapshot.load(path)
+
+
+def test_snapshot_of_another_world_is_refused_and_changes_nothing():
+    pile = tumble.load_scene("sphere_pile")
+    hammock = tumble.load_scene("hammock")
+    before = hammock.snapshot()
+    with pytest.raises(SnapshotError, match="does not match this world"):
+        hammock.restore(pile.snapshot())
+    assert hammock.snapshot() == before
+    with pytest.raises(TypeError, match="Snapshot"):
+        hammock.restore({"bodies": 1})
+
+
+def test_values_come_back_with_their_types(tmp_path):
+    """Floats exactly (hex), infinities, tuples and generator states survive the file."""
+    world = tumble.load_scene("rain")
+    _steps(world, 0.1)
+    state = world.snapshot()
+    back = snapshot.read(snapshot.save(state, tmp_path / "s.npz"))
+    assert back == state and back.time == state.time and back.step_count == state.step_count
+    assert back.scene == state.scene and back.overrides == state.overrides
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", "not a Tumble snapshot file"),
+    (b"PK\x03\x04 broken zip", "not a Tumble snapshot file"),
+    (None, "no such snapshot file"),
+])
+def test_broken_files_get_one_line(tmp_path, content, message):
+    path = tmp_path / "bad.npz"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(SnapshotError, match=message) as info:
+        snapshot.read(path)
+    assert "\n" not in str(info.value) and "bad.npz" in str(info.value)
+
+
+def test_an_npz_without_a_manifest_is_refused(tmp_path):
+    path = tmp_path / "other.npz"
+    np.savez(path, x=np.zeros(3))
+    with pytest.raises(SnapshotError, match="not a Tumble snapshot file"):
+        snapshot.read(path)
+
+
+def test_cli_save_state_and_resume(tmp_path):
+    """`tumble run SCENE --duration 1 --save-state F` then `tumble run --resume F --duration 1` equals a 2 s run."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+
+    def run(*args):
+        done = subprocess.run([sys.executable, "-m", "tumble", "run", *args], capture_output=True, text=True,
+                              env=env, timeout=600)
+        return done.returncode, done.stdout, done.stderr
+
+    def state_hash(stdout: str) -> str:
+        return next(line.split()[-1] for line in stdout.splitlines() if line.startswith("state hash"))
+
+    state = tmp_path / "half.npz"
+    rc, whole, _ = run("bouncing_ball", "--duration", "2")
+    assert rc == 0
+    rc, out, _ = run("bouncing_ball", "--duration", "1", "--save-state", str(state))
+    assert rc == 0 and state.exists() and "--resume" in out
+    rc, resumed, _ = run("--resume", str(state), "--duration", "1")
+    assert rc == 0
+    assert state_hash(resumed) == state_hash(whole)
+
+    for args, needle in [((), "give a SCENE"), (("bouncing_ball", "--resume", str(state)), "not both"),
+                         (("--resume", str(tmp_path / "none.npz")), "no such snapshot file"),
+                         (("--resume", str(state), "--seed", "3"), "--seed cannot"),
+                         (("bouncing_ball", "--save-state", str(tmp_path / "x.txt")), "--save-state")]:
+        rc, _, err = run(*args)
+        assert rc == 2, args
+        assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
