@@ -203,8 +203,11 @@ def _owner_count(
     body_b: wp.array(dtype=wp.int32),
     inv_mass: wp.array(dtype=float_t),
     owner_count: wp.array(dtype=wp.int32),
+    counts: wp.array(dtype=wp.int32),
 ):
     c = wp.tid()
+    if c >= counts[1]:
+        return  # launched over the capacity: last step's contact count is on the device
     wp.atomic_add(owner_count, _owner(body_a[c], body_b[c], inv_mass), 1)
 
 
@@ -216,8 +219,11 @@ def _owner_scatter(
     owner_start: wp.array(dtype=wp.int32),
     owner_fill: wp.array(dtype=wp.int32),
     owner_entries: wp.array(dtype=wp.int32),
+    counts: wp.array(dtype=wp.int32),
 ):
     c = wp.tid()
+    if c >= counts[1]:
+        return
     o = _owner(body_a[c], body_b[c], inv_mass)
     owner_entries[owner_start[o] + wp.atomic_add(owner_fill, o, 1)] = c
 
@@ -237,8 +243,11 @@ def _match(
     prev_jn: wp.array(dtype=float_t),
     prev_jt: wp.array(dtype=vec3),
     jt_world: wp.array(dtype=vec3),
+    counts: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
+    if k >= counts[0]:
+        return
     a = c.body_a[k]
     b = c.body_b[k]
     o = a
@@ -273,8 +282,11 @@ def _store(
     prev_local: wp.array(dtype=vec3),
     prev_jn: wp.array(dtype=float_t),
     prev_jt: wp.array(dtype=vec3),
+    counts: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
+    if k >= counts[0]:
+        return
     prev_a[k] = c.body_a[k]
     prev_b[k] = c.body_b[k]
     if inv_mass[c.body_a[k]] == float_t(0.0):
@@ -289,8 +301,10 @@ def _store(
 
 
 @wp.kernel
-def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32)):
+def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
+    if k >= counts[0]:
+        return
     wp.atomic_add(count, c.body_a[k], 1)
     wp.atomic_add(count, c.body_b[k], 1)
 
@@ -305,8 +319,11 @@ def _prepare(
     gravity: vec3,
     jacobi: int,
     body_count: wp.array(dtype=wp.int32),
+    counts: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
+    if k >= counts[0]:
+        return
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
@@ -380,8 +397,10 @@ def _add_pair(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), inv_mass: wp.arr
 
 
 @wp.kernel
-def _warm_start(c: Contacts, b: Bodies, serial: int):
+def _warm_start(c: Contacts, b: Bodies, serial: int, counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
+    if k >= counts[0]:
+        return
     jn = c.jn[k]
     j1 = c.jt1[k]
     j2 = c.jt2[k]
@@ -439,11 +458,11 @@ def _solve(
     max_push: float_t,
     slop: float_t,
     serial: int,
-    count: int,
+    counts: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
-    if k >= count:
-        return  # launched over the capacity, so the recorded launch survives a new count
+    if k >= counts[0]:
+        return  # launched over the capacity, the count on the device: the recorded launch survives a new count
     ia = c_body_a[k]
     ib = c_body_b[k]
     n = c_normal[k]
@@ -635,10 +654,19 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
 
 @wp.kernel
 def _impacts_serial(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t, ahead: int,
-                    count: int):
+                    counts: wp.array(dtype=wp.int32), tested: wp.array(dtype=wp.int64),
+                    changed: wp.array(dtype=wp.int64), clock: wp.array(dtype=wp.int64)):
     # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
     # (a collision passes along a chain of touching bodies in either direction within a sweep;
-    # a body caught between two others needs several); at most IMPACT_SWEEPS
+    # a body caught between two others needs several); at most IMPACT_SWEEPS.
+    # Whether a contact collides, and how, depends only on the velocities of its two bodies:
+    # everything else _impact reads is fixed during the pass. So after the first sweep a contact
+    # is tested again only if one of its bodies changed since its last test (`changed` and
+    # `tested` hold ticks of `clock`, which only grows); the ones skipped would collide nothing
+    # again, and the result is the same as sweeping them all.
+    count = counts[0]
+    t = clock[0]
+    one = wp.int64(1)
     sweep = int(0)
     hits = int(1)
     while hits > 0 and sweep < IMPACT_SWEEPS:
@@ -647,15 +675,32 @@ def _impacts_serial(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
             k = i
             if sweep % 2 == 1:
                 k = count - 1 - i
-            hits += _impact(k, c, b, gravity, h, threshold, floor, ahead, 1)
+            ia = c.body_a[k]
+            ib = c.body_b[k]
+            if sweep > 0:
+                last = tested[k]
+                if changed[ia] < last and changed[ib] < last:
+                    continue
+            t = t + one
+            tested[k] = t
+            hit = _impact(k, c, b, gravity, h, threshold, floor, ahead, 1)
+            if hit > 0:
+                t = t + one
+                if b.inv_mass[ia] > float_t(0.0):
+                    changed[ia] = t
+                if b.inv_mass[ib] > float_t(0.0):
+                    changed[ib] = t
+                hits += hit
         sweep += 1
+    clock[0] = t
 
 
 @wp.kernel
 def _impacts_parallel(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t,
-                      ahead: int, count: int):
+                      ahead: int, counts: wp.array(dtype=wp.int32), tested: wp.array(dtype=wp.int64),
+                      changed: wp.array(dtype=wp.int64), clock: wp.array(dtype=wp.int64)):
     k = wp.tid()
-    if k < count:
+    if k < counts[0]:
         _impact(k, c, b, gravity, h, threshold, floor, ahead, 0)
 
 
@@ -670,8 +715,12 @@ class ContactSet(ArraySet):
         self.count_array = wp.zeros(1, dtype=wp.int32, device=device)
         self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=1024)
         self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=device)
+        # this step's and last step's contact counts, on the device, for kernels launched over the capacity
+        self.counts = wp.zeros(2, dtype=wp.int32, device=device)
+        self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
-        self.step_structs = None
+        self._sized = ()
+        self._structs = None
 
     def grow(self, count: int) -> None:
         self.count = 0
@@ -708,38 +757,56 @@ class ContactSet(ArraySet):
             a["contact_impulse_n"], a["contact_impulse_t1"], a["contact_impulse_t2"], a["contact_max_impulse_n"])
         return c
 
-    def _owner_buffers(self, body_capacity: int) -> None:
-        if body_capacity != self._owner_capacity:
-            self._owner_capacity = body_capacity
-            self.owner_count = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
-            self.owner_start = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
-            self.owner_fill = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
-            self.body_count = wp.zeros(body_capacity, dtype=wp.int32, device=self.device)
+    def begin_solve(self, bodies) -> tuple:
+        """Host side of the solver stages, before any of them runs: size the scratch buffers, put
+        the contact counts on the device and build the solver structs (once per set of arrays).
+
+        Returns what the recorded launches of the stages depend on (see `World._solver_graph`).
+        """
+        p = self.previous
+        p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
+        sized = (bodies.capacity, self.capacity, p.capacity, id(bodies.arrays["body_velocity"]),
+                 id(self.arrays["contact_normal"]), id(p.arrays["previous_body_a"]), id(self.jt_world))
+        if sized != self._sized[:len(sized)]:
+            dev = self.device
+            if bodies.capacity != self._owner_capacity:
+                self._owner_capacity = bodies.capacity
+                self.owner_count = wp.zeros(bodies.capacity, dtype=wp.int32, device=dev)
+                self.owner_start = wp.zeros(bodies.capacity, dtype=wp.int32, device=dev)
+                self.owner_fill = wp.zeros(bodies.capacity, dtype=wp.int32, device=dev)
+                self.body_count = wp.zeros(bodies.capacity, dtype=wp.int32, device=dev)
+                self.impact_changed = wp.zeros(bodies.capacity, dtype=wp.int64, device=dev)
+            self.owner_entries = wp.zeros(p.capacity, dtype=wp.int32, device=dev)
+            self.impact_tested = wp.zeros(self.capacity, dtype=wp.int64, device=dev)
+            self._structs = (self.struct(), body_struct(bodies))
+            self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
+        counts = (self.count, p.count)
+        if self.device == "cpu":
+            self.counts.numpy()[:] = counts  # the host view is the array
+        else:
+            self.counts.assign(np.array(counts, dtype=np.int32))
+        return self._sized + (self.count > 0,)
 
     def match_previous(self, bodies) -> None:
         """Carry last step's impulses over to the contacts that persist (warm starting)."""
-        self._owner_buffers(bodies.capacity)
         if self.count == 0:
             return
         p, b = self.previous, bodies.arrays
         dev = self.device
         self.owner_count.zero_()
         self.owner_fill.zero_()
-        if p.count:
-            wp.launch(_owner_count, dim=p.count, device=dev,
-                      inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count])
-            wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
-            self.owner_entries = wp.zeros(p.count, dtype=wp.int32, device=dev)
-            wp.launch(_owner_scatter, dim=p.count, device=dev,
-                      inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_start,
-                              self.owner_fill, self.owner_entries])
-        else:
-            self.owner_entries = wp.zeros(1, dtype=wp.int32, device=dev)
-        wp.launch(_match, dim=self.count, device=dev,
-                  inputs=[self.struct(), b["body_inv_mass"], b["body_bound_radius"], MATCH_TOLERANCE,
+        # last step's contacts bucketed by owner (counting sort), launched over their capacity
+        wp.launch(_owner_count, dim=p.capacity, device=dev,
+                  inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count, self.counts])
+        wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
+        wp.launch(_owner_scatter, dim=p.capacity, device=dev,
+                  inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_start,
+                          self.owner_fill, self.owner_entries, self.counts])
+        wp.launch(_match, dim=self.capacity, device=dev,
+                  inputs=[self._structs[0], b["body_inv_mass"], b["body_bound_radius"], MATCH_TOLERANCE,
                           self.owner_start, self.owner_count, self.owner_entries, p.previous_body_a,
                           p.previous_body_b, p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t,
-                          self.jt_world])
+                          self.jt_world, self.counts])
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
         """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them in
@@ -759,16 +826,18 @@ class ContactSet(ArraySet):
                 contacts.write(name, slice(0, contacts.count), slot[rows])
 
     def store_impulses(self, bodies) -> None:
-        """Keep this step's contacts and impulses for the next step's warm start."""
-        p = self.previous
-        p.count = 0
+        """Keep this step's contacts and impulses for the next step's warm start (`end_solve` then
+        sets their count)."""
         if self.count == 0:
             return
-        p.reserve(self.count)
-        wp.launch(_store, dim=self.count, device=self.device,
-                  inputs=[self.struct(), bodies.arrays["body_inv_mass"], p.previous_body_a, p.previous_body_b,
-                          p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t])
-        p.count = self.count
+        p = self.previous
+        wp.launch(_store, dim=self.capacity, device=self.device,
+                  inputs=[self._structs[0], bodies.arrays["body_inv_mass"], p.previous_body_a, p.previous_body_b,
+                          p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t, self.counts])
+
+    def end_solve(self) -> None:
+        """Host side after the solver stages: the contacts stored for warm starting are this step's."""
+        self.previous.count = self.count
 
 
 def _serial(contacts: ContactSet) -> int:
@@ -802,26 +871,26 @@ def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:
 
 def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
     """Anchors, tangents, effective masses and combined materials, once per step."""
-    contacts.step_structs = None  # the solver structs of this step (arrays may have been replaced)
     if contacts.count == 0:
         return
     jacobi = 0 if contacts.device == "cpu" else 1
+    c, b = contacts._structs
     if jacobi:
         contacts.body_count.zero_()
-        wp.launch(_body_contact_count, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), contacts.body_count])
-    b = bodies.arrays
-    wp.launch(_prepare, dim=contacts.count, device=contacts.device,
-              inputs=[contacts.struct(), body_struct(bodies), b["body_friction"], b["body_restitution"],
-                      contacts.jt_world, vec3(*gravity), jacobi, contacts.body_count])
+        wp.launch(_body_contact_count, dim=contacts.capacity, device=contacts.device,
+                  inputs=[c, contacts.body_count, contacts.counts])
+    a = bodies.arrays
+    wp.launch(_prepare, dim=contacts.capacity, device=contacts.device,
+              inputs=[c, b, a["body_friction"], a["body_restitution"], contacts.jt_world, vec3(*gravity), jacobi,
+                      contacts.body_count, contacts.counts])
 
 
 def warm_start(bodies, contacts: ContactSet) -> None:
     """Apply last step's impulses of the matched contacts to the velocities (first substep only;
     later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
-        wp.launch(_warm_start, dim=contacts.count, device=contacts.device,
-                  inputs=[contacts.struct(), body_struct(bodies), _serial(contacts)])
+        wp.launch(_warm_start, dim=contacts.capacity, device=contacts.device,
+                  inputs=[*contacts._structs, _serial(contacts), contacts.counts])
 
 
 def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: LaunchCache | None = None) -> None:
@@ -834,7 +903,7 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
     launch(_solve, contacts.capacity,
            [*(c[name] for name in _SOLVE_CONTACT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
             1.0 / h, int(use_bias), *soft, *soft_static, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts),
-            contacts.count], contacts.device, cache)
+            contacts.counts], contacts.device, cache)
 
 
 #: the arrays `_solve` takes, in its argument order
@@ -864,11 +933,9 @@ def impacts(bodies, contacts: ContactSet, gravity: np.ndarray, h: float, thresho
     """
     if contacts.count == 0:
         return
-    structs = contacts.step_structs
-    if structs is None:
-        structs = contacts.step_structs = (contacts.struct(), body_struct(bodies))
     floor = 2.0 * float(np.linalg.norm(gravity)) * h
-    args = [*structs, vec3(*gravity), h, threshold, floor, int(ahead), contacts.count]
+    args = [*contacts._structs, vec3(*gravity), h, threshold, floor, int(ahead), contacts.counts,
+            contacts.impact_tested, contacts.impact_changed, contacts.impact_clock]
     if _serial(contacts):
         launch(_impacts_serial, 1, args, contacts.device, cache)
     else:
