@@ -1105,13 +1105,14 @@ class World:
             self._sort_bodies()
 
         # broad phase: spatial hash -> candidate pairs of bodies whose swept bounds overlap
+        launches = self._launch_cache()
         with self._timer("broad_phase"):
-            pairs = self.broadphase.find_pairs(bodies, dt)
+            pairs = self.broadphase.find_pairs(bodies, dt, cache=launches)
             pairs = self.joints.filter_pairs(pairs, bodies)  # jointed pairs collide only if asked
 
         # narrow phase: pair table -> contact points with normal, separation and anchors
         with self._timer("narrow_phase"):
-            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls, self.meshes)
+            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls, self.meshes, cache=launches)
 
         # solver: the stages below, replayed as one recorded graph when nothing they depend on changed
         with self._timer("solver"):
@@ -1120,7 +1121,7 @@ class World:
             with self._timer("solver"):
                 wp.capture_launch(graph)
         else:
-            self._solve(dt, h, self._launch_cache())
+            self._solve(dt, h, launches)
         contacts.end_solve()
 
         self._segment_steps += 1
@@ -1255,7 +1256,8 @@ class World:
             return
         for name in ("body_position", "body_velocity", "body_angular_velocity"):
             values = self.bodies.numpy(name)
-            if not np.isfinite(values).all():
+            # the sum is finite when every value is (one pass, no temporary); else look closer
+            if not np.isfinite(np.add.reduce(values, axis=None)) and not np.isfinite(values).all():
                 bad = int(self.bodies.numpy("body_id")[np.nonzero(~np.isfinite(values).all(axis=1))[0][0]])
                 raise SimulationError(
                     f"{name} of body {bad} is not finite at t = {self.time:.6g} s "

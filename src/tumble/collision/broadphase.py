@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
 from ..state import float_t, vec3
 from .hashgrid import HashGrid, cell_hash, cell_of
@@ -198,8 +199,11 @@ class BroadPhase:
             self.swept_radius = wp.zeros(bodies.capacity, dtype=float_t, device=self.device)
         self._sized_for = n
 
-    def find_pairs(self, bodies, dt: float) -> BroadPhase:
-        """Fill `pair_a`/`pair_b` with every pair whose swept bounds overlap; returns self."""
+    def find_pairs(self, bodies, dt: float, cache: LaunchCache | None = None) -> BroadPhase:
+        """Fill `pair_a`/`pair_b` with every pair whose swept bounds overlap; returns self.
+
+        With `cache`, the launches are recorded once and replayed (see tumble.launch).
+        """
         n = bodies.count
         if n != self._sized_for:
             self._resize(bodies)
@@ -208,9 +212,8 @@ class BroadPhase:
             return self
         b = bodies.arrays
         dev = self.device
-        wp.launch(_swept_radius, dim=n, device=dev,
-                  inputs=[b["body_shape"], b["body_bound_radius"], b["body_velocity"], b["body_angular_velocity"],
-                          dt, MARGIN, self.swept_radius])
+        launch(_swept_radius, n, [b["body_shape"], b["body_bound_radius"], b["body_velocity"],
+                                  b["body_angular_velocity"], dt, MARGIN, self.swept_radius], dev, cache)
         # cell edge: twice the largest swept radius among ordinary bodies, so most scan 2-3 cells a side
         swept = self.swept_radius.numpy()[:n]
         ordinary = swept[swept <= self._ordinary_limit]
@@ -218,19 +221,20 @@ class BroadPhase:
         max_radius = 0.5 * MAX_RANGE * cell
 
         # counting sort of bodies into hashed cells; the biggest stay out and test everything
-        grid = self.grid.build(b["body_position"], n, cell, radius=self.swept_radius, max_radius=max_radius)
+        grid = self.grid.build(b["body_position"], n, cell, radius=self.swept_radius, max_radius=max_radius,
+                               cache=cache)
 
         # query; grow the pair buffers and query again if they overflowed
         while True:
             self.pair_count_array.zero_()
-            wp.launch(_query_grid, dim=n, device=dev,
-                      inputs=[b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
-                              grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
-                              b["body_id"], self.pair_count_array, self.pair_a, self.pair_b])
-            wp.launch(_query_large, dim=n, device=dev,
-                      inputs=[n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
-                              self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
-                              self.pair_b])
+            launch(_query_grid, n,
+                   [b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
+                    grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
+                    b["body_id"], self.pair_count_array, self.pair_a, self.pair_b], dev, cache)
+            launch(_query_large, n,
+                   [n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
+                    self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
+                    self.pair_b], dev, cache)
             count = int(self.pair_count_array.numpy()[0])
             if count <= self.pair_capacity:
                 break

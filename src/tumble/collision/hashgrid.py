@@ -22,6 +22,7 @@ import math
 import numpy as np
 import warp as wp
 
+from ..launch import LaunchCache, launch
 from ..state import float_t, vec3
 
 #: hash table slots per point (a power of two): flat point sets fill a quarter of each block's slots
@@ -135,10 +136,11 @@ class HashGrid:
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
 
     def build(self, x: wp.array, count: int, cell_size: float, radius: wp.array | None = None,
-              max_radius: float = np.inf) -> HashGrid:
+              max_radius: float = np.inf, cache: LaunchCache | None = None) -> HashGrid:
         """Sort the first `count` points of `x` into cells of edge `cell_size` [m].
 
-        Points whose `radius` exceeds `max_radius` are left out (`point_cell` = -1).
+        Points whose `radius` exceeds `max_radius` are left out (`point_cell` = -1). With
+        `cache`, the launches are recorded once and replayed (see tumble.launch).
         """
         self._reserve(count)
         self.cell_size = float(cell_size)
@@ -149,13 +151,12 @@ class HashGrid:
         self.cell_fill.zero_()
         if count == 0:
             return self
-        wp.launch(_count, dim=count, device=self.device,
-                  inputs=[x, radius, float(max_radius), self.inv_cell, self.mask, self.point_cell,
-                          self.point_cell_coord, self.cell_count])
+        launch(_count, count, [x, radius, float(max_radius), self.inv_cell, self.mask, self.point_cell,
+                               self.point_cell_coord, self.cell_count], self.device, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        wp.launch(_scatter, dim=count, device=self.device,
-                  inputs=[x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,
-                          self.entries, self.sorted_x, self.sorted_radius, self.sorted_coord])
+        launch(_scatter, count, [x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,
+                                 self.entries, self.sorted_x, self.sorted_radius, self.sorted_coord],
+               self.device, cache)
         return self
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
 from ..state import float_t, quat, vec3
 from .hulls import Hulls, HullSet
@@ -1271,8 +1272,11 @@ def _collide_pairs(
     dt: float_t,
     margin: float_t,
     c: ContactWriter,
+    count: int,
 ):
     p = wp.tid()
+    if p >= count:
+        return  # launched over the pair capacity (see tumble.launch)
     a = pair_a[p]
     b = pair_b[p]
     # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
@@ -1343,11 +1347,13 @@ _default_hulls: dict[str, HullSet] = {}
 _default_meshes: dict[str, MeshSet] = {}
 
 
-def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, meshes: MeshSet | None = None) -> None:
+def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, meshes: MeshSet | None = None,
+            cache: LaunchCache | None = None) -> None:
     """Run the pair table over the broad phase's pairs, filling `contacts` (grown as needed).
 
     `hulls` and `meshes` hold the convex prototypes and triangle meshes that the bodies'
-    `body_geometry` rows name (default: the unit box only, no mesh).
+    `body_geometry` rows name (default: the unit box only, no mesh). With `cache`, the launch
+    is recorded once and replayed (see tumble.launch).
     """
     if hulls is None:
         hulls = _default_hulls.setdefault(bodies.device, HullSet(bodies.device))
@@ -1362,13 +1368,13 @@ def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, me
     b = bodies.arrays
     while True:
         writer = contacts.writer()
-        wp.launch(
+        launch(
             _collide_pairs,
-            dim=pairs.pair_count,
-            device=bodies.device,
-            inputs=[pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
-                    b["body_bound_radius"], b["body_geometry"], hull_struct, mesh_ids, b["body_position"], b["body_orientation"], b["body_velocity"],
-                    b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, writer],
+            pairs.pair_a.shape[0],
+            [pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
+             b["body_bound_radius"], b["body_geometry"], hull_struct, mesh_ids, b["body_position"], b["body_orientation"], b["body_velocity"],
+             b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, writer, pairs.pair_count],
+            bodies.device, cache,
         )
         count = int(writer.count.numpy()[0])
         if count <= contacts.capacity:

@@ -721,6 +721,7 @@ class ContactSet(ArraySet):
         self._owner_capacity = 0
         self._sized = ()
         self._structs = None
+        self._writer = None
 
     def grow(self, count: int) -> None:
         self.count = 0
@@ -731,13 +732,16 @@ class ContactSet(ArraySet):
         self.count_array.zero_()
 
     def writer(self) -> ContactWriter:
+        """The narrow phase's output arrays as a struct (built once per set of arrays), count zeroed."""
         a = self.arrays
-        w = ContactWriter()
-        w.count = self.count_array
         self.count_array.zero_()
-        w.body_a, w.body_b = a["contact_body_a"], a["contact_body_b"]
-        w.normal, w.point, w.separation = a["contact_normal"], a["contact_point"], a["contact_separation"]
-        w.local_a, w.local_b = a["contact_local_a"], a["contact_local_b"]
+        w = self._writer
+        if w is None or w.body_a is not a["contact_body_a"]:
+            w = self._writer = ContactWriter()
+            w.count = self.count_array
+            w.body_a, w.body_b = a["contact_body_a"], a["contact_body_b"]
+            w.normal, w.point, w.separation = a["contact_normal"], a["contact_point"], a["contact_separation"]
+            w.local_a, w.local_b = a["contact_local_a"], a["contact_local_b"]
         return w
 
     def struct(self) -> Contacts:
