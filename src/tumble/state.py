@@ -28,6 +28,17 @@ _NUMPY_DTYPE = {float_t: np.float64, wp.int32: np.int32, wp.uint32: np.uint32, w
 _WIDTH = {vec3: 3, quat: 4, mat33: 9}
 
 
+def host_view(arr: wp.array) -> np.ndarray:
+    """NumPy view of a Warp array: on the CPU the array's own memory, made once per array (a
+    `wp.array.numpy()` costs ~5 us, much of a small world's step); on other devices a copy."""
+    if not arr.device.is_cpu:
+        return arr.numpy()
+    view = arr.__dict__.get("_tumble_host_view")
+    if view is None:
+        view = arr._tumble_host_view = arr.numpy()
+    return view
+
+
 def numpy_dtype(dtype) -> tuple[type, tuple[int, ...]]:
     """NumPy scalar type and trailing shape of one element of a Warp `dtype`."""
     if dtype in _WIDTH:
@@ -96,7 +107,7 @@ class ArraySet:
         """Host view of the first `count` rows of one array (zero-copy on the CPU)."""
         n = self.count if count is None else count
         arr = self.arrays[name]
-        host = arr.numpy() if n else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
+        host = host_view(arr) if n else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
         return host[:n]
 
     def permute(self, order: np.ndarray) -> None:

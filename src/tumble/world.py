@@ -217,8 +217,8 @@ class World:
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
-        self._graphs: dict = {}  # recorded solver stages by what they depend on (see _solver_graph)
-        self._graph_key = None
+        self._graphs: dict = {}  # recorded stages by what they depend on (see _solver_graph)
+        self._graph_keys: dict = {}  # kind -> the key seen on the last step
         # body ids: `body_count` of them; rows hold only live bodies, so after a reorder or a
         # removal `_slot_of_id` maps each id to its row (-1 for a removed body)
         self._slot_of_id: np.ndarray | None = None  # None while row i holds id i
@@ -1105,14 +1105,26 @@ class World:
             self._sort_bodies()
 
         # broad phase: spatial hash -> candidate pairs of bodies whose swept bounds overlap
+        # (with the narrow phase's launch, one recorded graph while the world keeps its shape)
         launches = self._launch_cache()
         with self._timer("broad_phase"):
-            pairs = self.broadphase.find_pairs(bodies, dt, cache=launches)
-            pairs = self.joints.filter_pairs(pairs, bodies)  # jointed pairs collide only if asked
+            graph = self._collision_graph(dt)
+            if graph is None:
+                pairs = self.broadphase.find_pairs(bodies, dt, cache=launches)
+                pairs = self.joints.filter_pairs(pairs, bodies)  # jointed pairs collide only if asked
+            else:
+                wp.capture_launch(graph)
+                pairs = self.broadphase
+                if pairs.end(bodies, launches):
+                    graph = None  # the pair buffers overflowed and were grown: collide the pairs again
 
         # narrow phase: pair table -> contact points with normal, separation and anchors
         with self._timer("narrow_phase"):
-            narrowphase.collide(bodies, pairs, contacts, dt, self.hulls, self.meshes, cache=launches)
+            if graph is None:
+                narrowphase.collide(bodies, pairs, contacts, dt, self.hulls, self.meshes, cache=launches)
+            else:
+                while not narrowphase.collected(contacts):  # overflowed: grown, collide again
+                    narrowphase.launch_pairs(bodies, pairs, contacts, dt, self.hulls, self.meshes, launches)
 
         # solver: the stages below, replayed as one recorded graph when nothing they depend on changed
         with self._timer("solver"):
@@ -1188,21 +1200,49 @@ class World:
             joints.refresh(self.bodies.count)
             # every array the joint stages may launch with (a buffer made anew each step: no graph)
             key += tuple(map(id, _arrays_of(joints)))
+        return self._recorded("solver", key, lambda: self._solve(dt, h, None),
+                              [self.bodies, contacts, contacts.previous, joints])
+
+    def _collision_graph(self, dt: float):
+        """The broad and narrow phases' launches recorded as one graph, or None to run them one by one.
+
+        As `_solver_graph`; the cell edge and the pair count stay on the device, and the host
+        reads the pair and contact counts after the replay (growing the buffers and colliding
+        again directly if they overflowed). Worlds with joints (which filter the pairs on the
+        host) and worlds of fewer than two bodies run directly.
+        """
+        bodies, bp, contacts = self.bodies, self.broadphase, self.contacts
+        if self.device != "cpu" or self.joints.count or not bp.begin(bodies):
+            return None
+        hulls, meshes = self.hulls.struct(), self.meshes.ids()
+        key = (dt, bodies.count, bodies.capacity, id(bodies.arrays["body_velocity"]), bp._ordinary_limit,
+               bp.pair_capacity, id(bp.pair_a), id(bp.swept_radius), bp.grid.mask, id(bp.grid.cell_count),
+               id(bp.grid.entries), contacts.capacity, id(contacts.arrays["contact_body_a"]), id(hulls), id(meshes))
+        return self._recorded(
+            "collision", key,
+            lambda: (bp.launch(bodies, dt), narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes)),
+            [bodies, bp, bp.grid, contacts, hulls, meshes])
+
+    def _recorded(self, kind: str, key: tuple, record: Callable[[], object], owners: list):
+        """The graph of the launches `record` makes, recorded for `key`, or None (the caller then
+        runs them directly): recorded the second step running that sees `key`, kept for later
+        steps with the same key (the last four keys)."""
+        key = (kind, *key)
         entry = self._graphs.get(key)
         if entry is None:
-            seen, self._graph_key = self._graph_key, key
+            seen, self._graph_keys[kind] = self._graph_keys.get(kind), key
             if key != seen:
                 return None
             wp.capture_begin(device=self.device)
             try:
-                self._solve(dt, h, None)
+                record()
             finally:
                 graph = wp.capture_end(device=self.device)
-            if len(self._graphs) >= 4:
+            if len(self._graphs) >= 8:
                 self._graphs.pop(next(iter(self._graphs)))
-            # the entry holds the arrays it launches with, so their ids in the key stay theirs
-            entry = self._graphs[key] = (graph, [*_arrays_of(self.bodies), *_arrays_of(contacts),
-                                                 *_arrays_of(contacts.previous), *_arrays_of(joints)])
+            # the entry holds the arrays it launches with, so that their ids in the key stay theirs
+            held = [a for owner in owners for a in (_arrays_of(owner) if hasattr(owner, "__dict__") else [owner])]
+            entry = self._graphs[key] = (graph, held)
         return entry[0]
 
     def collide(self, dt: float | None = None) -> int:

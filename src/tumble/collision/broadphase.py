@@ -28,13 +28,14 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
-from ..state import float_t, vec3
+from ..state import float_t, host_view, vec3
 from .hashgrid import HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
 MARGIN = 0.002
 #: cells scanned each way before a body switches to testing all bodies
 MAX_RANGE = 6
+_HALF_RANGE = wp.constant(float_t(0.5 * MAX_RANGE))
 
 
 @wp.kernel
@@ -52,6 +53,26 @@ def _swept_radius(
         radius[i] = bound[i]  # inf
     else:
         radius[i] = bound[i] + dt * (wp.length(v[i]) + wp.length(w[i]) * bound[i]) + margin
+
+
+@wp.kernel
+def _cell_size(radius: wp.array(dtype=float_t), n: int, limit: float_t, params: wp.array(dtype=float_t)):
+    # one thread: cell edge = twice the largest swept radius up to `limit` (ordinary bodies),
+    # else the last one (params[0]); then its inverse and the largest radius kept in the grid
+    largest = float_t(0.0)
+    found = int(0)
+    for i in range(n):
+        r = radius[i]
+        if r <= limit:
+            if found == 0 or r > largest:
+                largest = r
+            found = 1
+    cell = params[0]
+    if found != 0:
+        cell = float_t(2.0) * largest
+    params[0] = cell
+    params[1] = float_t(1.0) / cell
+    params[2] = _HALF_RANGE * cell
 
 
 @wp.func
@@ -115,7 +136,7 @@ def _query_grid(
     radius: wp.array(dtype=float_t),
     point_cell: wp.array(dtype=wp.int32),
     inv_mass: wp.array(dtype=float_t),
-    inv_cell: float_t,
+    params: wp.array(dtype=float_t),  # (cell edge, its inverse, largest radius in the grid)
     mask: int,
     cell_start: wp.array(dtype=wp.int32),
     cell_count: wp.array(dtype=wp.int32),
@@ -134,6 +155,7 @@ def _query_grid(
     i = wp.tid()
     if point_cell[i] < 0:
         return
+    inv_cell = params[1]
     ri = radius[i]
     xi = x[i]
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
@@ -168,12 +190,13 @@ class BroadPhase:
     def __init__(self, device: str):
         self.device = device
         self.grid = HashGrid(device)
-        self.pair_capacity = 1024
+        self.pair_capacity = 64
         self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_count_array = wp.zeros(1, dtype=wp.int32, device=device)
         self.pair_count = 0
         self.cell_size = 1.0
+        self.cell_params = wp.zeros(3, dtype=float_t, device=device)  # cell edge, its inverse, max radius
         self._sized_for = -1
         self._body_capacity = 0
         self._ordinary_limit = np.inf
@@ -197,6 +220,12 @@ class BroadPhase:
         if bodies.capacity != self._body_capacity:
             self._body_capacity = bodies.capacity
             self.swept_radius = wp.zeros(bodies.capacity, dtype=float_t, device=self.device)
+        self.grid.reserve(n)
+        params = np.array([self.cell_size, 0.0, 0.0])  # the fallback cell edge (see _cell_size)
+        if self.device == "cpu":
+            self.cell_params.numpy()[:] = params
+        else:
+            self.cell_params.assign(params)
         self._sized_for = n
 
     def find_pairs(self, bodies, dt: float, cache: LaunchCache | None = None) -> BroadPhase:
@@ -204,43 +233,62 @@ class BroadPhase:
 
         With `cache`, the launches are recorded once and replayed (see tumble.launch).
         """
+        if self.begin(bodies):
+            self.launch(bodies, dt, cache)
+            self.end(bodies, cache)
+        return self
+
+    def begin(self, bodies) -> bool:
+        """Host side before `launch`: size the buffers; False (and no pairs) for fewer than two bodies."""
         n = bodies.count
         if n != self._sized_for:
             self._resize(bodies)
         if n < 2:
             self.pair_count = 0
-            return self
+            return False
+        return True
+
+    def launch(self, bodies, dt: float, cache: LaunchCache | None = None) -> None:
+        """Every launch of the pair search, with no host decision between them (so it can be recorded)."""
+        n = bodies.count
         b = bodies.arrays
         dev = self.device
         launch(_swept_radius, n, [b["body_shape"], b["body_bound_radius"], b["body_velocity"],
                                   b["body_angular_velocity"], dt, MARGIN, self.swept_radius], dev, cache)
         # cell edge: twice the largest swept radius among ordinary bodies, so most scan 2-3 cells a side
-        swept = self.swept_radius.numpy()[:n]
-        ordinary = swept[swept <= self._ordinary_limit]
-        cell = 2.0 * float(ordinary.max()) if len(ordinary) else self.cell_size
-        max_radius = 0.5 * MAX_RANGE * cell
-
+        launch(_cell_size, 1, [self.swept_radius, n, self._ordinary_limit, self.cell_params], dev, cache)
         # counting sort of bodies into hashed cells; the biggest stay out and test everything
-        grid = self.grid.build(b["body_position"], n, cell, radius=self.swept_radius, max_radius=max_radius,
-                               cache=cache)
+        self.grid.build_from(b["body_position"], n, self.cell_params, self.swept_radius, cache)
+        self.pair_count_array.zero_()
+        self._query(bodies, cache)
 
-        # query; grow the pair buffers and query again if they overflowed
-        while True:
-            self.pair_count_array.zero_()
-            launch(_query_grid, n,
-                   [b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count,
-                    grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
-                    b["body_id"], self.pair_count_array, self.pair_a, self.pair_b], dev, cache)
-            launch(_query_large, n,
-                   [n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
-                    self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
-                    self.pair_b], dev, cache)
-            count = int(self.pair_count_array.numpy()[0])
-            if count <= self.pair_capacity:
-                break
+    def _query(self, bodies, cache: LaunchCache | None) -> None:
+        n = bodies.count
+        b = bodies.arrays
+        grid = self.grid
+        launch(_query_grid, n,
+               [b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], self.cell_params, grid.mask, grid.cell_start, grid.cell_count,
+                grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
+                b["body_id"], self.pair_count_array, self.pair_a, self.pair_b], self.device, cache)
+        launch(_query_large, n,
+               [n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
+                self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
+                self.pair_b], self.device, cache)
+
+    def end(self, bodies, cache: LaunchCache | None = None) -> bool:
+        """Host side after `launch`: read the pair count; grow the pair buffers and query again if
+        they overflowed. Returns True if it queried again (pairs found by a recorded narrow phase
+        that followed the first query are then incomplete)."""
+        count = int(host_view(self.pair_count_array)[0])
+        again = False
+        while count > self.pair_capacity:
+            again = True
             self.pair_capacity = max(count, 2 * self.pair_capacity)
-            self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=dev)
-            self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=dev)
+            self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=self.device)
+            self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=self.device)
+            self.pair_count_array.zero_()
+            self._query(bodies, cache)
+            count = int(host_view(self.pair_count_array)[0])
         self.pair_count = count
-        self.cell_size = cell
-        return self
+        self.cell_size = float(host_view(self.cell_params)[0])
+        return again

@@ -55,18 +55,17 @@ def cell_hash(c: wp.vec3i, mask: int):
 def _count(
     x: wp.array(dtype=vec3),
     radius: wp.array(dtype=float_t),
-    max_radius: float_t,
-    inv_cell: float_t,
+    params: wp.array(dtype=float_t),  # (cell edge, its inverse, largest radius kept in the grid)
     mask: int,
     point_cell: wp.array(dtype=wp.int32),
     point_cell_coord: wp.array(dtype=wp.vec3i),
     cell_count: wp.array(dtype=wp.int32),
 ):
     i = wp.tid()
-    if radius[i] > max_radius:
+    if radius[i] > params[2]:
         point_cell[i] = -1  # left out of the grid (its owner queries it some other way)
         return
-    c = cell_of(x[i], inv_cell)
+    c = cell_of(x[i], params[1])
     h = cell_hash(c, mask)
     point_cell[i] = h
     point_cell_coord[i] = c
@@ -117,6 +116,11 @@ class HashGrid:
         self.inv_cell = 1.0
         self.mask = 0
         self._points = 0
+        self.params = wp.zeros(3, dtype=float_t, device=device)  # what `build` was given, for the kernels
+
+    def reserve(self, count: int) -> None:
+        """Size the table and the point buffers for `count` points (allocates only when they grow)."""
+        self._reserve(count)
 
     def _reserve(self, count: int) -> None:
         table = 1 << max(10, math.ceil(math.log2(max(TABLE_LOAD * count, 1))))
@@ -147,11 +151,23 @@ class HashGrid:
         self.inv_cell = 1.0 / self.cell_size
         if radius is None:
             radius, max_radius = self._no_radius, np.inf
+        params = np.array([self.cell_size, self.inv_cell, float(max_radius)])
+        if self.device == "cpu":
+            self.params.numpy()[:] = params  # the host view is the array
+        else:
+            self.params.assign(params)
+        return self.build_from(x, count, self.params, radius, cache)
+
+    def build_from(self, x: wp.array, count: int, params: wp.array, radius: wp.array,
+                   cache: LaunchCache | None = None) -> HashGrid:
+        """`build` with the cell edge, its inverse and `max_radius` read by the kernels from the
+        device array `params` (so that they may be computed there); `cell_size` and `inv_cell`
+        are then not updated. Call `reserve(count)` first."""
         self.cell_count.zero_()
         self.cell_fill.zero_()
         if count == 0:
             return self
-        launch(_count, count, [x, radius, float(max_radius), self.inv_cell, self.mask, self.point_cell,
+        launch(_count, count, [x, radius, params, self.mask, self.point_cell,
                                self.point_cell_coord, self.cell_count], self.device, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
         launch(_scatter, count, [x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,

@@ -20,11 +20,12 @@ Conventions:
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
-from ..state import float_t, quat, vec3
+from ..state import float_t, host_view, quat, vec3
 from .hulls import Hulls, HullSet
 from .meshes import MeshSet
 
@@ -1272,11 +1273,11 @@ def _collide_pairs(
     dt: float_t,
     margin: float_t,
     c: ContactWriter,
-    count: int,
+    pair_count: wp.array(dtype=wp.int32),
 ):
     p = wp.tid()
-    if p >= count:
-        return  # launched over the pair capacity (see tumble.launch)
+    if p >= pair_count[0]:
+        return  # launched over the pair capacity, the count on the device (see tumble.launch)
     a = pair_a[p]
     b = pair_b[p]
     # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
@@ -1355,29 +1356,47 @@ def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, me
     `body_geometry` rows name (default: the unit box only, no mesh). With `cache`, the launch
     is recorded once and replayed (see tumble.launch).
     """
-    if hulls is None:
-        hulls = _default_hulls.setdefault(bodies.device, HullSet(bodies.device))
-    if meshes is None:
-        meshes = _default_meshes.setdefault(bodies.device, MeshSet(bodies.device))
-    hull_struct = hulls.struct()
-    mesh_ids = meshes.ids()
     contacts.begin_step()
     if pairs.pair_count == 0:
         contacts.count = 0
         return
+    launch_pairs(bodies, pairs, contacts, dt, hulls, meshes, cache)
+    while not collected(contacts):
+        launch_pairs(bodies, pairs, contacts, dt, hulls, meshes, cache)
+
+
+def launch_pairs(bodies, pairs, contacts, dt: float, hulls: HullSet | None, meshes: MeshSet | None,
+                 cache: LaunchCache | None = None) -> None:
+    """The launch of `collide` (no host decision, so it can be recorded): over the pair capacity,
+    the pair count read on the device from `pairs.pair_count_array` (when `pairs` has none, its
+    `pair_count` is put there first)."""
+    if hulls is None:
+        hulls = _default_hulls.setdefault(bodies.device, HullSet(bodies.device))
+    if meshes is None:
+        meshes = _default_meshes.setdefault(bodies.device, MeshSet(bodies.device))
+    count = getattr(pairs, "pair_count_array", None)
+    if count is None:
+        count = contacts.pair_count_array
+        if bodies.device == "cpu":
+            host_view(count)[0] = pairs.pair_count
+        else:
+            count.assign(np.array([pairs.pair_count], dtype=np.int32))
     b = bodies.arrays
-    while True:
-        writer = contacts.writer()
-        launch(
-            _collide_pairs,
-            pairs.pair_a.shape[0],
-            [pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
-             b["body_bound_radius"], b["body_geometry"], hull_struct, mesh_ids, b["body_position"], b["body_orientation"], b["body_velocity"],
-             b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, writer, pairs.pair_count],
-            bodies.device, cache,
-        )
-        count = int(writer.count.numpy()[0])
-        if count <= contacts.capacity:
-            break
+    launch(
+        _collide_pairs,
+        pairs.pair_a.shape[0],
+        [pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
+         b["body_bound_radius"], b["body_geometry"], hulls.struct(), meshes.ids(), b["body_position"], b["body_orientation"], b["body_velocity"],
+         b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, contacts.writer(), count],
+        bodies.device, cache,
+    )
+
+
+def collected(contacts) -> bool:
+    """Host side after `launch_pairs`: the contact count; False (contacts grown) if they overflowed."""
+    count = int(host_view(contacts.count_array)[0])
+    if count > contacts.capacity:
         contacts.grow(count)
+        return False
     contacts.count = count
+    return True

@@ -50,7 +50,7 @@ import warp as wp
 
 from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
-from ..state import ArraySet, float_t, quat, vec3
+from ..state import ArraySet, float_t, host_view, quat, vec3
 
 #: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
 #: contacts with static bodies, which carry whole piles, are twice as stiff, as in Box2D),
@@ -711,9 +711,10 @@ class ContactSet(ArraySet):
     """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting."""
 
     def __init__(self, device: str):
-        super().__init__(CONTACT_FIELDS, device=device, capacity=1024)
+        super().__init__(CONTACT_FIELDS, device=device, capacity=64)
         self.count_array = wp.zeros(1, dtype=wp.int32, device=device)
-        self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=1024)
+        self.pair_count_array = wp.zeros(1, dtype=wp.int32, device=device)  # of pairs that carry no count of their own
+        self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=64)
         self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=device)
         # this step's and last step's contact counts, on the device, for kernels launched over the capacity
         self.counts = wp.zeros(2, dtype=wp.int32, device=device)
@@ -786,7 +787,7 @@ class ContactSet(ArraySet):
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
         counts = (self.count, p.count)
         if self.device == "cpu":
-            self.counts.numpy()[:] = counts  # the host view is the array
+            host_view(self.counts)[:] = counts  # the host view is the array
         else:
             self.counts.assign(np.array(counts, dtype=np.int32))
         return self._sized + (self.count > 0,)
