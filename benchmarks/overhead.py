@@ -9,6 +9,9 @@ Scenes (dt = 1/240 s):
   fixed cost of a step: Python and launch work, not arithmetic.
 * `sphere_100`: 100 spheres falling into a box of five planes (the benchmarks' pile, smaller).
 * `box_pyramid`: the 55-box pyramid of `benchmarks/run.py`, 8 substeps.
+* any other scene of `benchmarks/run.py` (`pile_1k`, `boxes_1k`, `cloth_64`, ...), built by its
+  Tumble adapter, for A/B runs of whole steps: e.g. `--scenes pile_1k/8 --warmup 48 --steps 24`
+  times 0.1 s of the pouring pile while its spheres still land.
 
 Each scene is built, stepped `--warmup` steps (kernel compilation, first recordings), then
 timed over rounds of `--steps` steps; the figure is the median of the rounds' µs/step. With
@@ -31,6 +34,9 @@ HERE = Path(__file__).resolve().parent
 
 SCENES = ("sphere_1/1", "sphere_1/8", "sphere_100/8", "box_pyramid/8")
 
+sys.path.insert(0, str(HERE.parent))
+from benchmarks.scenes import SCENES as BENCH_SCENES  # noqa: E402
+
 
 def build(name: str, substeps: int):
     """A world of scene `name` at `substeps` substeps."""
@@ -50,8 +56,12 @@ def build(name: str, substeps: int):
         grid = np.stack(np.meshgrid(np.arange(5), np.arange(5), np.arange(4), indexing="ij"), -1).reshape(-1, 3)
         position = (grid - (2, 2, 0)) * 0.15 + (0.0, 0.0, 0.2) + rng.uniform(-0.01, 0.01, grid.shape)
         world.add_spheres(position=position, radius=0.05, mass=0.1)
+    elif name in BENCH_SCENES and name != "box_pyramid":
+        from benchmarks.engines import TumbleAdapter
+
+        world = TumbleAdapter(BENCH_SCENES[name]).world
+        world.substeps = substeps
     elif name == "box_pyramid":
-        sys.path.insert(0, str(HERE.parent))
         from benchmarks.scenes import CUBE_HALF, CUBE_MASS, pyramid_positions
 
         world.add_plane()
@@ -109,9 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     scenes = [s for s in args.scenes.split(",") if s]
     for key in scenes:
         name, _, substeps = key.partition("/")
-        if name not in {s.split("/")[0] for s in SCENES} or not substeps.isdigit() or int(substeps) < 1:
-            print(f"overhead: bad scene {key!r}: expected NAME/SUBSTEPS with NAME one of "
-                  f"{sorted({s.split('/')[0] for s in SCENES})}", file=sys.stderr)
+        names = {s.split("/")[0] for s in SCENES} | set(BENCH_SCENES)
+        if name not in names or not substeps.isdigit() or int(substeps) < 1:
+            print(f"overhead: bad scene {key!r}: expected NAME/SUBSTEPS with NAME one of {sorted(names)}",
+                  file=sys.stderr)
             return 2
     if args.child:
         child(scenes, args.warmup, args.steps, args.rounds)
