@@ -1,5 +1,9 @@
 """Recorded kernel launches: on the CPU a `wp.launch` costs ~20 us of Python, a replay ~4 us.
 
+(Where a whole stage has no host decision between its launches, the world records it as a
+graph instead, `wp.capture_begin`, replayed in C++ for well under a microsecond a launch: see
+`World._solver_graph`. This cache serves the launches that run outside a graph.)
+
 A world substep launches a handful of kernels (and a cloth substep about ten), so for small
 scenes the launch overhead alone would cost more than the arithmetic. `LaunchCache` records
 each launch once per set of arrays and dimension and replays it, updating only the scalar
