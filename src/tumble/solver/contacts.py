@@ -575,8 +575,6 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
     vn = _speed_along(b, ia, ib, ra, rb, n)
     if vn >= float_t(0.0):
         return 0
-    # current gap, linearised in the motion since the step began (as in _solve)
-    s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
     # relative acceleration along n from gravity on the dynamic bodies (< 0: closing)
     ga = float_t(0.0)
     gb = float_t(0.0)
@@ -585,6 +583,23 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
     if b.inv_mass[ib] > float_t(0.0):
         gb = float_t(1.0)
     gn = wp.min((gb - ga) * wp.dot(gravity, n), float_t(0.0))
+    kick = float_t(1 - ahead) * gn * h
+    vp = vn - kick
+    # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
+    # contact that carries none is a fresh impact and bounces down to `floor`, the approach
+    # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
+    limit = threshold
+    if c.jn[k] == float_t(0.0):
+        limit = wp.min(threshold, floor)
+    # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
+    # s), and a contact that collides has s <= -(v_n + ahead g_n h) h (the closing test), so a
+    # contact whose bound at that largest gap is well under the limit would return 0 there too
+    # (resting contacts under load; the factor 2 is far beyond any rounding)
+    gap = -(vn + float_t(ahead) * gn * h) * h
+    if vp * vp - float_t(2.0) * gn * gap + gn * h * vp < float_t(0.5) * limit * limit:
+        return 0
+    # current gap, linearised in the motion since the step began (as in _solve)
+    s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
     if s + (vn + float_t(ahead) * gn * h) * h > float_t(0.0):
         return 0  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
@@ -597,16 +612,8 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
     # and never faster than the elastic rebound |v_n| (no kinetic energy gain). Without
     # gravity along n this is u = e |v_n|. Before the first solve the velocity has this
     # substep's kick already: take it off for the pair (s, v), put it back on u.
-    kick = float_t(1 - ahead) * gn * h
-    vp = vn - kick
     eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * h * vp
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
-    # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
-    # contact that carries none is a fresh impact and bounces down to `floor`, the approach
-    # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
-    limit = threshold
-    if c.jn[k] == float_t(0.0):
-        limit = wp.min(threshold, floor)
     if vi2 <= limit * limit:
         return 0
     rhs = e * e * eb + gn * s
