@@ -28,10 +28,39 @@ class LaunchCache:
     def __init__(self):
         self._commands: dict = {}
         self._arrays_of: dict = {}  # kernel -> (getter of its array arguments, scalar positions)
+        self._graphs: dict = {}  # (kind, *key) -> (graph, the arrays it launches with)
+        self._graph_seen: dict = {}  # kind -> the key asked for last
 
     def clear(self) -> None:
-        """Forget every recorded launch."""
+        """Forget every recorded launch and graph."""
         self._commands.clear()
+        self._graphs.clear()
+        self._graph_seen.clear()
+
+    def graph(self, kind: str, key: tuple, record, arrays, device):
+        """The graph (`wp.capture_begin`) of the launches `record()` makes, recorded for `key`, or
+        None: then the caller runs them directly.
+
+        A graph is recorded the second call running that asks for the same `key` of a `kind` (a
+        key that changes every call never pays for a recording) and kept for later calls with
+        that key (the last eight graphs). `key` must name everything the launches bake in; the
+        entry holds `arrays()` (every array they may use), so that array ids in keys stay theirs.
+        """
+        key = (kind, *key)
+        entry = self._graphs.get(key)
+        if entry is None:
+            seen, self._graph_seen[kind] = self._graph_seen.get(kind), key
+            if key != seen:
+                return None
+            wp.capture_begin(device=device)
+            try:
+                record()
+            finally:
+                graph = wp.capture_end(device=device)
+            if len(self._graphs) >= 8:
+                self._graphs.pop(next(iter(self._graphs)))
+            entry = self._graphs[key] = (graph, list(arrays()))
+        return entry[0]
 
     def launch(self, kernel, dim: int, inputs: list, device) -> None:
         """Launch `kernel` over `dim` threads with `inputs`, replaying a recorded launch when possible."""

@@ -217,8 +217,6 @@ class World:
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes = None
-        self._graphs: dict = {}  # recorded stages by what they depend on (see _solver_graph)
-        self._graph_keys: dict = {}  # kind -> the key seen on the last step
         # body ids: `body_count` of them; rows hold only live bodies, so after a reorder or a
         # removal `_slot_of_id` maps each id to its row (-1 for a removed body)
         self._slot_of_id: np.ndarray | None = None  # None while row i holds id i
@@ -1200,8 +1198,8 @@ class World:
             joints.refresh(self.bodies.count)
             # every array the joint stages may launch with (a buffer made anew each step: no graph)
             key += tuple(map(id, _arrays_of(joints)))
-        return self._recorded("solver", key, lambda: self._solve(dt, h, None),
-                              [self.bodies, contacts, contacts.previous, joints])
+        return self._launches.graph("solver", key, lambda: self._solve(dt, h, None),
+                                    lambda: _arrays_of(self.bodies, contacts, contacts.previous, joints), self.device)
 
     def _collision_graph(self, dt: float):
         """The broad and narrow phases' launches recorded as one graph, or None to run them one by one.
@@ -1218,32 +1216,10 @@ class World:
         key = (dt, bodies.count, bodies.capacity, id(bodies.arrays["body_velocity"]), bp._ordinary_limit,
                bp.pair_capacity, id(bp.pair_a), id(bp.swept_radius), bp.grid.mask, id(bp.grid.cell_count),
                id(bp.grid.entries), contacts.capacity, id(contacts.arrays["contact_body_a"]), id(hulls), id(meshes))
-        return self._recorded(
+        return self._launches.graph(
             "collision", key,
             lambda: (bp.launch(bodies, dt), narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes)),
-            [bodies, bp, bp.grid, contacts, hulls, meshes])
-
-    def _recorded(self, kind: str, key: tuple, record: Callable[[], object], owners: list):
-        """The graph of the launches `record` makes, recorded for `key`, or None (the caller then
-        runs them directly): recorded the second step running that sees `key`, kept for later
-        steps with the same key (the last four keys)."""
-        key = (kind, *key)
-        entry = self._graphs.get(key)
-        if entry is None:
-            seen, self._graph_keys[kind] = self._graph_keys.get(kind), key
-            if key != seen:
-                return None
-            wp.capture_begin(device=self.device)
-            try:
-                record()
-            finally:
-                graph = wp.capture_end(device=self.device)
-            if len(self._graphs) >= 8:
-                self._graphs.pop(next(iter(self._graphs)))
-            # the entry holds the arrays it launches with, so that their ids in the key stay theirs
-            held = [a for owner in owners for a in (_arrays_of(owner) if hasattr(owner, "__dict__") else [owner])]
-            entry = self._graphs[key] = (graph, held)
-        return entry[0]
+            lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls], self.device)
 
     def collide(self, dt: float | None = None) -> int:
         """Find contacts for the current state without stepping (broad + narrow phase only).
@@ -1462,10 +1438,10 @@ class World:
         return digest.hexdigest()
 
 
-def _arrays_of(owner) -> list:
-    """The Warp arrays an object holds: its attributes and, for an ArraySet, its named arrays."""
-    found = [v for v in vars(owner).values() if isinstance(v, wp.array)]
-    return found + list(getattr(owner, "arrays", {}).values())
+def _arrays_of(*owners) -> list:
+    """The Warp arrays some objects hold: their attributes and, for an ArraySet, its named arrays."""
+    return [a for owner in owners for a in (*(v for v in vars(owner).values() if isinstance(v, wp.array)),
+                                            *getattr(owner, "arrays", {}).values())]
 
 
 def _inertia_world(inv_inertia: np.ndarray, q: np.ndarray) -> np.ndarray:

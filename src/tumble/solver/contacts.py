@@ -779,7 +779,7 @@ class ContactSet(ArraySet):
         p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
         sized = (bodies.capacity, self.capacity, p.capacity, id(bodies.arrays["body_velocity"]),
                  id(self.arrays["contact_normal"]), id(p.arrays["previous_body_a"]), id(self.jt_world))
-        if sized != self._sized[:len(sized)]:
+        if sized != self._sized[:len(sized)] or self._structs is None:
             dev = self.device
             if bodies.capacity != self._owner_capacity:
                 self._owner_capacity = bodies.capacity
