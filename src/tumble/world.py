@@ -1087,7 +1087,6 @@ class World:
             self._segment_dt, self._segment_steps = dt, 0
         h = dt / self.substeps
         bodies, contacts = self.bodies, self.contacts
-        cloth = self._cloth
 
         # validate: finite state, so a NaN is reported where it appeared rather than spreading
         with self._timer("validate"):
