@@ -876,6 +876,7 @@ class World:
         self.contacts.remap_bodies(slot, current=True)
         if self._cloth is not None:
             self._cloth.remap_bodies(slot)
+        self.joints.remap_bodies(slot)  # joints on other bodies follow their rows
         self.broadphase.bodies_changed()
         # ids: removed ones are freed (generation + 1); the others follow their rows
         of_id = np.arange(self._id_count) if self._slot_of_id is None else self._slot_of_id

@@ -351,8 +351,13 @@ class _Body:
 
 @wp.func
 def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(dtype=vec3),
-          w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), inv_inertia: wp.array(dtype=vec3)):
-    """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin."""
+          w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), inv_inertia: wp.array(dtype=vec3),
+          load: wp.array(dtype=float_t), h: float_t):
+    """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin.
+
+    The inertia carries the joints' geometric stiffness: each principal moment I_k gains
+    h^2 * load (see `geometric_load`), so 1 / I_k becomes i_k / (1 + h^2 load i_k).
+    """
     s = _Body()
     s.q = wp.quat_identity(dtype=float_t)
     if i >= 0:
@@ -361,7 +366,11 @@ def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(
         s.v = v[i]
         s.w = w[i]
         s.m = inv_mass[i]
-        s.I = _inv_inertia_world(q[i], inv_inertia[i])
+        ii = inv_inertia[i]
+        e = h * h * load[i]
+        one = float_t(1.0)
+        s.I = _inv_inertia_world(q[i], vec3(ii[0] / (one + e * ii[0]), ii[1] / (one + e * ii[1]),
+                                            ii[2] / (one + e * ii[2])))
     return s
 
 
@@ -416,6 +425,7 @@ def _solve(
     inv_inertia: wp.array(dtype=vec3),
     warm_v: wp.array(dtype=vec3),
     warm_w: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
     mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
     h: float_t,
     bias_rate: float_t,
@@ -431,8 +441,8 @@ def _solve(
         return
     ia = body_a[k]
     ib = body_b[k]
-    A = _load(ia, x, q, v, w, inv_mass, inv_inertia)
-    B = _load(ib, x, q, v, w, inv_mass, inv_inertia)
+    A = _load(ia, x, q, v, w, inv_mass, inv_inertia, load, h)
+    B = _load(ib, x, q, v, w, inv_mass, inv_inertia, load, h)
     jk = kind[k]
     g = _geometry(jk, A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
     s0 = _Velocities()
@@ -592,6 +602,11 @@ def _finish(
     sum_angular: wp.array(dtype=vec3),
     force: wp.array(dtype=vec3),
     torque: wp.array(dtype=vec3),
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
     inv_dt: float_t,
     count: int,
 ):
@@ -606,7 +621,13 @@ def _finish(
     sum_angular[k] = vec3()
     if enabled[k] == 0:
         return
-    if wp.length(f) > break_force[k]:
+    # geometric load of the next step: |F| |r| on each body (|r| = |local anchor|, a rotation keeps lengths)
+    f_len = wp.length(f)
+    if body_a[k] >= 0:
+        wp.atomic_add(load, body_a[k], f_len * wp.length(local_a[k]))
+    if body_b[k] >= 0:
+        wp.atomic_add(load, body_b[k], f_len * wp.length(local_b[k]))
+    if f_len > break_force[k]:
         enabled[k] = 0
         imp_linear[k] = vec3()
         imp_angular[k] = vec3()
@@ -700,7 +721,7 @@ _SOLVE_BODY_ARRAYS = (
 _FINISH_JOINT_ARRAYS = (
     "joint_break_force", "joint_enabled", "joint_impulse_linear", "joint_impulse_angular", "joint_impulse_axial",
     "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear", "joint_sum_angular", "joint_force",
-    "joint_torque",
+    "joint_torque", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b",
 )
 
 
@@ -714,6 +735,7 @@ class JointSet(ArraySet):
         self._key_joint = None
         self._key_count = 0
         self._dirty = True
+        self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
 
     # -------------------------------------------------------------- building
 
@@ -751,11 +773,26 @@ class JointSet(ArraySet):
             self.write("joint_scale", slice(0, n), 1.0 / np.maximum(np.maximum(ca, cb), 1))
 
     def remap_bodies(self, slot: np.ndarray) -> None:
-        """The body rows were renumbered (row i is now `slot[i]`): follow them."""
+        """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them."""
         for name in ("joint_body_a", "joint_body_b"):
             rows = self.numpy(name).astype(np.int64)
             self.write(name, slice(0, self.count), np.where(rows >= 0, slot[np.maximum(rows, 0)], -1))
+        old = np.zeros(len(slot))
+        size = min(len(slot), self._load.shape[0])
+        old[:size] = self._load.numpy()[:size]
+        moved = np.zeros(max(self._load.shape[0], len(slot)))
+        kept = slot >= 0
+        moved[slot[kept]] = old[kept]
+        self._load = wp.array(moved, dtype=float_t, device=self.device)
         self._dirty = True
+
+    def _body_load(self, bodies) -> wp.array:
+        """The per-body geometric load (`geometric_load`), grown to the body capacity."""
+        if self._load.shape[0] < bodies.capacity:
+            grown = np.zeros(bodies.capacity)
+            grown[:self._load.shape[0]] = self._load.numpy()
+            self._load = wp.array(grown, dtype=float_t, device=self.device)
+        return self._load
 
     # -------------------------------------------------------------- stepping
 
@@ -787,7 +824,8 @@ class JointSet(ArraySet):
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
         j, b = self.arrays, bodies.arrays
         launch(_solve, self.capacity,
-               [*(j[name] for name in _SOLVE_JOINT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS), mode, h,
+               [*(j[name] for name in _SOLVE_JOINT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
+                self._body_load(bodies), mode, h,
                 *softness(h), 1 if self.device == "cpu" else 0, self.count], self.device, cache)
 
     def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
@@ -806,7 +844,9 @@ class JointSet(ArraySet):
         if self.count == 0:
             return
         j = self.arrays
-        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS), 1.0 / dt, self.count],
+        load = self._load
+        load.zero_()
+        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS), load, 1.0 / dt, self.count],
                self.device, cache)
 
     # -------------------------------------------------------------- views
