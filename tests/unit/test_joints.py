@@ -169,3 +169,19 @@ def test_recording_holds_joint_forces(tmp_path):
     assert rec["joint_force"][-1, 0] == pytest.approx([0, 0, 2.0 * 9.81], rel=1e-6)
     assert rec["joint_bodies"].tolist() == [[-1, bob.index]]
     assert not rec["joint_broken"].any()
+
+
+def test_removing_another_body_keeps_joints_on_their_bodies():
+    """Remove a body with a lower row than two jointed ones: the joints follow their bodies' new rows."""
+    world = tumble.World(gravity=(0, 0, -9.81), dt=1 / 240)
+    loose = world.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
+    a = world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    b = world.add_sphere(position=(0, 0, 0.5), radius=0.1, mass=1.0)
+    world.add_joint("ball", None, a, anchor=(0, 0, 1.2))
+    world.add_joint("distance", a, b)
+    world.step()
+    world.remove_body(loose)
+    world.run(duration=0.5)
+    assert world.body_position[a.index] == pytest.approx([0, 0, 1], abs=1e-4)
+    assert world.body_position[b.index] == pytest.approx([0, 0, 0.5], abs=1e-4)
+    assert world.joint_error.max() < 1e-4
