@@ -260,6 +260,43 @@ def test_slider_slides_freely_then_stops_at_its_limit():
     assert world.joint_error.max() < 1e-4
 
 
+def test_slider_motor_reaches_target_speed_against_load():
+    """Drive a 2 kg block along a slider (max 3 N) against a 1 N load: a = (3 - 1) / m until 0.5 m/s, then hold."""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    m, load = 2.0, 1.0
+    axis = np.array([1.0, 1.0, 0.0]) / math.sqrt(2)
+    block = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.05, 0.05), mass=m)
+    joint = world.add_joint("slider", None, block, anchor=(0, 0, 1), axis=axis, motor_speed=0.5, max_force=3.0)
+    a = (3.0 - load) / m
+    steps = round(0.125 / DT)
+    for _ in range(steps):
+        world.apply_force(block, -load * axis)
+        world.step()
+    # accelerating at the force limit: v = a t (to within one step's acceleration)
+    v = world.body_velocity[block.index]
+    assert np.dot(v, axis) == pytest.approx(a * 0.125, abs=a * DT)
+    for _ in range(round(0.875 / DT)):
+        world.apply_force(block, -load * axis)
+        world.step()
+    v = world.body_velocity[block.index]
+    assert np.dot(v, axis) == pytest.approx(0.5, abs=1e-6)
+    assert np.linalg.norm(np.cross(v, axis)) < 1e-9  # along the axis only
+    # at speed the motor's force balances the load
+    assert np.dot(world.joint_force[joint.index], axis) == pytest.approx(load, rel=1e-3)
+    assert world.joint_error.max() < 1e-6
+
+
+def test_slider_motor_too_weak_for_its_load():
+    """A 1 N slider motor against a 1.5 N load loses speed at (1.5 - 1) / m."""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    block = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.05, 0.05), mass=2.0)
+    world.add_joint("slider", None, block, anchor=(0, 0, 1), axis=(1, 0, 0), motor_speed=0.5, max_force=1.0)
+    for _ in range(48):
+        world.apply_force(block, (-1.5, 0, 0))
+        world.step()
+    assert world.body_velocity[block.index, 0] == pytest.approx(-0.5 / 2.0 * 48 * DT, rel=1e-3)
+
+
 def test_fixed_joint_holds_a_cantilever():
     """Weld a beam to the world at one end: it stays put and the weld carries m g and the moment m g L/2."""
     world = tumble.World(gravity=(0, 0, -G), dt=DT)

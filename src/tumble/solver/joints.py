@@ -38,6 +38,32 @@ Tuning: `JOINT_HERTZ_PER_SUBSTEP_RATE` 0.25 (twice as stiff as contacts, as in B
 damping ratio 2 holds a resting chain to micrometres per link at 8 substeps of 1/240 s; more
 substeps make every joint stiffer and more exact.
 
+Geometric stiffness: a light link under a large tension T has a stiff "zig-zag" mode (links
+turning alternately about their centres, which keeps their anchors together to first order) of
+frequency sqrt(2 T r / I), r the anchor arm and I the link's moment. The rows above turn the
+constraint direction with the bodies only between substeps, explicitly, so when that frequency
+nears the substep rate the mode gains energy: the benchmark's 1,000-link chain of 10 g spheres
+(2 T r / I ~ (2,000 rad/s)^2 near the top) had links spinning at 1,200 rad/s after 0.6 s, gained
+25 J and drifted 11 mm at 8 substeps (0.5 mm at 16). As with the diagonal geometric-stiffness
+terms of Andrews, Teichmann & Kry ("Geometric stiffness for real-time constrained multibody
+dynamics", Eurographics 2017), every joint row sees each body's moments raised by h^2 times the
+sum of |F| |r| over its joints, F the joints' mean force of the last step (`_finish` sums it
+into a per-body `load`). That is the implicit part of the geometric stiffness on the diagonal:
+it vanishes as h^2, leaves slow motion alone (a pendulum bob of 0.1 m radius: 7e-4 of its
+moment) and damps only the modes near the substep rate. Measured on that chain: drift 2.0 mm,
+no energy gained (the scale 1 is needed: at 0.5 it still spun up, 5.6 mm).
+
+Sag: under a steady load F a soft row is a spring of stiffness m_eff omega^2, so a joint carrying
+F stretches F / (m_eff omega^2) = F h^2 / (m_eff (pi / 2)^2) (measured exactly: a hanging chain of
+n 10 g links, joint 1 stretches 2 n g / omega^2; 0.65 mm at 300 links, 2.2 mm at 1,000).
+Stiffer rows (a larger fraction of the substep rate) went unstable on the chain; more substeps
+shrink it as h^2.
+
+Kernels: one solve kernel per joint kind, each launched over the rows of its kind in creation
+order (so a pass sweeps the ball joints, then the hinges, ...); the ball joint's is written out
+on plain values (`_solve_ball`), the others come from `_make_solve(kind)`, whose branches on the
+kind are resolved when Warp compiles it (`wp.static`). No adjoint code is generated.
+
 Joint force: the accumulated impulses are per substep (each substep applies them again as its
 warm start), so the step's mean force is the sum of the substeps' final impulses over dt (the
 relax pass adds them up); a joint whose mean force exceeds `break_force` breaks at the end of
@@ -64,6 +90,9 @@ import warp as wp
 from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, quat, readonly, vec3
 from .contacts import _inv_inertia_world, _inverse
+
+# no adjoint code: nothing differentiates through the joints, and it would double the compile time
+wp.set_module_options({"enable_backward": False})
 
 #: joint stiffness as a fraction of the substep rate, and its damping ratio (Box2D v3:
 #: joints twice as stiff as contacts, damping ratio 2)
@@ -119,11 +148,8 @@ JOINT_FIELDS = {
     "joint_torque": vec3,  # mean torque on b over the last step, world [N m]
 }
 
-_KIND_BALL = wp.constant(int(JointKind.BALL))
-_KIND_HINGE = wp.constant(int(JointKind.HINGE))
-_KIND_SLIDER = wp.constant(int(JointKind.SLIDER))
-_KIND_FIXED = wp.constant(int(JointKind.FIXED))
-_KIND_DISTANCE = wp.constant(int(JointKind.DISTANCE))
+# the kinds as plain ints, for the compile-time branches (wp.static) of the solve kernels
+_BALL, _HINGE, _SLIDER, _FIXED, _DISTANCE = (int(k) for k in JointKind)
 
 
 @dataclass(frozen=True)
@@ -163,71 +189,6 @@ class _Geometry:
     ma: float_t  # inverse masses
     mb: float_t
 
-
-@wp.func
-def _geometry(kind: int, xa: vec3, qa: quat, xb: vec3, qb: quat, local_a: vec3, local_b: vec3,
-              frame_a: quat, frame_b: quat, ma: float_t, mb: float_t, Ia: wp.mat33d, Ib: wp.mat33d):
-    g = _Geometry()
-    ra = wp.quat_rotate(qa, local_a)
-    rb = wp.quat_rotate(qb, local_b)
-    d = (xb + rb) - (xa + ra)
-    fa = qa * frame_a
-    fb = qb * frame_b
-    one = float_t(1.0)
-    zero = float_t(0.0)
-    axis = wp.quat_rotate(fa, vec3(one, zero, zero))
-    g.ra = ra
-    g.rb = rb
-    g.d = d
-    g.arm_a = ra
-    g.axis = axis
-    g.perp1 = wp.quat_rotate(fa, vec3(zero, one, zero))
-    g.perp2 = wp.quat_rotate(fa, vec3(zero, zero, one))
-    g.Ia = Ia
-    g.Ib = Ib
-    g.ma = ma
-    g.mb = mb
-    g.n = vec3()
-    g.ja = vec3()
-    g.jb = vec3()
-    g.value = zero
-    g.twist = vec3()
-    if kind == _KIND_FIXED or kind == _KIND_SLIDER:
-        # relative rotation of the frames, world: q_err = f_b f_a^-1 ~ (theta / 2, 1), C = 2 vec(q_err)
-        e = fb * wp.quat_inverse(fa)
-        s = float_t(2.0)
-        if e[3] < zero:
-            s = float_t(-2.0)
-        g.twist = vec3(e[0], e[1], e[2]) * s
-    if kind == _KIND_HINGE:
-        # u_a x u_b is the swing of b's axis away from a's (small angles: the rotation vector across u_a)
-        g.twist = wp.cross(axis, wp.quat_rotate(fb, vec3(one, zero, zero)))
-        # hinge angle: twist of f_b against f_a about the axis, from q_rel = f_a^-1 f_b
-        rel = wp.quat_inverse(fa) * fb
-        angle = float_t(2.0) * wp.atan2(rel[0], rel[3])
-        if angle > float_t(math.pi):
-            angle = angle - float_t(2.0 * math.pi)
-        if angle < float_t(-math.pi):
-            angle = angle + float_t(2.0 * math.pi)
-        g.value = angle
-        g.ja = axis
-        g.jb = axis
-    if kind == _KIND_SLIDER:
-        g.arm_a = ra + d
-        g.n = axis
-        g.ja = wp.cross(ra + d, axis)
-        g.jb = wp.cross(rb, axis)
-        g.value = wp.dot(axis, d)
-    if kind == _KIND_DISTANCE:
-        length = wp.length(d)
-        n = axis  # coincident anchors: any direction will do
-        if length > float_t(1.0e-12):
-            n = d / length
-        g.n = n
-        g.ja = wp.cross(ra, n)
-        g.jb = wp.cross(rb, n)
-        g.value = length
-    return g
 
 
 @wp.func
@@ -339,6 +300,15 @@ def _solve33(K: wp.mat33d, r: vec3):
 # ---------------------------------------------------------------------------- kernels
 
 
+@wp.func
+def _inv_inertia_loaded(q: quat, inv_i: vec3, load: float_t, h: float_t):
+    """World inverse inertia with the joints' geometric stiffness: each moment I_k gains h^2 load."""
+    e = h * h * load
+    one = float_t(1.0)
+    return _inv_inertia_world(q, vec3(inv_i[0] / (one + e * inv_i[0]), inv_i[1] / (one + e * inv_i[1]),
+                                      inv_i[2] / (one + e * inv_i[2])))
+
+
 @wp.struct
 class _Body:
     x: vec3
@@ -355,8 +325,7 @@ def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(
           load: wp.array(dtype=float_t), h: float_t):
     """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin.
 
-    The inertia carries the joints' geometric stiffness: each principal moment I_k gains
-    h^2 * load (see `geometric_load`), so 1 / I_k becomes i_k / (1 + h^2 load i_k).
+    The inertia carries the joints' geometric stiffness (`_inv_inertia_loaded`).
     """
     s = _Body()
     s.q = wp.quat_identity(dtype=float_t)
@@ -366,11 +335,7 @@ def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(
         s.v = v[i]
         s.w = w[i]
         s.m = inv_mass[i]
-        ii = inv_inertia[i]
-        e = h * h * load[i]
-        one = float_t(1.0)
-        s.I = _inv_inertia_world(q[i], vec3(ii[0] / (one + e * ii[0]), ii[1] / (one + e * ii[1]),
-                                            ii[2] / (one + e * ii[2])))
+        s.I = _inv_inertia_loaded(q[i], inv_inertia[i], load[i], h)
     return s
 
 
@@ -390,33 +355,286 @@ def add_velocity(i: int, dv: vec3, dw: vec3, v: wp.array(dtype=vec3), w: wp.arra
         wp.atomic_add(w, i, dw)
 
 
+def _make_solve(kind: int):
+    """The solve kernel of one joint kind: the other kinds' rows are left out when Warp compiles it."""
+
+    @wp.func
+    def geometry(xa: vec3, qa: quat, xb: vec3, qb: quat, local_a: vec3, local_b: vec3,
+                     frame_a: quat, frame_b: quat, ma: float_t, mb: float_t, Ia: wp.mat33d, Ib: wp.mat33d):
+        g = _Geometry()
+        ra = wp.quat_rotate(qa, local_a)
+        rb = wp.quat_rotate(qb, local_b)
+        d = (xb + rb) - (xa + ra)
+        fa = qa * frame_a
+        fb = qb * frame_b
+        one = float_t(1.0)
+        zero = float_t(0.0)
+        axis = wp.quat_rotate(fa, vec3(one, zero, zero))
+        g.ra = ra
+        g.rb = rb
+        g.d = d
+        g.arm_a = ra
+        g.axis = axis
+        g.perp1 = wp.quat_rotate(fa, vec3(zero, one, zero))
+        g.perp2 = wp.quat_rotate(fa, vec3(zero, zero, one))
+        g.Ia = Ia
+        g.Ib = Ib
+        g.ma = ma
+        g.mb = mb
+        g.n = vec3()
+        g.ja = vec3()
+        g.jb = vec3()
+        g.value = zero
+        g.twist = vec3()
+        if wp.static(kind == _FIXED or kind == _SLIDER):
+            # relative rotation of the frames, world: q_err = f_b f_a^-1 ~ (theta / 2, 1), C = 2 vec(q_err)
+            e = fb * wp.quat_inverse(fa)
+            s = float_t(2.0)
+            if e[3] < zero:
+                s = float_t(-2.0)
+            g.twist = vec3(e[0], e[1], e[2]) * s
+        if wp.static(kind == _HINGE):
+            # u_a x u_b is the swing of b's axis away from a's (small angles: the rotation vector across u_a)
+            g.twist = wp.cross(axis, wp.quat_rotate(fb, vec3(one, zero, zero)))
+            # hinge angle: twist of f_b against f_a about the axis, from q_rel = f_a^-1 f_b
+            rel = wp.quat_inverse(fa) * fb
+            angle = float_t(2.0) * wp.atan2(rel[0], rel[3])
+            if angle > float_t(math.pi):
+                angle = angle - float_t(2.0 * math.pi)
+            if angle < float_t(-math.pi):
+                angle = angle + float_t(2.0 * math.pi)
+            g.value = angle
+            g.ja = axis
+            g.jb = axis
+        if wp.static(kind == _SLIDER):
+            g.arm_a = ra + d
+            g.n = axis
+            g.ja = wp.cross(ra + d, axis)
+            g.jb = wp.cross(rb, axis)
+            g.value = wp.dot(axis, d)
+        if wp.static(kind == _DISTANCE):
+            length = wp.length(d)
+            n = axis  # coincident anchors: any direction will do
+            if length > float_t(1.0e-12):
+                n = d / length
+            g.n = n
+            g.ja = wp.cross(ra, n)
+            g.jb = wp.cross(rb, n)
+            g.value = length
+        return g
+
+    @wp.kernel
+    def solve(
+        rows: wp.array(dtype=wp.int32),
+        body_a: wp.array(dtype=wp.int32),
+        body_b: wp.array(dtype=wp.int32),
+        local_a: wp.array(dtype=vec3),
+        local_b: wp.array(dtype=vec3),
+        frame_a: wp.array(dtype=quat),
+        frame_b: wp.array(dtype=quat),
+        limit: wp.array(dtype=wp.int32),
+        lower: wp.array(dtype=float_t),
+        upper: wp.array(dtype=float_t),
+        motor: wp.array(dtype=wp.int32),
+        motor_speed: wp.array(dtype=float_t),
+        motor_max: wp.array(dtype=float_t),
+        length: wp.array(dtype=float_t),
+        stiffness: wp.array(dtype=float_t),
+        damping: wp.array(dtype=float_t),
+        scale: wp.array(dtype=float_t),
+        enabled: wp.array(dtype=wp.int32),
+        imp_linear: wp.array(dtype=vec3),
+        imp_angular: wp.array(dtype=vec3),
+        imp_axial: wp.array(dtype=float_t),
+        imp_lower: wp.array(dtype=float_t),
+        imp_upper: wp.array(dtype=float_t),
+        sum_linear: wp.array(dtype=vec3),
+        sum_angular: wp.array(dtype=vec3),
+        x: wp.array(dtype=vec3),
+        q: wp.array(dtype=quat),
+        v: wp.array(dtype=vec3),
+        w: wp.array(dtype=vec3),
+        inv_mass: wp.array(dtype=float_t),
+        inv_inertia: wp.array(dtype=vec3),
+        warm_v: wp.array(dtype=vec3),
+        warm_w: wp.array(dtype=vec3),
+        load: wp.array(dtype=float_t),
+        mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
+        h: float_t,
+        bias_rate: float_t,
+        mass_scale: float_t,
+        impulse_scale: float_t,
+        serial: int,
+        count: int,
+    ):
+        thread = wp.tid()
+        if thread >= count:
+            return  # launched over the rows of one kind
+        k = rows[thread]
+        if enabled[k] == 0:
+            return
+        ia = body_a[k]
+        ib = body_b[k]
+        A = _load(ia, x, q, v, w, inv_mass, inv_inertia, load, h)
+        B = _load(ib, x, q, v, w, inv_mass, inv_inertia, load, h)
+        g = geometry(A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
+        s0 = _Velocities()
+        s0.va = A.v
+        s0.wa = A.w
+        s0.vb = B.v
+        s0.wb = B.w
+        s = s0
+        zero = float_t(0.0)
+
+        if mode == 0:
+            # warm start: last step's impulses, at the current poses
+            s = _total(g, s, imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
+        else:
+            use_bias = 0
+            ms = float_t(1.0)
+            isc = zero
+            if mode == 1:
+                use_bias = 1
+                ms = mass_scale
+                isc = impulse_scale
+            relax = scale[k]
+            inv_h = float_t(1.0) / h
+
+            # axial: motor or spring, then the limits
+            axial = imp_axial[k]
+            if motor[k] != 0 and (wp.static(kind == _HINGE or kind == _SLIDER)):
+                # drive the joint speed to the target; |impulse| <= max torque (force) * h
+                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - motor_speed[k]
+                cap = motor_max[k] * h
+                new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
+                s = _apply_axial(g, s, new - axial)
+                axial = new
+            if wp.static(kind == _DISTANCE) and lower[k] < upper[k] and (stiffness[k] > zero or damping[k] > zero):
+                # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
+                meff = _axial_mass(g)
+                if meff > zero:
+                    kc = damping[k] + h * stiffness[k]
+                    a2 = h * kc * _inverse(meff)
+                    sms = a2 / (float_t(1.0) + a2)
+                    sis = float_t(1.0) / (float_t(1.0) + a2)
+                    sbias = stiffness[k] / kc * (g.value - length[k])
+                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                    new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
+                    s = _apply_axial(g, s, new - axial)
+                    axial = new
+            if wp.static(kind == _DISTANCE) and lower[k] >= upper[k]:
+                # rigid rod: C = |d| - length, two-sided
+                bias = zero
+                if use_bias != 0:
+                    bias = bias_rate * (g.value - lower[k])
+                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
+                s = _apply_axial(g, s, new - axial)
+                axial = new
+            imp_axial[k] = axial
+            if limit[k] != 0 and lower[k] < upper[k]:
+                lo = imp_lower[k]
+                new = _limit(g, s, g.value - lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax)
+                s = _apply_axial(g, s, new - lo)
+                imp_lower[k] = new
+                hi = imp_upper[k]
+                new = _limit(g, s, upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax)
+                s = _apply_axial(g, s, hi - new)
+                imp_upper[k] = new
+
+            # angular: all three axes (fixed, slider) or the two across the hinge axis
+            if wp.static(kind == _FIXED or kind == _SLIDER):
+                L0 = imp_angular[k]
+                cdot3 = s.wb - s.wa
+                bias3 = vec3()
+                if use_bias != 0:
+                    bias3 = g.twist * bias_rate
+                L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
+                L = L * relax
+                s = _apply_angular(g, s, L)
+                imp_angular[k] = L0 + L
+            if wp.static(kind == _HINGE):
+                L0 = imp_angular[k]
+                e1 = g.perp1
+                e2 = g.perp2
+                cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
+                bias2 = wp.vec2d()
+                if use_bias != 0:
+                    bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
+                acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
+                lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
+                lam = lam * relax
+                L = e1 * lam[0] + e2 * lam[1]
+                s = _apply_angular(g, s, L)
+                # keep only the components across the axis (the axis carries the motor and limits)
+                imp_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+
+            # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
+            if wp.static(kind == _BALL or kind == _HINGE or kind == _FIXED):
+                P0 = imp_linear[k]
+                cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
+                bias3 = vec3()
+                if use_bias != 0:
+                    bias3 = g.d * bias_rate
+                Sa = wp.skew(g.ra)
+                Sb = wp.skew(g.rb)
+                K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
+                P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
+                s = _apply_linear(g, s, P)
+                imp_linear[k] = P0 + P
+            if wp.static(kind == _SLIDER):
+                P0 = imp_linear[k]
+                e1 = g.perp1
+                e2 = g.perp2
+                ja1 = wp.cross(g.arm_a, e1)
+                ja2 = wp.cross(g.arm_a, e2)
+                jb1 = wp.cross(g.rb, e1)
+                jb2 = wp.cross(g.rb, e2)
+                m = g.ma + g.mb
+                K2 = wp.mat22d(m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
+                               wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
+                               wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
+                               m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2))
+                dv = s.vb - s.va
+                cdot2 = wp.vec2d(wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
+                                 wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa))
+                bias2 = wp.vec2d()
+                if use_bias != 0:
+                    bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
+                acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
+                lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
+                s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
+                imp_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+
+        add_velocity(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
+        add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
+        if mode == 2:
+            # relax: these impulses are final for the substep and start the next one (warm start)
+            axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
+            t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], axial)
+            add_velocity(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
+            add_velocity(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
+            # and count them towards the step's mean force
+            sum_linear[k] = sum_linear[k] + imp_linear[k] + g.n * axial
+            spin = imp_angular[k]
+            if wp.static(kind == _HINGE):
+                spin = spin + g.axis * axial  # a hinge's axial row is angular
+            sum_angular[k] = sum_angular[k] + spin
+
+    return solve
+
+
 @wp.kernel
-def _solve(
-    kind: wp.array(dtype=wp.int32),
+def _solve_ball(
+    rows: wp.array(dtype=wp.int32),
     body_a: wp.array(dtype=wp.int32),
     body_b: wp.array(dtype=wp.int32),
     local_a: wp.array(dtype=vec3),
     local_b: wp.array(dtype=vec3),
-    frame_a: wp.array(dtype=quat),
-    frame_b: wp.array(dtype=quat),
-    limit: wp.array(dtype=wp.int32),
-    lower: wp.array(dtype=float_t),
-    upper: wp.array(dtype=float_t),
-    motor: wp.array(dtype=wp.int32),
-    motor_speed: wp.array(dtype=float_t),
-    motor_max: wp.array(dtype=float_t),
-    length: wp.array(dtype=float_t),
-    stiffness: wp.array(dtype=float_t),
-    damping: wp.array(dtype=float_t),
     scale: wp.array(dtype=float_t),
     enabled: wp.array(dtype=wp.int32),
     imp_linear: wp.array(dtype=vec3),
-    imp_angular: wp.array(dtype=vec3),
-    imp_axial: wp.array(dtype=float_t),
-    imp_lower: wp.array(dtype=float_t),
-    imp_upper: wp.array(dtype=float_t),
     sum_linear: wp.array(dtype=vec3),
-    sum_angular: wp.array(dtype=vec3),
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
@@ -426,7 +644,7 @@ def _solve(
     warm_v: wp.array(dtype=vec3),
     warm_w: wp.array(dtype=vec3),
     load: wp.array(dtype=float_t),
-    mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
+    mode: int,
     h: float_t,
     bias_rate: float_t,
     mass_scale: float_t,
@@ -434,159 +652,79 @@ def _solve(
     serial: int,
     count: int,
 ):
-    k = wp.tid()
-    if k >= count:
-        return  # launched over the capacity (see tumble.launch)
+    """Ball joints alone (the chains' and ragdolls' kind): the point row, on plain values, no structs."""
+    thread = wp.tid()
+    if thread >= count:
+        return
+    k = rows[thread]
     if enabled[k] == 0:
         return
     ia = body_a[k]
     ib = body_b[k]
-    A = _load(ia, x, q, v, w, inv_mass, inv_inertia, load, h)
-    B = _load(ib, x, q, v, w, inv_mass, inv_inertia, load, h)
-    jk = kind[k]
-    g = _geometry(jk, A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
-    s0 = _Velocities()
-    s0.va = A.v
-    s0.wa = A.w
-    s0.vb = B.v
-    s0.wb = B.w
-    s = s0
     zero = float_t(0.0)
-
-    if mode == 0:
-        # warm start: last step's impulses, at the current poses
-        s = _total(g, s, imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
-    else:
-        use_bias = 0
+    xa = vec3()
+    va = vec3()
+    wa = vec3()
+    ra = local_a[k]  # the world: its anchor is a world point
+    ma = zero
+    Ia = wp.mat33d()
+    if ia >= 0:
+        xa = x[ia]
+        va = v[ia]
+        wa = w[ia]
+        ma = inv_mass[ia]
+        ra = wp.quat_rotate(q[ia], ra)
+        Ia = _inv_inertia_loaded(q[ia], inv_inertia[ia], load[ia], h)
+    xb = vec3()
+    vb = vec3()
+    wb = vec3()
+    rb = local_b[k]
+    mb = zero
+    Ib = wp.mat33d()
+    if ib >= 0:
+        xb = x[ib]
+        vb = v[ib]
+        wb = w[ib]
+        mb = inv_mass[ib]
+        rb = wp.quat_rotate(q[ib], rb)
+        Ib = _inv_inertia_loaded(q[ib], inv_inertia[ib], load[ib], h)
+    if ia < 0:
+        xa = ra  # the world's anchor, and no arm
+        ra = vec3()
+    if ib < 0:
+        xb = rb
+        rb = vec3()
+    P0 = imp_linear[k]
+    P = P0  # warm start: last step's impulse
+    if mode != 0:
+        # C = p_b - p_a; K = (1/m_a + 1/m_b) 1 - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x
+        cdot = vb + wp.cross(wb, rb) - va - wp.cross(wa, ra)
         ms = float_t(1.0)
         isc = zero
         if mode == 1:
-            use_bias = 1
+            cdot = cdot + ((xb + rb) - (xa + ra)) * bias_rate
             ms = mass_scale
             isc = impulse_scale
-        relax = scale[k]
-        inv_h = float_t(1.0) / h
-
-        # axial: motor or spring, then the limits
-        axial = imp_axial[k]
-        if motor[k] != 0 and (jk == _KIND_HINGE or jk == _KIND_SLIDER):
-            # drive the joint speed to the target; |impulse| <= max torque (force) * h
-            cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - motor_speed[k]
-            cap = motor_max[k] * h
-            new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
-            s = _apply_axial(g, s, new - axial)
-            axial = new
-        if jk == _KIND_DISTANCE and lower[k] < upper[k] and (stiffness[k] > zero or damping[k] > zero):
-            # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
-            meff = _axial_mass(g)
-            if meff > zero:
-                kc = damping[k] + h * stiffness[k]
-                a2 = h * kc * _inverse(meff)
-                sms = a2 / (float_t(1.0) + a2)
-                sis = float_t(1.0) / (float_t(1.0) + a2)
-                sbias = stiffness[k] / kc * (g.value - length[k])
-                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-                new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
-                s = _apply_axial(g, s, new - axial)
-                axial = new
-        if jk == _KIND_DISTANCE and lower[k] >= upper[k]:
-            # rigid rod: C = |d| - length, two-sided
-            bias = zero
-            if use_bias != 0:
-                bias = bias_rate * (g.value - lower[k])
-            cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-            new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
-            s = _apply_axial(g, s, new - axial)
-            axial = new
-        imp_axial[k] = axial
-        if limit[k] != 0 and lower[k] < upper[k]:
-            lo = imp_lower[k]
-            new = _limit(g, s, g.value - lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax)
-            s = _apply_axial(g, s, new - lo)
-            imp_lower[k] = new
-            hi = imp_upper[k]
-            new = _limit(g, s, upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax)
-            s = _apply_axial(g, s, hi - new)
-            imp_upper[k] = new
-
-        # angular: all three axes (fixed, slider) or the two across the hinge axis
-        if jk == _KIND_FIXED or jk == _KIND_SLIDER:
-            L0 = imp_angular[k]
-            cdot3 = s.wb - s.wa
-            bias3 = vec3()
-            if use_bias != 0:
-                bias3 = g.twist * bias_rate
-            L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
-            L = L * relax
-            s = _apply_angular(g, s, L)
-            imp_angular[k] = L0 + L
-        if jk == _KIND_HINGE:
-            L0 = imp_angular[k]
-            e1 = g.perp1
-            e2 = g.perp2
-            cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
-            bias2 = wp.vec2d()
-            if use_bias != 0:
-                bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
-            acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
-            lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
-            lam = lam * relax
-            L = e1 * lam[0] + e2 * lam[1]
-            s = _apply_angular(g, s, L)
-            # keep only the components across the axis (the axis carries the motor and limits)
-            imp_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
-
-        # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
-        if jk == _KIND_BALL or jk == _KIND_HINGE or jk == _KIND_FIXED:
-            P0 = imp_linear[k]
-            cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
-            bias3 = vec3()
-            if use_bias != 0:
-                bias3 = g.d * bias_rate
-            Sa = wp.skew(g.ra)
-            Sb = wp.skew(g.rb)
-            K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
-            P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
-            s = _apply_linear(g, s, P)
-            imp_linear[k] = P0 + P
-        if jk == _KIND_SLIDER:
-            P0 = imp_linear[k]
-            e1 = g.perp1
-            e2 = g.perp2
-            ja1 = wp.cross(g.arm_a, e1)
-            ja2 = wp.cross(g.arm_a, e2)
-            jb1 = wp.cross(g.rb, e1)
-            jb2 = wp.cross(g.rb, e2)
-            m = g.ma + g.mb
-            K2 = wp.mat22d(m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
-                           wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
-                           wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
-                           m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2))
-            dv = s.vb - s.va
-            cdot2 = wp.vec2d(wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
-                             wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa))
-            bias2 = wp.vec2d()
-            if use_bias != 0:
-                bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
-            acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
-            lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
-            s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
-            imp_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
-
-    add_velocity(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
-    add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
+        Sa = wp.skew(ra)
+        Sb = wp.skew(rb)
+        K = wp.identity(n=3, dtype=float_t) * (ma + mb) - Sa * Ia * Sa - Sb * Ib * Sb
+        P = (-ms * _solve33(K, cdot) - isc * P0) * scale[k]
+        imp_linear[k] = P0 + P
+    add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), v, w, inv_mass, serial)
+    add_velocity(ib, P * mb, Ib * wp.cross(rb, P), v, w, inv_mass, serial)
     if mode == 2:
-        # relax: these impulses are final for the substep and start the next one (warm start)
-        axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
-        t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], axial)
-        add_velocity(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
-        add_velocity(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
-        # and count them towards the step's mean force
-        sum_linear[k] = sum_linear[k] + imp_linear[k] + g.n * axial
-        spin = imp_angular[k]
-        if jk == _KIND_HINGE:
-            spin = spin + g.axis * axial  # a hinge's axial row is angular
-        sum_angular[k] = sum_angular[k] + spin
+        # relax: the impulse is final for the substep and starts the next one (warm start)
+        T = P0 + P
+        add_velocity(ia, -T * ma, -(Ia * wp.cross(ra, T)), warm_v, warm_w, inv_mass, serial)
+        add_velocity(ib, T * mb, Ib * wp.cross(rb, T), warm_v, warm_w, inv_mass, serial)
+        sum_linear[k] = sum_linear[k] + T
+
+
+#: one solve kernel per joint kind (the ball joint's written out on its own)
+_SOLVE = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKind.BALL}
+_SOLVE[JointKind.BALL] = _solve_ball
+
+
 
 
 @wp.kernel
@@ -706,13 +844,17 @@ def softness(h: float) -> tuple[float, float, float]:
     return omega / a1, a2 * a3, a3
 
 
-#: the arrays `_solve` takes, in its argument order
+#: the arrays the solve kernels take, in their argument order (ball joints: the first list is `_BALL_JOINT_ARRAYS`)
 _SOLVE_JOINT_ARRAYS = (
-    "joint_kind", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
+    "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
     "joint_limit", "joint_lower", "joint_upper", "joint_motor", "joint_motor_speed", "joint_motor_max",
     "joint_length", "joint_stiffness", "joint_damping", "joint_scale", "joint_enabled", "joint_impulse_linear",
     "joint_impulse_angular", "joint_impulse_axial", "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear",
     "joint_sum_angular",
+)
+_BALL_JOINT_ARRAYS = (
+    "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_scale", "joint_enabled",
+    "joint_impulse_linear", "joint_sum_linear",
 )
 _SOLVE_BODY_ARRAYS = (
     "body_position", "body_orientation", "body_velocity", "body_angular_velocity", "body_inv_mass",
@@ -734,6 +876,7 @@ class JointSet(ArraySet):
         self._keys = None  # sorted keys of the non-colliding jointed pairs, and their joints
         self._key_joint = None
         self._key_count = 0
+        self._rows = {}  # joint rows of each kind present, in creation order
         self._dirty = True
         self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
 
@@ -755,6 +898,9 @@ class JointSet(ArraySet):
             return
         self._dirty = False
         n = self.count
+        kinds = self.numpy("joint_kind")
+        self._rows = {kind: wp.array(np.flatnonzero(kinds == kind).astype(np.int32), dtype=wp.int32,
+                                     device=self.device) for kind in JointKind if (kinds == kind).any()}
         a = self.numpy("joint_body_a").astype(np.int64)
         b = self.numpy("joint_body_b").astype(np.int64)
         no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
@@ -822,11 +968,14 @@ class JointSet(ArraySet):
         return out
 
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
+        """One pass: the joints of each kind present, kind by kind (each in creation order)."""
         j, b = self.arrays, bodies.arrays
-        launch(_solve, self.capacity,
-               [*(j[name] for name in _SOLVE_JOINT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
-                self._body_load(bodies), mode, h,
-                *softness(h), 1 if self.device == "cpu" else 0, self.count], self.device, cache)
+        shared = [*(b[name] for name in _SOLVE_BODY_ARRAYS), self._body_load(bodies), mode, h, *softness(h),
+                  1 if self.device == "cpu" else 0]
+        for kind, rows in self._rows.items():
+            names = _BALL_JOINT_ARRAYS if kind == JointKind.BALL else _SOLVE_JOINT_ARRAYS
+            launch(_SOLVE[kind], rows.shape[0], [rows, *(j[name] for name in names), *shared, rows.shape[0]],
+                   self.device, cache)
 
     def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
         """Apply last step's impulses (first substep only; later ones warm start through the relax pass)."""
