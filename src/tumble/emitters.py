@@ -1,5 +1,11 @@
 """Emitters release bodies over time, never on top of another body.
 
+Any dynamic shape: spheres, boxes, capsules and convex hulls (of points, or of a mesh file's
+vertices, hulled once when the emitter is made), each body with its own random size (`radius`,
+`half_extents`, `half_height` ranges, and a `scale` range applied to every shape) and, with
+`random_orientation`, a uniformly random orientation. A convex body of a new scale gets its own
+scaled copy of the hull (exact: volume s^3, moments s^5), a fixed scale shares one.
+
 An emitter holds a rate [bodies/s] and a count; each step it owes `rate * dt` more bodies.
 Candidates are drawn from the region (a point, a box or a disc) and redrawn a few times (from a
 point: scattered ever wider around it) until a candidate's bounding sphere clears every body
@@ -20,7 +26,8 @@ import numpy as np
 
 from . import validate
 from .limits import MAX_RELEASE_PER_STEP
-from .shapes import ShapeType, box_inertia, box_volume, shape_from_name, sphere_inertia, sphere_volume
+from .shapes import (ShapeType, box_inertia, box_volume, capsule_inertia, capsule_volume, shape_from_name,
+                     sphere_inertia, sphere_volume)
 
 #: jittered tries per candidate before it waits for the next step
 TRIES = 8
@@ -57,10 +64,10 @@ def _range(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.n
 
 
 class Emitter:
-    """Releases spheres and/or boxes at a rate, from a region, in a cone.
+    """Releases spheres, boxes, capsules and convex bodies at a rate, from a region, in a cone.
 
     Args:
-        shape: "sphere", "box", or a list of both (chosen at random per body).
+        shape: "sphere", "box", "capsule", "convex", or a list of them (chosen at random per body).
         rate: bodies per second (> 0).
         count: total bodies to release (> 0).
         position: centre of the region [m], shape (3,).
@@ -73,6 +80,11 @@ class Emitter:
         radius: sphere radius [m], a value or [min, max].
         half_extents: box half extents [m], a 3-vector or [[min...], [max...]]; a single number
             gives cubes, a [min, max] pair of numbers gives random cubes.
+        half_height: capsule half height [m] (of its segment; `radius` is its radius), a value or [min, max].
+        points: the points whose convex hull a "convex" body is, shape (n, 3) [m], in its frame;
+            or `file`, a mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose vertices are hulled.
+        scale: a factor applied to each body's size (radius, half extents, half height, hull),
+            a value or [min, max] drawn per body (default 1).
         mass: body mass [kg], a value or [min, max]; or `density` [kg/m^3] (default 1000).
         restitution, friction: material of the bodies.
         random_orientation: give each body a uniformly random orientation.
@@ -94,6 +106,10 @@ class Emitter:
         speed: float | Sequence[float] = 0.0,
         radius: float | Sequence[float] = 0.05,
         half_extents: float | Sequence = 0.05,
+        half_height: float | Sequence[float] = 0.05,
+        points=None,
+        file=None,
+        scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,
         restitution: float = 0.5,
@@ -108,8 +124,10 @@ class Emitter:
         if not names:
             raise ValueError("shape must name at least one shape")
         self.shapes = [shape_from_name(validate.text(s, "shape")) for s in names]
-        if ShapeType.PLANE in self.shapes:
-            raise ValueError("an emitter cannot emit planes: use shape 'sphere' or 'box'")
+        for fixed in (ShapeType.PLANE, ShapeType.MESH):
+            if fixed in self.shapes:
+                raise ValueError(f"an emitter cannot emit {fixed.name.lower()}s (static): use shape 'sphere', "
+                                 "'box', 'capsule' or 'convex'")
         self.rate = validate.positive(rate, "rate")  # > 0 to start with; the setter allows 0 (paused)
         self.count = validate.integer(count, "count", low=1)
         self.position = validate.vector(position, "position")
@@ -138,11 +156,20 @@ class Emitter:
         else:
             self.half_extents = _range(half_extents, "half_extents", 3)
             self._cubes = h.shape == ()
+        self.half_height = _range(half_height, "half_height")
+        self.scale = _range(scale, "scale")
+        self.hull = None  # the convex prototype, at scale 1
+        if ShapeType.CONVEX in self.shapes:
+            self.hull = _emitted_hull(points, file)
+        elif points is not None or file is not None:
+            raise ValueError("points and file are for shape 'convex', which this emitter does not emit")
+        self._hull_index: tuple[int, int] | None = None  # (world key, row) of the shared hull at a fixed scale
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
         self.mass = None if mass is None else _range(mass, "mass")
         self.density = _range(1000.0 if density is None else density, "density")
         for name, (lo, _hi) in (("speed", self.speed), ("radius", self.radius), ("half_extents", self.half_extents),
+                                ("half_height", self.half_height), ("scale", self.scale),
                                 ("density", self.density)) + ((("mass", self.mass),) if self.mass else ()):
             if np.any(lo < 0) or (name != "speed" and np.any(lo <= 0)):
                 raise ValueError(f"{name} must be > 0, got {lo!r}")
@@ -209,20 +236,16 @@ class Emitter:
 
     def _sample_bodies(self, k: int) -> dict[str, np.ndarray]:
         rng = self.rng
+        # the draws of spheres and boxes come first, in their original order (a scene of those
+        # emits the same bodies as before capsules, hulls and scale existed); then the new ones,
+        # each only when it varies
         shape = np.asarray(self.shapes, dtype=np.int32)[rng.integers(0, len(self.shapes), k)]
         radius = self._uniform(*self.radius, k)
         half = self._uniform(*self.half_extents, k)
         if self._cubes:
             half = np.repeat(half[:, :1], 3, axis=1)
-        is_sphere = shape == ShapeType.SPHERE
-        radius = np.where(is_sphere, radius, 0.0)
-        half = np.where(is_sphere[:, None], 0.0, half)
-        if self.mass is not None:
-            mass = self._uniform(*self.mass, k)
-        else:
-            volume = np.where(is_sphere, sphere_volume(radius), box_volume(half))
-            mass = self._uniform(*self.density, k) * volume
-        inertia = np.where(is_sphere[:, None], sphere_inertia(mass, radius), box_inertia(mass, half))
+        drawn_mass = self._uniform(*self.mass, k) if self.mass is not None else None
+        drawn_density = self._uniform(*self.density, k) if self.mass is None else None
         velocity = self._sample_directions(k) * self._uniform(*self.speed, k)[:, None]
         if self.random_orientation:
             q = rng.normal(size=(k, 4))
@@ -232,9 +255,58 @@ class Emitter:
         axis = rng.normal(size=(k, 3))
         axis /= np.linalg.norm(axis, axis=1, keepdims=True)
         angular_velocity = axis * self._uniform(*self.angular_speed, k)[:, None]
-        bound = np.where(is_sphere, radius, np.linalg.norm(half, axis=1))
+        scale = self._varying(self.scale, k)
+        half_height = self._varying(self.half_height, k) if ShapeType.CAPSULE in self.shapes else np.zeros(k)
+
+        # sizes, volumes, bounding radii and unit-density moments, per shape
+        is_sphere = shape == ShapeType.SPHERE
+        is_box = shape == ShapeType.BOX
+        is_capsule = shape == ShapeType.CAPSULE
+        is_hull = shape == ShapeType.CONVEX
+        radius = np.where(is_sphere | is_capsule, radius * scale, 0.0)
+        a = np.where(is_capsule, half_height * scale, 0.0)
+        half = np.where(is_box[:, None], half * scale[:, None], 0.0)
+        half = np.where(is_capsule[:, None], np.stack([radius, radius, a + radius], axis=1), half)
+        volume = np.select([is_sphere, is_box, is_capsule], [sphere_volume(radius), box_volume(half),
+                                                            capsule_volume(radius, a)], 0.0)
+
+        bound = np.select([is_sphere, is_box, is_capsule], [radius, np.linalg.norm(half, axis=1), a + radius], 0.0)
+        if self.hull is not None:
+            hull = self.hull
+            volume = np.where(is_hull, hull.volume * scale**3, volume)
+            bound = np.where(is_hull, hull.bound_radius * scale, bound)
+            half = np.where(is_hull[:, None], np.abs(hull.vertex).max(axis=0) * scale[:, None], half)
+            # the body frame is the hull's principal frame: the drawn orientation is the user frame's
+            from .world import _quat_mul
+
+            turned = np.array([_quat_mul(q, hull.rotation) for q in orientation]).reshape(k, 4)
+            orientation = np.where(is_hull[:, None], turned, orientation)
+        mass = drawn_mass if drawn_mass is not None else drawn_density * volume
+        with np.errstate(invalid="ignore", divide="ignore"):  # each shape's formula on every row, one kept
+            inertia = np.select(
+                [is_sphere[:, None], is_box[:, None], is_capsule[:, None]],
+                [sphere_inertia(mass, radius), box_inertia(mass, half), capsule_inertia(mass, radius, a)], 0.0)
+        if self.hull is not None:
+            # moments at density 1 scale as s^5, the volume as s^3: I = I_1 s^5 m / (V_1 s^3)
+            moments = self.hull.inertia[None] * (scale**2 * mass / self.hull.volume)[:, None]
+            inertia = np.where(is_hull[:, None], moments, inertia)
         return dict(shape=shape, radius=radius, half_extents=half, mass=mass, inertia=inertia, velocity=velocity,
-                    orientation=orientation, angular_velocity=angular_velocity, bound=bound)
+                    orientation=orientation, angular_velocity=angular_velocity, bound=bound, scale=scale)
+
+    def _varying(self, bounds: tuple[np.ndarray, np.ndarray], k: int) -> np.ndarray:
+        """k draws from [lo, hi]; no draw (the generator untouched) when lo == hi."""
+        lo, hi = bounds
+        if float(lo) == float(hi):
+            return np.full(k, float(lo))
+        return self._uniform(lo, hi, k)
+
+    def _hull_rows(self, world, scale: np.ndarray) -> np.ndarray:
+        """Rows in `world.hulls` for convex bodies of these scales: one shared at a fixed scale."""
+        if float(self.scale[0]) == float(self.scale[1]):
+            if self._hull_index is None or self._hull_index[0] != world._key:
+                self._hull_index = (world._key, world.hulls.add(self.hull.scaled(float(self.scale[0]))))
+            return np.full(len(scale), self._hull_index[1], dtype=np.int32)
+        return np.array([world.hulls.add(self.hull.scaled(float(s))) for s in scale], dtype=np.int32)
 
     # ------------------------------------------------------------------ emission
 
@@ -260,10 +332,18 @@ class Emitter:
         near = gap < bodies.numpy("body_bound_radius")
         spheres = (shape == ShapeType.SPHERE) & near
         boxes = (shape == ShapeType.BOX) & near
+        # capsules by their segment, convex bodies by their bounding sphere (meshes are not
+        # tested: keep the region clear of them)
+        capsules = (shape == ShapeType.CAPSULE) & near
+        hulls = (shape == ShapeType.CONVEX) & near
         planes = shape == ShapeType.PLANE
         sphere_x, sphere_r = x_all[spheres], bodies.numpy("body_radius")[spheres]
         box_x, box_h = x_all[boxes], bodies.numpy("body_half_extents")[boxes]
         box_rot = _matrices(bodies.numpy("body_orientation")[boxes])
+        capsule_x, capsule_r = x_all[capsules], bodies.numpy("body_radius")[capsules]
+        capsule_a = bodies.numpy("body_half_extents")[capsules][:, 2] - capsule_r
+        capsule_u = _matrices(bodies.numpy("body_orientation")[capsules])[:, :, 2]
+        hull_x, hull_r = x_all[hulls], bodies.numpy("body_bound_radius")[hulls]
         plane_n = _matrices(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
         plane_x = x_all[planes]
         accepted = []
@@ -278,6 +358,12 @@ class Emitter:
                 # the candidate's bounding sphere must clear everything (exactly for spheres, boxes
                 # and planes; bounding spheres among the candidates of this step)
                 clear = not np.any(np.linalg.norm(sphere_x - p, axis=1) < sphere_r + ri)
+                if clear and len(hull_x):
+                    clear = not np.any(np.linalg.norm(hull_x - p, axis=1) < hull_r + ri)
+                if clear and len(capsule_x):
+                    t = np.clip(np.einsum("ij,ij->i", capsule_u, p - capsule_x), -capsule_a, capsule_a)
+                    nearest = capsule_x + t[:, None] * capsule_u
+                    clear = not np.any(np.linalg.norm(nearest - p, axis=1) < capsule_r + ri)
                 if clear and len(box_x):
                     local = np.einsum("nji,nj->ni", box_rot, p - box_x)  # R^T (p - x)
                     outside = local - np.clip(local, -box_h, box_h)
@@ -299,7 +385,12 @@ class Emitter:
             radius=cand["radius"][idx], half_extents=cand["half_extents"][idx], mass=cand["mass"][idx],
             inertia=cand["inertia"][idx], restitution=self.restitution, friction=self.friction,
             velocity=cand["velocity"][idx], angular_velocity=cand["angular_velocity"][idx],
+            bound=np.where(cand["shape"][idx] == ShapeType.CONVEX, cand["bound"][idx], np.inf),
         )
+        convex = cand["shape"][idx] == ShapeType.CONVEX
+        if convex.any():
+            slots = np.array([world._slot(rows[j]) for j in np.nonzero(convex)[0]])
+            world.bodies.write("body_geometry", slots, self._hull_rows(world, cand["scale"][idx][convex]))
         self.emitted += len(rows)
         self._owed -= len(rows)
         return len(rows)
@@ -318,3 +409,19 @@ def _basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     u = np.cross(d, a)
     u /= np.linalg.norm(u)
     return u, np.cross(d, u)
+
+
+def _emitted_hull(points, file):
+    """The hull prototype (scale 1) of a convex emitter, from points or a mesh file's vertices."""
+    from .collision.hulls import hull_from_points
+    from .io.meshfile import notice, read_mesh_file
+
+    if (points is None) == (file is None):
+        raise ValueError("a convex emitter needs points or file (one of them)")
+    name = "points"
+    if file is not None:
+        points, _triangles, mesh = read_mesh_file(file)
+        name = str(file)
+        if not getattr(mesh, "is_watertight", False):
+            notice(f"{file}: the mesh is not watertight; its convex hull is used")
+    return hull_from_points(np.asarray(points, dtype=np.float64), name=name)

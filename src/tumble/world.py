@@ -606,6 +606,10 @@ class World:
         speed: float | Sequence[float] = 0.0,
         radius: float | Sequence[float] = 0.05,
         half_extents: float | Sequence = 0.05,
+        half_height: float | Sequence[float] = 0.05,
+        points=None,
+        file=None,
+        scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,
         restitution: float = 0.5,
@@ -621,7 +625,8 @@ class World:
         """
         emitter = Emitter(shape=shape, rate=rate, count=count, position=position, region=region, extent=extent,
                           direction=direction, cone_angle=cone_angle, speed=speed, radius=radius,
-                          half_extents=half_extents, mass=mass, density=density, restitution=restitution,
+                          half_extents=half_extents, half_height=half_height, points=points, file=file,
+                          scale=scale, mass=mass, density=density, restitution=restitution,
                           friction=friction, random_orientation=random_orientation, angular_speed=angular_speed,
                           seed=seed)
         if emitter.seed is None:

@@ -16,12 +16,10 @@ import warp as wp
 import tumble
 
 SM_90 = 90  # NVIDIA H100
-#: modules whose NVRTC compile takes too long for the default run: the narrow phase's one dispatch
-#: kernel inlines every collide_<a>_<b> (capsules, hull SAT, mesh BVH queries since issue 16) and
-#: took over 15 minutes to compile at -O3 on one core here (5.5 minutes before the hull and mesh
-#: pairs). `./scripts/test.sh -m slow tests/unit/test_cuda_codegen.py` still compiles it; splitting
-#: the dispatch kernel per shape pair is the way to bring it back into the default run.
-SLOW_TO_COMPILE = {"tumble.collision.narrowphase"}
+#: modules whose NVRTC compile takes too long for the default run (none now: the narrow phase,
+#: whose one dispatch kernel inlines every collide_<a>_<b>, took over 15 minutes at -O3 while Warp
+#: also generated its adjoint; with `enable_backward` off it compiles in about a minute)
+SLOW_TO_COMPILE: set[str] = set()
 
 
 def _kernel_modules() -> list[str]:

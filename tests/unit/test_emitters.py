@@ -148,3 +148,126 @@ def test_emitter_above_a_large_static_box_releases():
     assert em.emitted == 10
     w.collide()
     assert np.all(w.contact_depth <= 0.0)
+
+
+# ---------------------------------------------------------------------------- capsules and convex hulls
+
+PEBBLE = np.random.default_rng(3).normal(size=(16, 3)) * (1.0, 0.8, 0.5)  # a flattened random blob [m]
+
+
+def _shape_emitter(seed=7, **kwargs):
+    w = tumble.World(gravity=(0, 0, 0), seed=seed)
+    args = dict(rate=2400, count=30, position=(0, 0, 0), region="box", extent=(3, 3, 3), random_orientation=True)
+    args.update(kwargs)
+    em = w.add_emitter(**args)
+    w.run(0.05)
+    assert em.emitted == 30
+    return w, em
+
+
+def test_capsules_are_emitted_with_sizes_in_range():
+    """Capsules get a radius and half height from their ranges times a scale from its range, exact mass."""
+    w, _ = _shape_emitter(shape="capsule", radius=(0.02, 0.04), half_height=(0.05, 0.1), scale=(0.5, 2.0),
+                          density=800)
+    assert np.all(w.body_shape == ShapeType.CAPSULE)
+    r = w.body_radius
+    a = w.body_half_extents[:, 2] - r
+    np.testing.assert_allclose(w.body_half_extents[:, 0], r)
+    assert np.all((r >= 0.01 - 1e-12) & (r <= 0.08 + 1e-12))
+    assert np.all((a >= 0.025 - 1e-12) & (a <= 0.2 + 1e-12))
+    # both sizes of one body carry the same scale: a / r stays within the ratio of the unscaled ranges
+    assert np.all((a / r >= 0.05 / 0.04 - 1e-9) & (a / r <= 0.1 / 0.02 + 1e-9))
+    assert np.ptp(r) > 0.02  # the scale range was used, not only the radius range
+    np.testing.assert_allclose(w.body_mass, 800 * np.pi * r**2 * (2 * a + 4 / 3 * r), rtol=1e-12)
+
+
+def test_convex_bodies_are_scaled_copies_of_the_hull():
+    """Each emitted hull is the prototype scaled by a factor within range: volume s^3, moments s^5."""
+    from tumble.collision.hulls import hull_from_points
+
+    w, em = _shape_emitter(shape="convex", points=PEBBLE, scale=(0.02, 0.05), density=2500)
+    base = hull_from_points(PEBBLE)
+    assert np.all(w.body_shape == ShapeType.CONVEX)
+    rows = w.body_geometry
+    assert len(set(rows.tolist())) == 30  # one scaled copy per body
+    for i, g in enumerate(rows):
+        proto = w.hulls.prototypes[g]
+        s = proto.bound_radius / base.bound_radius
+        assert 0.02 - 1e-12 <= s <= 0.05 + 1e-12
+        np.testing.assert_allclose(proto.vertex, base.vertex * s, atol=1e-15)
+        assert w.body_mass[i] == pytest.approx(2500 * base.volume * s**3, rel=1e-12)
+    # inertia: the body's moments are the hull's unit-density moments times density s^5
+    inv = w.bodies.numpy("body_inv_inertia")
+    s = np.array([w.hulls.prototypes[g].bound_radius for g in rows]) / base.bound_radius
+    np.testing.assert_allclose(1.0 / inv, 2500 * base.inertia[None] * s[:, None] ** 5, rtol=1e-10)
+    # random orientations: the body frame is the hull's principal frame turned by a random rotation
+    assert np.ptp(w.body_orientation, axis=0).min() > 0.5
+
+
+def test_a_fixed_scale_shares_one_hull_and_no_orientation_keeps_the_user_frame():
+    """A fixed scale adds one prototype for all bodies; without random_orientation the user frame is unrotated."""
+    w, _ = _shape_emitter(shape="convex", points=PEBBLE, scale=0.03, random_orientation=False)
+    assert len(set(w.body_geometry.tolist())) == 1
+    proto = w.hulls.prototypes[int(w.body_geometry[0])]
+    np.testing.assert_allclose(w.body_orientation, np.tile(proto.rotation, (30, 1)), atol=1e-15)
+
+
+def test_convex_emitter_takes_a_mesh_file(tmp_path):
+    """A mesh file's vertices are hulled once; a file that is not watertight gives a one-line notice."""
+    trimesh = pytest.importorskip("trimesh")
+    path = tmp_path / "rock.stl"
+    trimesh.creation.icosphere(subdivisions=1, radius=1.0).export(path)
+    w, _ = _shape_emitter(shape="convex", file=str(path), scale=0.05)
+    proto = w.hulls.prototypes[int(w.body_geometry[0])]
+    assert proto.bound_radius == pytest.approx(0.05, rel=1e-6)
+    assert len(proto.vertex) == 42
+
+
+def test_mixed_shapes_do_not_overlap_at_birth():
+    """Spheres, boxes, capsules and hulls from one point emitter land clear of each other and the ground."""
+    w = tumble.World(seed=2)
+    w.add_plane()
+    em = w.add_emitter(shape=["sphere", "box", "capsule", "convex"], rate=4000, count=120, position=(0, 0, 0.2),
+                       region="box", extent=(0.4, 0.4, 0.1), radius=(0.02, 0.03), half_extents=0.02,
+                       half_height=(0.02, 0.04), points=PEBBLE * 0.03, scale=(0.6, 1.0), random_orientation=True)
+    for _ in range(60):
+        em.emit(w, w.dt)
+    assert em.emitted > 60
+    assert {1, 2, 3, 4} <= set(w.body_shape.tolist())
+    w.collide()
+    assert np.all(w.contact_depth <= 1e-9)
+
+
+def test_shape_emitters_repeat_with_the_seed_and_differ_without():
+    """The same seed releases the same capsules and hulls bit for bit; another seed others."""
+
+    def run(seed):
+        w, _ = _shape_emitter(seed=seed, shape=["capsule", "convex"], radius=0.02, half_height=(0.02, 0.05),
+                              points=PEBBLE, scale=(0.01, 0.03))
+        return np.concatenate([w.body_position.ravel(), w.body_orientation.ravel(), w.body_mass,
+                               w.body_half_extents.ravel()])
+
+    a, b, c = run(5), run(5), run(6)
+    assert a.tobytes() == b.tobytes()
+    assert a.shape != c.shape or a.tobytes() != c.tobytes()
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(shape="convex"), "needs points or file"),
+        (dict(shape="convex", points=PEBBLE, file="rock.obj"), "needs points or file"),
+        (dict(shape="sphere", points=PEBBLE), "points and file are for shape 'convex'"),
+        (dict(shape="mesh"), "cannot emit meshs|cannot emit meshes"),
+        (dict(shape="convex", points=PEBBLE[:3]), "at least 4 points"),
+        (dict(shape="convex", file="/nonexistent/rock.obj"), "rock.obj"),
+        (dict(shape="capsule", half_height=(0.2, 0.1)), "min must not exceed max"),
+        (dict(scale=0.0), "scale must be > 0"),
+        (dict(scale=(2.0, 1.0)), "min must not exceed max"),
+    ],
+)
+def test_bad_shape_emitter_arguments_are_named(kwargs, message):
+    """Each bad capsule/convex/scale argument raises one ValueError (or OSError for a file) naming it."""
+    w = tumble.World()
+    with pytest.raises((ValueError, OSError), match=message):
+        w.add_emitter(**kwargs)

@@ -21,7 +21,7 @@ reads all its vertices, faces or edges, so keep hulls small (tens of vertices).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import warp as wp
@@ -54,6 +54,11 @@ class HullPrototype:
     inertia: np.ndarray
     offset_com: np.ndarray
     rotation: np.ndarray
+
+    def scaled(self, s: float) -> HullPrototype:
+        """The same hull scaled by s about its centre of mass (volume s^3, unit-density moments s^5)."""
+        return replace(self, vertex=self.vertex * s, offset=self.offset * s, volume=self.volume * s**3,
+                       inertia=self.inertia * s**5, offset_com=self.offset_com * s)
 
     @property
     def bound_radius(self) -> float:

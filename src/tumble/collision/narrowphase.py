@@ -29,6 +29,10 @@ from ..state import float_t, host_view, quat, vec3
 from .hulls import Hulls, HullSet
 from .meshes import MeshSet
 
+# forward code only: nothing differentiates through contacts, and the adjoint of the dispatch
+# kernel (every pair function inlined) made NVRTC take over 15 minutes for sm_90 (65 s without)
+wp.set_module_options({"enable_backward": False})
+
 #: speculative distance added to the relative motion of a pair in one step [m]
 SPECULATIVE_MARGIN = 0.002
 

@@ -246,7 +246,7 @@ def extent() -> Check:
 
 
 def shape_list() -> Check:
-    names = ("sphere", "box")
+    names = ("sphere", "box", "capsule", "convex")
 
     def convert(value):
         items = value if isinstance(value, list) else [value]
@@ -254,12 +254,12 @@ def shape_list() -> Check:
             raise _Bad("must name at least one shape")
         for item in items:
             if not isinstance(item, str):
-                raise _Bad(f"must be \"sphere\", \"box\" or a list of them, got {_show(value)}")
+                raise _Bad(f"must be a shape name or a list of them, got {_show(value)}")
             if item not in names:
-                raise _Bad(f"unknown shape {item!r}: expected \"sphere\" or \"box\"")
+                raise _Bad(f"unknown shape {item!r}: expected \"sphere\", \"box\", \"capsule\" or \"convex\"")
         return value if isinstance(value, str) else list(items)
 
-    return Check('"sphere", "box" or a list of them', convert)
+    return Check('"sphere", "box", "capsule", "convex" or a list of them', convert)
 
 
 SPRING_KINDS = ("structural", "shear", "bend")
@@ -444,6 +444,14 @@ def _emitter_rules(values: dict) -> None:
         raise _KeyBad("radius", "a sphere emitter needs radius (a value or [min, max])")
     if "box" in shapes and values.get("half_extents") is None:
         raise _KeyBad("half_extents", "a box emitter needs half_extents (a value or [min, max])")
+    if "capsule" in shapes and (values.get("radius") is None or values.get("half_height") is None):
+        key = "radius" if values.get("radius") is None else "half_height"
+        raise _KeyBad(key, "a capsule emitter needs radius and half_height (each a value or [min, max])")
+    if "convex" in shapes and (values.get("points") is None) == (values.get("file") is None):
+        raise _KeyBad("points", "a convex emitter needs points or file (one of them)")
+    if "convex" not in shapes and (values.get("points") is not None or values.get("file") is not None):
+        key = "points" if values.get("points") is not None else "file"
+        raise _KeyBad(key, f"{key} is for shape \"convex\", which this emitter does not emit")
     region, ext = values["region"], values.get("extent")
     if region == "box" and not isinstance(ext, list):
         raise _KeyBad("extent", 'region "box" needs extent = [x, y, z] half-sizes')
@@ -610,6 +618,12 @@ SCHEMA: dict[str, TableSpec] = {
                 "speed": Field(value_or_range(positive=False), 0.0, "m/s", "release speed, value or [min, max]"),
                 "radius": Field(value_or_range(positive=True), None, "m", "sphere radius, value or [min, max]", "none"),
                 "half_extents": Field(size_or_range(), None, "m", "box half sizes, value or [min, max]", "none"),
+                "half_height": Field(value_or_range(positive=True), None, "m",
+                                     "capsule half height (of its segment), value or [min, max]", "none"),
+                "points": Field(point_list(), None, "m", "points whose hull a convex body is, in its frame", "none"),
+                "file": Field(file_name(), None, "", "mesh file whose vertices' hull a convex body is", "none"),
+                "scale": Field(value_or_range(positive=True), None, "",
+                               "factor on each body's size (all shapes), value or [min, max]", "1"),
                 "mass": Field(value_or_range(positive=True), None, "kg", "mass, value or [min, max]", "from density"),
                 "density": Field(
                     value_or_range(positive=True), None, "kg/m^3", "density, value or [min, max]", "1000"
@@ -1018,6 +1032,11 @@ def build_world(scene: Scene, **overrides):
             with _api_errors(path, _table_label(name, i)):
                 made[name].append(add(**_given(values)))
     for i, values in enumerate(scene.items("emitter")):
+        values = dict(values)
+        if values.get("file") is not None and path is not None:
+            values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+        if values.get("points") is not None:
+            values["points"] = np.asarray(values["points"], dtype=np.float64)
         with _api_errors(path, _table_label("emitter", i)):
             world.add_emitter(**_given(values))
     for i, values in enumerate(scene.items("cloth")):
