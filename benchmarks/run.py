@@ -42,6 +42,7 @@ if (HERE.parent / "src" / "tumble").is_dir():
     sys.path.insert(0, str(HERE.parent / "src"))
 
 from benchmarks import joints as joint_bench  # noqa: E402
+from benchmarks import meshes as mesh_bench  # noqa: E402
 from benchmarks import quality  # noqa: E402
 from benchmarks.engines import ADAPTERS  # noqa: E402
 from benchmarks.scenes import CUBE_HALF, CUBE_MASS, SCENES, SPHERE_MASS, SPHERE_RADIUS, Scene, cloth_edges  # noqa: E402
@@ -566,8 +567,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     names = []
     args.joint_list = []  # joint scenes (benchmarks/joints.py): not in "all", run with --scenes joints
+    args.mesh_pour = False  # the mesh row (benchmarks/meshes.py, Tumble only): --scenes meshes
     for item in filter(None, (s.strip() for s in args.scenes.split(","))):
-        if item == "joints" or item in joint_bench.SCENES:
+        if item in ("meshes", "mesh_pour_5k"):
+            args.mesh_pour = True
+        elif item == "joints" or item in joint_bench.SCENES:
             args.joint_list += list(joint_bench.SCENES) if item == "joints" else [item]
         elif item in GROUPS:
             names += GROUPS[item]
@@ -620,6 +624,13 @@ def main(argv: list[str] | None = None) -> int:
         path = args.output / f"joints-{args.machine or machine_name(info)}.csv"
         joint_bench.write_csv(path, joint_rows)
         print(f"wrote {path}")
+    if args.mesh_pour:
+        print(f"mesh_pour_5k (benchmarks/meshes.py): {args.duration or mesh_bench.DURATION:g} s, Tumble only", flush=True)
+        row = mesh_bench.run(args.duration or mesh_bench.DURATION, args.device)
+        if not args.no_csv:
+            path = args.output / f"meshes-{args.machine or machine_name(info)}.csv"
+            joint_bench.write_csv(path, [row])
+            print(f"wrote {path}")
     if not args.scene_list:
         return 0
 

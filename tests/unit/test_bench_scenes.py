@@ -103,3 +103,15 @@ def test_rapier_starts_from_the_scene_positions_and_keeps_spheres_above_the_grou
     adapter.close()
     with pytest.raises(NotImplementedError):
         engines.ADAPTERS["rapier"](scenes.Scene("cloth_test", "cloth", 8))
+
+
+def test_mesh_benchmark_ground_is_100k_flat_triangles_and_the_same_pour():
+    """The mesh row's ground: >= 100k upward triangles at z = 0 covering where the plane holds the spheres."""
+    from benchmarks import meshes
+
+    v, t = meshes.ground_mesh()
+    assert len(t) >= 100_000 and np.all(v[:, 2] == 0.0)
+    e1, e2 = v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]
+    assert np.all(np.cross(e1, e2)[:, 2] > 0)  # wound counter-clockwise seen from above
+    x = scenes.pile_positions(meshes.SPHERES, meshes.WIDTH, seed=1)
+    assert np.abs(x[:, :2]).max() < meshes.MESH_HALF - 1.0  # a metre of mesh left around the pour
