@@ -133,3 +133,43 @@ def test_no_tunnelling_through_a_thin_mesh_at_50_m_s(shape):
     assert min(heights) > rest - 1e-3
     if shape != "box":
         assert w.body_position[1, 2] == pytest.approx(rest, abs=1e-3)
+
+
+def ridge_mesh(height=0.2, half=1.0):
+    """A tent: two 45 degree slopes meeting at a sharp ridge along y at z = height, wound upwards."""
+    v = np.array([[-half, -half, height - half], [0, -half, height], [half, -half, height - half],
+                  [-half, half, height - half], [0, half, height], [half, half, height - half]], float)
+    t = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]])
+    return v, t
+
+
+@pytest.mark.parametrize("shape", ["box", "convex"])
+def test_a_plank_dropped_across_a_sharp_ridge_is_held_by_it(shape):
+    """A plank falling flat across a ridge rests on the ridge line, between its vertices.
+
+    The ridge presses into the plank's bottom face far from any of its vertices, which the vertex
+    queries alone never see (the plank would sink ~0.28 m into the tent until its ends met the
+    slopes). Each step, every point of the ridge line under the plank stays outside it, within 1 mm.
+    """
+    v, t = ridge_mesh()
+    w = tumble.World(gravity=(0, 0, -9.81))
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=0.5)
+    h = np.array([0.3, 0.05, 0.02])
+    pos = (0.0, 0.0, 0.2 + 0.02 + 0.05)
+    if shape == "box":
+        w.add_box(position=pos, half_extents=h, restitution=0.0)
+    else:
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * h
+        w.add_convex(points=corners, position=pos, restitution=0.0)
+    ridge = np.stack([np.zeros(11), np.linspace(-1, 1, 11) * h[1], np.full(11, 0.2)], axis=1)
+    worst = -np.inf
+    for _ in range(round(1.0 / w.dt)):
+        w.step()
+        q = w.body_orientation[1]
+        from tumble.world import quat_to_matrix
+        R = quat_to_matrix(q[None])[0]
+        local = (ridge - w.body_position[1]) @ R  # R^T (p - x)
+        inside = np.min(h - np.abs(local), axis=1)  # > 0: the point is inside the plank
+        worst = max(worst, inside.max())
+    assert worst < 1e-3
+    assert w.body_position[1, 2] > 0.2 - 0.05  # still on the ridge or its slopes, not through the tent

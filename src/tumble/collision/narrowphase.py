@@ -1191,13 +1191,146 @@ def _solid_vertex(shape: int, H: Hulls, g: int, h: vec3, i: int):
 
 
 @wp.func
+def _face_depth(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3):
+    """Largest face-plane distance max_f (n_f . p - d_f) of a point from a hull (its signed distance
+    inside, a lower bound outside), and that face's outward normal; hull frame."""
+    best = float_t(-1.0e30)
+    normal = vec3(_ZERO, _ZERO, _ONE)
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        if wp.dot(n, p) - d > best:
+            best = wp.dot(n, p) - d
+            normal = n
+    return best, normal
+
+
+@wp.func
+def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, hp: int, sc: vec3,
+                           bound: float_t, mesh: wp.uint64, max_sep: float_t, d0: float_t):
+    """The deepest point of the mesh's triangle edges inside a box or hull, when deeper than its vertices.
+
+    A ridge or a spike of the mesh pressing into a face between the body's vertices is missed by
+    the vertex queries. Every triangle edge near the body (BVH query over its bounding sphere) is
+    clipped to the body's face planes pushed out by max_sep (Cyrus-Beck), and along what is left
+    the largest face-plane distance f(t) = max_f (n_f . p(t) - d_f), convex and piecewise linear,
+    is minimised by golden-section search; edges whose lower bound max_f min(f_f(lo), f_f(hi))
+    is not below the best so far are skipped (an edge lying flat under a face costs no search).
+    Kept when deeper than the deepest vertex d0 by a tolerance: one contact on the deepest face,
+    or two, at the ends of the stretch of that edge within the tolerance of the deepest (a ridge
+    lying along a face is a line contact: one point anywhere on it would tip the body).
+    """
+    f0 = H.hull_face_start[hp]
+    nf = H.hull_face_count[hp]
+    tol = float_t(1e-3) * bound + float_t(1e-5)
+    best = wp.min(d0 - tol, max_sep)
+    found = bool(False)
+    best_p = vec3()
+    best_n = vec3()
+    best_s0 = vec3()
+    best_u = vec3()
+    centre = wp.quat_rotate_inv(B.q, A.x - B.x)
+    reach = bound + max_sep
+    lower = wp.vec3f(wp.float32(centre[0] - reach), wp.float32(centre[1] - reach), wp.float32(centre[2] - reach))
+    upper = wp.vec3f(wp.float32(centre[0] + reach), wp.float32(centre[1] + reach), wp.float32(centre[2] + reach))
+    query = wp.mesh_query_aabb(mesh, lower, upper)
+    tri = int(0)
+    while wp.mesh_query_aabb_next(query, tri):
+        for k in range(3):
+            pf0 = wp.mesh_get_point(mesh, tri * 3 + k)
+            pf1 = wp.mesh_get_point(mesh, tri * 3 + (k + 1) % 3)
+            # the edge in the body's frame
+            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, vec3(float_t(pf0[0]), float_t(pf0[1]),
+                                                                        float_t(pf0[2]))) - A.x)
+            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, vec3(float_t(pf1[0]), float_t(pf1[1]),
+                                                                        float_t(pf1[2]))) - A.x)
+            u = s1 - s0
+            lo = _ZERO
+            hi = _ONE
+            for f in range(f0, f0 + nf):
+                n, d = _hull_face(H, f, sc)
+                g0 = wp.dot(n, s0) - d - max_sep
+                gu = wp.dot(n, u)
+                if wp.abs(gu) > float_t(1e-30):
+                    tc = -g0 / gu
+                    if gu > _ZERO:
+                        hi = wp.min(hi, tc)
+                    else:
+                        lo = wp.max(lo, tc)
+                elif g0 > _ZERO:
+                    hi = lo - _ONE
+            if hi >= lo:
+                bound_lo = float_t(-1.0e30)
+                for f in range(f0, f0 + nf):
+                    n, d = _hull_face(H, f, sc)
+                    bound_lo = wp.max(bound_lo, wp.min(wp.dot(n, s0 + u * lo), wp.dot(n, s0 + u * hi)) - d)
+                if bound_lo < best:
+                    gr = float_t(0.6180339887498949)
+                    x1 = hi - gr * (hi - lo)
+                    x2 = lo + gr * (hi - lo)
+                    v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
+                    v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
+                    for _it in range(30):
+                        if v1 <= v2:
+                            hi = x2
+                            x2 = x1
+                            v2 = v1
+                            x1 = hi - gr * (hi - lo)
+                            v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
+                        else:
+                            lo = x1
+                            x1 = x2
+                            v1 = v2
+                            x2 = lo + gr * (hi - lo)
+                            v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
+                    pt = s0 + u * ((lo + hi) * float_t(0.5))
+                    depth, normal = _face_depth(H, f0, nf, sc, pt)
+                    if depth < best:
+                        best = depth
+                        best_p = pt
+                        best_n = normal
+                        best_s0 = s0
+                        best_u = u
+                        found = True
+    if not found:
+        return
+    # the stretch of the deepest edge within tol of the deepest point: clip it to the face planes
+    # pushed out by best + tol
+    lo = _ZERO
+    hi = _ONE
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        g0 = wp.dot(n, best_s0) - d - (best + tol)
+        gu = wp.dot(n, best_u)
+        if wp.abs(gu) > float_t(1e-30):
+            if gu > _ZERO:
+                hi = wp.min(hi, -g0 / gu)
+            else:
+                lo = wp.max(lo, -g0 / gu)
+    d_best = wp.dot(best_n, best_p) - best
+    # normal a -> b: the face's outward normal; a's surface point is the mesh point moved onto the face
+    n = wp.quat_rotate(A.q, best_n)
+    if (hi - lo) * wp.length(best_u) > float_t(1e-3) * bound:
+        for e in range(2):
+            te = lo
+            if e == 1:
+                te = hi
+            pt = best_s0 + best_u * te
+            p_b = A.x + wp.quat_rotate(A.q, pt)
+            emit(c, a, b, A, B, n, p_b - n * (wp.dot(best_n, pt) - d_best), p_b, max_sep)
+    else:
+        p_b = A.x + wp.quat_rotate(A.q, best_p)
+        emit(c, a, b, A, B, n, p_b - n * best, p_b, max_sep)
+
+
+@wp.func
 def collide_vertices_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, shape: int, H: Hulls, g: int, h: vec3,
                           bound: float_t, mesh: wp.uint64, max_sep: float_t):
-    """A box's or hull's vertices against a mesh: up to four, chosen as against a plane.
+    """A box's or hull's vertices against a mesh: up to four, chosen as against a plane; then the
+    mesh's own edges, for a ridge or a spike pressing into a face between the vertices.
 
     The deepest vertex, the one farthest from it across the normal, then the largest triangles
-    either side. Mesh features poking into a face between vertices are not seen (a box resting on
-    a sharp ridge); meshes larger than the bodies on them (ground, bowls, ramps) are the use.
+    either side; then one contact at the deepest point of the mesh edges inside the body, when
+    that is deeper than the deepest vertex (`_mesh_edges_into_solid`).
     """
     nv = int(8)
     if shape != int(ShapeType.BOX):
@@ -1211,6 +1344,13 @@ def collide_vertices_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, sh
             d0 = d
             i0 = i
             n0 = n
+    # the box as the unit-cube hull (prototype 0) scaled by its half extents
+    hp = g
+    sc = vec3(_ONE, _ONE, _ONE)
+    if shape == int(ShapeType.BOX):
+        hp = 0
+        sc = h
+    _mesh_edges_into_solid(c, a, b, A, B, H, hp, sc, bound, mesh, max_sep, d0)
     if i0 < 0 or d0 > max_sep:
         return
     p0 = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i0))
