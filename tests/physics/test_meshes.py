@@ -173,3 +173,23 @@ def test_a_plank_dropped_across_a_sharp_ridge_is_held_by_it(shape):
         worst = max(worst, inside.max())
     assert worst < 1e-3
     assert w.body_position[1, 2] > 0.2 - 0.05  # still on the ridge or its slopes, not through the tent
+
+
+def test_a_sphere_in_a_v_groove_rests_on_both_faces():
+    """A sphere dropped into a 90 degree V-groove rests touching both faces at once, at the analytic height.
+
+    Faces at 45 degrees either side of the groove line: the centre rests at z = r / sin 45 = r sqrt 2
+    above the groove, with the two contacts each carrying m g / sqrt 2 along its face normal.
+    """
+    v, t = ridge_mesh()
+    v[:, 2] = 0.2 - v[:, 2]  # the tent mirrored in z: a groove along y at z = 0, the mirror winds it upwards
+    w = tumble.World(gravity=(0, 0, -9.81))
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=0.5)
+    r = 0.05
+    w.add_sphere(position=(0.01, 0.0, 0.2), radius=r, restitution=0.0, mass=1.0)
+    w.run(1.5)
+    assert w.body_position[1, 0] == pytest.approx(0.0, abs=1e-4)
+    assert w.body_position[1, 2] == pytest.approx(r * np.sqrt(2), abs=2e-4)
+    assert np.linalg.norm(w.body_velocity[1]) < 1e-3
+    n = w.contact_normal
+    assert len(n) == 2 and n[0] @ n[1] == pytest.approx(0.0, abs=1e-6)  # both faces, at right angles

@@ -1165,9 +1165,51 @@ def _sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, centre: vec
 
 
 @wp.func
+def _mesh_vertex(mesh: wp.uint64, i: int):
+    p = wp.mesh_get_point(mesh, i)
+    return vec3(float_t(p[0]), float_t(p[1]), float_t(p[2]))
+
+
+@wp.func
 def collide_sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64,
                         max_sep: float_t):
-    _sphere_mesh(c, a, b, A, B, A.x, r, mesh, max_sep)
+    """The nearest mesh point, then every other face the sphere nearly touches inside the face.
+
+    A sphere in a crease (a V-groove, a concave corner) rests on two or three faces at once: a
+    face of the triangles near it (BVH AABB query) is a further contact when the centre is in
+    front of it, within r + max_sep of its plane, and projects strictly inside it. Contacts on
+    edges and vertices are left to the nearest point, so a sphere on a flat or convex part of a
+    mesh keeps one contact (neighbours of the touched face meet it on their edges).
+    """
+    found, q, n, d = _mesh_point(mesh, B, A.x, r + max_sep)
+    if not found:
+        return
+    emit(c, a, b, A, B, -n, A.x - n * r, q, max_sep)
+    p = wp.quat_rotate_inv(B.q, A.x - B.x)  # the centre in the mesh frame
+    reach = r + max_sep
+    lower = wp.vec3f(wp.float32(p[0] - reach), wp.float32(p[1] - reach), wp.float32(p[2] - reach))
+    upper = wp.vec3f(wp.float32(p[0] + reach), wp.float32(p[1] + reach), wp.float32(p[2] + reach))
+    nq = wp.quat_rotate_inv(B.q, n)
+    query = wp.mesh_query_aabb(mesh, lower, upper)
+    tri = int(0)
+    while wp.mesh_query_aabb_next(query, tri):
+        p0 = _mesh_vertex(mesh, tri * 3)
+        e1 = _mesh_vertex(mesh, tri * 3 + 1) - p0
+        e2 = _mesh_vertex(mesh, tri * 3 + 2) - p0
+        m = wp.cross(e1, e2)
+        area2 = wp.length(m)
+        if area2 > float_t(0.0):
+            nf = m / area2
+            dist = wp.dot(nf, p - p0)
+            # in front, within reach, not the face (or a coplanar neighbour) already taken
+            if dist > _ZERO and dist <= reach and wp.dot(nf, nq) < float_t(0.999):
+                # barycentric coordinates of the projection: inside when all exceed 1e-4
+                w = p - nf * dist - p0
+                l1 = wp.dot(wp.cross(w, e2), m) / (area2 * area2)
+                l2 = wp.dot(wp.cross(e1, w), m) / (area2 * area2)
+                if wp.min(wp.min(l1, l2), _ONE - l1 - l2) > float_t(1e-4):
+                    nw = wp.quat_rotate(B.q, nf)
+                    emit(c, a, b, A, B, -nw, A.x - nw * r, A.x - nw * dist, max_sep)
 
 
 @wp.func
