@@ -414,14 +414,9 @@ def _basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _emitted_hull(points, file):
     """The hull prototype (scale 1) of a convex emitter, from points or a mesh file's vertices."""
     from .collision.hulls import hull_from_points
-    from .io.meshfile import notice, read_mesh_file
+    from .io.meshfile import hull_points
 
     if (points is None) == (file is None):
         raise ValueError("a convex emitter needs points or file (one of them)")
-    name = "points"
-    if file is not None:
-        points, _triangles, mesh = read_mesh_file(file)
-        name = str(file)
-        if not getattr(mesh, "is_watertight", False):
-            notice(f"{file}: the mesh is not watertight; its convex hull is used")
-    return hull_from_points(np.asarray(points, dtype=np.float64), name=name)
+    p, name = hull_points(points, file)
+    return hull_from_points(p, name=name)

@@ -515,16 +515,11 @@ class World:
             Others as `add_sphere`.
         """
         from .collision.hulls import hull_from_points
-        from .io.meshfile import notice, read_mesh_file
+        from .io.meshfile import hull_points
 
         if (points is None) == (file is None):
             raise ValueError("add_convex takes points or file, not both")
-        name = "points"
-        if file is not None:
-            points, _triangles, mesh = read_mesh_file(file)
-            name = str(file)
-            if not getattr(mesh, "is_watertight", False):
-                notice(f"{file}: the mesh is not watertight; its convex hull is used")
+        points, name = hull_points(points, file)
         factor = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,))
         if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
             raise ValueError(f"scale must be one positive number or three, got {scale!r}")

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 import tumble
 from tumble import shapes
 from tumble.collision.hulls import hull_from_points
+from tumble.collision.narrowphase import SPECULATIVE_MARGIN
 
 from .test_narrowphase import quat_axis_angle, rotate
 
@@ -177,8 +178,10 @@ def test_convex_convex_depth_and_normal_match_brute_force(seed, gap, direction):
     reference = gap_reference(va, vb, candidate_directions(va, vb)).max()
     w.collide()
     depths, normals, pairs = w.contact_depth, w.contact_normal, w.contact_pair
-    if reference > 0.003:
-        return  # beyond the speculative distance: contacts may or may not be kept
+    if reference > SPECULATIVE_MARGIN:
+        # beyond the speculative distance of bodies at rest (2 mm): no contact is due (this was
+        # 3 mm, so a gap of 2.3 mm, found by hypothesis with seed 0 along z, failed on main too)
+        return
     assert len(depths) >= 1
     sign = 1.0 if pairs[0, 0] == 0 else -1.0  # normals point from the pair's first body to its second
     n = normals[0] * sign

@@ -678,6 +678,20 @@ def _hull_face(H: Hulls, f: int, sc: vec3):
 
 
 @wp.func
+def _face_depth(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3):
+    """Largest face-plane distance max_f (n_f . p - d_f) of a point from a hull (its signed distance
+    inside, a lower bound outside), and that face's outward normal; hull frame."""
+    best = float_t(-1.0e30)
+    normal = vec3(_ZERO, _ZERO, _ONE)
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        if wp.dot(n, p) - d > best:
+            best = wp.dot(n, p) - d
+            normal = n
+    return best, normal
+
+
+@wp.func
 def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
     """Signed distance of a point from a hull's surface, hull frame; as `box_closest`.
 
@@ -688,13 +702,7 @@ def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
     """
     f0 = H.hull_face_start[h]
     nf = H.hull_face_count[h]
-    dmax = float_t(-1.0e30)
-    nmax = vec3(_ZERO, _ZERO, _ONE)
-    for f in range(f0, f0 + nf):
-        n, d = _hull_face(H, f, sc)
-        if wp.dot(n, p) - d > dmax:
-            dmax = wp.dot(n, p) - d
-            nmax = n
+    dmax, nmax = _face_depth(H, f0, nf, sc, p)
     if dmax <= _ZERO:
         return p - nmax * dmax, nmax, dmax
     best = float_t(1.0e30)
@@ -801,10 +809,9 @@ def collide_sphere_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: f
 
 
 @wp.func
-def _golden_min_hull(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int):
-    """As `_golden_min_box`, for the signed distance from a hull (convex too)."""
+def _golden_min_hull(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, one: vec3):
+    """As `_golden_min_box`, for the signed distance from a hull (convex too), scaled by `one`."""
     g = float_t(0.6180339887498949)
-    one = vec3(_ONE, _ONE, _ONE)
     x1 = hi - g * (hi - lo)
     x2 = lo + g * (hi - lo)
     _q1, _o1, f1 = hull_closest(H, h, one, p0 + u * x1)
@@ -833,7 +840,7 @@ def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra:
     one = vec3(_ONE, _ONE, _ONE)
     p0 = wp.quat_rotate_inv(B.q, A.x - B.x)
     u = wp.quat_rotate_inv(B.q, _axis(A.q, 2))
-    t = _golden_min_hull(p0, u, -hh, hh, H, h)
+    t = _golden_min_hull(p0, u, -hh, hh, H, h, one)
     q, out, _d = hull_closest(H, h, one, p0 + u * t)
     # a segment nearly parallel to the face nearest the normal is clipped to that face's prism
     # (side planes through its edges): the two ends are the manifold, as for boxes
@@ -1233,30 +1240,19 @@ def _solid_vertex(shape: int, H: Hulls, g: int, h: vec3, i: int):
 
 
 @wp.func
-def _face_depth(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3):
-    """Largest face-plane distance max_f (n_f . p - d_f) of a point from a hull (its signed distance
-    inside, a lower bound outside), and that face's outward normal; hull frame."""
-    best = float_t(-1.0e30)
-    normal = vec3(_ZERO, _ZERO, _ONE)
-    for f in range(f0, f0 + nf):
-        n, d = _hull_face(H, f, sc)
-        if wp.dot(n, p) - d > best:
-            best = wp.dot(n, p) - d
-            normal = n
-    return best, normal
-
-
-@wp.func
 def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, hp: int, sc: vec3,
                            bound: float_t, mesh: wp.uint64, max_sep: float_t, d0: float_t):
     """The deepest point of the mesh's triangle edges inside a box or hull, when deeper than its vertices.
 
     A ridge or a spike of the mesh pressing into a face between the body's vertices is missed by
     the vertex queries. Every triangle edge near the body (BVH query over its bounding sphere) is
-    clipped to the body's face planes pushed out by max_sep (Cyrus-Beck), and along what is left
-    the largest face-plane distance f(t) = max_f (n_f . p(t) - d_f), convex and piecewise linear,
-    is minimised by golden-section search; edges whose lower bound max_f min(f_f(lo), f_f(hi))
-    is not below the best so far are skipped (an edge lying flat under a face costs no search).
+    clipped to the body's face planes pushed out by max_sep (Cyrus-Beck); along what is left, the
+    largest face-plane distance f(t) = max_f f_f(p(t)), f_f = n_f . p - d_f (the signed distance
+    inside, a lower bound outside, whose face gives the normal: the true distance's direction
+    off an edge or a corner would tip a body lying across a ridge), convex and piecewise linear,
+    is minimised by golden-section search. An edge is skipped unless max_f min(f_f(lo), f_f(hi)),
+    a lower bound of f on the stretch, is below the best so far (an edge lying flat under a face
+    costs no search).
     Kept when deeper than the deepest vertex d0 by a tolerance: one contact on the deepest face,
     or two, at the ends of the stretch of that edge within the tolerance of the deepest (a ridge
     lying along a face is a line contact: one point anywhere on it would tip the body).
@@ -1278,13 +1274,9 @@ def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H
     tri = int(0)
     while wp.mesh_query_aabb_next(query, tri):
         for k in range(3):
-            pf0 = wp.mesh_get_point(mesh, tri * 3 + k)
-            pf1 = wp.mesh_get_point(mesh, tri * 3 + (k + 1) % 3)
             # the edge in the body's frame
-            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, vec3(float_t(pf0[0]), float_t(pf0[1]),
-                                                                        float_t(pf0[2]))) - A.x)
-            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, vec3(float_t(pf1[0]), float_t(pf1[1]),
-                                                                        float_t(pf1[2]))) - A.x)
+            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + k)) - A.x)
+            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + (k + 1) % 3)) - A.x)
             u = s1 - s0
             lo = _ZERO
             hi = _ONE
@@ -1306,6 +1298,7 @@ def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H
                     n, d = _hull_face(H, f, sc)
                     bound_lo = wp.max(bound_lo, wp.min(wp.dot(n, s0 + u * lo), wp.dot(n, s0 + u * hi)) - d)
                 if bound_lo < best:
+                    # golden-section search of f(t) (convex, piecewise linear)
                     gr = float_t(0.6180339887498949)
                     x1 = hi - gr * (hi - lo)
                     x2 = lo + gr * (hi - lo)

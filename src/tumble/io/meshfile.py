@@ -126,3 +126,18 @@ def load_mesh(*, file=None, vertices=None, triangles=None, name: str | None = No
         name = name or "mesh"
     v, t = clean_triangles(v, t, name=name)
     return v, t, watertight
+
+
+def hull_points(points, file) -> tuple[np.ndarray, str]:
+    """The points whose convex hull a convex body is, and the name errors give them.
+
+    From `points` as given, or the vertices of the mesh `file` (with a one-line notice when the
+    mesh is not watertight: its hull is used all the same). Exactly one of them must be given;
+    the caller says so in its own words first.
+    """
+    if file is None:
+        return np.asarray(points, dtype=np.float64), "points"
+    vertices, _triangles, mesh = read_mesh_file(file)
+    if not getattr(mesh, "is_watertight", False):
+        notice(f"{file}: the mesh is not watertight; its convex hull is used")
+    return np.asarray(vertices, dtype=np.float64), str(file)
