@@ -28,7 +28,7 @@ if __name__ == "__main__":
     if (HERE.parent / "src" / "tumble").is_dir():
         sys.path.insert(0, str(HERE.parent / "src"))
 
-from benchmarks.scenes import SPHERE_MASS, SPHERE_RADIUS, pile_positions  # noqa: E402
+from benchmarks.scenes import SPHERE_MASS, SPHERE_RADIUS, pile_positions
 
 DT = 1.0 / 240.0
 DURATION = 1.0  # [s] simulated per world
@@ -85,7 +85,7 @@ def run(duration: float = DURATION, device: str = "cpu", log=print) -> dict:
            "steps": steps, "plane_ms_per_step": ms["plane"], "mesh_ms_per_step": ms["mesh"],
            "ratio": ms["mesh"] / ms["plane"], "target_ratio": TARGET_RATIO,
            "lowest_sphere_plane_m": z_low["plane"], "lowest_sphere_mesh_m": z_low["mesh"],
-           "load": "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else ""}
+           "load": f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""}
     log(f"  plane {ms['plane']:8.2f} ms/step   mesh {ms['mesh']:8.2f} ms/step   ratio {row['ratio']:.2f} "
         f"(target <= {TARGET_RATIO:g})   load {row['load']}")
     for g, w in worlds.items():

@@ -26,8 +26,16 @@ import numpy as np
 
 from . import validate
 from .limits import MAX_RELEASE_PER_STEP
-from .shapes import (ShapeType, box_inertia, box_volume, capsule_inertia, capsule_volume, shape_from_name,
-                     sphere_inertia, sphere_volume)
+from .shapes import (
+    ShapeType,
+    box_inertia,
+    box_volume,
+    capsule_inertia,
+    capsule_volume,
+    shape_from_name,
+    sphere_inertia,
+    sphere_volume,
+)
 
 #: jittered tries per candidate before it waits for the next step
 TRIES = 8

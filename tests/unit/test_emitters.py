@@ -185,7 +185,7 @@ def test_convex_bodies_are_scaled_copies_of_the_hull():
     """Each emitted hull is the prototype scaled by a factor within range: volume s^3, moments s^5."""
     from tumble.collision.hulls import hull_from_points
 
-    w, em = _shape_emitter(shape="convex", points=PEBBLE, scale=(0.02, 0.05), density=2500)
+    w, _ = _shape_emitter(shape="convex", points=PEBBLE, scale=(0.02, 0.05), density=2500)
     base = hull_from_points(PEBBLE)
     assert np.all(w.body_shape == ShapeType.CONVEX)
     rows = w.body_geometry
