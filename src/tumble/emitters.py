@@ -3,8 +3,11 @@
 Any dynamic shape: spheres, boxes, capsules and convex hulls (of points, or of a mesh file's
 vertices, hulled once when the emitter is made), each body with its own random size (`radius`,
 `half_extents`, `half_height` ranges, and a `scale` range applied to every shape) and, with
-`random_orientation`, a uniformly random orientation. A convex body of a new scale gets its own
-scaled copy of the hull (exact: volume s^3, moments s^5), a fixed scale shares one.
+`random_orientation`, a uniformly random orientation. Convex bodies share `HULL_SCALES` scaled
+copies of the hull (exact: volume s^3, moments s^5), made when the emitter is added to a world:
+a convex body's drawn scale is rounded to the nearest of them (a fixed scale makes one). So the
+world's hull prototypes do not grow while it runs (snapshots restore, the renderer instances
+per prototype, the narrow phase's hull arrays stay put).
 
 An emitter holds a rate [bodies/s] and a count; each step it owes `rate * dt` more bodies.
 Candidates are drawn from the region (a point, a box or a disc) and redrawn a few times (from a
@@ -41,6 +44,8 @@ from .shapes import (
 TRIES = 8
 #: extra clearance between a new body and its neighbours [m]
 CLEARANCE = 1e-3
+#: scaled copies of a convex emitter's hull, evenly spaced over its scale range
+HULL_SCALES = 16
 
 
 def _range(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +176,7 @@ class Emitter:
             self.hull = _emitted_hull(points, file)
         elif points is not None or file is not None:
             raise ValueError("points and file are for shape 'convex', which this emitter does not emit")
-        self._hull_index: tuple[int, int] | None = None  # (world key, row) of the shared hull at a fixed scale
+        self.hull_rows: np.ndarray | None = None  # rows in world.hulls of the scaled hulls (`add_hulls`)
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
         self.mass = None if mass is None else _range(mass, "mass")
@@ -264,6 +269,7 @@ class Emitter:
         axis /= np.linalg.norm(axis, axis=1, keepdims=True)
         angular_velocity = axis * self._uniform(*self.angular_speed, k)[:, None]
         scale = self._varying(self.scale, k)
+        hull_level = self._hull_level(scale)
         half_height = self._varying(self.half_height, k) if ShapeType.CAPSULE in self.shapes else np.zeros(k)
 
         # sizes, volumes, bounding radii and unit-density moments, per shape
@@ -281,6 +287,8 @@ class Emitter:
         bound = np.select([is_sphere, is_box, is_capsule], [radius, np.linalg.norm(half, axis=1), a + radius], 0.0)
         if self.hull is not None:
             hull = self.hull
+            s = self.hull_scales[hull_level]  # the scale of the shared copy
+            scale = np.where(is_hull, s, scale)
             volume = np.where(is_hull, hull.volume * scale**3, volume)
             bound = np.where(is_hull, hull.bound_radius * scale, bound)
             half = np.where(is_hull[:, None], np.abs(hull.vertex).max(axis=0) * scale[:, None], half)
@@ -299,7 +307,7 @@ class Emitter:
             moments = self.hull.inertia[None] * (scale**2 * mass / self.hull.volume)[:, None]
             inertia = np.where(is_hull[:, None], moments, inertia)
         return dict(shape=shape, radius=radius, half_extents=half, mass=mass, inertia=inertia, velocity=velocity,
-                    orientation=orientation, angular_velocity=angular_velocity, bound=bound, scale=scale)
+                    orientation=orientation, angular_velocity=angular_velocity, bound=bound, hull_level=hull_level)
 
     def _varying(self, bounds: tuple[np.ndarray, np.ndarray], k: int) -> np.ndarray:
         """k draws from [lo, hi]; no draw (the generator untouched) when lo == hi."""
@@ -308,13 +316,25 @@ class Emitter:
             return np.full(k, float(lo))
         return self._uniform(lo, hi, k)
 
-    def _hull_rows(self, world, scale: np.ndarray) -> np.ndarray:
-        """Rows in `world.hulls` for convex bodies of these scales: one shared at a fixed scale."""
-        if float(self.scale[0]) == float(self.scale[1]):
-            if self._hull_index is None or self._hull_index[0] != world._key:
-                self._hull_index = (world._key, world.hulls.add(self.hull.scaled(float(self.scale[0]))))
-            return np.full(len(scale), self._hull_index[1], dtype=np.int32)
-        return np.array([world.hulls.add(self.hull.scaled(float(s))) for s in scale], dtype=np.int32)
+    @property
+    def hull_scales(self) -> np.ndarray:
+        """The scales of the shared hull copies: `HULL_SCALES` evenly over [min, max], one for a fixed scale."""
+        lo, hi = float(self.scale[0]), float(self.scale[1])
+        return np.array([lo]) if lo == hi else np.linspace(lo, hi, HULL_SCALES)
+
+    def _hull_level(self, scale: np.ndarray) -> np.ndarray:
+        """Index of the shared hull copy nearest each drawn scale."""
+        levels = self.hull_scales
+        if len(levels) == 1:
+            return np.zeros(len(scale), dtype=np.int64)
+        t = (scale - levels[0]) / (levels[-1] - levels[0]) * (len(levels) - 1)
+        return np.clip(np.rint(t), 0, len(levels) - 1).astype(np.int64)
+
+    def add_hulls(self, world) -> None:
+        """Store the scaled hull copies in `world.hulls` (`World.add_emitter` does, before any step)."""
+        if self.hull is not None:
+            self.hull_rows = np.array([world.hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales],
+                                      dtype=np.int32)
 
     # ------------------------------------------------------------------ emission
 
@@ -398,7 +418,7 @@ class Emitter:
         convex = cand["shape"][idx] == ShapeType.CONVEX
         if convex.any():
             slots = np.array([world._slot(rows[j]) for j in np.nonzero(convex)[0]])
-            world.bodies.write("body_geometry", slots, self._hull_rows(world, cand["scale"][idx][convex]))
+            world.bodies.write("body_geometry", slots, self.hull_rows[cand["hull_level"][idx][convex]])
         self.emitted += len(rows)
         self._owed -= len(rows)
         return len(rows)

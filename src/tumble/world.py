@@ -627,6 +627,7 @@ class World:
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
+        emitter.add_hulls(self)
         emitter.world_key = self._key
         self.emitters.append(emitter)
         return emitter

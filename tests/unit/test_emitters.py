@@ -182,14 +182,16 @@ def test_capsules_are_emitted_with_sizes_in_range():
 
 
 def test_convex_bodies_are_scaled_copies_of_the_hull():
-    """Each emitted hull is the prototype scaled by a factor within range: volume s^3, moments s^5."""
+    """Each emitted hull is one of 16 copies of the prototype scaled within range: volume s^3, moments s^5."""
     from tumble.collision.hulls import hull_from_points
+    from tumble.emitters import HULL_SCALES
 
-    w, _ = _shape_emitter(shape="convex", points=PEBBLE, scale=(0.02, 0.05), density=2500)
+    w, em = _shape_emitter(shape="convex", points=PEBBLE, scale=(0.02, 0.05), density=2500)
     base = hull_from_points(PEBBLE)
     assert np.all(w.body_shape == ShapeType.CONVEX)
     rows = w.body_geometry
-    assert len(set(rows.tolist())) == 30  # one scaled copy per body
+    assert len(em.hull_rows) == HULL_SCALES == len(w.hulls.prototypes) - 1  # made when added, not while emitting
+    assert set(rows.tolist()) <= set(em.hull_rows.tolist()) and len(set(rows.tolist())) > 5
     for i, g in enumerate(rows):
         proto = w.hulls.prototypes[g]
         s = proto.bound_radius / base.bound_radius
@@ -236,6 +238,21 @@ def test_mixed_shapes_do_not_overlap_at_birth():
     assert {1, 2, 3, 4} <= set(w.body_shape.tolist())
     w.collide()
     assert np.all(w.contact_depth <= 1e-9)
+
+
+def test_a_run_with_emitted_hulls_restores_from_a_snapshot_bit_for_bit():
+    """Snapshot while a convex emitter runs, run on, restore, run again: the same state hash."""
+    w = tumble.World(seed=1)
+    w.add_plane()
+    w.add_emitter(shape="convex", points=PEBBLE * 0.03, scale=(0.8, 1.2), rate=200, count=20, position=(0, 0, 0.5),
+                  region="box", extent=(0.3, 0.3, 0.1), random_orientation=True)
+    w.run(0.05)
+    snap = w.snapshot()
+    w.run(0.1)
+    first = w.state_hash()
+    w.restore(snap)
+    w.run(0.1)
+    assert w.state_hash() == first
 
 
 def test_shape_emitters_repeat_with_the_seed_and_differ_without():
