@@ -97,7 +97,8 @@ class Emitter:
         points: the points whose convex hull a "convex" body is, shape (n, 3) [m], in its frame;
             or `file`, a mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose vertices are hulled.
         scale: a factor applied to each body's size (radius, half extents, half height, hull),
-            a value or [min, max] drawn per body (default 1).
+            a value or [min, max] drawn per body (default 1); a convex body's is rounded to the
+            nearest of `HULL_SCALES` shared hull copies spread over the range.
         mass: body mass [kg], a value or [min, max]; or `density` [kg/m^3] (default 1000).
         restitution, friction: material of the bodies.
         random_orientation: give each body a uniformly random orientation.
