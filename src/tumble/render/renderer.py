@@ -1,23 +1,29 @@
-"""The moderngl renderer: sky, checkered ground planes, impostor spheres, instanced boxes, cloth.
+"""The moderngl renderer: sky, checkered ground planes, impostor spheres, instanced boxes,
+capsules, convex hulls and static meshes, cloth, and (on demand) the joints.
 
 Per frame it reads the world's array views once, packs one float32 instance array per shape
-kind (spheres, boxes) and the cloth's vertices, and uploads each with a single buffer write;
-no Python loop runs over bodies. Passes, in order:
+kind (spheres, boxes, capsules; hulls and meshes: one per prototype, `tumble.render.solids`) and
+the cloth's vertices, and uploads each with a single buffer write; no Python loop runs over
+bodies (hulls loop over their distinct prototypes). Passes, in order:
 
-1. sun shadow map (optional): spheres, boxes and cloth rendered depth-only from the sun;
+1. sun shadow map (optional): every shape and the cloth rendered depth-only from the sun;
 2. sky: one screen-covering triangle, gradient from the view direction;
 3. planes: one screen-covering ray-cast pass per plane (exact to the horizon, checkered,
    fading into the sky with distance, drawn only from the front side);
 4. spheres: one quad per sphere, ray-cast against the sphere, true depth written;
 5. boxes: one instanced 36-vertex cube per box, darkened edges;
-6. cloth: one indexed, two-sided triangle mesh with per-vertex normals;
-7. glass: walls seen from behind (a container's near walls), blended, no depth written.
+6. capsules: one instanced draw of the shared capsule mesh; hulls and static meshes: one
+   instanced draw per prototype (a vertex buffer each, made once and cached);
+7. cloth: one indexed, two-sided triangle mesh with per-vertex normals;
+8. joints (`show_joints`): rods from each body's centre to its anchor and dots on the anchors,
+   opaque where in view and faint where hidden inside or behind bodies;
+9. glass: walls seen from behind (a container's near walls), blended, no depth written.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,7 +31,9 @@ from ..errors import TumbleError
 from ..shapes import ShapeType
 from . import shaders
 from .camera import Camera, scene_bounds, scene_box
+from . import solids
 from .colors import CLOTH_COLOR, body_colors
+from .solids import CAPSULE_FLOATS, SOLID_FLOATS
 from .supports import cloth_supports
 
 #: OpenGL enum of alpha-to-coverage (moderngl has no named flag for it)
@@ -75,6 +83,11 @@ class SceneArrays:
         planes: unit normal and offset of each plane, shape (n_planes, 4), float64.
         cloth_position: cloth particle positions [m], shape (P, 3), or None.
         cloth_triangles: cloth triangles, shape (T, 3), int, or None.
+        capsules: instance data, shape (n_capsules, 12), float32: centre, quaternion, radius,
+            half height, colour.
+        capsule_body: body index of each capsule, shape (n_capsules,).
+        solids: one `SolidBatch` per hull prototype and per static mesh drawn.
+        joints: (centre a, anchor a, anchor b, centre b) of each unbroken joint [m], shape (J, 4, 3).
     """
 
     spheres: np.ndarray
@@ -84,6 +97,29 @@ class SceneArrays:
     planes: np.ndarray
     cloth_position: np.ndarray | None = None
     cloth_triangles: np.ndarray | None = None
+    capsules: np.ndarray = field(default_factory=lambda: np.zeros((0, CAPSULE_FLOATS), np.float32))
+    capsule_body: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    solids: list = field(default_factory=list)
+    joints: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 3)))
+
+
+@dataclass
+class SolidBatch:
+    """The bodies drawn with one hull prototype or one static mesh.
+
+    Attributes:
+        key: what identifies the geometry for the renderer's vertex-buffer cache.
+        source: the object the geometry comes from (kept alive while cached, so `key` stays unique).
+        build: returns the triangles, (V, 6) float32 rows (position, normal) in the body frame.
+        instances: shape (k, 10), float32: centre, quaternion, colour.
+        body: body index of each instance, shape (k,).
+    """
+
+    key: tuple
+    source: object
+    build: object
+    instances: np.ndarray
+    body: np.ndarray
 
 
 class _ColorCache:
@@ -144,7 +180,53 @@ def scene_arrays(world) -> SceneArrays:
         if len(supports):
             boxes = np.concatenate([boxes, supports])
             box_body = np.concatenate([box_body, np.full(len(supports), -1, dtype=box_body.dtype)])
-    return SceneArrays(spheres, sphere_body, boxes, box_body, planes, cloth_position, cloth_triangles)
+
+    capsule_body = np.flatnonzero((shape == ShapeType.CAPSULE) & finite)
+    capsules = np.empty((len(capsule_body), CAPSULE_FLOATS), dtype=np.float32)
+    capsules[:, 0:3] = pos[capsule_body]
+    capsules[:, 3:7] = quat[capsule_body]
+    capsules[:, 7] = np.asarray(world.body_radius)[capsule_body]
+    # the body-frame half extents are (r, r, a + r): the segment's half length is h_z - r
+    capsules[:, 8] = np.asarray(world.body_half_extents)[capsule_body, 2] - capsules[:, 7]
+    capsules[:, 9:12] = colors[capsule_body]
+    batches = _solid_batches(world, shape, pos, quat, colors, finite)
+    return SceneArrays(spheres, sphere_body, boxes, box_body, planes, cloth_position, cloth_triangles,
+                       capsules, capsule_body, batches, solids.joint_segments(world))
+
+
+def _solid_batches(world, shape, pos, quat, colors, finite) -> list[SolidBatch]:
+    """One batch per hull prototype in use (its bodies as instances) and one per static mesh."""
+    out: list[SolidBatch] = []
+    picked = np.flatnonzero(((shape == ShapeType.CONVEX) | (shape == ShapeType.MESH)) & finite)
+    if not len(picked):
+        return out
+    geometry = np.asarray(world.body_geometry)[picked]
+    hulls, meshes = getattr(world, "hulls", None), getattr(world, "meshes", None)
+    is_hull = shape[picked] == ShapeType.CONVEX
+    for index in np.unique(geometry[is_hull]):
+        if hulls is None or not 0 <= index < len(hulls.prototypes):
+            continue
+        proto = hulls.prototypes[int(index)]
+        body = picked[is_hull & (geometry == index)]
+        out.append(SolidBatch(("hull", id(proto)), proto, lambda p=proto: solids.hull_vertices(p),
+                              _solid_instances(pos, quat, colors[body], body), body))
+    for body in picked[~is_hull]:
+        index = int(np.asarray(world.body_geometry)[body])
+        if meshes is None or not 0 <= index < len(meshes.vertices):
+            continue
+        v, t = meshes.vertices[index], meshes.triangles[index]
+        color = np.asarray(solids.MESH_COLOR, dtype=np.float32)[None]
+        out.append(SolidBatch(("mesh", id(v)), v, lambda v=v, t=t: solids.mesh_vertices(v, t),
+                              _solid_instances(pos, quat, color, np.array([body])), np.array([body])))
+    return out
+
+
+def _solid_instances(pos, quat, color, body) -> np.ndarray:
+    out = np.empty((len(body), SOLID_FLOATS), dtype=np.float32)
+    out[:, 0:3] = pos[body]
+    out[:, 3:7] = quat[body]
+    out[:, 7:10] = color
+    return out
 
 
 def _container_width(planes: np.ndarray) -> float | None:
@@ -226,7 +308,9 @@ class Renderer:
         shadow_size: shadow map size in texels.
 
     Attributes you may change between frames: `ground_cell_size` [m] (checker square size),
-    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB), `dither`.
+    `light_direction` (unit vector towards the sun), `shadows`, `cloth_color` (sRGB), `dither`,
+    `show_joints` (draw the joints: rods and anchor dots, about 1.5 and 3.5 pixels wide at the
+    camera's target).
     """
 
     def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
@@ -244,6 +328,7 @@ class Renderer:
         # +-1/255 of noise on every output colour, so gradients show no 8-bit bands; GIF export
         # turns it off (its 256-colour palette quantises anyway, and noise costs it 3-4x the size)
         self.dither = True
+        self.show_joints = False
         self._fbo = self._resolve = None
         self._fbo_size = None
         # box that walls are cut to: the union of the scene's bounds over the frames drawn of
@@ -265,7 +350,12 @@ class Renderer:
                                    fragment_shader=shaders.SHADOW_SPHERE_FRAGMENT)
         self._shadow_box = prog(vertex_shader=shaders.SHADOW_BOX_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
         self._shadow_mesh = prog(vertex_shader=shaders.SHADOW_MESH_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
-        self._lit = (self._sky, self._plane, self._sphere, self._box, self._cloth)
+        self._solid = prog(vertex_shader=shaders.SOLID_VERTEX, fragment_shader=shaders.SOLID_FRAGMENT)
+        self._capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX, fragment_shader=shaders.SOLID_FRAGMENT)
+        self._shadow_solid = prog(vertex_shader=shaders.SHADOW_SOLID_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
+        self._shadow_capsule = prog(vertex_shader=shaders.SHADOW_CAPSULE_VERTEX,
+                                    fragment_shader=shaders.EMPTY_FRAGMENT)
+        self._lit = (self._sky, self._plane, self._sphere, self._box, self._cloth, self._solid, self._capsule)
 
         # static geometry
         corners = np.array([[-1, -1], [1, -1], [-1, 1], [1, 1]], dtype=np.float32)
@@ -277,6 +367,13 @@ class Renderer:
         self._cloth_vbo = ctx.buffer(reserve=1024 * 24, dynamic=True)
         self._cloth_ibo = ctx.buffer(reserve=1024 * 12, dynamic=True)
         self._cloth_tris = None
+        capsule = solids.capsule_vertices()
+        self._capsule_vertex_count = len(capsule)
+        self._capsule_vbo = ctx.buffer(capsule.tobytes())
+        self._capsule_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
+        self._joint_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
+        # hull and mesh vertex buffers by SolidBatch.key: (source, vbo, instance buffer, vao, shadow vao, count)
+        self._solid_cache: dict[tuple, tuple] = {}
 
         va = ctx.vertex_array
         self._sky_vao = va(self._sky, [])
@@ -301,6 +398,15 @@ class Renderer:
         ])
         self._shadow_cloth_vao = va(self._shadow_mesh, [(self._cloth_vbo, "3f 12x", "in_position")],
                                     index_buffer=self._cloth_ibo, index_element_size=4)
+        capsule_layout = ("3f 4f 1f 1f 3f/i", "in_center", "in_quat", "in_radius", "in_half", "in_color")
+        self._capsule_vao = va(self._capsule, [(self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+                                               (self._capsule_buf, *capsule_layout)])
+        self._joint_vao = va(self._capsule, [(self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+                                             (self._joint_buf, *capsule_layout)])
+        self._shadow_capsule_vao = va(self._shadow_capsule, [
+            (self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+            (self._capsule_buf, "3f 4f 1f 1f 12x/i", "in_center", "in_quat", "in_radius", "in_half"),
+        ])
 
         # sun shadow map: a depth texture read as plain values (no hardware comparison)
         self._shadow_tex = ctx.depth_texture((shadow_size, shadow_size))
@@ -358,6 +464,10 @@ class Renderer:
         # upload: one write per buffer, grown by orphaning when too small
         self._upload(self._sphere_buf, arrays.spheres)
         self._upload(self._box_buf, arrays.boxes)
+        self._upload(self._capsule_buf, arrays.capsules)
+        batches = [(self._solid_entry(batch), len(batch.instances)) for batch in arrays.solids]
+        for (entry, _), batch in zip(batches, arrays.solids):
+            self._upload(entry[2], batch.instances)
         n_cloth_idx = self._upload_cloth(arrays)
 
         view = camera.view_matrix()
@@ -369,10 +479,11 @@ class Renderer:
         light = light / np.linalg.norm(light)
 
         # shadow map: depth of the scene seen from the sun, orthographic around its bounds
-        shadow_on = self.shadows and (len(arrays.spheres) or len(arrays.boxes) or n_cloth_idx)
+        shadow_on = self.shadows and (len(arrays.spheres) or len(arrays.boxes) or len(arrays.capsules) or batches
+                                      or n_cloth_idx)
         light_vp = np.eye(4)
         if shadow_on:
-            light_vp = self._draw_shadow_map(world, arrays, light, n_cloth_idx)
+            light_vp = self._draw_shadow_map(world, arrays, light, n_cloth_idx, batches)
 
         fbo.use()
         fbo.viewport = tuple(int(v) for v in viewport)
@@ -449,12 +560,24 @@ class Renderer:
             self._box_vao.render(mgl.TRIANGLES, vertices=36, instances=len(arrays.boxes))
             ctx.disable(mgl.CULL_FACE)
 
+        # capsules, hulls and static meshes (not culled: open meshes are seen from both sides)
+        for prog in (self._solid, self._capsule):
+            self._set_mat(prog, "u_vp", vp)
+            self._set(prog, "u_alpha", 1.0)
+        if len(arrays.capsules):
+            self._capsule_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(arrays.capsules))
+        for (_, _, _, vao, _, count), instances in batches:
+            vao.render(mgl.TRIANGLES, vertices=count, instances=instances)
+
         if n_cloth_idx:
             c = self._cloth
             self._set_mat(c, "u_vp", vp)
             self._set(c, "u_front", self.cloth_color)
             self._set(c, "u_back", np.clip(np.asarray(self.cloth_color) * 0.6 + 0.4, 0, 1))
             self._cloth_vao.render(mgl.TRIANGLES, vertices=n_cloth_idx)
+
+        if self.show_joints and len(arrays.joints):
+            self._draw_joints(fbo, arrays.joints, camera, vh)
 
         # glass: walls seen from behind (a container's near walls), blended over everything
         near_walls = [k for k, plane in enumerate(arrays.planes)
@@ -479,6 +602,9 @@ class Renderer:
     def release(self) -> None:
         """Free the GL objects this renderer made (not the context); the renderer is unusable after."""
         objects = [v for k, v in vars(self).items() if k not in ("ctx", "_mgl") and hasattr(v, "release")]
+        for entry in self._solid_cache.values():
+            objects += list(entry[1:5])
+        self._solid_cache = {}
         for fbo in (self._fbo, self._resolve):
             if fbo is not None:
                 objects += [*fbo.color_attachments, fbo.depth_attachment]
@@ -598,7 +724,55 @@ class Renderer:
                 hi[2] = max(lo[2] + 0.05, min(hi[2], float(floors[:, 3].max()) + 1.25 * width))
         return lo, hi
 
-    def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int) -> np.ndarray:
+    def _solid_entry(self, batch: SolidBatch) -> tuple:
+        """The cached (source, vbo, instance buffer, vao, shadow vao, vertex count) of a batch's geometry."""
+        entry = self._solid_cache.get(batch.key)
+        if entry is not None and entry[0] is batch.source:
+            return entry
+        if len(self._solid_cache) >= 512:  # a world of many distinct hulls, or many worlds: start over
+            for old in self._solid_cache.values():
+                for obj in old[1:5]:
+                    obj.release()
+            self._solid_cache = {}
+        ctx = self.ctx
+        vertices = batch.build()
+        vbo = ctx.buffer(vertices.tobytes())
+        inst = ctx.buffer(reserve=max(1, len(batch.instances)) * SOLID_FLOATS * 4, dynamic=True)
+        vao = ctx.vertex_array(self._solid, [(vbo, "3f 3f", "in_position", "in_normal"),
+                                             (inst, "3f 4f 3f/i", "in_center", "in_quat", "in_color")])
+        shadow = ctx.vertex_array(self._shadow_solid, [(vbo, "3f 12x", "in_position"),
+                                                       (inst, "3f 4f 12x/i", "in_center", "in_quat")])
+        entry = (batch.source, vbo, inst, vao, shadow, len(vertices))
+        self._solid_cache[batch.key] = entry
+        return entry
+
+    def _draw_joints(self, fbo, lines: np.ndarray, camera: Camera, height: int) -> None:
+        """The joint overlay: opaque where in view, then faint (blended, depth kept) where hidden."""
+        ctx, mgl = self.ctx, self._mgl
+        # a pixel's size at the camera's target [m]: rods ~1.5 px wide, dots ~3.5 px
+        pixel = 2.0 * camera.distance * math.tan(math.radians(camera.fov_deg) / 2.0) / max(height, 1)
+        instances = solids.joint_capsules(lines, 0.75 * pixel, 1.75 * pixel)
+        self._upload(self._joint_buf, instances)
+        c = self._capsule
+        self._set(c, "u_alpha", 1.0)
+        self._joint_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(instances))
+        ctx.enable(mgl.BLEND)
+        ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
+        ctx.depth_func = ">"
+        fbo.depth_mask = False
+        fbo.color_mask = (True, True, True, False)
+        fbo.use()
+        self._set(c, "u_alpha", 0.35)
+        self._joint_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(instances))
+        self._set(c, "u_alpha", 1.0)
+        fbo.depth_mask = True
+        fbo.color_mask = (True, True, True, True)
+        fbo.use()
+        ctx.depth_func = "<"
+        ctx.disable(mgl.BLEND)
+
+    def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int,
+                         batches=()) -> np.ndarray:
         """Render depth from the sun into the shadow map; return the world -> sun clip matrix."""
         ctx, mgl = self.ctx, self._mgl
         centre, radius = scene_bounds(world)
@@ -629,6 +803,13 @@ class Renderer:
         if len(arrays.boxes):
             self._set_mat(self._shadow_box, "u_light_vp", light_vp)
             self._shadow_box_vao.render(mgl.TRIANGLES, vertices=36, instances=len(arrays.boxes))
+        for prog in (self._shadow_solid, self._shadow_capsule):
+            self._set_mat(prog, "u_light_vp", light_vp)
+        if len(arrays.capsules):
+            self._shadow_capsule_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count,
+                                            instances=len(arrays.capsules))
+        for (_, _, _, _, shadow, count), instances in batches:
+            shadow.render(mgl.TRIANGLES, vertices=count, instances=instances)
         if n_cloth_idx:
             self._set_mat(self._shadow_mesh, "u_light_vp", light_vp)
             self._shadow_cloth_vao.render(mgl.TRIANGLES, vertices=n_cloth_idx)

@@ -407,6 +407,123 @@ void main() {
 """
 )
 
+# capsules, convex hulls, static meshes and the joint overlay: triangles in a body's frame, placed
+# per instance. A capsule's vertex is a point n of the unit sphere and the side (+1 / -1) of the
+# segment it belongs to: p = r n + side a z, normal n, so one vertex buffer serves every capsule
+SOLID_ROTATE = """
+vec3 rotate(vec4 q, vec3 v) {  // rotate by unit quaternion q = (x, y, z, w)
+    vec3 t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
+}
+"""
+
+SOLID_VERTEX = (
+    """
+#version 330
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_center;
+in vec4 in_quat;
+in vec3 in_color;
+uniform mat4 u_vp;
+out vec3 v_world;
+out vec3 v_normal;
+flat out vec3 v_color;
+"""
+    + SOLID_ROTATE
+    + """
+void main() {
+    v_world = in_center + rotate(in_quat, in_position);
+    v_normal = rotate(in_quat, in_normal);
+    v_color = in_color;
+    gl_Position = u_vp * vec4(v_world, 1.0);
+}
+"""
+)
+
+CAPSULE_VERTEX = (
+    """
+#version 330
+in vec3 in_position;   // unit sphere point (also the normal)
+in float in_side;      // +1: the upper half, -1: the lower half
+in vec3 in_center;
+in vec4 in_quat;
+in float in_radius;
+in float in_half;
+in vec3 in_color;
+uniform mat4 u_vp;
+out vec3 v_world;
+out vec3 v_normal;
+flat out vec3 v_color;
+"""
+    + SOLID_ROTATE
+    + """
+void main() {
+    vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
+    v_world = in_center + rotate(in_quat, local);
+    v_normal = rotate(in_quat, in_position);
+    v_color = in_color;
+    gl_Position = u_vp * vec4(v_world, 1.0);
+}
+"""
+)
+
+SOLID_FRAGMENT = (
+    """
+#version 330
+in vec3 v_world;
+in vec3 v_normal;
+flat in vec3 v_color;
+uniform float u_alpha;   // 1: opaque; the joint overlay's hidden parts are drawn faint
+out vec4 f_color;
+"""
+    + COMMON
+    + """
+void main() {
+    // two-sided: an open mesh (terrain) seen from below is lit as its underside
+    vec3 n = normalize(v_normal);
+    if (!gl_FrontFacing) n = -n;
+    f_color = vec4(dither(to_srgb(tonemap(shade(v_color, v_world, n, 32.0, 0.15)))), u_alpha);
+}
+"""
+)
+
+SHADOW_SOLID_VERTEX = (
+    """
+#version 330
+in vec3 in_position;
+in vec3 in_center;
+in vec4 in_quat;
+uniform mat4 u_light_vp;
+"""
+    + SOLID_ROTATE
+    + """
+void main() {
+    gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, in_position), 1.0);
+}
+"""
+)
+
+SHADOW_CAPSULE_VERTEX = (
+    """
+#version 330
+in vec3 in_position;
+in float in_side;
+in vec3 in_center;
+in vec4 in_quat;
+in float in_radius;
+in float in_half;
+uniform mat4 u_light_vp;
+"""
+    + SOLID_ROTATE
+    + """
+void main() {
+    vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
+    gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, local), 1.0);
+}
+"""
+)
+
 # sun shadow map passes: depth only
 SHADOW_SPHERE_VERTEX = """
 #version 330
