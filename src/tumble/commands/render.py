@@ -31,6 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--camera-position", type=_triple, metavar="X,Y,Z", help="camera position [m]")
     parser.add_argument("--camera-target", type=_triple, metavar="X,Y,Z", help="point the camera looks at [m]")
     parser.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view [degrees]")
+    parser.add_argument("--joints", action="store_true",
+                        help="draw the joints: rods from each body's centre to its anchors, a dot on each anchor")
     parser.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
 
 
@@ -90,6 +92,7 @@ def main(args: argparse.Namespace) -> int:
     width, height = parse_size(args.size)
     ctx = create_context()
     renderer = Renderer(ctx, width, height, samples=4)
+    renderer.show_joints = bool(args.joints)
     try:
         world = tumble.load_scene(args.scene)
         prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))

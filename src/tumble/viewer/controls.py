@@ -292,11 +292,13 @@ class ControlsPanel(QtWidgets.QWidget):
         changed(str, float): a parameter was changed by the user (key, new value).
         timeScaleChanged(float): the time scale was changed.
         shadowsToggled(bool): sun shadows were switched on or off.
+        jointsToggled(bool): drawing the joints was switched on or off.
     """
 
     changed = QtCore.Signal(str, float)
     timeScaleChanged = QtCore.Signal(float)
     shadowsToggled = QtCore.Signal(bool)
+    jointsToggled = QtCore.Signal(bool)
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -346,6 +348,11 @@ class ControlsPanel(QtWidgets.QWidget):
         self.shadows.setToolTip("Shadows need a second drawing pass: turn them off for speed without a GPU.")
         self.shadows.toggled.connect(self.shadowsToggled)
         display_layout.addWidget(self.shadows)
+        self.joints = QtWidgets.QCheckBox("Joints (J)")
+        self.joints.setChecked(False)
+        self.joints.setToolTip("Draw each joint: rods from the bodies' centres to its anchors, a dot on each anchor.")
+        self.joints.toggled.connect(self.jointsToggled)
+        display_layout.addWidget(self.joints)
         layout.addWidget(display)
 
         self.defaults_button = QtWidgets.QPushButton("Scene values")

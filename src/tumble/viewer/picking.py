@@ -1,7 +1,9 @@
 """Mouse picking and the drag spring: pull a body or a cloth particle towards the cursor.
 
-A click casts a ray from the camera through the pixel (`Camera.ray`) and picks the nearest movable body whose
-bounding sphere it hits (or the nearest cloth particle within reach of the ray). While the button
+A click casts a ray from the camera through the pixel (`Camera.ray`) and picks the nearest movable body it
+hits (spheres, boxes, capsules and convex hulls exactly; among the bodies whose bounding sphere the ray
+meets), or the nearest cloth particle within reach of the ray. Static meshes and other static bodies
+are not picked. A body held by joints is pulled like any other: the joints pull back. While the button
 is held, the grabbed point is pulled towards the cursor, kept in the plane through the grab point
 that faces the camera, by a damped spring scaled by mass, so every body follows alike:
 
@@ -19,6 +21,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..shapes import ShapeType
 
 #: drag spring frequency [Hz] and damping ratio
 DRAG_FREQUENCY = 2.0
@@ -176,7 +180,7 @@ def cloth_of(world):
 
 
 def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
-    """Nearest body hit by the ray: spheres exactly, boxes by a slab test inside their bounding sphere."""
+    """Nearest body hit by the ray: spheres exactly, boxes, capsules and hulls inside their bounding sphere."""
     centres = np.asarray(world.body_position)[candidates]
     radii = _bound_radii(world)[candidates]
     # bounding-sphere hits, nearest first; a sphere's bound is the sphere itself
@@ -187,8 +191,16 @@ def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
     best_body, best_t = -1, math.inf
     for k in order:
         body = int(candidates[k])
-        if world.body_shape[body] == 2:  # ShapeType.BOX
+        shape = int(world.body_shape[body])
+        if shape == ShapeType.BOX:
             t = ray_box(origin, direction, centres[k], world.body_orientation[body], world.body_half_extents[body])
+        elif shape == ShapeType.CAPSULE:
+            radius = float(world.body_radius[body])
+            t = ray_capsule(origin, direction, centres[k], world.body_orientation[body], radius,
+                            float(world.body_half_extents[body][2]) - radius)
+        elif shape == ShapeType.CONVEX and _hull(world, body) is not None:
+            proto = _hull(world, body)
+            t = ray_convex(origin, direction, centres[k], world.body_orientation[body], proto.normal, proto.offset)
         else:
             root = math.sqrt(disc[k])
             t = -b[k] - root if -b[k] - root > 0.0 else -b[k] + root
@@ -211,6 +223,60 @@ def ray_box(origin, direction, centre, orientation, half_extents) -> float:
     if near > far or far <= 0.0:
         return math.inf
     return near if near > 0.0 else far
+
+
+def ray_capsule(origin, direction, centre, orientation, radius: float, half_height: float) -> float:
+    """Distance along a ray to a capsule (segment of half length `half_height` on the body's z axis), or inf."""
+    inv_q = quat_conjugate(orientation)
+    o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
+    d = quat_rotate(inv_q, direction)
+    hits = []
+    # the side: |(o + t d)_xy|^2 = r^2, within the segment's length
+    a = d[0] ** 2 + d[1] ** 2
+    b = o[0] * d[0] + o[1] * d[1]
+    c = o[0] ** 2 + o[1] ** 2 - radius**2
+    if a > 1e-12 and b * b - a * c >= 0.0:
+        for t in ((-b - math.sqrt(b * b - a * c)) / a, (-b + math.sqrt(b * b - a * c)) / a):
+            if abs(o[2] + t * d[2]) <= half_height:
+                hits.append(t)
+    # the two end caps: spheres at +-half_height on z
+    for z in (half_height, -half_height):
+        oc = o - np.array([0.0, 0.0, z])
+        bb = float(oc @ d)
+        disc = bb * bb - (float(oc @ oc) - radius**2)
+        if disc >= 0.0:
+            hits += [-bb - math.sqrt(disc), -bb + math.sqrt(disc)]
+    ahead = [t for t in hits if t > 0.0]
+    return min(ahead) if ahead else math.inf
+
+
+def ray_convex(origin, direction, centre, orientation, normal, offset) -> float:
+    """Distance along a ray to a convex polyhedron {x : n_i . x <= d_i} in its body frame (Cyrus-Beck), or inf."""
+    inv_q = quat_conjugate(orientation)
+    o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
+    d = quat_rotate(inv_q, direction)
+    n = np.asarray(normal, dtype=np.float64)
+    gap = np.asarray(offset, dtype=np.float64) - n @ o  # >= 0 inside each face's half space
+    rate = n @ d
+    parallel = np.abs(rate) < 1e-12
+    if np.any(parallel & (gap < 0.0)):
+        return math.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = gap / rate
+    near = float(np.max(t[(rate < 0.0) & ~parallel], initial=-math.inf))
+    far = float(np.min(t[(rate > 0.0) & ~parallel], initial=math.inf))
+    if near > far or far <= 0.0:
+        return math.inf
+    return near if near > 0.0 else far
+
+
+def _hull(world, body: int):
+    hulls = getattr(world, "hulls", None)
+    geometry = getattr(world, "body_geometry", None)
+    if hulls is None or geometry is None:
+        return None
+    index = int(np.asarray(geometry)[body])
+    return hulls.prototypes[index] if 0 <= index < len(hulls.prototypes) else None
 
 
 def _bound_radii(world) -> np.ndarray:

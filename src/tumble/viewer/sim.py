@@ -185,7 +185,7 @@ class SimulationClock:
 #: world attributes a snapshot copies (what the renderer, the camera's framing and picking read)
 SNAPSHOT_ARRAYS = (
     "body_shape", "body_position", "body_orientation", "body_radius", "body_half_extents",
-    "body_plane_normal", "body_inv_mass", "body_mass",
+    "body_plane_normal", "body_inv_mass", "body_mass", "body_geometry",
 )
 SNAPSHOT_VALUES = ("body_count", "time", "step_count", "contact_count", "dt", "substeps")
 
@@ -206,7 +206,9 @@ class WorldSnapshot:
     """What the window reads of a world, copied between two steps; drawn in place of the world.
 
     Has the world's `body_*` arrays that the renderer and picking read (copies), its counts and
-    time, `gravity`, `metadata`, `emitters` (their regions), and `cloth` as a `ClothSnapshot`.
+    time, `gravity`, `metadata`, `emitters` (their regions), and `cloth` as a `ClothSnapshot`;
+    `hulls` and `meshes` are the world's own (prototypes are never changed once added, only
+    appended), `joint_lines` a copy of where the joints are (`tumble.render.solids.joint_segments`).
     `source` is the world it was taken from.
     """
 
@@ -219,6 +221,11 @@ class WorldSnapshot:
         self.gravity = np.array(world.gravity, dtype=np.float64)
         self.metadata = getattr(world, "metadata", {})
         self.emitters = list(getattr(world, "emitters", None) or [])
+        self.hulls = getattr(world, "hulls", None)
+        self.meshes = getattr(world, "meshes", None)
+        from ..render.solids import joint_segments
+
+        self.joint_lines = joint_segments(world)
         cloth = getattr(world, "_cloth", None)
         self._cloth = ClothSnapshot(cloth) if cloth is not None and cloth.particle_count else None
 

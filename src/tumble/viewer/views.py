@@ -105,6 +105,7 @@ class _SceneViewMixin:
         self.frame_count = 0
         self.renderer = None
         self.shadows = True  # sun shadows (a second pass; costly in software rendering)
+        self.show_joints = False  # draw the joints (rods and anchor dots)
         self.software = False  # drawing on the CPU (known once the GL context exists)
         self.spring_line = None  # ((x, y) of the held point, (x, y) of the cursor), or None
         self._size_hint = QtCore.QSize(*size)
@@ -168,6 +169,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         if (self.renderer.width, self.renderer.height) != (width, height):
             self.renderer.resize(width, height)
         self.renderer.shadows = self.shadows
+        self.renderer.show_joints = self.show_joints
         return self.renderer.render(self.world, self.camera)
 
     def paintEvent(self, event) -> None:  # noqa: N802 (Qt name)
@@ -245,6 +247,7 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
             return
         width, height = self.pixel_size()
         self.renderer.shadows = self.shadows
+        self.renderer.show_joints = self.show_joints
         try:
             self.renderer.draw(self.world, self.camera, framebuffer, viewport=(0, 0, width, height))
         except Exception as exc:  # noqa: BLE001

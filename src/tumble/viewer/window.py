@@ -7,7 +7,7 @@ Mouse (on the view):
     wheel                                   zoom
 
 Keys: space play/pause, . step, R reset, F frame the scene, Home reset the view,
-1 drop a sphere, 2 drop a box, S screenshot, V record video.
+1 drop a sphere, 2 drop a box, J show joints, S screenshot, V record video.
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ HELP_HTML = """
 <tr><td>R</td><td>reset: rebuild the world from the scene</td></tr>
 <tr><td>F / Home</td><td>frame the scene / starting view</td></tr>
 <tr><td>1 / 2</td><td>drop a sphere / a box</td></tr>
+<tr><td>J</td><td>show / hide the joints</td></tr>
 <tr><td>S / V</td><td>screenshot (PNG) / record video (MP4)</td></tr>
 </table>
 """
@@ -207,6 +208,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.controls.changed.connect(self._on_control_changed)
         self.controls.timeScaleChanged.connect(self._on_time_scale)
         self.controls.shadowsToggled.connect(self._on_shadows)
+        self.controls.jointsToggled.connect(self._on_joints)
         scroll = QtWidgets.QScrollArea()
         scroll.setWidget(self.controls)
         scroll.setWidgetResizable(True)
@@ -249,6 +251,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         view.world = self.scene
         if hasattr(self, "controls"):
             view.shadows = self.controls.shadows.isChecked()
+            view.show_joints = self.controls.joints.isChecked()
         view.installEventFilter(self)
         view.failed.connect(self._on_view_failed)
         if hasattr(view, "ready"):
@@ -277,6 +280,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         self.home_action = self._action("Reset view", "Home", self.reset_view, "Back to the starting camera")
         self.sphere_action = self._action("Drop sphere", "1", self.drop_sphere, "Drop a sphere from above the scene")
         self.box_action = self._action("Drop box", "2", self.drop_box, "Drop a box from above the scene")
+        self.joints_action = self._action("Joints", "J", self.toggle_joints, "Show or hide the joints")
         # (triggered(bool) would pass its `checked` flag as the path)
         self.shot_action = self._action("Screenshot", "S", lambda: self.screenshot(), "Save the view as a PNG")
         self.record_action = self._action(
@@ -432,6 +436,14 @@ class ViewerWindow(QtWidgets.QMainWindow):
     # ------------------------------------------------------------------ live controls
 
     def _on_control_changed(self, key: str, value: float) -> None:
+        self._mark_dirty()
+
+    def toggle_joints(self) -> None:
+        """Show or hide the joints (J); the Display group's checkbox follows."""
+        self.controls.joints.setChecked(not self.controls.joints.isChecked())
+
+    def _on_joints(self, on: bool) -> None:
+        self.view.show_joints = bool(on)
         self._mark_dirty()
 
     def _on_shadows(self, on: bool) -> None:
