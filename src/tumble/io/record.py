@@ -18,7 +18,16 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     since version 2: restitution (N,), friction (N,); with a scene [camera]: camera_position (3,),
     camera_target (3,), camera_up (3,), camera_fov () [degrees]
     with joints (J of them, in creation order): joint_force (F, J, 3) [N] and joint_torque (F, J, 3)
-    [N m] on each joint's body b, joint_broken (F, J) bool, joint_bodies (J, 2) int32 (-1 = the world)
+    [N m] on each joint's body b, joint_broken (F, J) bool, joint_bodies (J, 2) int32 (-1 = the world),
+    and the joints' model (what USD export writes as UsdPhysics joints): joint_kind (J,) int32
+    (JointKind), joint_local (J, 2, 3) [m] anchors in each body's frame (the world's: world
+    points), joint_frame (J, 2, 4) joint frames in each body's frame (x = hinge / slider axis),
+    joint_limit (J,) int32, joint_lower / joint_upper (J,) [rad or m], joint_break_force (J,) [N],
+    joint_collide (J,) int32
+    with convex bodies or static meshes: geometry (N,) int32 (a body's hull or mesh row), and per
+    kind K in (hull, mesh): K_points (V, 3) [m] in the body / mesh frame, K_triangles (T, 3)
+    int32 indexing K_points, K_point_start and K_triangle_start (rows + 1,) int64 (row i is
+    points [start[i], start[i + 1]) ...); hull triangles are the faces fanned, counter-clockwise outside
 
 Cost: one host copy of the body state per frame (~100 bytes per body per frame in memory).
 """
@@ -166,6 +175,8 @@ class Recorder:
             bodies = np.stack([w.joints.numpy("joint_body_a"), w.joints.numpy("joint_body_b")], axis=1)
             ids = np.asarray(w.bodies.numpy("body_id"))
             out["joint_bodies"] = np.where(bodies >= 0, ids[np.maximum(bodies, 0)], -1).astype(np.int32)
+            out.update(_joint_model(w.joints))
+        out.update(_geometry(w))
         return out
 
     def save(self, path) -> Path:
@@ -185,6 +196,55 @@ class Recorder:
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, **arrays)
         return path
+
+
+def _joint_model(joints) -> dict[str, np.ndarray]:
+    """The joints' fixed description (anchors, frames, limits), in creation order."""
+    get = joints.numpy
+    return {
+        "joint_kind": np.array(get("joint_kind"), dtype=np.int32),
+        "joint_local": np.stack([get("joint_local_a"), get("joint_local_b")], axis=1).astype(np.float64),
+        "joint_frame": np.stack([get("joint_frame_a"), get("joint_frame_b")], axis=1).astype(np.float64),
+        "joint_limit": np.array(get("joint_limit"), dtype=np.int32),
+        "joint_lower": np.array(get("joint_lower"), dtype=np.float64),
+        "joint_upper": np.array(get("joint_upper"), dtype=np.float64),
+        "joint_break_force": np.array(get("joint_break_force"), dtype=np.float64),
+        "joint_collide": np.array(get("joint_collide"), dtype=np.int32),
+    }
+
+
+def _geometry(w) -> dict[str, np.ndarray]:
+    """Hull prototypes and static meshes as flat arrays, when the world has convex bodies or meshes."""
+    shape = np.asarray(w.body_shape)
+    out: dict[str, np.ndarray] = {}
+    has_hull = bool(np.any(shape == SHAPE_NAMES.index("convex")))
+    meshes = getattr(w, "meshes", None)
+    has_mesh = meshes is not None and len(meshes.vertices) > 0
+    if not (has_hull or has_mesh):
+        return out
+    out["geometry"] = np.array(w.body_geometry, dtype=np.int32)
+    if has_hull:
+        tris = []
+        for p in w.hulls.prototypes:
+            tris.append(np.array([(f[0], f[k], f[k + 1]) for f in p.faces for k in range(1, len(f) - 1)],
+                                 dtype=np.int64).reshape(-1, 3))
+        out.update(_flat("hull", [p.vertex for p in w.hulls.prototypes], tris))
+    if has_mesh:
+        out.update(_flat("mesh", meshes.vertices, meshes.triangles))
+    return out
+
+
+def _flat(kind: str, points: list, triangles: list) -> dict[str, np.ndarray]:
+    """Lists of (V_i, 3) points and (T_i, 3) triangles as concatenated arrays with row starts."""
+    point_start = np.concatenate([[0], np.cumsum([len(p) for p in points])]).astype(np.int64)
+    triangle_start = np.concatenate([[0], np.cumsum([len(t) for t in triangles])]).astype(np.int64)
+    return {
+        f"{kind}_points": np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points]),
+        f"{kind}_triangles": np.concatenate([np.asarray(t, dtype=np.int64).reshape(-1, 3) for t in triangles])
+        .astype(np.int32),
+        f"{kind}_point_start": point_start,
+        f"{kind}_triangle_start": triangle_start,
+    }
 
 
 class RecordingError(TumbleError, ValueError):

@@ -58,6 +58,8 @@ PIP_HINT = "pip install 'tumble[usd]' (or: pip install usd-core)"
 PLANE_COLOR = (0.80, 0.81, 0.83)
 #: default seconds to simulate when neither the call nor the scene says
 DEFAULT_DURATION = 2.0
+#: joint limits and break forces at or above this are "none" (the solver stores infinity as 1e30)
+UNLIMITED = 1e29
 
 
 def require_pxr() -> None:
@@ -178,8 +180,12 @@ class Prototype:
         points: vertices, shape (V, 3), float32.
         counts: vertices per face, shape (F,), int32.
         indices: vertex index of each face corner, shape (sum(counts),), int32.
-        normals: unit vertex normals, shape (V, 3), float32.
+        normals: unit normals, shape (V, 3) per vertex, or (sum(counts), 3) per face corner, float32.
         collision: UsdPhysics mesh approximation of the collider ("boundingSphere", "boundingCube", ...).
+        normals_interpolation: "vertex" (smooth) or "faceVarying" (one normal per face corner: flat hulls).
+        capsule: (radius, half height) [m] of a capsule, written as a `UsdGeom.Capsule` (axis Z) instead of a mesh.
+        volume: volume at scale 1 [m^3] (0: not known), for the density of `--physics`.
+        color: sRGB colour of the prototype's own prims (static meshes), else None (the body's colour).
     """
 
     name: str
@@ -188,6 +194,10 @@ class Prototype:
     indices: np.ndarray
     normals: np.ndarray
     collision: str = "convexHull"
+    normals_interpolation: str = "vertex"
+    capsule: tuple[float, float] | None = None
+    volume: float = 0.0
+    color: tuple[float, float, float] | None = None
 
 
 @dataclass
@@ -251,10 +261,92 @@ def _box_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
     return [PrototypeUse(unit_cube(), bodies, np.asarray(rec["half_extents"], dtype=np.float64)[bodies])]
 
 
+def capsule_prototype(radius: float, half_height: float, name: str = "capsule") -> Prototype:
+    """A capsule along z (Tumble's axis): a `UsdGeom.Capsule` of that radius and spine length 2 a.
+
+    `points` etc. hold the capsule's bounding box corners only (its extent); the prim is a Capsule.
+    """
+    r, a = float(radius), float(half_height)
+    corners = np.array([[-r, -r, -a - r], [r, r, a + r]], dtype=np.float32)
+    volume = math.pi * r * r * (2.0 * a + 4.0 / 3.0 * r)
+    return Prototype(name, corners, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 3), np.float32),
+                     collision="none", capsule=(r, a), volume=volume)
+
+
+def triangle_prototype(name: str, points: np.ndarray, triangles: np.ndarray, *, flat: bool,
+                       collision: str, color=None) -> Prototype:
+    """A triangle mesh prototype: flat (one normal per face corner: hulls) or smooth (vertex normals: meshes)."""
+    p = np.asarray(points, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    # volume by the divergence theorem: the sum of the signed tetrahedra (origin, a, b, c)
+    volume = float(np.einsum("ij,ij->i", p[t[:, 0]], face).sum() / 6.0)
+    if flat:
+        unit = face / np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-30)
+        normals, interpolation = np.repeat(unit, 3, axis=0), "faceVarying"
+    else:
+        normals, interpolation = vertex_normals(p, t), "vertex"
+    return Prototype(name, p.astype(np.float32), np.full(len(t), 3, np.int32), t.reshape(-1).astype(np.int32),
+                     normals.astype(np.float32), collision=collision, normals_interpolation=interpolation,
+                     volume=max(volume, 0.0), color=color)
+
+
+def _capsule_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
+    """One Capsule prototype per distinct (radius, half height); the body-frame half extents are (r, r, a + r)."""
+    r = np.asarray(rec["radius"], dtype=np.float64)[bodies]
+    a = np.asarray(rec["half_extents"], dtype=np.float64)[bodies, 2] - r
+    pairs, which = np.unique(np.stack([r, a], axis=1), axis=0, return_inverse=True)
+    which = which.reshape(-1)
+    return [PrototypeUse(capsule_prototype(ri, ai, f"capsule_{k}"), bodies[which == k], np.ones(((which == k).sum(), 3)))
+            for k, (ri, ai) in enumerate(pairs)]
+
+
+def _rows(rec: dict, kind: str, row: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points and triangles (local indices) of hull or mesh `row` of a recording."""
+    ps, ts = rec[f"{kind}_point_start"], rec[f"{kind}_triangle_start"]
+    points = np.asarray(rec[f"{kind}_points"])[ps[row]:ps[row + 1]]
+    triangles = np.asarray(rec[f"{kind}_triangles"])[ts[row]:ts[row + 1]]
+    return points, triangles
+
+
+def _geometry_rows(rec: dict, bodies: np.ndarray, kind: str) -> np.ndarray:
+    if "geometry" not in rec or f"{kind}_points" not in rec:
+        raise TumbleError(f"this recording has {kind} bodies but not their geometry (recorded by an older Tumble)")
+    return np.asarray(rec["geometry"], dtype=np.int64)[bodies]
+
+
+def _convex_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
+    """One flat-shaded Mesh prototype per distinct hull, in the body frame (origin at the centre of mass)."""
+    rows = _geometry_rows(rec, bodies, "hull")
+    uses = []
+    for row in np.unique(rows):
+        points, triangles = _rows(rec, "hull", int(row))
+        proto = triangle_prototype(f"hull_{int(row)}", points, triangles, flat=True, collision="convexHull")
+        uses.append(PrototypeUse(proto, bodies[rows == row], np.ones(((rows == row).sum(), 3))))
+    return uses
+
+
+def _mesh_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
+    """One smooth Mesh per static triangle mesh, in its frame; collider approximation "none" (the triangles)."""
+    from ..render.solids import MESH_COLOR
+
+    rows = _geometry_rows(rec, bodies, "mesh")
+    uses = []
+    for row in np.unique(rows):
+        points, triangles = _rows(rec, "mesh", int(row))
+        proto = triangle_prototype(f"mesh_{int(row)}", points, triangles, flat=False, collision="none",
+                                   color=MESH_COLOR)
+        uses.append(PrototypeUse(proto, bodies[rows == row], np.ones(((rows == row).sum(), 3))))
+    return uses
+
+
 #: shape name -> builder(recording, body indices of that shape) -> the prototypes those bodies use
 PROTOTYPES: dict[str, Callable[[dict, np.ndarray], list[PrototypeUse]]] = {
     "sphere": _sphere_prototypes,
     "box": _box_prototypes,
+    "capsule": _capsule_prototypes,
+    "convex": _convex_prototypes,
+    "mesh": _mesh_prototypes,
 }
 
 
@@ -278,6 +370,12 @@ def srgb_to_linear(c) -> np.ndarray:
     """sRGB colour values in [0, 1] to linear ones (IEC 61966-2-1), float32."""
     c = np.asarray(c, dtype=np.float64)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product p q of quaternions (x, y, z, w)."""
+    pv, pw, qv, qw = p[:3], p[3], q[:3], q[3]
+    return np.r_[pw * qv + qw * pv + np.cross(pv, qv), pw * qw - pv @ qv]
 
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -323,6 +421,13 @@ class Take:
     @property
     def cloth(self) -> bool:
         return "cloth_position" in self.rec and "cloth_triangles" in self.rec
+
+    def jointed_moving(self) -> np.ndarray:
+        """Moving bodies that take part in a joint (sorted body indices)."""
+        if "joint_bodies" not in self.rec:
+            return np.zeros(0, np.int64)
+        ends = np.asarray(self.rec["joint_bodies"], dtype=np.int64).reshape(-1)
+        return np.intersect1d(self.moving, ends[ends >= 0])
 
     @classmethod
     def from_recording(cls, rec: dict, frames: np.ndarray, fps: float) -> Take:
@@ -395,6 +500,7 @@ class _Writer:
         self.stage, self.take, self.bodies, self.physics, self.advance = stage, take, bodies, physics, advance
         self.colors = srgb_to_linear(body_colors(np.arange(len(take.rec["shape"]))))
         self._materials: dict[tuple[float, float], object] = {}
+        self._body_prims: dict[int, object] = {}  # body index -> path of its Xform (xforms, jointed bodies)
 
     def write(self) -> None:
         UsdGeom, take = self.UsdGeom, self.take
@@ -414,7 +520,15 @@ class _Writer:
         if "camera_position" in take.rec:
             self._camera()
         # the animated parts set up their prims, then author one frame at a time
-        parts = [self._xforms() if self.bodies == "xforms" else self._instancer()]
+        # with --physics, jointed bodies must be prims a UsdPhysics joint can name: in the default
+        # instancer mode they leave the instancer and become Xforms under /Root/JointedBodies
+        jointed = take.jointed_moving() if self.physics else np.zeros(0, np.int64)
+        if self.bodies == "xforms":
+            parts = [self._xforms(take.moving)]
+        else:
+            parts = [self._instancer(np.setdiff1d(take.moving, jointed)), self._xforms(jointed, "/Root/JointedBodies")]
+        if self.physics and "joint_kind" in take.rec:
+            self._joints()
         if take.cloth:
             parts.append(self._cloth())
         parts = [frame for frame in parts if frame is not None]
@@ -430,13 +544,25 @@ class _Writer:
         return self.Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32))
 
     def _mesh(self, path: str, proto: Prototype, *, color=None):
+        """The prototype's prim at `path`: a Mesh, or a Capsule (axis Z) for a capsule prototype."""
         UsdGeom = self.UsdGeom
+        if color is None and proto.color is not None:
+            color = srgb_to_linear(proto.color)
+        if proto.capsule is not None:
+            capsule = UsdGeom.Capsule.Define(self.stage, path)
+            capsule.CreateAxisAttr(UsdGeom.Tokens.z)
+            capsule.CreateRadiusAttr(proto.capsule[0])
+            capsule.CreateHeightAttr(2.0 * proto.capsule[1])  # the spine, without the two caps
+            capsule.CreateExtentAttr(self._f3(proto.points))
+            if color is not None:
+                capsule.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(self._f3(np.reshape(color, (1, 3))))
+            return capsule
         mesh = UsdGeom.Mesh.Define(self.stage, path)
         mesh.CreatePointsAttr(self._f3(proto.points))
         mesh.CreateFaceVertexCountsAttr(self.Vt.IntArray.FromNumpy(proto.counts))
         mesh.CreateFaceVertexIndicesAttr(self.Vt.IntArray.FromNumpy(proto.indices))
         mesh.CreateNormalsAttr(self._f3(proto.normals))
-        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        mesh.SetNormalsInterpolation(getattr(UsdGeom.Tokens, proto.normals_interpolation))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateExtentAttr(self._f3(np.stack([proto.points.min(axis=0), proto.points.max(axis=0)])))
         if color is not None:
@@ -456,7 +582,8 @@ class _Writer:
         """Static collider: CollisionAPI, the mesh approximation, and the body's material."""
         UsdPhysics = self.UsdPhysics
         UsdPhysics.CollisionAPI.Apply(prim)
-        UsdPhysics.MeshCollisionAPI.Apply(prim).CreateApproximationAttr(proto.collision if proto else "none")
+        if proto is None or proto.capsule is None:  # a Capsule is its own collider shape
+            UsdPhysics.MeshCollisionAPI.Apply(prim).CreateApproximationAttr(proto.collision if proto else "none")
         self._bind_material(prim, body)
 
     def _bind_material(self, prim, body: int) -> None:
@@ -518,17 +645,19 @@ class _Writer:
                 if self.physics:
                     self._collider(mesh.GetPrim(), use.prototype, b)
 
-    def _instancer(self) -> Callable | None:
+    def _instancer(self, bodies: np.ndarray) -> Callable | None:
+        """The PointInstancer of `bodies` (moving body indices, in `take.moving` order)."""
         UsdGeom, Vt, take = self.UsdGeom, self.Vt, self.take
-        if not len(take.moving):
+        if not len(bodies):
             return
+        columns = np.searchsorted(take.moving, bodies)  # their columns in take.position / visible
         inst = UsdGeom.PointInstancer.Define(self.stage, "/Root/Bodies")
         self.UsdGeom.Scope.Define(self.stage, "/Root/Bodies/Prototypes")
-        uses = prototype_uses(take.rec, take.moving)
-        # instance k is moving body k; protoIndices and scales in that order
-        slot = {int(b): k for k, b in enumerate(take.moving)}
-        proto_index = np.empty(len(take.moving), np.int32)
-        scales = np.empty((len(take.moving), 3))
+        uses = prototype_uses(take.rec, bodies)
+        # instance k is body k of `bodies`; protoIndices and scales in that order
+        slot = {int(b): k for k, b in enumerate(bodies)}
+        proto_index = np.empty(len(bodies), np.int32)
+        scales = np.empty((len(bodies), 3))
         targets = []
         for j, use in enumerate(uses):
             path = f"/Root/Bodies/Prototypes/{use.prototype.name}"
@@ -543,11 +672,11 @@ class _Writer:
             scales[rows] = use.scales
         inst.CreatePrototypesRel().SetTargets(targets)
         inst.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index))
-        ids = take.moving.astype(np.int64)
+        ids = bodies.astype(np.int64)
         inst.CreateIdsAttr(Vt.Int64Array.FromNumpy(ids))
         colors = self.UsdGeom.PrimvarsAPI(inst.GetPrim()).CreatePrimvar(
             "displayColor", self.Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
-        colors.Set(self._f3(self.colors[take.moving]))
+        colors.Set(self._f3(self.colors[bodies]))
 
         positions = inst.CreatePositionsAttr()
         orientations = inst.CreateOrientationsAttr()
@@ -555,19 +684,28 @@ class _Writer:
         invisible = inst.CreateInvisibleIdsAttr()
         extent = inst.CreateExtentAttr()
         # a body not yet released also gets scale 0, for tools that ignore invisibleIds
-        births = not take.visible.all()
+        visible = take.visible[:, columns]
+        births = not visible.all()
         if not births:
             scale_attr.Set(self._f3(scales))
-        radius = np.linalg.norm(scales, axis=1)  # bounds the unit prototypes (the cube reaches sqrt 3)
-        pos32 = take.position.astype(np.float32)
-        quat16 = take.orientation.astype(np.float16)
+        # bounds of the prototypes at their scales: unit sphere and cube (the cube reaches sqrt 3), or
+        # the capsule's, hull's or mesh's own points
+        bound = {id(u.prototype): float(np.linalg.norm(u.prototype.points, axis=1).max()) for u in uses
+                 if u.prototype.name not in ("sphere", "box")}
+        radius = np.linalg.norm(scales, axis=1)
+        for use in uses:
+            if id(use.prototype) in bound:
+                radius[[slot[int(b)] for b in use.bodies]] = bound[id(use.prototype)]
+        position = take.position[:, columns]
+        pos32 = position.astype(np.float32)
+        quat16 = take.orientation[:, columns].astype(np.float16)
         previous = None
 
         def frame(k: int, t) -> None:
             nonlocal previous
             positions.Set(Vt.Vec3fArray.FromNumpy(pos32[k]), t)
             orientations.Set(Vt.QuathArray.FromNumpy(quat16[k]), t)
-            seen = take.visible[k]
+            seen = visible[k]
             if births:
                 scale_attr.Set(self._f3(np.where(seen[:, None], scales, 0.0)), t)
             hidden = ids[~seen]
@@ -575,7 +713,7 @@ class _Writer:
                 invisible.Set(Vt.Int64Array.FromNumpy(hidden), t)
                 previous = hidden
             if seen.any():
-                p = take.position[k][seen]
+                p = position[k][seen]
                 r = radius[seen][:, None]
                 extent.Set(self._f3(np.stack([(p - r).min(axis=0), (p + r).max(axis=0)])), t)
             else:
@@ -588,22 +726,25 @@ class _Writer:
         UsdPhysics = self.UsdPhysics
         UsdPhysics.RigidBodyAPI.Apply(prim)
         UsdPhysics.CollisionAPI.Apply(prim)
-        UsdPhysics.MeshCollisionAPI.Apply(prim).CreateApproximationAttr(use.prototype.collision)
+        if use.prototype.capsule is None:
+            UsdPhysics.MeshCollisionAPI.Apply(prim).CreateApproximationAttr(use.prototype.collision)
         mass = np.asarray(self.take.rec["mass"], dtype=np.float64)[use.bodies]
-        volume = _volume(use.prototype.name, use.scales)
+        volume = _volume(use.prototype, use.scales)
         if np.all(volume > 0):
             UsdPhysics.MassAPI.Apply(prim).CreateDensityAttr(float(np.median(mass / volume)))
         self._bind_material(prim, int(use.bodies[0]))
 
-    def _xforms(self) -> Callable | None:
+    def _xforms(self, bodies: np.ndarray, root: str = "/Root/Bodies") -> Callable | None:
+        """One animated Xform per body of `bodies` under `root`; its unscaled frame is the body frame
+        (centre of mass, principal axes), the scale sits on its `geom` child."""
         UsdGeom, take, rec = self.UsdGeom, self.take, self.take.rec
-        if not len(take.moving):
+        if not len(bodies):
             return
-        UsdGeom.Xform.Define(self.stage, "/Root/Bodies")
+        UsdGeom.Xform.Define(self.stage, root)
         Gf = self.Gf
         slot = {int(b): k for k, b in enumerate(take.moving)}
         prims = []
-        for use in prototype_uses(rec, take.moving):
+        for use in prototype_uses(rec, bodies):
             # the prototype once, as an `over` (not drawn by itself); each body references it
             proto_path = f"/Root/Prototypes/{use.prototype.name}"
             if not self.stage.GetPrimAtPath(proto_path):
@@ -611,11 +752,13 @@ class _Writer:
                 self.stage.GetPrimAtPath(proto_path).SetSpecifier(self.Sdf.SpecifierOver)
                 self.stage.GetPrimAtPath("/Root/Prototypes").SetSpecifier(self.Sdf.SpecifierOver)
             for b, s in zip(use.bodies, use.scales):
-                xf = UsdGeom.Xform.Define(self.stage, f"/Root/Bodies/body_{b:06d}")
-                ops = (xf.AddTranslateOp(), xf.AddOrientOp(), xf.AddScaleOp())
-                ops[2].Set(Gf.Vec3f(*map(float, s)))
-                geom = self.stage.DefinePrim(f"/Root/Bodies/body_{b:06d}/geom")
+                xf = UsdGeom.Xform.Define(self.stage, f"{root}/body_{b:06d}")
+                ops = (xf.AddTranslateOp(), xf.AddOrientOp())
+                geom = self.stage.DefinePrim(f"{root}/body_{b:06d}/geom")
                 geom.GetReferences().AddInternalReference(proto_path)
+                if np.any(s != 1.0):
+                    UsdGeom.Xformable(geom).AddScaleOp().Set(Gf.Vec3f(*map(float, s)))
+                self._body_prims[int(b)] = xf.GetPath()
                 UsdGeom.Gprim(geom).CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
                     self._f3(self.colors[b][None]))
                 if self.physics:
@@ -623,7 +766,8 @@ class _Writer:
                     UsdPhysics.RigidBodyAPI.Apply(xf.GetPrim())
                     UsdPhysics.MassAPI.Apply(xf.GetPrim()).CreateMassAttr(float(rec["mass"][b]))
                     UsdPhysics.CollisionAPI.Apply(geom)
-                    UsdPhysics.MeshCollisionAPI.Apply(geom).CreateApproximationAttr(use.prototype.collision)
+                    if use.prototype.capsule is None:
+                        UsdPhysics.MeshCollisionAPI.Apply(geom).CreateApproximationAttr(use.prototype.collision)
                     self._bind_material(geom, int(b))
                 prims.append((slot[int(b)], xf, ops))
         vis_tokens = (UsdGeom.Tokens.invisible, UsdGeom.Tokens.inherited)
@@ -631,7 +775,7 @@ class _Writer:
         def frame(k: int, t) -> None:
             pos = take.position[k]
             quat = take.orientation[k].astype(np.float32)
-            for row, xf, (translate, orient, _) in prims:
+            for row, xf, (translate, orient) in prims:
                 translate.Set(Gf.Vec3d(*pos[row].tolist()), t)
                 x, y, z, w = quat[row].tolist()
                 orient.Set(Gf.Quatf(w, x, y, z), t)
@@ -640,6 +784,61 @@ class _Writer:
                     xf.CreateVisibilityAttr().Set(vis_tokens[seen], t)
 
         return frame
+
+    def _joints(self) -> None:
+        """UsdPhysics joints under /Root/Joints, one per recorded joint, in creation order.
+
+        body0 / body1 name the bodies' Xforms; a joint end at the world, or at a static body (which
+        never moves), names no body and gives its anchor and frame in world coordinates. Tumble's
+        joint frame has the hinge / slider axis along x, so revolute and prismatic joints have
+        axis X; their limits are degrees and metres, a distance joint's min / max its lower /
+        upper lengths (a spring's stiffness has no UsdPhysics attribute and is not written).
+        """
+        from ..solver.joints import JointKind
+
+        UsdPhysics, Gf, rec, take = self.UsdPhysics, self.Gf, self.take.rec, self.take
+        kinds = {JointKind.BALL: UsdPhysics.SphericalJoint, JointKind.HINGE: UsdPhysics.RevoluteJoint,
+                 JointKind.SLIDER: UsdPhysics.PrismaticJoint, JointKind.FIXED: UsdPhysics.FixedJoint,
+                 JointKind.DISTANCE: UsdPhysics.DistanceJoint}
+        self.UsdGeom.Scope.Define(self.stage, "/Root/Joints")
+        frame0 = take.frames[0]
+        ends = np.asarray(rec["joint_bodies"], dtype=np.int64)
+        local = np.asarray(rec["joint_local"], dtype=np.float64)
+        frames = np.asarray(rec["joint_frame"], dtype=np.float64)
+        for j, kind in enumerate(np.asarray(rec["joint_kind"])):
+            joint = kinds[JointKind(int(kind))].Define(self.stage, f"/Root/Joints/joint_{j:04d}")
+            for side in (0, 1):
+                body = int(ends[j, side])
+                pos, rot = local[j, side], frames[j, side]
+                path = self._body_prims.get(body)
+                if path is None and body >= 0:
+                    # a static body: the anchor and frame in world coordinates, attached to the world
+                    p, q = rec["position"][frame0, body], rec["orientation"][frame0, body]
+                    pos, rot = np.asarray(p) + rotate(np.asarray(q), pos), _quat_mul(np.asarray(q), rot)
+                rel = joint.CreateBody0Rel() if side == 0 else joint.CreateBody1Rel()
+                if path is not None:
+                    rel.SetTargets([path])
+                x, y, z, w = map(float, rot / np.linalg.norm(rot))
+                (joint.CreateLocalPos0Attr if side == 0 else joint.CreateLocalPos1Attr)(Gf.Vec3f(*map(float, pos)))
+                (joint.CreateLocalRot0Attr if side == 0 else joint.CreateLocalRot1Attr)(Gf.Quatf(w, x, y, z))
+            limited = bool(rec["joint_limit"][j])
+            lower, upper = float(rec["joint_lower"][j]), float(rec["joint_upper"][j])
+            if kind in (JointKind.HINGE, JointKind.SLIDER):
+                joint.CreateAxisAttr("X")
+                scale = math.degrees(1.0) if kind == JointKind.HINGE else 1.0
+                if limited and abs(lower) < UNLIMITED:
+                    joint.CreateLowerLimitAttr(lower * scale)
+                if limited and abs(upper) < UNLIMITED:
+                    joint.CreateUpperLimitAttr(upper * scale)
+            elif kind == JointKind.DISTANCE:
+                if lower > 0.0:
+                    joint.CreateMinDistanceAttr(lower)
+                if upper < UNLIMITED:
+                    joint.CreateMaxDistanceAttr(upper)
+            force = float(rec["joint_break_force"][j])
+            if force < UNLIMITED:
+                joint.CreateBreakForceAttr(force)
+            joint.CreateCollisionEnabledAttr(bool(rec["joint_collide"][j]))
 
     def _cloth(self) -> Callable:
         UsdGeom, take, rec = self.UsdGeom, self.take, self.take.rec
@@ -682,13 +881,13 @@ class _Writer:
         prim.CreateClippingRangeAttr(self.Gf.Vec2f(near, far))
 
 
-def _volume(name: str, scales: np.ndarray) -> np.ndarray:
-    """Volume [m^3] of unit prototypes scaled by `scales` (K, 3); 0 where the shape is not known."""
-    if name == "sphere":
+def _volume(proto: Prototype, scales: np.ndarray) -> np.ndarray:
+    """Volume [m^3] of prototypes scaled by `scales` (K, 3); 0 where the shape is not known."""
+    if proto.name == "sphere":
         return 4.0 / 3.0 * np.pi * np.prod(scales, axis=1)
-    if name == "box":
+    if proto.name == "box":
         return 8.0 * np.prod(scales, axis=1)
-    return np.zeros(len(scales))
+    return proto.volume * np.prod(scales, axis=1)
 
 
 # ---------------------------------------------------------------------------------------------- export
