@@ -16,3 +16,10 @@ for name in bouncing_ball rolling_ball friction_slide ramp box_tower pyramid rai
             cloth_drape flag hammock pebbles; do
     tumble render "samples/$name.toml" -o "docs/images/$name.gif" --size 320x180 --fps 12 --duration 3 --no-progress
 done
+# the joint samples, with their joints drawn
+for name in newtons_cradle rope_bridge ragdoll_stairs flag_pole; do
+    tumble render "samples/$name.toml" -o "docs/images/$name.gif" --size 320x180 --fps 12 --duration 3 --joints \
+        --no-progress
+done
+# capsules, hulls and a static mesh (docs/rendering.md)
+python scripts/shapes_picture.py docs/images/rendering_shapes.png

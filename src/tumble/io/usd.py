@@ -11,11 +11,15 @@ What the stage holds (Z up, metres, `timeCodesPerSecond` = fps, frame k at time 
 
     /Root                       Xform, the default prim
       Static/plane_0, ...       Mesh: planes as finite quads around everything that moves;
-                                static spheres and boxes (a flag's pole, a pin's support)
+                                static spheres, boxes, capsules, hulls; static triangle meshes
       Bodies                    PointInstancer: one instance per moving body, `ids` = body index,
                                 time-sampled positions, orientations (quath), scales, and
                                 `invisibleIds` listing the bodies not released yet (or removed)
         Prototypes/sphere, box  Mesh: unit sphere (radius 1), cube [-1, 1]^3
+        Prototypes/capsule_K    Capsule (axis Z): one per distinct radius and half height
+        Prototypes/hull_R       Mesh: hull prototype R's triangles, flat normals, in the body frame
+      JointedBodies             with `physics=True` and joints: Xforms of the jointed moving bodies
+      Joints                    with `physics=True`: UsdPhysics joints naming those Xforms
       Cloth                     Mesh: every cloth's triangles, time-sampled points and normals
       Camera                    the scene's [camera], when it has one
       PhysicsScene, Materials   with `physics=True`: UsdPhysics colliders, rigid bodies, masses

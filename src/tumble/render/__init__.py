@@ -31,7 +31,9 @@ Camera moves (all in place)::
     camera.ray(x, y, w, h) -> (origin, direction) for picking
 
 `Renderer` attributes that may change between frames: `ground_cell_size` [m], `light_direction`,
-`shadows`, `cloth_color`; `resize(w, h)` changes the size `render()` returns. Colours of bodies
+`shadows`, `cloth_color`, `show_joints` (draw the joints); `resize(w, h)` changes the size
+`render()` returns. Spheres, boxes, capsules, convex hulls and static meshes are drawn with their
+real geometry (`tumble.render.solids`). Colours of bodies
 come from `body_colors(indices)` (a stable hash of the body index), identical in viewer and video.
 """
 

@@ -288,6 +288,14 @@ void main() {
 """
 )
 
+# the rotation of a vector by a unit quaternion, shared by the vertex shaders of meshes
+ROTATE = """
+vec3 rotate(vec4 q, vec3 v) {  // rotate by unit quaternion q = (x, y, z, w)
+    vec3 t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
+}
+"""
+
 BOX_VERTEX = """
 #version 330
 in vec3 in_position;
@@ -302,10 +310,7 @@ out vec3 v_normal;
 out vec3 v_local;
 flat out vec3 v_half;
 flat out vec3 v_color;
-vec3 rotate(vec4 q, vec3 v) {  // rotate by unit quaternion q = (x, y, z, w)
-    vec3 t = 2.0 * cross(q.xyz, v);
-    return v + q.w * t + cross(q.xyz, t);
-}
+""" + ROTATE + """
 void main() {
     v_local = in_position * in_half;
     v_half = in_half;
@@ -410,13 +415,6 @@ void main() {
 # capsules, convex hulls, static meshes and the joint overlay: triangles in a body's frame, placed
 # per instance. A capsule's vertex is a point n of the unit sphere and the side (+1 / -1) of the
 # segment it belongs to: p = r n + side a z, normal n, so one vertex buffer serves every capsule
-SOLID_ROTATE = """
-vec3 rotate(vec4 q, vec3 v) {  // rotate by unit quaternion q = (x, y, z, w)
-    vec3 t = 2.0 * cross(q.xyz, v);
-    return v + q.w * t + cross(q.xyz, t);
-}
-"""
-
 SOLID_VERTEX = (
     """
 #version 330
@@ -430,7 +428,7 @@ out vec3 v_world;
 out vec3 v_normal;
 flat out vec3 v_color;
 """
-    + SOLID_ROTATE
+    + ROTATE
     + """
 void main() {
     v_world = in_center + rotate(in_quat, in_position);
@@ -456,7 +454,7 @@ out vec3 v_world;
 out vec3 v_normal;
 flat out vec3 v_color;
 """
-    + SOLID_ROTATE
+    + ROTATE
     + """
 void main() {
     vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
@@ -496,7 +494,7 @@ in vec3 in_center;
 in vec4 in_quat;
 uniform mat4 u_light_vp;
 """
-    + SOLID_ROTATE
+    + ROTATE
     + """
 void main() {
     gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, in_position), 1.0);
@@ -515,7 +513,7 @@ in float in_radius;
 in float in_half;
 uniform mat4 u_light_vp;
 """
-    + SOLID_ROTATE
+    + ROTATE
     + """
 void main() {
     vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
@@ -579,10 +577,7 @@ in vec3 in_center;
 in vec4 in_quat;
 in vec3 in_half;
 uniform mat4 u_light_vp;
-vec3 rotate(vec4 q, vec3 v) {
-    vec3 t = 2.0 * cross(q.xyz, v);
-    return v + q.w * t + cross(q.xyz, t);
-}
+""" + ROTATE + """
 void main() {
     gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, in_position * in_half), 1.0);
 }
