@@ -57,7 +57,7 @@ def main(out: str = "docs/images/rendering_shapes.png") -> None:
     world.run(0.75)
     renderer = Renderer(create_context(), 960, 540, samples=4)
     renderer.show_joints = True
-    camera = Camera(position=(1.6, -2.6, 1.6), target=(0.05, 0.0, 0.45))
+    camera = Camera(position=(2.1, -3.3, 2.0), target=(0.1, 0.05, 0.6))
     image = Image.fromarray(renderer.render(world, camera))
     with atomic_path(out) as tmp:
         image.save(tmp, format="PNG", optimize=True)

@@ -133,3 +133,28 @@ def test_run_record_then_plot(tmp_path, monkeypatch):
     fig = build_figure(load_record(record))
     titles = [ax.get_title(loc="left") for ax in fig.axes]
     assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count"]
+
+
+def test_render_joints_option_draws_the_joints(tmp_path, cli, monkeypatch):
+    """--joints draws the joint overlay: a hanging ball's rope changes the frame; without it, it does not show."""
+    from PIL import Image
+
+    def load_scene(path, **overrides):
+        world = tumble.World(dt=1.0 / 120.0)
+        world.add_plane()
+        ball = world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.08)
+        world.add_joint("rope", None, ball, anchor_a=(0.0, 0.0, 1.1))
+        world.metadata["camera"] = {"position": [0.0, -2.5, 0.8], "target": [0.0, 0.0, 0.8], "fov": 40}
+        return world
+
+    monkeypatch.setattr(tumble, "load_scene", load_scene)
+    frames = {}
+    for flag in ([], ["--joints"]):
+        out = tmp_path / ("with" if flag else "without")
+        rc = cli(["render", "rope.toml", "-o", str(out), "--duration", "0.1", "--fps", "10", "--size", "96x96",
+                  "--no-progress", *flag])
+        assert rc == 0
+        frames[bool(flag)] = np.asarray(Image.open(out / "frame_00000.png"), dtype=int)
+    # the rope runs up the middle of the image from the ball (below the centre) to its anchor (above)
+    column = np.abs(frames[True] - frames[False]).max(axis=2)[:, 44:52]
+    assert (column.max(axis=1) > 40).sum() >= 10  # ten or more rows of the rope

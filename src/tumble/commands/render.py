@@ -92,7 +92,6 @@ def main(args: argparse.Namespace) -> int:
     width, height = parse_size(args.size)
     ctx = create_context()
     renderer = Renderer(ctx, width, height, samples=4)
-    renderer.show_joints = bool(args.joints)
     try:
         world = tumble.load_scene(args.scene)
         prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
@@ -100,7 +99,7 @@ def main(args: argparse.Namespace) -> int:
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)
         out = export(world, args.output, duration=duration, fps=args.fps, size=(width, height), camera=camera,
-                     progress=not args.no_progress, renderer=renderer)
+                     progress=not args.no_progress, renderer=renderer, joints=args.joints)
     finally:
         renderer.release()
         ctx.release()

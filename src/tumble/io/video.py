@@ -81,6 +81,7 @@ def render_frames(
     camera=None,
     renderer=None,
     dither: bool = True,
+    joints: bool | None = None,
 ) -> Iterator[np.ndarray]:
     """Step `world` and yield one RGB image (height, width, 3) uint8 every 1/fps simulated seconds.
 
@@ -94,6 +95,7 @@ def render_frames(
         renderer: a `tumble.render.Renderer` to reuse (its size is set to `size`); default a new
             one on a new headless context, 4x multisampled (smooth edges, ~1.3-1.8x the time).
         dither: add the renderer's +-1/255 output noise (no banding); GIFs leave it off.
+        joints: draw the joints (`renderer.show_joints`) for these frames; None keeps the renderer's setting.
 
     Raises:
         TumbleError: no OpenGL context could be made.
@@ -114,6 +116,9 @@ def render_frames(
     start = float(world.time)
     dt = float(world.dt)
     dither_before, renderer.dither = renderer.dither, bool(dither)
+    joints_before = renderer.show_joints
+    if joints is not None:
+        renderer.show_joints = bool(joints)
     try:
         for k in range(n):
             # step until the world reaches this frame's time (within half a step)
@@ -123,6 +128,7 @@ def render_frames(
             yield renderer.render(world, camera)
     finally:
         renderer.dither = dither_before
+        renderer.show_joints = joints_before
         if own:  # the context made here goes with the renderer
             ctx = renderer.ctx
             renderer.release()
@@ -155,6 +161,7 @@ def export(
     camera=None,
     progress: bool = True,
     renderer=None,
+    joints: bool | None = None,
 ) -> Path:
     """Render `world` over `duration` simulated seconds into `out` and return its path.
 
@@ -162,7 +169,7 @@ def export(
     looping), or a folder (an existing one, or a path with no suffix) of `frame_00000.png`, ...
 
     Args:
-        world, duration, fps, size, camera, renderer: as for `render_frames`.
+        world, duration, fps, size, camera, renderer, joints: as for `render_frames`.
         progress: show a progress bar on stderr (frames done, estimated time left).
 
     The output is checked before the first frame and written beside `out`, then renamed into
@@ -184,7 +191,7 @@ def export(
     if kind == "gif":
         gif_delays_ms(n, fps)  # (refuses a rate a GIF cannot play before rendering anything)
     frames = render_frames(world, duration=duration, fps=fps, size=(width, height), camera=camera,
-                           renderer=renderer, dither=kind != "gif")
+                           renderer=renderer, dither=kind != "gif", joints=joints)
     label = f"rendering {out.name or out}"
 
     # every kind is written beside `out` and renamed into place when complete (tumble.io.atomic)
