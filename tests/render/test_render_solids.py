@@ -83,25 +83,6 @@ def test_bodies_sharing_a_hull_prototype_are_one_batch():
     assert sorted(len(b.body) for b in batches) == [1, 2]
 
 
-def test_capsule_mesh_is_closed_and_faces_outward():
-    """Every capsule triangle winds counter-clockwise seen from outside; the surface is at distance r of the segment."""
-    v = solids.capsule_vertices()
-    r, a = 0.3, 0.7
-    p = v[:, :3] * r + np.outer(v[:, 3], [0.0, 0.0, a])
-    tri = p.reshape(-1, 3, 3)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area = np.linalg.norm(normal, axis=1)
-    centre = tri.mean(axis=1)
-    axis_point = np.stack([np.zeros(len(centre)), np.zeros(len(centre)), np.clip(centre[:, 2], -a, a)], axis=1)
-    outward = np.einsum("ij,ij->i", normal, centre - axis_point)
-    assert np.all(outward[area > 1e-9] > 0.0)
-    distance = np.linalg.norm(p - np.stack([0 * p[:, 0], 0 * p[:, 0], np.clip(p[:, 2], -a, a)], axis=1), axis=1)
-    np.testing.assert_allclose(distance, r, rtol=1e-5)
-    # the surface is closed: its area is the capsule's, 4 pi r^2 + 2 pi r (2 a), to the tessellation
-    exact = 4 * math.pi * r**2 + 4 * math.pi * r * a
-    assert 0.95 * exact < 0.5 * area.sum() < exact
-
-
 def test_hull_triangles_cover_each_face_with_its_normal():
     """The hull's triangles have the face normals, wind outward and add up to the hull's surface."""
     from tumble.collision.hulls import hull_from_points
@@ -264,3 +245,27 @@ def test_picking_hits_capsules_and_hulls_exactly():
     grab = picking.pick(world, (0.1, -5.0, 2.1), along)
     assert grab is not None and grab.index == hull and grab.distance == pytest.approx(5.0, abs=1e-9)
     assert picking.pick(world, (0.7, -5.0, 2.7), along) is None  # inside its bounding box, outside the hull
+
+
+def test_capsule_seen_from_inside_its_bounding_box(small_renderer, chromaticity):
+    """An eye between a capsule's cap and the corner of its box still sees the capsule (back faces are cast)."""
+    world = tumble.World()
+    world.add_capsule(position=(0.0, 0.0, 0.0), radius=0.5, half_height=0.5, static=True)
+    camera = Camera(position=(0.45, -0.45, 0.98), target=(0.0, 0.0, 0.0), fov_deg=40)
+    image = small_renderer.render(world, camera)
+    assert _like(image[H // 2, W // 2].astype(float), body_colors([0]), chromaticity)
+
+
+def test_hull_buffers_past_the_cache_size_are_freed_but_not_while_drawn(small_renderer, monkeypatch):
+    """With room for two cached hulls, a frame of three still draws all three, the same as a fresh cache."""
+    import tumble.render.renderer as renderer_module
+
+    world = tumble.World()
+    world.add_plane()
+    for k in range(3):
+        world.add_convex(points=TETRA * (1.0 + 0.2 * k), position=(0.5 * (k - 1), 0.0, 0.3), static=True)
+    camera = _front_camera(target=(0.0, 0.0, 0.4))
+    full = small_renderer.render(world, camera)
+    monkeypatch.setattr(renderer_module, "SOLID_CACHE_SIZE", 2)
+    np.testing.assert_array_equal(small_renderer.render(world, camera), full)
+    assert len(small_renderer._solid_cache) == 3  # all drawn now; older ones go when the next frame needs room

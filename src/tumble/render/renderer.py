@@ -12,8 +12,8 @@ bodies (hulls loop over their distinct prototypes). Passes, in order:
    fading into the sky with distance, drawn only from the front side);
 4. spheres: one quad per sphere, ray-cast against the sphere, true depth written;
 5. boxes: one instanced 36-vertex cube per box, darkened edges;
-6. capsules: one instanced draw of the shared capsule mesh; hulls and static meshes: one
-   instanced draw per prototype (a vertex buffer each, made once and cached);
+6. capsules: one instanced draw of impostors (each ray cast inside its bounding box); hulls and
+   static meshes: one instanced draw per prototype (a vertex buffer each, made once and cached);
 7. cloth: one indexed, two-sided triangle mesh with per-vertex normals;
 8. joints (`show_joints`): rods from each body's centre to its anchor and dots on the anchors,
    opaque where in view and faint where hidden inside or behind bodies;
@@ -42,6 +42,8 @@ GL_SAMPLE_ALPHA_TO_COVERAGE = 0x809E
 SPHERE_FLOATS = 11
 #: floats per instance: centre 3, orientation 4, half extents 3, colour 3
 BOX_FLOATS = 13
+#: hull and mesh vertex buffers kept between frames (beyond it, those not drawn now are freed)
+SOLID_CACHE_SIZE = 512
 
 
 def create_context(*, require: tuple[int, int] = (3, 3)):
@@ -351,10 +353,10 @@ class Renderer:
         self._shadow_box = prog(vertex_shader=shaders.SHADOW_BOX_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
         self._shadow_mesh = prog(vertex_shader=shaders.SHADOW_MESH_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
         self._solid = prog(vertex_shader=shaders.SOLID_VERTEX, fragment_shader=shaders.SOLID_FRAGMENT)
-        self._capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX, fragment_shader=shaders.SOLID_FRAGMENT)
+        self._capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX, fragment_shader=shaders.CAPSULE_FRAGMENT)
         self._shadow_solid = prog(vertex_shader=shaders.SHADOW_SOLID_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
-        self._shadow_capsule = prog(vertex_shader=shaders.SHADOW_CAPSULE_VERTEX,
-                                    fragment_shader=shaders.EMPTY_FRAGMENT)
+        self._shadow_capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX,
+                                    fragment_shader=shaders.SHADOW_CAPSULE_FRAGMENT)
         self._lit = (self._sky, self._plane, self._sphere, self._box, self._cloth, self._solid, self._capsule)
 
         # static geometry
@@ -367,9 +369,6 @@ class Renderer:
         self._cloth_vbo = ctx.buffer(reserve=1024 * 24, dynamic=True)
         self._cloth_ibo = ctx.buffer(reserve=1024 * 12, dynamic=True)
         self._cloth_tris = None
-        capsule = solids.capsule_vertices()
-        self._capsule_vertex_count = len(capsule)
-        self._capsule_vbo = ctx.buffer(capsule.tobytes())
         self._capsule_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         self._joint_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         # hull and mesh vertex buffers by SolidBatch.key: (source, vbo, instance buffer, vao, shadow vao, count)
@@ -398,13 +397,14 @@ class Renderer:
         ])
         self._shadow_cloth_vao = va(self._shadow_mesh, [(self._cloth_vbo, "3f 12x", "in_position")],
                                     index_buffer=self._cloth_ibo, index_element_size=4)
+        # capsules are ray cast inside their bounding boxes: the cube's corners, no normals
         capsule_layout = ("3f 4f 1f 1f 3f/i", "in_center", "in_quat", "in_radius", "in_half", "in_color")
-        self._capsule_vao = va(self._capsule, [(self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+        self._capsule_vao = va(self._capsule, [(self._cube_vbo, "3f 12x", "in_position"),
                                                (self._capsule_buf, *capsule_layout)])
-        self._joint_vao = va(self._capsule, [(self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+        self._joint_vao = va(self._capsule, [(self._cube_vbo, "3f 12x", "in_position"),
                                              (self._joint_buf, *capsule_layout)])
         self._shadow_capsule_vao = va(self._shadow_capsule, [
-            (self._capsule_vbo, "3f 1f", "in_position", "in_side"),
+            (self._cube_vbo, "3f 12x", "in_position"),
             (self._capsule_buf, "3f 4f 1f 1f 12x/i", "in_center", "in_quat", "in_radius", "in_half"),
         ])
 
@@ -465,6 +465,7 @@ class Renderer:
         self._upload(self._sphere_buf, arrays.spheres)
         self._upload(self._box_buf, arrays.boxes)
         self._upload(self._capsule_buf, arrays.capsules)
+        self._evict_solids({batch.key for batch in arrays.solids})
         batches = [(self._solid_entry(batch), len(batch.instances)) for batch in arrays.solids]
         for (entry, _), batch in zip(batches, arrays.solids):
             self._upload(entry[2], batch.instances)
@@ -561,11 +562,14 @@ class Renderer:
             ctx.disable(mgl.CULL_FACE)
 
         # capsules, hulls and static meshes (not culled: open meshes are seen from both sides)
-        for prog in (self._solid, self._capsule):
-            self._set_mat(prog, "u_vp", vp)
-            self._set(prog, "u_alpha", 1.0)
+        self._set_mat(self._solid, "u_vp", vp)
+        self._set(self._solid, "u_alpha", 1.0)
+        c = self._capsule
+        self._set_mat(c, "u_clip", vp)
+        self._set(c, "u_ray_dir", np.zeros(3))
+        self._set(c, "u_alpha", 1.0)
         if len(arrays.capsules):
-            self._capsule_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(arrays.capsules))
+            self._render_capsules(self._capsule_vao, len(arrays.capsules))
         for (_, _, _, vao, _, count), instances in batches:
             vao.render(mgl.TRIANGLES, vertices=count, instances=instances)
 
@@ -729,11 +733,8 @@ class Renderer:
         entry = self._solid_cache.get(batch.key)
         if entry is not None and entry[0] is batch.source:
             return entry
-        if len(self._solid_cache) >= 512:  # a world of many distinct hulls, or many worlds: start over
-            for old in self._solid_cache.values():
-                for obj in old[1:5]:
-                    obj.release()
-            self._solid_cache = {}
+        if entry is not None:
+            self._release_solid(batch.key)
         ctx = self.ctx
         vertices = batch.build()
         vbo = ctx.buffer(vertices.tobytes())
@@ -746,6 +747,25 @@ class Renderer:
         self._solid_cache[batch.key] = entry
         return entry
 
+    def _render_capsules(self, vao, instances: int) -> None:
+        """Draw capsule impostors: the back faces of their boxes, so a box around the eye still draws."""
+        mgl = self._mgl
+        self.ctx.enable(mgl.CULL_FACE)
+        self.ctx.cull_face = "front"
+        vao.render(mgl.TRIANGLES, vertices=36, instances=instances)
+        self.ctx.cull_face = "back"
+        self.ctx.disable(mgl.CULL_FACE)
+
+    def _evict_solids(self, keep: set) -> None:
+        """Past `SOLID_CACHE_SIZE` cached vertex buffers, free those this frame does not draw."""
+        if len(self._solid_cache) + len(keep) > SOLID_CACHE_SIZE:
+            for key in [k for k in self._solid_cache if k not in keep]:
+                self._release_solid(key)
+
+    def _release_solid(self, key: tuple) -> None:
+        for obj in self._solid_cache.pop(key)[1:5]:
+            obj.release()
+
     def _draw_joints(self, fbo, lines: np.ndarray, camera: Camera, height: int) -> None:
         """The joint overlay: opaque where in view, then faint (blended, depth kept) where hidden."""
         ctx, mgl = self.ctx, self._mgl
@@ -755,7 +775,7 @@ class Renderer:
         self._upload(self._joint_buf, instances)
         c = self._capsule
         self._set(c, "u_alpha", 1.0)
-        self._joint_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(instances))
+        self._render_capsules(self._joint_vao, len(instances))
         ctx.enable(mgl.BLEND)
         ctx.blend_func = mgl.SRC_ALPHA, mgl.ONE_MINUS_SRC_ALPHA
         ctx.depth_func = ">"
@@ -763,7 +783,7 @@ class Renderer:
         fbo.color_mask = (True, True, True, False)
         fbo.use()
         self._set(c, "u_alpha", 0.35)
-        self._joint_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count, instances=len(instances))
+        self._render_capsules(self._joint_vao, len(instances))
         self._set(c, "u_alpha", 1.0)
         fbo.depth_mask = True
         fbo.color_mask = (True, True, True, True)
@@ -803,11 +823,11 @@ class Renderer:
         if len(arrays.boxes):
             self._set_mat(self._shadow_box, "u_light_vp", light_vp)
             self._shadow_box_vao.render(mgl.TRIANGLES, vertices=36, instances=len(arrays.boxes))
-        for prog in (self._shadow_solid, self._shadow_capsule):
-            self._set_mat(prog, "u_light_vp", light_vp)
+        self._set_mat(self._shadow_solid, "u_light_vp", light_vp)
         if len(arrays.capsules):
-            self._shadow_capsule_vao.render(mgl.TRIANGLES, vertices=self._capsule_vertex_count,
-                                            instances=len(arrays.capsules))
+            self._set_mat(self._shadow_capsule, "u_clip", light_vp)
+            self._set(self._shadow_capsule, "u_ray_dir", -light)
+            self._render_capsules(self._shadow_capsule_vao, len(arrays.capsules))
         for (_, _, _, _, shadow, count), instances in batches:
             shadow.render(mgl.TRIANGLES, vertices=count, instances=instances)
         if n_cloth_idx:

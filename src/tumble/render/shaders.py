@@ -412,9 +412,7 @@ void main() {
 """
 )
 
-# capsules, convex hulls, static meshes and the joint overlay: triangles in a body's frame, placed
-# per instance. A capsule's vertex is a point n of the unit sphere and the side (+1 / -1) of the
-# segment it belongs to: p = r n + side a z, normal n, so one vertex buffer serves every capsule
+# convex hulls and static meshes: triangles in a body's frame, placed per instance
 SOLID_VERTEX = (
     """
 #version 330
@@ -439,29 +437,133 @@ void main() {
 """
 )
 
+# capsules: impostors. Each capsule draws the back faces of its bounding box (half extents
+# (r, r, a + r) in its frame) and the fragment shader casts the pixel's ray against the capsule in
+# the capsule's frame (exact silhouette and depth at any size, a dozen triangles per capsule). The
+# same program family draws the shadow pass, where the rays are parallel (the sun): then the ray
+# origin, a point on the sun's side of the box, varies linearly over the box and is interpolated.
 CAPSULE_VERTEX = (
     """
 #version 330
-in vec3 in_position;   // unit sphere point (also the normal)
-in float in_side;      // +1: the upper half, -1: the lower half
+in vec3 in_position;   // corner of the cube [-1, 1]^3
 in vec3 in_center;
 in vec4 in_quat;
 in float in_radius;
 in float in_half;
 in vec3 in_color;
-uniform mat4 u_vp;
-out vec3 v_world;
-out vec3 v_normal;
+uniform mat4 u_clip;       // world -> clip of this pass
+uniform vec3 u_eye;        // perspective pass: the eye (world)
+uniform vec3 u_ray_dir;    // parallel pass (the sun's): the rays' direction (world), else zero
+out vec3 v_local;
+out vec3 v_origin;
+flat out vec3 v_center;
+flat out vec4 v_quat;
+flat out float v_radius;
+flat out float v_half;
 flat out vec3 v_color;
 """
     + ROTATE
     + """
+vec3 rotate_inv(vec4 q, vec3 v) { return rotate(vec4(-q.xyz, q.w), v); }
 void main() {
-    vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
-    v_world = in_center + rotate(in_quat, local);
-    v_normal = rotate(in_quat, in_position);
+    v_local = in_position * vec3(in_radius, in_radius, in_half + in_radius) * 1.01;
+    v_center = in_center;
+    v_quat = in_quat;
+    v_radius = in_radius;
+    v_half = in_half;
     v_color = in_color;
-    gl_Position = u_vp * vec4(v_world, 1.0);
+    if (dot(u_ray_dir, u_ray_dir) > 0.0) {
+        v_origin = v_local - rotate_inv(in_quat, u_ray_dir) * 4.0 * (in_half + in_radius);
+    } else {
+        v_origin = rotate_inv(in_quat, u_eye - in_center);
+    }
+    gl_Position = u_clip * vec4(in_center + rotate(in_quat, v_local), 1.0);
+}
+"""
+)
+
+# distance along the unit ray o + t d to the capsule of half length a and radius r along z, or -1.
+# Every point of the two end spheres lies inside the infinite cylinder, so the ray's entry into the
+# cylinder, where |z| <= a, is the first hit; elsewhere it is the nearer entry into an end sphere
+CAPSULE_RAY = """
+float capsule_ray(vec3 o, vec3 d, float a, float r) {
+    float A = dot(d.xy, d.xy);
+    if (A > 1e-12) {
+        float B = dot(o.xy, d.xy);
+        float h = B * B - A * (dot(o.xy, o.xy) - r * r);
+        if (h < 0.0) return -1.0;
+        float t = (-B - sqrt(h)) / A;
+        if (abs(o.z + t * d.z) <= a) return t;
+    }
+    float best = -1.0;
+    for (int k = 0; k < 2; k++) {
+        vec3 oc = o - vec3(0.0, 0.0, k == 0 ? a : -a);
+        float b = dot(oc, d);
+        float h = b * b - (dot(oc, oc) - r * r);
+        if (h >= 0.0) {
+            float t = -b - sqrt(h);
+            if (t > 0.0 && (best < 0.0 || t < best)) best = t;
+        }
+    }
+    return best;
+}
+"""
+
+CAPSULE_FRAGMENT_HEAD = """
+#version 330
+in vec3 v_local;
+in vec3 v_origin;
+flat in vec3 v_center;
+flat in vec4 v_quat;
+flat in float v_radius;
+flat in float v_half;
+flat in vec3 v_color;
+uniform mat4 u_clip;
+"""
+
+CAPSULE_HIT = (
+    ROTATE
+    + CAPSULE_RAY
+    + """
+// the ray's hit in the capsule's frame, its world point and the depth written; false on a miss
+bool capsule_hit(out vec3 hit, out vec3 world) {
+    vec3 d = normalize(v_local - v_origin);
+    float t = capsule_ray(v_origin, d, v_half, v_radius);
+    if (t < 0.0) return false;
+    hit = v_origin + t * d;
+    world = v_center + rotate(v_quat, hit);
+    vec4 clip = u_clip * vec4(world, 1.0);
+    gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
+    return true;
+}
+"""
+)
+
+CAPSULE_FRAGMENT = (
+    CAPSULE_FRAGMENT_HEAD
+    + """
+uniform float u_alpha;   // 1: opaque; the joint overlay's hidden parts are drawn faint
+out vec4 f_color;
+"""
+    + COMMON
+    + CAPSULE_HIT
+    + """
+void main() {
+    vec3 hit, p;
+    if (!capsule_hit(hit, p)) discard;
+    vec3 n = rotate(v_quat, (hit - vec3(0.0, 0.0, clamp(hit.z, -v_half, v_half))) / v_radius);
+    f_color = vec4(dither(to_srgb(tonemap(shade(v_color, p, normalize(n), 32.0, 0.15)))), u_alpha);
+}
+"""
+)
+
+SHADOW_CAPSULE_FRAGMENT = (
+    CAPSULE_FRAGMENT_HEAD
+    + CAPSULE_HIT
+    + """
+void main() {
+    vec3 hit, p;
+    if (!capsule_hit(hit, p)) discard;
 }
 """
 )
@@ -498,26 +600,6 @@ uniform mat4 u_light_vp;
     + """
 void main() {
     gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, in_position), 1.0);
-}
-"""
-)
-
-SHADOW_CAPSULE_VERTEX = (
-    """
-#version 330
-in vec3 in_position;
-in float in_side;
-in vec3 in_center;
-in vec4 in_quat;
-in float in_radius;
-in float in_half;
-uniform mat4 u_light_vp;
-"""
-    + ROTATE
-    + """
-void main() {
-    vec3 local = in_position * in_radius + vec3(0.0, 0.0, in_side * in_half);
-    gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, local), 1.0);
 }
 """
 )

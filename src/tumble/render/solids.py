@@ -1,9 +1,9 @@
-"""Triangle geometry of the shapes the renderer draws as meshes: capsules, convex hulls, static
-triangle meshes, and the joint overlay (rods and anchor dots, drawn as thin capsules).
+"""Geometry of the shapes the renderer draws beyond spheres and boxes: capsules, convex hulls,
+static triangle meshes, and the joint overlay (rods and anchor dots, drawn as thin capsules).
 
-- **Capsules** share one vertex buffer: each vertex is a point n of the unit sphere plus the side
-  (+1 / -1) of the segment it hangs from, placed by the shader at r n + side a z (radius r, half
-  height a per instance), so every capsule of any size is one instanced draw.
+- **Capsules** need no geometry: the renderer ray casts each one inside its bounding box (see
+  `shaders.CAPSULE_RAY`), so every capsule of any size is one instanced draw of a cube, exact at any
+  zoom; here only their instance layout (`CAPSULE_FLOATS`).
 - **Convex hulls** get one vertex buffer per prototype (`world.hulls.prototypes[i]`, in the body
   frame: origin at the centre of mass), flat-shaded: each polygon face is fanned into triangles
   with the face's normal. Bodies using a prototype are its instances (centre, quaternion, colour).
@@ -34,25 +34,6 @@ JOINT_COLOR = (0.98, 0.80, 0.18)
 ANCHOR_COLOR = (0.95, 0.95, 0.95)
 #: creases sharper than this between two triangles of a mesh keep their flat normals [degrees]
 CREASE_DEGREES = 40.0
-
-
-def capsule_vertices(segments: int = 24, rings: int = 8) -> np.ndarray:
-    """Triangles of the unit capsule: (V, 4) float32 rows (unit sphere point, side), counter-clockwise outside.
-
-    Rows of constant latitude run from the north pole to the equator on the upper side, then from
-    the equator to the south pole on the lower side; the band between the two equator rows is the
-    cylinder. Pole rows give zero-area triangles, which rasterise to nothing.
-    """
-    theta = np.concatenate([np.linspace(0.0, 0.5 * math.pi, rings + 1), np.linspace(0.5 * math.pi, math.pi, rings + 1)])
-    side = np.repeat([1.0, -1.0], rings + 1)
-    phi = np.linspace(0.0, 2.0 * math.pi, segments + 1)
-    t, p = np.meshgrid(theta, phi, indexing="ij")
-    n = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
-    grid = np.concatenate([n, np.broadcast_to(side[:, None, None], (len(theta), segments + 1, 1))], axis=-1)
-    # quad (i, j) (i + 1, j) (i + 1, j + 1) (i, j + 1): south then east, so outward (south x east = n)
-    a, b, c, d = grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]
-    tris = np.stack([a, b, c, a, c, d], axis=2).reshape(-1, 4)
-    return np.ascontiguousarray(tris, dtype=np.float32)
 
 
 def hull_vertices(proto) -> np.ndarray:
