@@ -212,3 +212,16 @@ def test_without_physics_no_joints_and_every_body_is_an_instance(rec, tmp_path):
     assert not stage.GetPrimAtPath("/Root/Joints") and not stage.GetPrimAtPath("/Root/JointedBodies")
     ids = set(UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies")).GetIdsAttr().Get())
     assert ids == {3, 4, 5, 6, 7, 8}
+
+
+def test_physics_densities_of_capsule_and_hull_prototypes(rec, tmp_path):
+    """--physics: a capsule's and a hull's prototype density is mass / volume, the default 1000 kg/m^3 here."""
+    stage = _open(usd.export(rec, tmp_path / "d.usda", physics=True))
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    targets = inst.GetPrototypesRel().GetTargets()
+    ids = list(inst.GetIdsAttr().Get())
+    index = inst.GetProtoIndicesAttr().Get()
+    for body in (5, 7):  # the capsule and the rock no joint names
+        prim = stage.GetPrimAtPath(targets[index[ids.index(body)]])
+        assert prim.HasAPI(UsdPhysics.RigidBodyAPI) and prim.HasAPI(UsdPhysics.CollisionAPI)
+        assert UsdPhysics.MassAPI(prim).GetDensityAttr().Get() == pytest.approx(1000.0, rel=1e-6)
