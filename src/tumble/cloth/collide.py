@@ -34,16 +34,19 @@ import warp as wp
 
 from ..shapes import ShapeType
 from ..collision.hashgrid import HashGrid, cell_hash, cell_of
-from ..collision.narrowphase import box_closest
+from ..collision.hulls import Hulls
+from ..collision.narrowphase import box_closest, hull_closest
 from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
 from ..launch import LaunchCache, launch
-from .springs import Tethers
+from .springs import Limits, Tethers
 
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))
 CAPSULE = wp.constant(int(ShapeType.CAPSULE))
+CONVEX = wp.constant(int(ShapeType.CONVEX))
+MESH = wp.constant(int(ShapeType.MESH))
 
 
 @wp.struct
@@ -55,6 +58,7 @@ class BodyArrays:
     orientation: wp.array(dtype=quat)
     radius: wp.array(dtype=float_t)
     half_extents: wp.array(dtype=vec3)
+    geometry: wp.array(dtype=wp.int32)
     inv_mass: wp.array(dtype=float_t)
     inv_inertia: wp.array(dtype=vec3)
     friction: wp.array(dtype=float_t)
@@ -142,6 +146,111 @@ def _push_body(b: int, impulse: vec3, r_b: vec3, q: quat, inv_i: vec3, w_lin: fl
         wp.atomic_add(bodies.delta_rotation, b, dtheta)
 
 
+@wp.func
+def _slack_along(a: vec3, n: vec3, limit: float_t):
+    """Largest s >= 0 with |a + s n| <= limit: how far a particle at arm a from a fixed point may move along n."""
+    an = wp.dot(a, n)
+    disc = an * an - wp.dot(a, a) + limit * limit
+    return wp.max(-an + wp.sqrt(wp.max(disc, float_t(0.0))), float_t(0.0))
+
+
+@wp.func
+def _slack(p: int, xp: vec3, n: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), limits: Limits,
+           tethers: Tethers):
+    """How far particle p may move along n before one of its limited springs or tethers reaches its limit
+    (the other ends held where they are)."""
+    s = float_t(1.0e30)
+    k = limits.first[p]
+    k_end = k + limits.count[p]
+    while k < k_end:
+        s = wp.min(s, _slack_along(xp - x[limits.other[k]], n, limits.length[k]))
+        k += 1
+    t = tethers.first[p]
+    t_end = t + tethers.count[p]
+    while t < t_end:
+        pin = tethers.pin[t]
+        if inv_m[pin] <= float_t(0.0):
+            s = wp.min(s, _slack_along(xp - x[pin], n, tethers.limit[t]))
+        t += 1
+    return s
+
+
+@wp.func
+def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
+    """Signed distance of xp from a static mesh placed at (c, q), and the outward normal.
+
+    Faces are one-sided, and a mesh may be open (a terrain, a plate): a point is behind the
+    mesh only behind a face's interior and less than half the reach deep; near an edge or a
+    corner (where the pseudo-normal's sign is unreliable beside an open border) only in front.
+    """
+    zero = float_t(0.0)
+    pl = wp.quat_rotate_inv(q, xp - c)
+    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(wp.float32(pl[0]), wp.float32(pl[1]), wp.float32(pl[2])),
+                                            wp.float32(reach))
+    n = vec3(zero, zero, float_t(1.0))
+    if not query.result:
+        return False, zero, n
+    cf = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+    rel = pl - vec3(float_t(cf[0]), float_t(cf[1]), float_t(cf[2]))
+    nf = wp.mesh_eval_face_normal(mesh, query.face)
+    n = wp.normalize(vec3(float_t(nf[0]), float_t(nf[1]), float_t(nf[2])))
+    d = wp.dot(rel, n)
+    bw = wp.float32(1.0) - query.u - query.v
+    if wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4):
+        # at an edge or a corner: the direction to it is the normal, and only the front side counts
+        length = wp.length(rel)
+        if d <= zero or length <= float_t(1.0e-9):
+            return False, zero, n
+        n = rel / length
+        d = length
+    elif d < float_t(-0.5) * reach:
+        return False, zero, n
+    return True, d, wp.quat_rotate(q, n)
+
+
+@wp.func
+def _surface(shape: int, b: int, xp: vec3, bodies: BodyArrays, hulls: Hulls, mesh_ids: wp.array(dtype=wp.uint64),
+             reach: float_t):
+    """Signed distance d of point xp from body b's surface and the outward normal n there; found is
+    False where the body cannot be near (a mesh with no triangle within `reach`)."""
+    zero = float_t(0.0)
+    one = float_t(1.0)
+    c = bodies.position[b]
+    q = bodies.orientation[b]
+    d = zero
+    n = vec3(zero, zero, one)
+    found = bool(True)
+    if shape == PLANE:
+        n = wp.quat_rotate(q, vec3(zero, zero, one))
+        d = wp.dot(xp - c, n)
+    elif shape == SPHERE:
+        r = xp - c
+        length = wp.length(r)
+        d = length - bodies.radius[b]
+        if length > float_t(1.0e-12):
+            n = r / length
+    elif shape == BOX:
+        _surface_point, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), bodies.half_extents[b])
+        n = wp.quat_rotate(q, nl)
+    elif shape == CAPSULE:
+        # the nearest point of the segment c + t u, |t| <= h_z - r, then as a sphere
+        u = wp.quat_rotate(q, vec3(zero, zero, one))
+        hh = bodies.half_extents[b][2] - bodies.radius[b]
+        r = xp - (c + u * wp.clamp(wp.dot(xp - c, u), -hh, hh))
+        length = wp.length(r)
+        d = length - bodies.radius[b]
+        if length > float_t(1.0e-12):
+            n = r / length
+    elif shape == CONVEX:
+        _hull_point, nl, d = hull_closest(hulls, bodies.geometry[b], vec3(one, one, one), wp.quat_rotate_inv(q, xp - c))
+        n = wp.quat_rotate(q, nl)
+    elif shape == MESH:
+        found, d, n = _mesh_distance(mesh_ids[bodies.geometry[b]], c, q, xp, reach)
+    else:
+        found = False
+    return found, d, n
+
+
 @wp.kernel
 def _collide_bodies(
     x: wp.array(dtype=vec3),
@@ -150,13 +259,17 @@ def _collide_bodies(
     thickness: wp.array(dtype=float_t),
     friction: wp.array(dtype=float_t),
     tethers: Tethers,
+    limits: Limits,
     candidates: wp.array(dtype=wp.int32),
     candidate_count: int,
     bodies: BodyArrays,
+    hulls: Hulls,
+    mesh_ids: wp.array(dtype=wp.uint64),
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     h: float_t,
     taut: float_t,
+    strict: int,
 ):
     p = wp.tid()
     w_p = inv_m[p]
@@ -172,42 +285,17 @@ def _collide_bodies(
         b = candidates[k % candidate_count]
         dynamic_pass = k >= candidate_count
         k += 1
-        if (bodies.inv_mass[b] > zero) != dynamic_pass:
+        if (bodies.inv_mass[b] > zero) != dynamic_pass :
             continue
-        shape = bodies.shape[b]
         c = bodies.position[b]
         q = bodies.orientation[b]
         # signed distance d from the body's surface and outward normal n
-        d = zero
-        n = vec3(zero, zero, float_t(1.0))
-        if shape == PLANE:
-            n = wp.quat_rotate(q, vec3(zero, zero, float_t(1.0)))
-            d = wp.dot(xp - c, n)
-        elif shape == SPHERE:
-            r = xp - c
-            length = wp.length(r)
-            d = length - bodies.radius[b]
-            if length > float_t(1.0e-12):
-                n = r / length
-        elif shape == BOX:
-            _surface, nl, d = box_closest(wp.quat_rotate_inv(q, xp - c), bodies.half_extents[b])
-            n = wp.quat_rotate(q, nl)
-        elif shape == CAPSULE:
-            # the nearest point of the segment c + t u, |t| <= h_z - r, then as a sphere
-            u = wp.quat_rotate(q, vec3(zero, zero, float_t(1.0)))
-            hh = bodies.half_extents[b][2] - bodies.radius[b]
-            r = xp - (c + u * wp.clamp(wp.dot(xp - c, u), -hh, hh))
-            length = wp.length(r)
-            d = length - bodies.radius[b]
-            if length > float_t(1.0e-12):
-                n = r / length
-        else:
-            continue  # convex bodies and meshes do not meet cloth yet
+        found, d, n = _surface(bodies.shape[b], b, xp, bodies, hulls, mesh_ids, float_t(2.0) * thickness[p])
         depth = thickness[p] - d
-        if depth <= zero:
+        if not found or depth <= zero:
             continue
 
-        # normal: lambda = depth / (w_p + c w_b), particle moves lambda w_p n, body gets -lambda n / h
+        # the body's inverse mass at the contact point along n: w_b = 1/m + (r x n) . I^-1 (r x n)
         split = float_t(wp.max(contact_count_prev[b], 1))
         wp.atomic_add(contact_count_next, b, 1)
         r_b = (xp - n * d) - c
@@ -215,11 +303,10 @@ def _collide_bodies(
         inv_i = bodies.inv_inertia[b]
         rn = wp.cross(r_b, n)
         w_b = w_lin + wp.dot(rn, inv_inertia_times(q, inv_i, rn))
-        # a particle whose tether to a pin is taut and would be stretched by the push, or which
-        # a static body holds from that side, cannot give way: against a dynamic body it acts as
-        # fixed, so a taut hammock stops a ball at once instead of trading pushes with it over
-        # many substeps (which pumps energy), and a ball cannot press cloth into the ground;
-        # between taut x limit and the limit a tether stiffens gradually
+        # a particle which a static body holds from the other side cannot give way to a dynamic
+        # one; nor can one whose tethers are taut in the direction of the push (between taut x
+        # limit and the limit a tether stiffens gradually: an on/off switch made bodies resting
+        # on cloth chatter)
         w_c = w_p
         if w_b == zero:
             support = support + n
@@ -229,15 +316,31 @@ def _collide_bodies(
             w_c = wp.min(w_c, _give_way(p, xp, n, w_p, x, tethers, taut))
         if w_c + w_b <= zero:
             continue
+        # normal, mass-weighted: lambda = depth / (w_c + c w_b) moves the particle lambda w_c along n
+        # and gives the body -lambda n (c: particles on this body in the last pass, "mass splitting");
+        # strict: the cloth gives way only as far as its stretch limit lets it, a particle moves at
+        # most its slack along n (before one of its limited springs or tethers reaches its limit),
+        # and the body is pushed out the rest of the way, lambda_b = (depth - slack) / (c w_b)
         lam = depth / (w_c + split * w_b)
-        xp = xp + n * (lam * w_c)
+        move = lam * w_c
+        lam_b = lam
+        if strict != 0 and w_b > zero and move > zero:
+            slack = _slack(p, xp, n, x, inv_m, limits, tethers)
+            if move > slack:
+                move = slack
+                lam_b = (depth - slack) / (split * w_b)
+        xp = xp + n * move
 
         # friction on the particle's tangential motion relative to the body surface this substep
         mu = wp.sqrt(friction[p] * bodies.friction[b])
         vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
         tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
-        xp = xp - tdir * (lam_t * w_c)
-        _push_body(b, tdir * lam_t - n * lam, r_b, q, inv_i, w_lin, h, bodies)
+        move_t = lam_t * w_c
+        if strict != 0 and w_b > zero and move_t > zero:
+            move_t = wp.min(move_t, _slack(p, xp, -tdir, x, inv_m, limits, tethers))
+        xp = xp - tdir * move_t
+        _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, h, bodies)
+
     x[p] = xp
 
 
@@ -512,8 +615,8 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, candidates, bodies, contact_count_prev,
-                   contact_count_next, h, *, taut: float = 0.97, cache: LaunchCache | None = None):
+def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, limits: Limits, candidates, bodies, hulls, mesh_ids, contact_count_prev, contact_count_next, h,
+                   *, taut: float = 0.97, strict: bool = False, cache: LaunchCache | None = None):
     """Push particles out of the candidate bodies, with friction, and push the bodies back.
 
     Args:
@@ -523,21 +626,26 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, c
         thickness: distance particles keep from surfaces [m], shape (P,).
         friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
         tethers: each particle's tethers and their pins and largest lengths (`springs.tether_arrays`).
+        limits: each particle's limited springs (`springs.Limits`).
         candidates: body indices to test, shape (k,) int32.
-        bodies: the world's body `ArraySet`; velocities and angular velocities of dynamic bodies are updated.
-        contact_count_prev: particles touching each body in the previous substep, shape (n,) int32.
-        contact_count_next: zeroed; receives this substep's counts, shape (n,) int32.
+        bodies: the world's body `ArraySet`; positions and velocities of dynamic bodies are updated.
+        hulls: the world's `Hulls` struct (convex bodies); mesh_ids: its mesh ids by row (`MeshSet.ids`).
+        contact_count_prev: particles touching each body in the previous pass, shape (n,) int32.
+        contact_count_next: zeroed; receives this pass's counts, shape (n,) int32.
         h: substep [s].
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
             chatter at ~0.2 m/s; with the ramp a box in a hammock settles to ~0.02 m/s).
+        strict: particles give way to dynamic bodies only within the slack their limited springs
+            and tethers leave them (the other ends held), and the bodies are pushed out the rest
+            of the way, so contacts never stretch the cloth past its limit (`ClothSystem.strict_limit`).
     """
     k = candidates.shape[0]
     if k == 0:
         return
     launch(_collide_bodies, x.shape[0], [
-        x, x_prev, inv_mass, thickness, friction, tethers, candidates, k, body_arrays(bodies), contact_count_prev,
-        contact_count_next, float(h), float(taut)], x.device, cache)
+        x, x_prev, inv_mass, thickness, friction, tethers, limits, candidates, k, body_arrays(bodies),
+        hulls, mesh_ids, contact_count_prev, contact_count_next, float(h), float(taut), int(strict)], x.device, cache)
 
 
 def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction, tethers: Tethers, triangles,

@@ -23,6 +23,16 @@ from ..state import float_t, vec3
 from ..launch import LaunchCache, launch
 
 
+@wp.struct
+class Limits:
+    """Each particle's limited (structural) springs: CSR rows `first`, `count`; per entry the other end and limit."""
+
+    first: wp.array(dtype=wp.int32)
+    count: wp.array(dtype=wp.int32)
+    other: wp.array(dtype=wp.int32)
+    length: wp.array(dtype=float_t)  # (1 + max_stretch) l0 [m]
+
+
 @wp.kernel
 def _spring_forces(
     x: wp.array(dtype=vec3),
@@ -80,6 +90,7 @@ def _limit_stretch(
     inv_m: wp.array(dtype=float_t),
     ids: wp.array2d(dtype=wp.int32),
     limit: wp.array(dtype=float_t),
+    pin_load: wp.array(dtype=vec3),
     margin: float_t,
     relax: float_t,
     reverse: int,
@@ -91,8 +102,7 @@ def _limit_stretch(
     j = ids[s, 1]
     wi = inv_m[i]
     wj = inv_m[j]
-    w = wi + wj
-    if w <= float_t(0.0):
+    if wi + wj <= float_t(0.0):
         return
     d = x[j] - x[i]
     length = wp.length(d)
@@ -102,9 +112,15 @@ def _limit_stretch(
     target = limit[s] * margin
     excess = length - target
     if excess > float_t(0.0):
+        w = wi + wj
         c = d * (excess * relax / (length * w))
         wp.atomic_add(x, i, c * wi)
         wp.atomic_sub(x, j, c * wj)
+        # a pinned end feels the free end's pull, its momentum change times h: m_j (c w_j) = c [kg m]
+        if wi == float_t(0.0):
+            wp.atomic_add(pin_load, i, c)
+        if wj == float_t(0.0):
+            wp.atomic_sub(pin_load, j, c)
 
 
 @wp.kernel
@@ -184,7 +200,7 @@ def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity
                                     float(h), float(pin_alpha)], x.device, cache)
 
 
-def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iterations: int = 2,
+def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, pin_load=None, min_iterations: int = 2,
                   max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0, plain: int = 2,
                   cache: LaunchCache | None = None) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
@@ -201,6 +217,8 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         stretch_ids: particle pairs of the limited (structural) springs, shape (s, 2) int32.
         stretch_limit: largest allowed length (1 + max_stretch) l0 [m], shape (s,).
         violated: scratch flag, shape (1,) int32.
+        pin_load: adds, on pinned particles, the corrections' pull on them lambda u [kg m], shape (P,)
+            vec3 (divided by the substep it is the impulse the pins take; default: not kept).
         min_iterations, max_iterations: bounds on the number of sweeps (0: check first, sweep only
             if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
@@ -215,6 +233,8 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
     count = stretch_ids.shape[0]
     if count == 0 or max_iterations <= 0:
         return 0
+    if pin_load is None:
+        pin_load = wp.zeros(x.shape[0], dtype=vec3, device=x.device)
     flag = violated.numpy() if violated.device.is_cpu else None
     it = 0
     target = max(0, min_iterations)
@@ -222,7 +242,7 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, min_iter
         while it < min(target, max_iterations):
             # plain projections first (enough for cloth that is barely over its limit), then
             # over-relaxed ones, which converge much faster where the whole cloth is taut
-            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, margin,
+            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, pin_load, margin,
                                            1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0],
                    x.device, cache)
             it += 1
@@ -289,11 +309,14 @@ def tether_arrays(first, count, pin, limit) -> Tethers:
 
 
 @wp.kernel
-def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers, margin: float_t):
+def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers,
+                   pin_load: wp.array(dtype=vec3),
+                   margin: float_t):
     # one thread per particle, its tethers in turn: no two threads move the same particle, and
     # pins do not move, so the sweep is the same on the CPU and on CUDA
     p = wp.tid()
-    if inv_m[p] <= float_t(0.0):
+    w = inv_m[p]
+    if w <= float_t(0.0):
         return
     xp = x[p]
     for t in range(tethers.first[p], tethers.first[p] + tethers.count[p]):
@@ -304,19 +327,26 @@ def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), teth
             excess = length - tethers.limit[t] * margin
             if excess > float_t(0.0):
                 # pull the particle back onto the sphere of radius margin * limit about the pin
-                xp = xp - d * (excess / length)
+                dx = d * (excess / length)
+                xp = xp - dx
+                # the pin feels the particle's pull, m_p |dx| along the tether [kg m]
+                wp.atomic_add(pin_load, a, dx / w)
     x[p] = xp
 
 
-def limit_tethers(x, inv_mass, tethers: Tethers, *, margin: float = 0.99, cache: LaunchCache | None = None):
+def limit_tethers(x, inv_mass, tethers: Tethers, *, pin_load=None, margin: float = 0.99,
+                  cache: LaunchCache | None = None):
     """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
 
     Args:
         x: particle positions [m], shape (P,) vec3 (corrected in place).
         inv_mass: inverse masses [1/kg], shape (P,); a tether acts only while its pin is pinned.
         tethers: each particle's tethers, their pins and largest lengths (`tether_arrays`).
+        pin_load: adds the tethers' pull on their pins, m_p dx [kg m], shape (P,) vec3 (default: not kept).
         margin: particles are kept within margin * limit, the same margin as `limit_stretch`, so
             that a taut chain of springs between a particle and its pin fits inside both limits.
     """
     if tethers.pin.shape[0]:
-        launch(_limit_tethers, x.shape[0], [x, inv_mass, tethers, margin], x.device, cache)
+        if pin_load is None:
+            pin_load = wp.zeros(x.shape[0], dtype=vec3, device=x.device)
+        launch(_limit_tethers, x.shape[0], [x, inv_mass, tethers, pin_load, margin], x.device, cache)

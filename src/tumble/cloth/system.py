@@ -35,7 +35,7 @@ import warp as wp
 from .. import validate
 from ..errors import HandleError, SimulationError
 from ..state import ClothId, Handle, float_t, readonly, vec3
-from . import collide, grid, springs
+from . import attach, collide, grid, springs
 from .attach import BodyPins
 from ..launch import LaunchCache
 from .wind import Wind, accumulate_air_forces, sample_wind
@@ -121,6 +121,10 @@ class ClothSystem:
             springs stable, at least `min_substeps` (see `substeps_for`).
         contact_iterations: passes over stretch limit and body contacts per substep while some
             body is near the cloth (1 pass otherwise).
+        strict_limit: contacts never stretch the cloth past its limit: a particle gives way to a
+            body only within the slack its limited springs and tethers leave it, and the body is
+            pushed out the rest of the way (default False; see docs/design.md, "Cloth with
+            bodies", for what it holds and what it costs: bodies resting on it jitter more).
 
     Args:
         world: the owning `World` (reads `gravity`, `dt`, `substeps`, `step_count`, `time`, `bodies`).
@@ -135,6 +139,7 @@ class ClothSystem:
         self.stretch_relaxation = 1.5
         self.self_collision = True
         self.contact_iterations = 2
+        self.strict_limit = False
         self.last_stretch_sweeps = 0  # sweeps taken by the last substep (diagnostics)
         self.substeps: int | None = None
         self.min_substeps = 1
@@ -346,10 +351,33 @@ class ClothSystem:
             self._arrays[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
         self._arrays["structural_strain"] = wp.zeros(len(self._host["structural_ids"]), dtype=float_t,
                                                      device=self.device)
+        self._build_limits()
         self._grid = collide.SelfCollisionGrid(p, self.device)
         self._pair_travel = math.inf
         self._reach = float(self._host["particle_thickness"].max())
         self._update_pins()
+
+    def _build_limits(self) -> None:
+        """Per particle: its limited springs (other end and limit, `springs.Limits`); the pins' load."""
+        h, dev, p = self._host, self.device, self._particle_count
+        ids, limit = h["stretch_ids"], h["stretch_limit"]
+        ends = np.concatenate([ids[:, 0], ids[:, 1]]).astype(np.int64)
+        order = np.argsort(ends, kind="stable")
+        count = np.bincount(ends, minlength=p).astype(np.int32)
+        first = (np.cumsum(count) - count).astype(np.int32)
+        other = np.concatenate([ids[:, 1], ids[:, 0]])[order].astype(np.int32)
+        length = np.concatenate([limit, limit])[order]
+        a = self._arrays
+        a["limit_first"] = wp.array(first, dtype=wp.int32, device=dev)
+        a["limit_count"] = wp.array(count, dtype=wp.int32, device=dev)
+        a["limit_other"] = wp.array(np.resize(other, max(1, len(other))), dtype=wp.int32, device=dev)
+        a["limit_length"] = wp.array(np.resize(length, max(1, len(length))), dtype=float_t, device=dev)
+        self._limits = springs.Limits()
+        for name in ("first", "count", "other", "length"):
+            setattr(self._limits, name, a["limit_" + name])
+        # per pinned particle: the stretch limit's and tethers' pull on it this substep, lambda u [kg m]
+        a["particle_pin_load"] = wp.zeros(p, dtype=vec3, device=dev)
+        self._pin_impulse = wp.zeros(1, dtype=vec3, device=dev)
 
     def _update_pins(self) -> None:
         """After pins changed: rebuild the tethers to the pins and the stable substep."""
@@ -441,6 +469,8 @@ class ClothSystem:
                                   a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
 
         self.body_pins.react(a, world.bodies, world.gravity, hi)  # the pull on body pins moves their bodies
+        attach.sum_pin_forces(a["particle_inv_mass"], a["particle_force"], a["particle_mass"], world.gravity,
+                               self._pin_impulse, hi, cache=cache)
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
         remaining = max(1, total - self._substep_index)
@@ -451,16 +481,19 @@ class ClothSystem:
         self.body_pins.follow(a, world.bodies)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
-        # dynamics): a stretch limit and a body contact solved once each would fight over
-        # the substeps and pump energy into a ball resting in a hammock
+        # dynamics): a stretch limit and a body contact solved once each would fight over the
+        # substeps and pump energy into a ball resting in a hammock (with `strict_limit` the
+        # contacts never stretch the cloth past its limit: see docs/design.md, "Cloth with bodies")
         touching = self._candidates.shape[0] > 0
+        pin_load = a["particle_pin_load"]
+        pin_load.zero_()
         for it in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], self._tethers, cache=cache)
+            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache)
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
                 a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
-                self._violated, min_iterations=lo_it, max_iterations=hi_it,
+                self._violated, pin_load=pin_load, min_iterations=lo_it, max_iterations=hi_it,
                 relax=1.0 if touching else self.stretch_relaxation, cache=cache)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
@@ -469,10 +502,11 @@ class ClothSystem:
                 self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
                                     cache=cache)
                 springs.limit_stretch(a["particle_position"], a["particle_inv_mass"], a["stretch_ids"],
-                                      a["stretch_limit"], self._violated, min_iterations=0,
+                                      a["stretch_limit"], self._violated, pin_load=pin_load, min_iterations=0,
                                       max_iterations=hi_it, cache=cache)
 
-            # bodies: out of planes, spheres and boxes, with friction; bodies get the reaction
+            # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
+            # bodies get the reaction
             if touching:
                 self._collide_bodies(hi)
                 # bodies pushed some particles into the layer above: part them, then push out of
@@ -482,6 +516,10 @@ class ClothSystem:
                                         cache=cache)
                     self._collide_bodies(hi)
 
+        # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
+        self.body_pins.react_constraints(pin_load, world.bodies, hi)
+        attach.sum_pin_load(a["particle_inv_mass"], pin_load, self._pin_impulse, hi, cache=cache)
+
         # velocities from the corrected positions
         springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
                                   hi, cache=cache)
@@ -489,11 +527,14 @@ class ClothSystem:
     def _collide_bodies(self, hi: float) -> None:
         """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
         a = self._arrays
-        bodies = self.world.bodies
+        world = self.world
+        bodies = world.bodies
         self._contacts_next.zero_()
         collide.collide_bodies(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                               a["particle_thickness"], a["particle_friction"], self._tethers, self._candidates,
-                               bodies, self._contacts_prev, self._contacts_next, hi, cache=self._cache)
+                               a["particle_thickness"], a["particle_friction"], self._tethers, self._limits,
+                               self._candidates, bodies, world.hulls.struct(),
+                               world.meshes.ids(), self._contacts_prev, self._contacts_next, hi,
+                               strict=self.strict_limit, cache=self._cache)
         collide.catch_small_spheres(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
                                     a["particle_rest_position"], a["particle_thickness"], a["particle_friction"],
                                     self._tethers, a["triangles"], self._candidates, bodies, self._contacts_prev,
@@ -506,6 +547,8 @@ class ClothSystem:
         a = self._arrays
         self._step_seen = world.step_count
         self._substep_index = 0
+        self._pin_impulse.zero_()
+        self._pin_dt = dt
         self._cloth_total = self.substeps_for(dt)
         self._cloth_h = dt / self._cloth_total
         self._cloth_done = 0
@@ -749,6 +792,14 @@ class ClothSystem:
         s = springs.strain(a["particle_position"], a["structural_ids"], a["structural_rest_length"],
                            a["structural_strain"])
         return float(s.max())
+
+    def pin_force(self) -> np.ndarray:
+        """Mean force [N] the cloth exerted on all its pins (fixed and on bodies) over the last world
+        step, shape (3,): the springs' and the stretch limit's pull on them and the pinned particles'
+        weight. At rest it balances the weight of the cloth and of whatever the cloth carries."""
+        if not self._arrays or not getattr(self, "_pin_dt", 0.0):
+            return np.zeros(3)
+        return self._pin_impulse.numpy()[0] / self._pin_dt
 
     def kinetic_energy(self) -> float:
         """Kinetic energy of the cloth [J]: sum 1/2 m v^2."""

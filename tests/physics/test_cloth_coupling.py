@@ -1,0 +1,126 @@
+"""Cloth and bodies together: where the cloth's weight goes, the strict stretch limit, hulls and meshes.
+
+References are statics (a body at rest carries what hangs from it: sum of forces = total
+weight), the stretch limit itself ((1 + max_stretch) l0), and the geometry of the colliders.
+"""
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.io.scene import load_scene
+
+G = 9.81
+DT = 1.0 / 240.0
+# hanging in the xz-plane, grid j along +z: the top row j = ny - 1
+FACING_Y = (0.7071067811865476, 0.0, 0.0, 0.7071067811865476)
+
+
+def _hanging_cloth(world, *, nx=12, ny=8, mass=0.2, z=1.25):
+    """A 0.6 x 0.4 m cloth in the xz-plane whose top row is at z + 0.2, limited to 10 % stretch."""
+    index = world.add_cloth(size=(0.6, 0.4), resolution=(nx, ny), position=(0, 0, z), orientation=FACING_Y,
+                            mass=mass, pins=[(i, ny - 1) for i in range(nx)], max_stretch=0.1,
+                            damping={"structural": 0.05, "shear": 0.01, "bend": 0.001})
+    return world.cloth.cloths[index]
+
+
+def test_pins_carry_a_hanging_cloths_weight():
+    """A cloth hanging on its stretch limit from fixed pins: at rest the pins carry m g, within 2 %."""
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    _hanging_cloth(world)
+    world.run(2.0)
+    loads = []
+    world.run(1.0, callback=lambda w: loads.append(w.cloth.pin_force()))
+    load = np.mean(loads, axis=0)
+    assert world.cloth.max_strain() > 0.08  # hung on the limit (springs alone: 0.3 %)
+    # static equilibrium: the pins' pull balances the weight, m g, straight down
+    assert load[2] == pytest.approx(-0.2 * G, rel=0.02)
+    assert np.hypot(load[0], load[1]) < 0.02 * 0.2 * G
+
+
+def test_cloth_on_its_stretch_limit_hangs_its_weight_on_the_body():
+    """A cloth pinned to a bar on a rope hangs on its stretch limit: the rope carries bar + cloth, within 2 %.
+
+    Before, the bar felt only the springs' pull on the pins and the stretch limit's corrections
+    were lost: it carried 0.8 of the cloth's 1.96 N.
+    """
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    bar = world.add_box(position=(0, 0, 1.5), half_extents=(0.35, 0.05, 0.05), mass=2.0)
+    rope = world.add_joint("rope", None, bar, anchor_a=(0, 0, 2.0), anchor_b=(0, 0, 1.55))
+    cloth = _hanging_cloth(world, z=1.25)
+    pins = [cloth.particle(i, cloth.ny - 1) for i in range(cloth.nx)]
+    world.cloth.pin_to_body(pins, bar)
+    world.run(2.0)
+    forces = []
+    world.run(1.0, callback=lambda w: forces.append(w.joint_force[rope.index][2]))
+    assert world.cloth.max_strain() > 0.08
+    assert np.mean(forces) == pytest.approx((2.0 + 0.2) * G, rel=0.02)
+
+
+def _drop_cloth_on(world, z_top):
+    """A 1 m cloth, 24 x 24, 0.3 m above a collider whose top is at z_top; 2 s."""
+    thickness = 0.01
+    world.add_cloth(size=(1.0, 1.0), resolution=(24, 24), position=(0, 0, z_top + 0.3), thickness=thickness,
+                    friction=0.5)
+    world.run(2.0)
+    return world.cloth.particle_position, thickness
+
+
+def test_cloth_drapes_over_a_convex_hull():
+    """A cloth dropped on a static convex hull (an octagonal prism) lies on its top face, none inside."""
+    angle = np.arange(8) * np.pi / 4
+    ring = np.stack([0.2 * np.cos(angle), 0.2 * np.sin(angle)], axis=1)
+    points = np.vstack([np.column_stack([ring, np.zeros(8)]), np.column_stack([ring, np.full(8, 0.4)])])
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    world.add_plane()
+    world.add_convex(points=points, static=True, friction=0.5)
+    x, thickness = _drop_cloth_on(world, 0.4)
+    # a particle over the top face's inner part rests on it, one thickness up (to the solver's mm)
+    r = np.hypot(x[:, 0], x[:, 1])
+    top = r < 0.12
+    assert top.sum() > 5
+    assert np.allclose(x[top, 2], 0.4 + thickness, atol=2e-3)
+    # none inside the prism: the apothem of the octagon is 0.2 cos(pi / 8)
+    inside = (r < 0.2 * np.cos(np.pi / 8) - thickness) & (x[:, 2] < 0.4 - 1e-3) & (x[:, 2] > 0.0)
+    assert not inside.any()
+
+
+def test_cloth_drapes_over_a_mesh_as_over_the_same_box():
+    """A cloth dropped on a closed triangle-mesh box lies on its top and keeps out of it, as over the box primitive."""
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box(extents=(0.6, 0.6, 0.5))
+    drapes = []
+    for as_mesh in (True, False):
+        world = tumble.World(gravity=(0, 0, -G), dt=DT)
+        world.add_plane()
+        if as_mesh:
+            world.add_mesh(vertices=box.vertices, triangles=box.faces, position=(0, 0, 0.25))
+        else:
+            world.add_box(position=(0, 0, 0.25), half_extents=(0.3, 0.3, 0.25), static=True)
+        x, thickness = _drop_cloth_on(world, 0.5)
+        drapes.append(x)
+    x = drapes[0]
+    over = (np.abs(x[:, 0]) < 0.25) & (np.abs(x[:, 1]) < 0.25)
+    assert over.sum() > 20
+    assert np.allclose(x[over, 2], 0.5 + thickness, atol=1e-3)  # on the top face, one thickness up
+    # the part over the top lies where it lies on the box primitive (the folds of the skirt differ)
+    assert np.abs(drapes[0][over] - drapes[1][over]).max() < 1e-3
+    # no particle inside the box by more than the solver's millimetre
+    inside = (np.abs(x[:, 0]) < 0.3 - 1e-3) & (np.abs(x[:, 1]) < 0.3 - 1e-3) & (x[:, 2] < 0.5 - 1e-3)
+    assert not inside.any()
+
+
+def test_strict_limit_holds_the_hammock_while_balls_land_and_rest():
+    """With strict_limit, the hammock sample's balls never stretch it past its limit (to 0.5 %, 2 % landing).
+
+    The limit is 10 %; without strict_limit the balls stretch it to ~24 % as they land and
+    leave it at ~10.6 %.
+    """
+    world = load_scene("samples/hammock.toml")
+    world.cloth.strict_limit = True
+    strains = []
+    world.run(3.0, callback=lambda w: strains.append(w.cloth.max_strain()))
+    strains = np.array(strains)
+    assert strains.max() <= 0.1 + 0.02
+    assert strains[-int(0.5 / world.dt):].max() <= 0.1 + 0.005
+    assert world.body_position[1:, 2].min() > 0.5  # all three still in the hammock
