@@ -75,54 +75,27 @@ def _follow(
 
 
 @wp.kernel
-def _constraint_reaction(
-    pin_particle: wp.array(dtype=wp.int32),
-    pin_body: wp.array(dtype=wp.int32),
-    pin_local: wp.array(dtype=vec3),
-    pin_load: wp.array(dtype=vec3),
-    inv_h: float_t,
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    serial: int,
-):
-    # the stretch limit's and tethers' pull on a body pin this substep, lambda u / h, as an impulse J
-    k = wp.tid()
-    b = pin_body[k]
-    im = inv_mass[b]
-    if im == float_t(0.0):
-        return
-    J = pin_load[pin_particle[k]] * inv_h
-    r = wp.quat_rotate(q[b], pin_local[k])
-    add_velocity(b, J * im, inv_inertia_times(q[b], inv_inertia[b], wp.cross(r, J)), v, w, inv_mass, serial)
+def _sum_pin_load(pins: wp.array(dtype=wp.int32), force: wp.array(dtype=vec3), mass: wp.array(dtype=float_t),
+                  gravity: vec3, h: float_t, total: wp.array(dtype=vec3)):
+    p = pins[wp.tid()]
+    wp.atomic_add(total, 0, (force[p] + gravity * mass[p]) * h)
 
 
-@wp.kernel
-def _sum_pin_forces(inv_m: wp.array(dtype=float_t), force: wp.array(dtype=vec3), mass: wp.array(dtype=float_t),
-                    gravity: vec3, h: float_t, total: wp.array(dtype=vec3)):
-    p = wp.tid()
-    if inv_m[p] == float_t(0.0):
-        wp.atomic_add(total, 0, (force[p] + gravity * mass[p]) * h)
+def sum_pin_load(pins, force, mass, gravity, total, h, *, cache: LaunchCache | None = None) -> None:
+    """Add to total[0] the impulse over h of a force on every pinned particle, plus its weight.
 
-
-@wp.kernel
-def _sum_pin_load(inv_m: wp.array(dtype=float_t), pin_load: wp.array(dtype=vec3), inv_h: float_t, total: wp.array(dtype=vec3)):
-    p = wp.tid()
-    if inv_m[p] == float_t(0.0):
-        wp.atomic_add(total, 0, pin_load[p] * inv_h)
-
-
-def sum_pin_forces(inv_mass, force, mass, gravity, total, h, *, cache: LaunchCache | None = None) -> None:
-    """Add the impulse of the spring and air forces on every pinned particle and of its weight, over h, to total[0]."""
-    launch(_sum_pin_forces, inv_mass.shape[0], [inv_mass, force, mass, vec3(*gravity), float(h), total],
-           inv_mass.device, cache)
-
-
-def sum_pin_load(inv_mass, pin_load, total, h, *, cache: LaunchCache | None = None) -> None:
-    """Add the stretch limit's and tethers' pull on every pinned particle this substep (an impulse) to total[0]."""
-    launch(_sum_pin_load, inv_mass.shape[0], [inv_mass, pin_load, 1.0 / float(h), total], inv_mass.device, cache)
+    Args:
+        pins: the pinned particles, shape (k,) int32.
+        force: per-particle force [N], shape (P,) vec3 (springs and air; or a pull in kg m with
+            h the inverse substep and zero gravity).
+        mass: particle masses [kg], shape (P,).
+        gravity: [m/s^2], shape (3,).
+        total: accumulator [N s], shape (1,) vec3.
+        h: substep [s].
+    """
+    if pins.shape[0]:
+        launch(_sum_pin_load, pins.shape[0], [pins, force, mass, vec3(*gravity), float(h), total], pins.device,
+               cache)
 
 
 class BodyPins:
@@ -171,14 +144,17 @@ class BodyPins:
                           b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
                           1 if self.device == "cpu" else 0])
 
-    def react_constraints(self, pin_load, bodies, h: float) -> None:
-        """The stretch limit's and tethers' pull on the pins this substep acts on their bodies."""
+    def react_constraints(self, arrays: dict, bodies, h: float) -> None:
+        """The stretch limit's and tethers' pull on the pins this substep (`particle_pin_load`,
+        lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
         if self.count == 0:
             return
         b = bodies.arrays
-        wp.launch(_constraint_reaction, dim=self.count, device=self.device,
-                  inputs=[self.particle, self.body, self.local, pin_load, 1.0 / h, b["body_orientation"],
-                          b["body_velocity"], b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
+        wp.launch(_reaction, dim=self.count, device=self.device,
+                  inputs=[self.particle, self.body, self.local, arrays["particle_pin_load"], arrays["particle_mass"],
+                          vec3(0.0, 0.0, 0.0),
+                          1.0 / h, b["body_position"], b["body_orientation"], b["body_velocity"],
+                          b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
                           1 if self.device == "cpu" else 0])
 
     def follow(self, arrays: dict, bodies) -> None:

@@ -395,6 +395,8 @@ class ClothSystem:
             pins.append(pin + cloth.particle_start)
             limits.append(limit)
         cat = (lambda xs, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype))
+        self._arrays["pin_index"] = wp.array(np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32,
+                                             device=self.device)
         self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
         # per particle: its first tether and how many (tethers are sorted by particle)
@@ -469,8 +471,8 @@ class ClothSystem:
                                   a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
 
         self.body_pins.react(a, world.bodies, world.gravity, hi)  # the pull on body pins moves their bodies
-        attach.sum_pin_forces(a["particle_inv_mass"], a["particle_force"], a["particle_mass"], world.gravity,
-                               self._pin_impulse, hi, cache=cache)
+        attach.sum_pin_load(a["pin_index"], a["particle_force"], a["particle_mass"], world.gravity,
+                            self._pin_impulse, hi, cache=cache)
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
         remaining = max(1, total - self._substep_index)
@@ -517,8 +519,9 @@ class ClothSystem:
                     self._collide_bodies(hi)
 
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
-        self.body_pins.react_constraints(pin_load, world.bodies, hi)
-        attach.sum_pin_load(a["particle_inv_mass"], pin_load, self._pin_impulse, hi, cache=cache)
+        self.body_pins.react_constraints(a, world.bodies, hi)
+        attach.sum_pin_load(a["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse,
+                            1.0 / hi, cache=cache)
 
         # velocities from the corrected positions
         springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
