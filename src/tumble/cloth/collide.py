@@ -6,7 +6,9 @@ Stages:
   or plane, comes within reach of the cloth's bounding box this step, so a cloth next to a
   pile of 10,000 spheres does not test every particle against every sphere. Cost O(bodies).
 - `collide_bodies` (one thread per particle, looping over the candidates) pushes particles
-  that are closer than their thickness to a plane, sphere or box surface back out, applies
+  that are closer than their thickness to a plane, sphere, box, capsule, convex hull or static
+  mesh surface back out (hulls through the narrow phase's `hull_closest`, meshes through their
+  BVH, one-sided), applies
   Coulomb friction on the tangential motion of the substep, and gives dynamic bodies the
   equal and opposite impulse on their velocity and angular velocity. Cost O(P x candidates).
 - `catch_small_spheres` (one thread per triangle) does the same for spheres small enough to
@@ -25,6 +27,9 @@ masses w_p and w_b (w_b = 1/m + (r x n) . I^-1 (r x n) at the contact point), th
 moves by lambda w_p n with lambda = d / (w_p + c w_b) and the body receives the impulse
 -lambda n / h. c is the number of particles that touched this body in the previous substep
 ("mass splitting"), so that many particles pressing on one light body do not overshoot.
+With `strict` (`ClothSystem.strict_limit`) a particle moves at most its slack along n, the
+distance before one of its limited springs or tethers reaches its limit, and the body takes the
+rest: lambda_b = (d - slack) / (c w_b).
 """
 
 from __future__ import annotations
