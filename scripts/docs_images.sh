@@ -13,7 +13,7 @@ tumble render samples/hammock.toml -o docs/images/readme.gif --size 384x216 --fp
 [ "${1:-}" = "readme" ] && exit 0
 
 for name in bouncing_ball rolling_ball friction_slide ramp box_tower pyramid rain sphere_pile \
-            cloth_drape flag hammock pebbles; do
+            cloth_drape flag hammock pebbles pebble_bowl capsule_slope cloth_statue; do
     tumble render "samples/$name.toml" -o "docs/images/$name.gif" --size 320x180 --fps 12 --duration 3 --no-progress
 done
 # the joint samples, with their joints drawn
