@@ -33,7 +33,7 @@ import warp as wp
 
 from .errors import TumbleError
 from .launch import LaunchCache
-from .state import ArraySet, Handle, numpy_dtype
+from .state import ArraySet, Handle
 
 FORMAT = 1
 
@@ -107,13 +107,13 @@ def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
 # Paths name attributes ("cloth/_contacts_prev"), list items ("emitters/0") and dict entries; a
 # segment starting with ":" is a marker of the walk itself (":class", ":dtype", ...), never a name.
 
-def take(world) -> Snapshot:
-    """Capture `world`'s state (see `World.snapshot`)."""
+def take(world, *, arrays: bool = True) -> Snapshot:
+    """Capture `world`'s state (see `World.snapshot`); with `arrays=False` only its layout (no array is copied)."""
     snap = Snapshot(step_count=world.step_count, time=world.time)
     seen: set[int] = {id(world)}
     for name, value in sorted(vars(world).items()):
         if name not in _WORLD_SKIP:
-            _capture(value, name, snap, seen)
+            _capture(value, name, snap, seen, arrays)
     scene = world.metadata.get("scene")
     if scene is not None and getattr(scene, "text", None) is not None:
         snap.scene = scene.text
@@ -122,7 +122,7 @@ def take(world) -> Snapshot:
     return snap
 
 
-def _capture(value, path: str, snap: Snapshot, seen: set[int]) -> None:
+def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> None:
     if _is_plain(value):
         snap.values[path] = _plain(value)
     elif _is_derived(value):
@@ -132,37 +132,40 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int]) -> None:
         snap.values[path + "/:count"] = value.count
         snap.values[path + "/:capacity"] = value.capacity
         for name, arr in value.arrays.items():
-            snap.arrays[f"{path}/{name}"] = arr.numpy().copy()
+            if arrays:
+                snap.arrays[f"{path}/{name}"] = arr.numpy().copy()
         if id(value) not in seen:  # a subclass's own attributes (ContactSet's matching data, ...)
             seen.add(id(value))
             for name, item in sorted(vars(value).items()):
                 if name not in _ARRAYSET_OWN:
-                    _capture(item, f"{path}/{name}", snap, seen)
+                    _capture(item, f"{path}/{name}", snap, seen, arrays)
     elif isinstance(value, wp.array):
-        snap.arrays[path] = value.numpy().copy()
+        if arrays:
+            snap.arrays[path] = value.numpy().copy()
         snap.values[path + "/:dtype"] = _dtype_name(value.dtype)
     elif isinstance(value, np.ndarray):
-        snap.arrays[path] = value.copy()
+        if arrays:
+            snap.arrays[path] = value.copy()
     elif isinstance(value, np.random.Generator):
         snap.values[path + "/:rng"] = value.bit_generator.state
     elif isinstance(value, (list, tuple)):
         snap.values[path + "/:len"] = len(value)
         for i, item in enumerate(value):
-            _capture(item, f"{path}/{i}", snap, seen)
+            _capture(item, f"{path}/{i}", snap, seen, arrays)
     elif isinstance(value, dict):
         keys = list(value)
         if not all(isinstance(k, (str, int)) and not isinstance(k, bool) for k in keys):
             raise SnapshotError(f"cannot snapshot {path}: a dict with keys of type {type(keys[0]).__name__}")
         snap.values[path + "/:keys"] = keys
         for k in keys:
-            _capture(value[k], f"{path}/{k}", snap, seen)
+            _capture(value[k], f"{path}/{k}", snap, seen, arrays)
     elif _is_ours(value):
         if id(value) in seen:  # a back-reference (cloth -> world) or an object reached twice
             return
         seen.add(id(value))
         snap.values[path + "/:class"] = type(value).__qualname__
         for name, item in sorted(vars(value).items()):
-            _capture(item, f"{path}/{name}", snap, seen)
+            _capture(item, f"{path}/{name}", snap, seen, arrays)
     else:
         raise SnapshotError(f"cannot snapshot {path}: a value of type "
                             f"{type(value).__module__}.{type(value).__qualname__}")
@@ -265,7 +268,7 @@ def _check_layout(world, snap: Snapshot) -> None:
     def layout(s: Snapshot) -> dict[str, object]:
         return {p: v for p, v in s.values.items() if p.endswith(("/:class", "/:fields", "/:len"))}
 
-    have, want = layout(take(world)), layout(snap)
+    have, want = layout(take(world, arrays=False)), layout(snap)
     if have != want:
         diff = sorted(p.rpartition("/")[0] for p in have.keys() | want.keys() if have.get(p) != want.get(p))
         raise SnapshotError(f"the snapshot does not match this world: {_few(diff)} differ (restore into a world "
