@@ -29,8 +29,14 @@ FACING_X = (0.5, 0.5, 0.5, 0.5)
 def run(resolution: int, duration: float, *, wind: bool, self_collision: bool, device: str) -> dict:
     """Simulate one cloth; returns steps, wall and CPU seconds, steps/s, largest strain, cloth substeps."""
     world = tumble.World(dt=1.0 / 240.0, device=device)
-    world.add_cloth(size=(1.0, 1.0), resolution=(resolution, resolution), position=(0.0, 0.0, 1.5),
-                    orientation=FACING_X, pins="top-corners", mass=0.2)
+    world.add_cloth(
+        size=(1.0, 1.0),
+        resolution=(resolution, resolution),
+        position=(0.0, 0.0, 1.5),
+        orientation=FACING_X,
+        pins="top-corners",
+        mass=0.2,
+    )
     if wind:
         world.set_wind(velocity=(4.0, 0.0, 0.0), turbulence=1.5, scale=0.5, seed=1)
     cloth = world.cloth
@@ -68,13 +74,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-self-collision", action="store_true", help="turn cloth self-collision off")
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args(argv)
-    print("resolution,particles,springs,world_substeps,cloth_substeps,steps,wall_s,cpu_s,steps_per_s,"
-          "steps_per_cpu_s,max_strain")
+    print(
+        "resolution,particles,springs,world_substeps,cloth_substeps,steps,wall_s,cpu_s,steps_per_s,"
+        "steps_per_cpu_s,max_strain"
+    )
     for n in args.resolution:
         r = run(n, args.duration, wind=args.wind, self_collision=not args.no_self_collision, device=args.device)
-        print(f"{r['resolution']},{r['particles']},{r['springs']},{r['world_substeps']},{r['cloth_substeps']},"
-              f"{r['steps']},{r['wall_s']:.3f},{r['cpu_s']:.3f},{r['steps_per_s']:.1f},{r['steps_per_cpu_s']:.1f},"
-              f"{r['max_strain']:.4f}")
+        print(
+            f"{r['resolution']},{r['particles']},{r['springs']},{r['world_substeps']},{r['cloth_substeps']},"
+            f"{r['steps']},{r['wall_s']:.3f},{r['cpu_s']:.3f},{r['steps_per_s']:.1f},{r['steps_per_cpu_s']:.1f},"
+            f"{r['max_strain']:.4f}"
+        )
         sys.stdout.flush()
     return 0
 

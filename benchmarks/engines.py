@@ -25,7 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.scenes import (
-    CLOTH_SIZE, FRICTION, NO_RAPIER_CLOTH, RESTITUTION, Scene, initial_bodies, initial_cloth,
+    CLOTH_SIZE,
+    FRICTION,
+    NO_RAPIER_CLOTH,
+    RESTITUTION,
+    Scene,
+    initial_bodies,
+    initial_cloth,
 )
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -72,8 +78,9 @@ class TumbleAdapter:
         return f"dt 1/{round(1 / w.dt)}, {w.substeps} substeps"
 
     def __init__(self, scene: Scene, device: str = "cpu"):
-        import tumble
         import warp as wp
+
+        import tumble
 
         self._wp = wp
         self.scene = scene
@@ -91,9 +98,7 @@ class TumbleAdapter:
             # like the peers' cloths: no self-collision
             world.cloth.self_collision = False
             if world.cloth.particle_count != cloth.n * cloth.n:
-                raise RuntimeError(
-                    f"Tumble made {world.cloth.particle_count} cloth particles, expected {cloth.n ** 2}"
-                )
+                raise RuntimeError(f"Tumble made {world.cloth.particle_count} cloth particles, expected {cloth.n**2}")
             start = world.cloth.particle_position
             self._cloth_rows = np.argsort(_pixel_index(start, cloth.position[0], cloth.spacing, cloth.n))
             return
@@ -172,7 +177,12 @@ class PyBulletAdapter:
         for x in init.position:
             body = p.createMultiBody(init.mass, shape, basePosition=list(x), physicsClientId=cid)
             p.changeDynamics(
-                body, -1, restitution=e, lateralFriction=mu, linearDamping=0.0, angularDamping=0.0,
+                body,
+                -1,
+                restitution=e,
+                lateralFriction=mu,
+                linearDamping=0.0,
+                angularDamping=0.0,
                 physicsClientId=cid,
             )
             self.ids.append(body)
@@ -302,7 +312,9 @@ class MuJoCoAdapter:
             "  <worldbody>\n",
         ]
         for normal, offset in init.planes:
-            lines.append(f'    <geom type="plane" size="0 0 1" pos="{_xyz(normal * offset)}" zaxis="{_xyz(normal)}"/>\n')
+            lines.append(
+                f'    <geom type="plane" size="0 0 1" pos="{_xyz(normal * offset)}" zaxis="{_xyz(normal)}"/>\n'
+            )
         if init.shape == "sphere":
             geom = f'<geom type="sphere" size="{init.radius!r}" mass="{init.mass!r}"/>'
         else:
@@ -319,8 +331,7 @@ class MuJoCoAdapter:
         pins = " ".join(str((k % n) * n + k // n) for k in cloth.pins)
         z = float(cloth.position[0, 2])
         return (
-            self._header(scene, f"{max(64, n * n // 16)}M", MUJOCO_CLOTH_ITERATIONS)
-            + "  <worldbody>\n"
+            self._header(scene, f"{max(64, n * n // 16)}M", MUJOCO_CLOTH_ITERATIONS) + "  <worldbody>\n"
             f'    <flexcomp name="cloth" type="grid" dim="2" count="{n} {n} 1" '
             f'spacing="{cloth.spacing!r} {cloth.spacing!r} {cloth.spacing!r}" pos="0 0 {z!r}" '
             f'radius="0.001" mass="{cloth.mass!r}">\n'
@@ -391,8 +402,12 @@ class RapierAdapter:
             # the half-space's solid side is opposite its normal; the plane passes through normal * offset
             point = normal * offset
             world.add_collider(
-                r.Collider.halfspace(r.Vec3(*map(float, normal)), translation=r.Vec3(*map(float, point)),
-                                     friction=FRICTION, restitution=RESTITUTION),
+                r.Collider.halfspace(
+                    r.Vec3(*map(float, normal)),
+                    translation=r.Vec3(*map(float, point)),
+                    friction=FRICTION,
+                    restitution=RESTITUTION,
+                ),
                 parent=ground,
             )
         self.handles = []
@@ -423,8 +438,9 @@ class RapierAdapter:
 
         return {
             "position": np.array([vec(b.translation) for b in rows], dtype=np.float64),
-            "orientation": np.array([(b.rotation.i, b.rotation.j, b.rotation.k, b.rotation.w) for b in rows],
-                                    dtype=np.float64),
+            "orientation": np.array(
+                [(b.rotation.i, b.rotation.j, b.rotation.k, b.rotation.w) for b in rows], dtype=np.float64
+            ),
             "velocity": np.array([vec(b.linvel) for b in rows], dtype=np.float64),
             "angular_velocity": np.array([vec(b.angvel) for b in rows], dtype=np.float64),
         }

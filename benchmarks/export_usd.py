@@ -46,8 +46,11 @@ def synthetic_take(spheres: int, boxes: int, duration: float, fps: float, seed: 
     t = np.arange(frames) / fps
     shape = np.r_[np.full(n_planes, ShapeType.PLANE), np.full(spheres, ShapeType.SPHERE), np.full(boxes, ShapeType.BOX)]
     start = np.r_[np.zeros(n_planes + spheres), np.sort(rng.uniform(0.0, 1.0, boxes))]  # release times [s]
-    p0 = np.r_[np.zeros((n_planes, 3)), pile_positions(spheres, 1.5, seed=seed),
-               rng.uniform((-0.6, -0.6, 3.8), (0.6, 0.6, 4.2), (boxes, 3))]
+    p0 = np.r_[
+        np.zeros((n_planes, 3)),
+        pile_positions(spheres, 1.5, seed=seed),
+        rng.uniform((-0.6, -0.6, 3.8), (0.6, 0.6, 4.2), (boxes, 3)),
+    ]
     v0 = rng.normal(0.0, 0.5, (n, 3))
     age = np.maximum(t[:, None] - start[None, :], 0.0)  # (F, N)
     position = p0[None] + v0[None] * age[..., None]
@@ -65,12 +68,24 @@ def synthetic_take(spheres: int, boxes: int, duration: float, fps: float, seed: 
     orientation[unborn] = np.nan
     radius = np.where(shape == ShapeType.SPHERE, 0.05, 0.0)
     half = np.where((shape == ShapeType.BOX)[:, None], 0.04, 0.0) * np.ones((n, 3))
-    return {"format_version": np.int32(FORMAT_VERSION), "time": t, "fps": np.float64(fps), "dt": np.float64(1 / 240),
-            "position": position, "orientation": orientation, "velocity": np.zeros_like(position),
-            "angular_velocity": np.zeros_like(position), "shape": shape.astype(np.int32),
-            "shape_names": np.array(SHAPE_NAMES), "radius": radius, "half_extents": half,
-            "mass": np.where(shape == ShapeType.PLANE, 0.0, 0.1), "gravity": np.array([0.0, 0.0, -9.81]),
-            "restitution": np.full(n, 0.5), "friction": np.full(n, 0.5)}
+    return {
+        "format_version": np.int32(FORMAT_VERSION),
+        "time": t,
+        "fps": np.float64(fps),
+        "dt": np.float64(1 / 240),
+        "position": position,
+        "orientation": orientation,
+        "velocity": np.zeros_like(position),
+        "angular_velocity": np.zeros_like(position),
+        "shape": shape.astype(np.int32),
+        "shape_names": np.array(SHAPE_NAMES),
+        "radius": radius,
+        "half_extents": half,
+        "mass": np.where(shape == ShapeType.PLANE, 0.0, 0.1),
+        "gravity": np.array([0.0, 0.0, -9.81]),
+        "restitution": np.full(n, 0.5),
+        "friction": np.full(n, 0.5),
+    }
 
 
 def record_take(spheres: int, boxes: int, duration: float, fps: float) -> dict:
@@ -82,8 +97,17 @@ def record_take(spheres: int, boxes: int, duration: float, fps: float) -> dict:
     for normal, offset in box_planes(1.5):
         world.add_plane(normal=normal, offset=offset)
     world.add_spheres(position=pile_positions(spheres, 1.5, seed=1), radius=0.05, mass=0.1)
-    world.add_emitter(shape="box", rate=boxes / 1.0, count=boxes, position=(0, 0, 4.0), region="box",
-                      extent=(0.6, 0.6, 0.2), half_extents=0.04, mass=0.1, seed=1)
+    world.add_emitter(
+        shape="box",
+        rate=boxes / 1.0,
+        count=boxes,
+        position=(0, 0, 4.0),
+        region="box",
+        extent=(0.6, 0.6, 0.2),
+        half_extents=0.04,
+        mass=0.1,
+        seed=1,
+    )
     recorder = Recorder(world, fps=fps)
     frames = round(duration * fps) + 1
     while recorder.frame_count < frames:
@@ -113,8 +137,10 @@ def main(argv: list[str] | None = None) -> int:
     n_frames = len(rec["time"])
     n_bodies = int((rec["mass"] > 0).sum())
     born_late = int((~np.isfinite(rec["position"][0, :, 0])).sum())
-    print(f"take: {n_bodies:,} bodies ({born_late:,} released after frame 0), {n_frames} frames; "
-          f"{'simulated' if args.simulate else 'made up'} in {time.perf_counter() - start:.1f} s")
+    print(
+        f"take: {n_bodies:,} bodies ({born_late:,} released after frame 0), {n_frames} frames; "
+        f"{'simulated' if args.simulate else 'made up'} in {time.perf_counter() - start:.1f} s"
+    )
 
     cases = [(fmt, "instancer") for fmt in args.formats.split(",")]
     if args.xforms:
@@ -129,13 +155,25 @@ def main(argv: list[str] | None = None) -> int:
                 usd.export(rec, out, bodies=bodies)
                 best = min(best, time.perf_counter() - t0)
             mb = out.stat().st_size / 1e6
-            ok = "" if fmt != "usdc" or bodies != "instancer" else (
-                "  (targets met)" if best < TARGET_SECONDS and mb < TARGET_MB else "  (TARGET MISSED)")
+            ok = (
+                ""
+                if fmt != "usdc" or bodies != "instancer"
+                else ("  (targets met)" if best < TARGET_SECONDS and mb < TARGET_MB else "  (TARGET MISSED)")
+            )
             print(f"{fmt:5} {bodies:9} {best:7.2f} s {mb:8.1f} MB{ok}")
-            rows.append({"date": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.node(),
-                         "take": "simulated" if args.simulate else "synthetic", "format": fmt,
-                         "bodies": bodies, "body_count": n_bodies, "frames": n_frames,
-                         "seconds": f"{best:.3f}", "megabytes": f"{mb:.2f}"})
+            rows.append(
+                {
+                    "date": time.strftime("%Y-%m-%d %H:%M"),
+                    "machine": platform.node(),
+                    "take": "simulated" if args.simulate else "synthetic",
+                    "format": fmt,
+                    "bodies": bodies,
+                    "body_count": n_bodies,
+                    "frames": n_frames,
+                    "seconds": f"{best:.3f}",
+                    "megabytes": f"{mb:.2f}",
+                }
+            )
     if args.csv:
         path = Path(args.csv)
         new = not path.exists()

@@ -152,7 +152,7 @@ class Tumble:
             self.world.step()
 
     def pose(self):
-        return self.world.body_position[self.first:], self.world.body_orientation[self.first:]
+        return self.world.body_position[self.first :], self.world.body_orientation[self.first :]
 
 
 class PyBullet:
@@ -175,17 +175,20 @@ class PyBullet:
         for shape, size, x, m in zip(scene.shape, scene.size, scene.position, scene.mass):
             key = (shape, size if shape == "sphere" else tuple(size))
             if key not in shapes:
-                shapes[key] = (p.createCollisionShape(p.GEOM_SPHERE, radius=size, physicsClientId=c) if shape == "sphere"
-                               else p.createCollisionShape(p.GEOM_BOX, halfExtents=list(size), physicsClientId=c))
+                shapes[key] = (
+                    p.createCollisionShape(p.GEOM_SPHERE, radius=size, physicsClientId=c)
+                    if shape == "sphere"
+                    else p.createCollisionShape(p.GEOM_BOX, halfExtents=list(size), physicsClientId=c)
+                )
             body = p.createMultiBody(m, shapes[key], basePosition=list(x), physicsClientId=c)
-            p.changeDynamics(body, -1, lateralFriction=FRICTION, linearDamping=0, angularDamping=0,
-                             physicsClientId=c)
+            p.changeDynamics(body, -1, lateralFriction=FRICTION, linearDamping=0, angularDamping=0, physicsClientId=c)
             self.ids.append(body)
         la, lb = scene.local_anchors()
         for (a, b, _), pa, pb in zip(scene.joints, la, lb):
             parent = -1 if a < 0 else self.ids[a]
-            p.createConstraint(self.ids[b], -1, parent, -1, p.JOINT_POINT2POINT, [0, 0, 0], list(pb), list(pa),
-                               physicsClientId=c)
+            p.createConstraint(
+                self.ids[b], -1, parent, -1, p.JOINT_POINT2POINT, [0, 0, 0], list(pb), list(pa), physicsClientId=c
+            )
             if a >= 0:
                 p.setCollisionFilterPair(self.ids[a], self.ids[b], -1, -1, 0, physicsClientId=c)
 
@@ -206,15 +209,24 @@ class MuJoCo:
         import mujoco
 
         self.mj = mujoco
-        parts = [(f'<mujoco><option timestep="{DT}" gravity="{GRAVITY[0]} {GRAVITY[1]} {GRAVITY[2]}" '
-                  f'iterations="100"/><size memory="200M"/><worldbody>')]
+        parts = [
+            (
+                f'<mujoco><option timestep="{DT}" gravity="{GRAVITY[0]} {GRAVITY[1]} {GRAVITY[2]}" '
+                f'iterations="100"/><size memory="200M"/><worldbody>'
+            )
+        ]
         if scene.ground:
             parts.append(f'<geom type="plane" size="0 0 1" friction="{FRICTION} 0.005 0.0001"/>')
         for i, (shape, size, x, m) in enumerate(zip(scene.shape, scene.size, scene.position, scene.mass)):
-            geom = (f'type="sphere" size="{size}"' if shape == "sphere"
-                    else f'type="box" size="{size[0]} {size[1]} {size[2]}"')
-            parts.append(f'<body name="b{i}" pos="{x[0]} {x[1]} {x[2]}"><freejoint/>'
-                         f'<geom {geom} mass="{m}" friction="{FRICTION} 0.005 0.0001"/></body>')
+            geom = (
+                f'type="sphere" size="{size}"'
+                if shape == "sphere"
+                else f'type="box" size="{size[0]} {size[1]} {size[2]}"'
+            )
+            parts.append(
+                f'<body name="b{i}" pos="{x[0]} {x[1]} {x[2]}"><freejoint/>'
+                f'<geom {geom} mass="{m}" friction="{FRICTION} 0.005 0.0001"/></body>'
+            )
         parts.append("</worldbody><contact>")
         parts += [f'<exclude body1="b{a}" body2="b{b}"/>' for a, b, _ in scene.joints if a >= 0]
         parts.append("</contact><equality>")
@@ -256,14 +268,22 @@ class Rapier:
         self.handles = []
         for shape, size, x, m in zip(scene.shape, scene.size, scene.position, scene.mass):
             body = w.add_body(r.RigidBody.dynamic(translation=r.Vec3(*map(float, x)), can_sleep=False))
-            collider = (r.Collider.ball(float(size), mass=m, friction=FRICTION) if shape == "sphere"
-                        else r.Collider.cuboid(*map(float, size), mass=m, friction=FRICTION))
+            collider = (
+                r.Collider.ball(float(size), mass=m, friction=FRICTION)
+                if shape == "sphere"
+                else r.Collider.cuboid(*map(float, size), mass=m, friction=FRICTION)
+            )
             w.add_collider(collider, parent=body)
             self.handles.append(body)
         la, lb = scene.local_anchors()
         for (a, b, _), pa, pb in zip(scene.joints, la, lb):
-            joint = (r.SphericalJointBuilder().local_anchor1(r.Vec3(*map(float, pa)))
-                     .local_anchor2(r.Vec3(*map(float, pb))).contacts_enabled(False).build())
+            joint = (
+                r.SphericalJointBuilder()
+                .local_anchor1(r.Vec3(*map(float, pa)))
+                .local_anchor2(r.Vec3(*map(float, pb)))
+                .contacts_enabled(False)
+                .build()
+            )
             w.impulse_joints.insert(fixed if a < 0 else self.handles[a], self.handles[b], joint, True)
 
     def step(self, k: int) -> None:
@@ -300,11 +320,22 @@ def run(scene_name: str, engine: str, duration: float, log=print) -> dict:
             break
         worst = max(worst, drift(scene, x, q))
     end = drift(scene, *sim.pose())
-    row = {"scene": scene_name, "engine": engine, "settings": sim.settings, "bodies": len(scene.shape),
-           "joints": len(scene.joints), "steps": steps, "steps_per_s": steps / stepping, "build_s": build,
-           "max_drift_mm": 1e3 * worst, "end_drift_mm": 1e3 * end}
-    log(f"  {engine:9s} {row['steps_per_s']:8.1f} steps/s   max drift {row['max_drift_mm']:9.3f} mm   "
-        f"end drift {row['end_drift_mm']:9.3f} mm   ({sim.settings})")
+    row = {
+        "scene": scene_name,
+        "engine": engine,
+        "settings": sim.settings,
+        "bodies": len(scene.shape),
+        "joints": len(scene.joints),
+        "steps": steps,
+        "steps_per_s": steps / stepping,
+        "build_s": build,
+        "max_drift_mm": 1e3 * worst,
+        "end_drift_mm": 1e3 * end,
+    }
+    log(
+        f"  {engine:9s} {row['steps_per_s']:8.1f} steps/s   max drift {row['max_drift_mm']:9.3f} mm   "
+        f"end drift {row['end_drift_mm']:9.3f} mm   ({sim.settings})"
+    )
     return row
 
 
@@ -331,7 +362,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for name in args.scenes.split(","):
         scene = SCENES[name]()
-        print(f"{name}: {len(scene.shape):,} bodies, {len(scene.joints):,} ball joints, {args.duration:g} s", flush=True)
+        print(
+            f"{name}: {len(scene.shape):,} bodies, {len(scene.joints):,} ball joints, {args.duration:g} s", flush=True
+        )
         for engine in args.engines.split(","):
             try:
                 rows.append(run(name, engine, args.duration))

@@ -60,8 +60,13 @@ def build(ground: str, device: str = "cpu", count: int = SPHERES):
         w.add_mesh(vertices=v, triangles=t, restitution=0.5, friction=0.5)
     else:
         w.add_plane(restitution=0.5, friction=0.5)
-    w.add_spheres(position=pile_positions(count, WIDTH, seed=1), radius=SPHERE_RADIUS, mass=SPHERE_MASS,
-                  restitution=0.5, friction=0.5)
+    w.add_spheres(
+        position=pile_positions(count, WIDTH, seed=1),
+        radius=SPHERE_RADIUS,
+        mass=SPHERE_MASS,
+        restitution=0.5,
+        friction=0.5,
+    )
     return w
 
 
@@ -81,13 +86,23 @@ def run(duration: float = DURATION, device: str = "cpu", log=print) -> dict:
             seconds[g] += time.perf_counter() - t
     ms = {g: 1e3 * s / steps for g, s in seconds.items()}
     z_low = {g: float(w.body_position[1:, 2].min()) for g, w in worlds.items()}
-    row = {"scene": f"mesh_pour_{SPHERES // 1000}k", "bodies": SPHERES, "triangles": 2 * MESH_CELLS**2,
-           "steps": steps, "plane_ms_per_step": ms["plane"], "mesh_ms_per_step": ms["mesh"],
-           "ratio": ms["mesh"] / ms["plane"], "target_ratio": TARGET_RATIO,
-           "lowest_sphere_plane_m": z_low["plane"], "lowest_sphere_mesh_m": z_low["mesh"],
-           "load": f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""}
-    log(f"  plane {ms['plane']:8.2f} ms/step   mesh {ms['mesh']:8.2f} ms/step   ratio {row['ratio']:.2f} "
-        f"(target <= {TARGET_RATIO:g})   load {row['load']}")
+    row = {
+        "scene": f"mesh_pour_{SPHERES // 1000}k",
+        "bodies": SPHERES,
+        "triangles": 2 * MESH_CELLS**2,
+        "steps": steps,
+        "plane_ms_per_step": ms["plane"],
+        "mesh_ms_per_step": ms["mesh"],
+        "ratio": ms["mesh"] / ms["plane"],
+        "target_ratio": TARGET_RATIO,
+        "lowest_sphere_plane_m": z_low["plane"],
+        "lowest_sphere_mesh_m": z_low["mesh"],
+        "load": f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else "",
+    }
+    log(
+        f"  plane {ms['plane']:8.2f} ms/step   mesh {ms['mesh']:8.2f} ms/step   ratio {row['ratio']:.2f} "
+        f"(target <= {TARGET_RATIO:g})   load {row['load']}"
+    )
     for g, w in worlds.items():
         stages = ", ".join(f"{k} {1e3 * v / steps:.2f}" for k, v in w.profile.items())
         log(f"  {g} ms/step by stage: {stages}")
@@ -101,8 +116,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not args.duration > 0:
         parser.error("--duration must be > 0")
-    print(f"mesh_pour_5k: {SPHERES:,} spheres onto {2 * MESH_CELLS**2:,} triangles vs a plane, {args.duration:g} s",
-          flush=True)
+    print(
+        f"mesh_pour_5k: {SPHERES:,} spheres onto {2 * MESH_CELLS**2:,} triangles vs a plane, {args.duration:g} s",
+        flush=True,
+    )
     run(args.duration, args.device)
     return 0
 

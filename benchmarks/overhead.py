@@ -91,8 +91,19 @@ def child(scenes: list[str], warmup: int, steps: int, rounds: int) -> None:
 
 def _run_child(tree: str, scenes: list[str], args, rounds: int) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=tree)
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--scenes", ",".join(scenes),
-           "--warmup", str(args.warmup), "--steps", str(args.steps), "--rounds", str(rounds)]
+    cmd = [
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--child",
+        "--scenes",
+        ",".join(scenes),
+        "--warmup",
+        str(args.warmup),
+        "--steps",
+        str(args.steps),
+        "--rounds",
+        str(rounds),
+    ]
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     if out.returncode != 0:
         sys.exit(f"overhead: the run with PYTHONPATH={tree} failed:\n{out.stderr.strip()[-2000:]}")
@@ -106,10 +117,12 @@ def _median(values: list[float]) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", default=",".join(SCENES),
-                        help="comma-separated scene/substeps (default: %(default)s)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--scenes", default=",".join(SCENES), help="comma-separated scene/substeps (default: %(default)s)"
+    )
     parser.add_argument("--steps", type=int, default=200, help="steps per timed round")
     parser.add_argument("--rounds", type=int, default=5, help="timed rounds (the median is reported)")
     parser.add_argument("--warmup", type=int, default=50, help="untimed steps first")
@@ -121,8 +134,9 @@ def main(argv: list[str] | None = None) -> int:
         name, _, substeps = key.partition("/")
         names = {s.split("/")[0] for s in SCENES} | set(BENCH_SCENES)
         if name not in names or not substeps.isdigit() or int(substeps) < 1:
-            print(f"overhead: bad scene {key!r}: expected NAME/SUBSTEPS with NAME one of {sorted(names)}",
-                  file=sys.stderr)
+            print(
+                f"overhead: bad scene {key!r}: expected NAME/SUBSTEPS with NAME one of {sorted(names)}", file=sys.stderr
+            )
             return 2
     if args.child:
         child(scenes, args.warmup, args.steps, args.rounds)

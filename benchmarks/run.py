@@ -17,8 +17,13 @@ from __future__ import annotations
 import os
 
 # one thread everywhere, set before NumPy / MuJoCo / Warp load their thread pools
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
-             "VECLIB_MAXIMUM_THREADS"):
+for _var in (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
@@ -128,8 +133,9 @@ def machine_description(device: str) -> dict[str, str]:
     try:  # the checkout's commit, when run from a git checkout
         import subprocess
 
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True,
-                                text=True, timeout=10).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
         if commit:
             tumble_version += f" (git {commit})"
     except (OSError, subprocess.SubprocessError):
@@ -142,10 +148,10 @@ def machine_description(device: str) -> dict[str, str]:
         wp.init()
         gpu = wp.get_device(device).name
     return {
-        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "cpu": cpu,
         "cores": str(os.cpu_count()),
-        "load": "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else "",
+        "load": f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else "",
         "gpu": gpu,
         "python": platform.python_version(),
         "numpy": np.__version__,
@@ -179,8 +185,7 @@ def pin_to_one_core(cpu: int | None) -> int | None:
 
 def measure_quality(adapter, scene: Scene) -> dict[str, float]:
     """Quality figures of the adapter's current state (see quality.py); NaN if not finite."""
-    nan = {"overlap": math.nan, "ground": math.nan, "wall": math.nan, "kinetic_energy": math.nan,
-           "strain": math.nan}
+    nan = {"overlap": math.nan, "ground": math.nan, "wall": math.nan, "kinetic_energy": math.nan, "strain": math.nan}
     if scene.kind == "cloth":
         x = adapter.cloth_position()
         if not np.isfinite(x).all():
@@ -223,8 +228,9 @@ def warm_up(engine: str, scene: Scene, device: str) -> None:
     adapter.close()
 
 
-def run_scene(scene: Scene, engines: list[str], device: str, chunk: int, max_wall: float, log,
-              all_peers: bool = False) -> list[Result]:
+def run_scene(
+    scene: Scene, engines: list[str], device: str, chunk: int, max_wall: float, log, all_peers: bool = False
+) -> list[Result]:
     """Run one scene in every engine, alternating chunks; returns the results (see `Result`).
 
     An engine stops early, with the simulated time it reached, once it has spent `max_wall`
@@ -352,10 +358,20 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
         f"one used), {info['date']}"
     )
     table = Table(title=title, title_justify="left")
-    for name, justify in [("scene", "left"), ("engine", "left"), ("settings", "left"), ("sim s", "right"), ("steps/s", "right"),
-                          ("body-steps/s", "right"), ("Tumble ×", "right"), ("overlap mm", "right"),
-                          ("ground mm", "right"), ("wall mm", "right"), ("KE J", "right"),
-                          ("strain %", "right")]:
+    for name, justify in [
+        ("scene", "left"),
+        ("engine", "left"),
+        ("settings", "left"),
+        ("sim s", "right"),
+        ("steps/s", "right"),
+        ("body-steps/s", "right"),
+        ("Tumble ×", "right"),
+        ("overlap mm", "right"),
+        ("ground mm", "right"),
+        ("wall mm", "right"),
+        ("KE J", "right"),
+        ("strain %", "right"),
+    ]:
         table.add_column(name, justify=justify)
     previous = None
     for r in all_results:
@@ -370,9 +386,18 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
         table.add_row(
-            r.scene.name, engine, r.settings, f"{r.sim_time:.2f}", rate(r.steps_per_s), rate(r.body_steps_per_s), ratio,
-            fmt(q.get("overlap"), 1e3), fmt(q.get("ground"), 1e3), fmt(q.get("wall"), 1e3),
-            fmt(q.get("kinetic_energy"), digits=3), fmt(q.get("strain"), 100, 1),
+            r.scene.name,
+            engine,
+            r.settings,
+            f"{r.sim_time:.2f}",
+            rate(r.steps_per_s),
+            rate(r.body_steps_per_s),
+            ratio,
+            fmt(q.get("overlap"), 1e3),
+            fmt(q.get("ground"), 1e3),
+            fmt(q.get("wall"), 1e3),
+            fmt(q.get("kinetic_energy"), digits=3),
+            fmt(q.get("strain"), 100, 1),
         )
     console = _console()
     console.print(table)
@@ -412,27 +437,33 @@ def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None
     pb = find("pile_5k", "pybullet")
     tb = find("pile_5k", "tumble", pb.steps) if pb else None
     if pb and tb:
-        checks.append((
-            f"pile 5k: overlap and ground penetration <= PyBullet's (at {pb.sim_time:g} s)",
-            f"overlap {tb.quality['overlap'] * 1e3:.2f} vs {pb.quality['overlap'] * 1e3:.2f} mm, "
-            f"ground {tb.quality['ground'] * 1e3:.2f} vs {pb.quality['ground'] * 1e3:.2f} mm",
-            tb.quality["overlap"] <= pb.quality["overlap"] and tb.quality["ground"] <= pb.quality["ground"],
-        ))
+        checks.append(
+            (
+                f"pile 5k: overlap and ground penetration <= PyBullet's (at {pb.sim_time:g} s)",
+                f"overlap {tb.quality['overlap'] * 1e3:.2f} vs {pb.quality['overlap'] * 1e3:.2f} mm, "
+                f"ground {tb.quality['ground'] * 1e3:.2f} vs {pb.quality['ground'] * 1e3:.2f} mm",
+                tb.quality["overlap"] <= pb.quality["overlap"] and tb.quality["ground"] <= pb.quality["ground"],
+            )
+        )
     else:
         checks.append(("pile 5k: overlap and ground penetration <= PyBullet's", "not measured", None))
     checks.append(ratio_check("cloth_64", "cloth 64x64: >= 10x PyBullet steps/s", TARGET_CLOTH_RATIO))
     tb = find("cloth_64", "tumble")
-    checks.append((
-        "cloth 64x64: largest strain <= 10 %",
-        f"{tb.quality['strain'] * 100:.1f} % (over {tb.sim_time:g} s)" if tb else "not measured",
-        None if tb is None else tb.quality["strain"] <= TARGET_CLOTH_STRAIN,
-    ))
+    checks.append(
+        (
+            "cloth 64x64: largest strain <= 10 %",
+            f"{tb.quality['strain'] * 100:.1f} % (over {tb.sim_time:g} s)" if tb else "not measured",
+            None if tb is None else tb.quality["strain"] <= TARGET_CLOTH_STRAIN,
+        )
+    )
     tb = find("pile_100k", "tumble")
-    checks.append((
-        "pile 100k: >= 10 steps/s",
-        f"{tb.steps_per_s:.1f} steps/s (over {tb.sim_time:g} s)" if tb else "not measured",
-        None if tb is None else tb.steps_per_s >= TARGET_PILE_100K,
-    ))
+    checks.append(
+        (
+            "pile 100k: >= 10 steps/s",
+            f"{tb.steps_per_s:.1f} steps/s (over {tb.sim_time:g} s)" if tb else "not measured",
+            None if tb is None else tb.steps_per_s >= TARGET_PILE_100K,
+        )
+    )
     return checks
 
 
@@ -454,8 +485,10 @@ def markdown_report(all_results: list[Result], info: dict[str, str], device: str
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
         engine = r.engine + (f" ({r.note})" if r.note else "")
         if r.error:
-            lines.append(f"| {r.scene.name} | {engine} | {r.settings} | {fmt(r.sim_time)} | failed: {r.error[:80]} "
-                         "| | | | | | | |")
+            lines.append(
+                f"| {r.scene.name} | {engine} | {r.settings} | {fmt(r.sim_time)} | failed: {r.error[:80]} "
+                "| | | | | | | |"
+            )
             continue
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
@@ -466,7 +499,9 @@ def markdown_report(all_results: list[Result], info: dict[str, str], device: str
         )
     lines += ["", "| target (issue 7) | measured | result |", "|---|---|---|"]
     for target, measured, passed in check_targets(all_results):
-        lines.append(f"| {target} | {measured} | {'not measured' if passed is None else ('pass' if passed else 'FAIL')} |")
+        lines.append(
+            f"| {target} | {measured} | {'not measured' if passed is None else ('pass' if passed else 'FAIL')} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -477,17 +512,44 @@ def update_doc(path: Path, report: str, device: str) -> None:
     text = path.read_text() if path.exists() else ""
     block = f"{begin}\n{report}{end}"
     if begin in text and end in text:
-        text = text[: text.index(begin)] + block + text[text.index(end) + len(end):]
+        text = text[: text.index(begin)] + block + text[text.index(end) + len(end) :]
     else:
         text = text.rstrip("\n") + "\n\n" + block + "\n"
     path.write_text(text)
 
 
 CSV_FIELDS = [
-    "date", "device", "scene", "engine", "settings", "early", "note", "bodies", "sim_time_s", "steps", "wall_s", "steps_per_s",
-    "body_steps_per_s", "tumble_ratio", "max_overlap_m", "max_ground_penetration_m",
-    "max_wall_penetration_m", "kinetic_energy_J", "max_strain", "error",
-    "cpu", "cores", "load", "gpu", "python", "numpy", "warp", "pybullet", "mujoco", "rapier", "tumble",
+    "date",
+    "device",
+    "scene",
+    "engine",
+    "settings",
+    "early",
+    "note",
+    "bodies",
+    "sim_time_s",
+    "steps",
+    "wall_s",
+    "steps_per_s",
+    "body_steps_per_s",
+    "tumble_ratio",
+    "max_overlap_m",
+    "max_ground_penetration_m",
+    "max_wall_penetration_m",
+    "kinetic_energy_J",
+    "max_strain",
+    "error",
+    "cpu",
+    "cores",
+    "load",
+    "gpu",
+    "python",
+    "numpy",
+    "warp",
+    "pybullet",
+    "mujoco",
+    "rapier",
+    "tumble",
 ]
 
 
@@ -497,20 +559,30 @@ def write_csv(path: Path, all_results: list[Result], info: dict[str, str], devic
     for r in all_results:
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
         q = r.quality
-        rows.append({
-            **info, "device": device, "scene": r.scene.name, "engine": r.engine, "settings": r.settings,
-            "note": r.note,
-            "early": "yes" if r.early else "",
-            "bodies": r.scene.body_count, "sim_time_s": f"{r.sim_time:.4f}", "steps": r.steps,
-            "wall_s": f"{r.seconds:.3f}", "steps_per_s": f"{r.steps_per_s:.4g}",
-            "body_steps_per_s": f"{r.body_steps_per_s:.4g}",
-            "tumble_ratio": "" if r.engine == "tumble" else f"{tumble_ratio(scene_results, r):.4g}",
-            "max_overlap_m": f"{q.get('overlap', math.nan):.4g}",
-            "max_ground_penetration_m": f"{q.get('ground', math.nan):.4g}",
-            "max_wall_penetration_m": f"{q.get('wall', math.nan):.4g}",
-            "kinetic_energy_J": f"{q.get('kinetic_energy', math.nan):.4g}",
-            "max_strain": f"{q.get('strain', math.nan):.4g}", "error": r.error,
-        })
+        rows.append(
+            {
+                **info,
+                "device": device,
+                "scene": r.scene.name,
+                "engine": r.engine,
+                "settings": r.settings,
+                "note": r.note,
+                "early": "yes" if r.early else "",
+                "bodies": r.scene.body_count,
+                "sim_time_s": f"{r.sim_time:.4f}",
+                "steps": r.steps,
+                "wall_s": f"{r.seconds:.3f}",
+                "steps_per_s": f"{r.steps_per_s:.4g}",
+                "body_steps_per_s": f"{r.body_steps_per_s:.4g}",
+                "tumble_ratio": "" if r.engine == "tumble" else f"{tumble_ratio(scene_results, r):.4g}",
+                "max_overlap_m": f"{q.get('overlap', math.nan):.4g}",
+                "max_ground_penetration_m": f"{q.get('ground', math.nan):.4g}",
+                "max_wall_penetration_m": f"{q.get('wall', math.nan):.4g}",
+                "kinetic_energy_J": f"{q.get('kinetic_energy', math.nan):.4g}",
+                "max_strain": f"{q.get('strain', math.nan):.4g}",
+                "error": r.error,
+            }
+        )
     key = ("device", "scene", "engine")
     fresh = {tuple(row[k] for k in key) for row in rows}
     kept = []
@@ -546,22 +618,36 @@ def print_profile(all_results: list[Result]) -> None:
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", default="all",
-                        help=f"comma-separated scene names or groups (all, pile, cloth); scenes: {', '.join(SCENES)}")
+    parser.add_argument(
+        "--scenes",
+        default="all",
+        help=f"comma-separated scene names or groups (all, pile, cloth); scenes: {', '.join(SCENES)}",
+    )
     parser.add_argument("--engines", default="tumble,pybullet,mujoco,rapier", help="comma-separated engines")
     parser.add_argument("--device", default="cpu", help="Warp device for Tumble: cpu (default) or cuda")
     parser.add_argument("--quick", action="store_true", help=f"simulate at most {QUICK_DURATION} s per scene")
     parser.add_argument("--duration", type=float, default=None, help="simulate at most this many seconds per scene")
-    parser.add_argument("--max-wall", type=float, default=MAX_WALL,
-                        help=f"stop an engine on a scene after this many seconds of stepping (default {MAX_WALL:g})")
-    parser.add_argument("--all-peers", action="store_true",
-                        help="also run the peers a scene leaves out by default (PyBullet on cloth_128)")
+    parser.add_argument(
+        "--max-wall",
+        type=float,
+        default=MAX_WALL,
+        help=f"stop an engine on a scene after this many seconds of stepping (default {MAX_WALL:g})",
+    )
+    parser.add_argument(
+        "--all-peers",
+        action="store_true",
+        help="also run the peers a scene leaves out by default (PyBullet on cloth_128)",
+    )
     parser.add_argument("--machine", default=None, help="name of the CSV file (default: from the CPU model)")
     parser.add_argument("--output", type=Path, default=HERE / "results", help="folder for the CSV")
     parser.add_argument("--no-csv", action="store_true", help="do not write the CSV")
-    parser.add_argument("--doc", type=Path, default=None,
-                        help="also write the table and targets as Markdown into this file (docs/performance.md), "
-                             "replacing the block of the same device")
+    parser.add_argument(
+        "--doc",
+        type=Path,
+        default=None,
+        help="also write the table and targets as Markdown into this file (docs/performance.md), "
+        "replacing the block of the same device",
+    )
     parser.add_argument("--cpu", type=int, default=None, help="CPU core to run on (default: the last one)")
     parser.add_argument("--no-pin", action="store_true", help="do not restrict the process to one core")
     args = parser.parse_args(argv)
@@ -601,19 +687,30 @@ def main(argv: list[str] | None = None) -> int:
         pass
     core = None if args.no_pin else pin_to_one_core(args.cpu)
     info = machine_description(args.device)
-    print(f"{info['cpu']}, {info['cores']} cores (running on core {core}), load {info['load']}, "
-          f"python {info['python']}, warp {info['warp']}, pybullet {info['pybullet']}, mujoco {info['mujoco']}, "
-          f"rapier {info['rapier']}")
+    print(
+        f"{info['cpu']}, {info['cores']} cores (running on core {core}), load {info['load']}, "
+        f"python {info['python']}, warp {info['warp']}, pybullet {info['pybullet']}, mujoco {info['mujoco']}, "
+        f"rapier {info['rapier']}"
+    )
 
     all_results: list[Result] = []
     for name in args.scene_list:
         scene = SCENES[name] if args.duration is None else SCENES[name].shortened(args.duration)
-        print(f"{scene.name}: {scene.body_count:,} bodies, {scene.duration:g} s"
-              + (f" (peers {scene.peer_duration:g} s)" if scene.peers and scene.peer_duration != scene.duration else ""),
-              flush=True)
+        print(
+            f"{scene.name}: {scene.body_count:,} bodies, {scene.duration:g} s"
+            + (f" (peers {scene.peer_duration:g} s)" if scene.peers and scene.peer_duration != scene.duration else ""),
+            flush=True,
+        )
         chunk = max(1, int(round(CHUNK_DURATION / scene.dt)))
-        all_results += run_scene(scene, args.engine_list, args.device, chunk, args.max_wall,
-                                 lambda s: print(s, flush=True), all_peers=args.all_peers)
+        all_results += run_scene(
+            scene,
+            args.engine_list,
+            args.device,
+            chunk,
+            args.max_wall,
+            lambda s: print(s, flush=True),
+            all_peers=args.all_peers,
+        )
 
     joint_rows = []
     for name in dict.fromkeys(args.joint_list):
@@ -625,7 +722,9 @@ def main(argv: list[str] | None = None) -> int:
         joint_bench.write_csv(path, joint_rows)
         print(f"wrote {path}")
     if args.mesh_pour:
-        print(f"mesh_pour_5k (benchmarks/meshes.py): {args.duration or mesh_bench.DURATION:g} s, Tumble only", flush=True)
+        print(
+            f"mesh_pour_5k (benchmarks/meshes.py): {args.duration or mesh_bench.DURATION:g} s, Tumble only", flush=True
+        )
         row = mesh_bench.run(args.duration or mesh_bench.DURATION, args.device)
         if not args.no_csv:
             path = args.output / f"meshes-{args.machine or machine_name(info)}.csv"
@@ -634,13 +733,17 @@ def main(argv: list[str] | None = None) -> int:
     if not args.scene_list:
         return 0
 
-    info["load"] = "%.2f" % os.getloadavg()[0] if hasattr(os, "getloadavg") else ""
+    info["load"] = f"{os.getloadavg()[0]:.2f}" if hasattr(os, "getloadavg") else ""
     print()
     print_table(all_results, info, args.device)
     print_profile(all_results)
     console = _console()
     for target, measured, passed in check_targets(all_results):
-        mark = "[yellow]not measured[/yellow]" if passed is None else ("[green]pass[/green]" if passed else "[red]FAIL[/red]")
+        mark = (
+            "[yellow]not measured[/yellow]"
+            if passed is None
+            else ("[green]pass[/green]" if passed else "[red]FAIL[/red]")
+        )
         console.print(f"target: {target}: {measured} -> {mark}")
     if args.doc is not None:
         update_doc(args.doc, markdown_report(all_results, info, args.device), args.device)

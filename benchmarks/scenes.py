@@ -115,9 +115,18 @@ SCENES: dict[str, Scene] = {
         Scene("box_pyramid", "pyramid", 55),
         Scene("cloth_64", "cloth", 64, skip=(("rapier", NO_RAPIER_CLOTH),)),
         Scene(
-            "cloth_128", "cloth", 128, peer_duration=0.5,
-            skip=(("pybullet", "building a 128 x 128 soft body takes PyBullet 4-7 minutes (its build time "
-                               "grows as about N^2.7 in the particle count)"), ("rapier", NO_RAPIER_CLOTH)),
+            "cloth_128",
+            "cloth",
+            128,
+            peer_duration=0.5,
+            skip=(
+                (
+                    "pybullet",
+                    "building a 128 x 128 soft body takes PyBullet 4-7 minutes (its build time "
+                    "grows as about N^2.7 in the particle count)",
+                ),
+                ("rapier", NO_RAPIER_CLOTH),
+            ),
         ),
     )
 }
@@ -209,17 +218,30 @@ def initial_bodies(scene: Scene) -> Bodies:
     """The moving bodies and static planes of a pile or box-rain scene."""
     if scene.kind == "pile":
         return Bodies(
-            "sphere", pile_positions(scene.count, scene.box_width, scene.seed), SPHERE_RADIUS,
-            np.zeros(3), SPHERE_MASS, box_planes(scene.box_width),
+            "sphere",
+            pile_positions(scene.count, scene.box_width, scene.seed),
+            SPHERE_RADIUS,
+            np.zeros(3),
+            SPHERE_MASS,
+            box_planes(scene.box_width),
         )
     if scene.kind == "boxes":
         return Bodies(
-            "box", rain_positions(scene.count, scene.seed), 0.0, np.full(3, CUBE_HALF), CUBE_MASS,
+            "box",
+            rain_positions(scene.count, scene.seed),
+            0.0,
+            np.full(3, CUBE_HALF),
+            CUBE_MASS,
             box_planes(0.0)[:1],
         )
     if scene.kind == "pyramid":
         return Bodies(
-            "box", pyramid_positions(scene.count), 0.0, np.full(3, CUBE_HALF), CUBE_MASS, box_planes(0.0)[:1],
+            "box",
+            pyramid_positions(scene.count),
+            0.0,
+            np.full(3, CUBE_HALF),
+            CUBE_MASS,
+            box_planes(0.0)[:1],
         )
     raise ValueError(f"scene {scene.name!r} of kind {scene.kind!r} has no rigid bodies")
 
@@ -254,8 +276,11 @@ def initial_cloth(scene: Scene) -> Cloth:
     spacing = CLOTH_SIZE / (n - 1)
     jj, ii = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     position = np.stack(
-        [-0.5 * CLOTH_SIZE + ii.ravel() * spacing, -0.5 * CLOTH_SIZE + jj.ravel() * spacing,
-         np.full(n * n, CLOTH_HEIGHT)],
+        [
+            -0.5 * CLOTH_SIZE + ii.ravel() * spacing,
+            -0.5 * CLOTH_SIZE + jj.ravel() * spacing,
+            np.full(n * n, CLOTH_HEIGHT),
+        ],
         axis=1,
     )
     # two triangles per cell (i, j): (a, b, c) and (a, c, d), counter-clockwise seen from +z

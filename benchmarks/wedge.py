@@ -58,8 +58,18 @@ def _noop() -> int:
 
 def _serial(plan, variants, settings) -> tuple[float, list[dict]]:
     start = time.perf_counter()
-    rows = [run_variant({"name": v.name, "text": v.text, "path": str(plan.source), "folder": "/nonexistent",
-                         "settings": settings.identity()}) for v in variants]
+    rows = [
+        run_variant(
+            {
+                "name": v.name,
+                "text": v.text,
+                "path": str(plan.source),
+                "folder": "/nonexistent",
+                "settings": settings.identity(),
+            }
+        )
+        for v in variants
+    ]
     return time.perf_counter() - start, rows
 
 
@@ -69,13 +79,19 @@ def main() -> int:
     parser.add_argument("--variants", type=int, default=16)
     parser.add_argument("--duration", type=float, default=2.0)
     parser.add_argument("--workers", type=int, default=os.cpu_count())
-    parser.add_argument("--end-to-end", action="store_true",
-                        help="all serial runs, then one wedge of every variant (for an idle machine); by default "
-                             "the two alternate in rounds of --workers variants on one cluster")
-    parser.add_argument("--own-sessions", action="store_true",
-                        help="put each worker in a session of its own (setsid); run this script under setsid too. "
-                             "Linux's autogroup scheduler shares a busy CPU between sessions, not processes, so "
-                             "on a shared machine all the workers of one session get one session's share")
+    parser.add_argument(
+        "--end-to-end",
+        action="store_true",
+        help="all serial runs, then one wedge of every variant (for an idle machine); by default "
+        "the two alternate in rounds of --workers variants on one cluster",
+    )
+    parser.add_argument(
+        "--own-sessions",
+        action="store_true",
+        help="put each worker in a session of its own (setsid); run this script under setsid too. "
+        "Linux's autogroup scheduler shares a busy CPU between sessions, not processes, so "
+        "on a shared machine all the workers of one session get one session's share",
+    )
     parser.add_argument("--no-csv", action="store_true")
     args = parser.parse_args()
     if args.own_sessions and os.getsid(0) != os.getpid():
@@ -87,12 +103,22 @@ def main() -> int:
     plan = plan_wedge(args.scene, vary)
     settings = Settings(duration=args.duration)
     mode = "end-to-end" if args.end_to_end else f"alternating rounds of {args.workers}"
-    print(f"{args.variants} variants of {plan.source.name}, {args.duration:g} s each, {args.workers} workers, "
-          f"{mode}; load {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}", flush=True)
+    print(
+        f"{args.variants} variants of {plan.source.name}, {args.duration:g} s each, {args.workers} workers, "
+        f"{mode}; load {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}",
+        flush=True,
+    )
 
     # warm-up of this process (kernels loaded), not timed
-    run_variant({"name": "warm", "text": plan.variants[0].text, "path": str(plan.source), "folder": "/nonexistent",
-                 "settings": Settings(duration=0.05).identity()})
+    run_variant(
+        {
+            "name": "warm",
+            "text": plan.variants[0].text,
+            "path": str(plan.source),
+            "folder": "/nonexistent",
+            "settings": Settings(duration=0.05).identity(),
+        }
+    )
 
     # start-up alone: a local cluster answering one task
     start = time.perf_counter()
@@ -107,8 +133,9 @@ def main() -> int:
         if args.end_to_end:
             serial, serial_rows = _serial(plan, plan.variants, settings)
             start = time.perf_counter()
-            table = tumble.wedge(args.scene, vary, out=out / "w", duration=args.duration, workers=args.workers,
-                                 progress=False)
+            table = tumble.wedge(
+                args.scene, vary, out=out / "w", duration=args.duration, workers=args.workers, progress=False
+            )
             wall = time.perf_counter() - start
             table_rows = table.rows
         else:
@@ -120,16 +147,25 @@ def main() -> int:
                     client.run(os.setsid)
                 for k in range(0, args.variants, args.workers):
                     seeds = f"{k}..{min(k + args.workers, args.variants) - 1}"
-                    t, rows = _serial(plan, plan.variants[k:k + args.workers], settings)
+                    t, rows = _serial(plan, plan.variants[k : k + args.workers], settings)
                     serial += t
                     serial_rows += rows
                     start = time.perf_counter()
-                    table = tumble.wedge(args.scene, {"world.seed": seeds}, out=out / f"w{k}",
-                                         duration=args.duration, address=client, progress=False)
+                    table = tumble.wedge(
+                        args.scene,
+                        {"world.seed": seeds},
+                        out=out / f"w{k}",
+                        duration=args.duration,
+                        address=client,
+                        progress=False,
+                    )
                     wall += time.perf_counter() - start
                     table_rows += table.rows
-                    print(f"  round {k // args.workers + 1}: serial {t:6.2f} s, wedge {table_rows[-1]['wall_s']:6.2f} s "
-                          f"a variant; load {os.getloadavg()[0]:.2f}", flush=True)
+                    print(
+                        f"  round {k // args.workers + 1}: serial {t:6.2f} s, wedge {table_rows[-1]['wall_s']:6.2f} s "
+                        f"a variant; load {os.getloadavg()[0]:.2f}",
+                        flush=True,
+                    )
             wall += startup
     finally:
         shutil.rmtree(out, ignore_errors=True)
@@ -143,20 +179,31 @@ def main() -> int:
     overhead = (wall - startup - busy) / args.variants
     load_after = os.getloadavg()
     ratio = wall / serial
-    print(f"wedge    {wall:7.2f} s  ratio {ratio:.3f} (target <= 0.6); overhead {1000 * overhead:.0f} ms a task; "
-          f"state hashes {'identical to' if same else 'DIFFERENT from'} the serial runs")
+    print(
+        f"wedge    {wall:7.2f} s  ratio {ratio:.3f} (target <= 0.6); overhead {1000 * overhead:.0f} ms a task; "
+        f"state hashes {'identical to' if same else 'DIFFERENT from'} the serial runs"
+    )
     print(f"load after {load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f}")
 
     if not args.no_csv:
         row = {
             "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M"),
-            "scene": plan.source.stem, "variants": args.variants, "duration_s": args.duration,
-            "workers": args.workers, "cores": os.cpu_count(),
+            "scene": plan.source.stem,
+            "variants": args.variants,
+            "duration_s": args.duration,
+            "workers": args.workers,
+            "cores": os.cpu_count(),
             "mode": ("end-to-end" if args.end_to_end else "rounds") + (", own sessions" if args.own_sessions else ""),
-            "serial_s": round(serial, 3), "wedge_s": round(wall, 3), "ratio": round(ratio, 4),
-            "startup_s": round(startup, 3), "overhead_ms_per_task": round(1000 * overhead, 1), "identical": same,
-            "load_before": f"{load_before[0]:.2f}", "load_after": f"{load_after[0]:.2f}",
-            "cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
+            "serial_s": round(serial, 3),
+            "wedge_s": round(wall, 3),
+            "ratio": round(ratio, 4),
+            "startup_s": round(startup, 3),
+            "overhead_ms_per_task": round(1000 * overhead, 1),
+            "identical": same,
+            "load_before": f"{load_before[0]:.2f}",
+            "load_after": f"{load_after[0]:.2f}",
+            "cpu": platform.processor() or platform.machine(),
+            "python": platform.python_version(),
         }
         new = not RESULTS.exists()
         RESULTS.parent.mkdir(exist_ok=True)

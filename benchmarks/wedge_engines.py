@@ -73,8 +73,13 @@ print("RESULT " + json.dumps(out))
 
 def measure(engine: str, workers: int, tasks: int) -> dict:
     """Run one engine's measurement in a fresh interpreter; returns its figures."""
-    proc = subprocess.run([sys.executable, "-c", CHILD, engine, str(workers), str(tasks)],
-                          capture_output=True, text=True, timeout=600, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-c", CHILD, engine, str(workers), str(tasks)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     for line in proc.stdout.splitlines():
         if line.startswith("RESULT "):
             return json.loads(line[7:])
@@ -99,16 +104,19 @@ def main() -> int:
     parser.add_argument("--tasks", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=2, help="runs per engine (the best is kept)")
     args = parser.parse_args()
-    print(f"load: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}, "
-          f"{os.cpu_count()} cores, {args.workers} workers, {args.tasks} tasks")
-    sizes = {"dask": sum(install_size_mb(d) for d in ("dask", "distributed")),
-             "ray": install_size_mb("ray")}
+    print(
+        f"load: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}, "
+        f"{os.cpu_count()} cores, {args.workers} workers, {args.tasks} tasks"
+    )
+    sizes = {"dask": sum(install_size_mb(d) for d in ("dask", "distributed")), "ray": install_size_mb("ray")}
     for engine in ("dask", "ray"):
         runs = [measure(engine, args.workers, args.tasks) for _ in range(args.repeat)]
         best = {k: min(r[k] for r in runs) for k in runs[0]}
-        print(f"{engine:5s} install {sizes[engine]:6.1f} MB  import {best['import_s']:5.2f} s  "
-              f"start-up {best['startup_s']:5.2f} s  latency {best['latency_ms']:6.2f} ms  "
-              f"overhead {best['overhead_ms']:6.2f} ms/task  shutdown {best['shutdown_s']:5.2f} s")
+        print(
+            f"{engine:5s} install {sizes[engine]:6.1f} MB  import {best['import_s']:5.2f} s  "
+            f"start-up {best['startup_s']:5.2f} s  latency {best['latency_ms']:6.2f} ms  "
+            f"overhead {best['overhead_ms']:6.2f} ms/task  shutdown {best['shutdown_s']:5.2f} s"
+        )
     print(f"load after: {os.getloadavg()[0]:.2f}")
     return 0
 

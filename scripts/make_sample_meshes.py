@@ -61,7 +61,7 @@ def statue():
     """A knoll (a rounded hill 0.45 m high) with a lower shoulder beside it, on flat ground."""
 
     def h(x, y):
-        knoll = 0.45 * np.exp(-((x**2 + y**2) / 0.12) ** 1.5)
+        knoll = 0.45 * np.exp(-(((x**2 + y**2) / 0.12) ** 1.5))
         shoulder = 0.2 * np.exp(-(((x - 0.35) ** 2 + (y + 0.25) ** 2) / 0.05))
         return knoll + shoulder
 

@@ -32,8 +32,12 @@ def build() -> tumble.World:
     rng = np.random.default_rng(3)
     for k in range(4):  # capsules lying across the slope
         q = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
-        world.add_capsule(position=(-0.7 + 0.28 * k, -0.35 + 0.1 * k, 0.75), radius=0.05 + 0.01 * (k % 2),
-                          half_height=0.12, orientation=q)
+        world.add_capsule(
+            position=(-0.7 + 0.28 * k, -0.35 + 0.1 * k, 0.75),
+            radius=0.05 + 0.01 * (k % 2),
+            half_height=0.12,
+            orientation=q,
+        )
     for k in range(6):  # pebbles: hulls of 12 random points each
         points = rng.normal(size=(12, 3)) * (0.07, 0.055, 0.04)
         world.add_convex(points=points, position=(-0.5 + 0.2 * k, 0.25 - 0.05 * (k % 3), 0.7 + 0.05 * k))

@@ -24,7 +24,9 @@ mass = 1.0
 """
 
 # a ground plane, one sphere and an emitter releasing 4 spheres at 40 per second from t = 0
-EMITTING = BALL + """
+EMITTING = (
+    BALL
+    + """
 [[emitter]]
 rate = 40
 count = 4
@@ -35,6 +37,7 @@ radius = 0.05
 mass = 0.1
 seed = 3
 """
+)
 
 
 def test_run_prints_a_summary(write_scene, capsys):
@@ -62,9 +65,19 @@ def test_record_writes_the_documented_arrays(write_scene, tmp_path, capsys):
     f = 16  # frames at t = 0, 1/30, ..., 15/30 = 0.5 s
     n = 2 + 4  # plane, sphere, 4 emitted spheres
     expected = {
-        "time": (f,), "position": (f, n, 3), "velocity": (f, n, 3), "orientation": (f, n, 4),
-        "angular_velocity": (f, n, 3), "shape": (n,), "shape_names": (len(tumble.ShapeType),), "radius": (n,),
-        "half_extents": (n, 3), "mass": (n,), "gravity": (3,), "dt": (), "contact_count": (f,),
+        "time": (f,),
+        "position": (f, n, 3),
+        "velocity": (f, n, 3),
+        "orientation": (f, n, 4),
+        "angular_velocity": (f, n, 3),
+        "shape": (n,),
+        "shape_names": (len(tumble.ShapeType),),
+        "radius": (n,),
+        "half_extents": (n, 3),
+        "mass": (n,),
+        "gravity": (3,),
+        "dt": (),
+        "contact_count": (f,),
         "kinetic_energy": (f,),
     }
     for name, shape in expected.items():
@@ -120,7 +133,10 @@ def test_bad_file_exits_2_with_one_line(write_scene, tumble_subprocess_env, comm
     path = write_scene(text, "bad.toml")
     result = subprocess.run(
         [sys.executable, "-m", "tumble", command, str(path)],
-        capture_output=True, text=True, env=tumble_subprocess_env, timeout=120,
+        capture_output=True,
+        text=True,
+        env=tumble_subprocess_env,
+        timeout=120,
     )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

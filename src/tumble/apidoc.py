@@ -22,9 +22,21 @@ import tumble
 
 #: classes of the reference, in page order
 CLASSES = (
-    tumble.World, tumble.BodyId, tumble.ClothId, tumble.BodyKind, tumble.BodyState, tumble.Emitter,
-    tumble.ClothSystem, tumble.Wind, tumble.ShapeType, tumble.TumbleError, tumble.SceneError,
-    tumble.SimulationError, tumble.HandleError, tumble.Snapshot, tumble.SnapshotError,
+    tumble.World,
+    tumble.BodyId,
+    tumble.ClothId,
+    tumble.BodyKind,
+    tumble.BodyState,
+    tumble.Emitter,
+    tumble.ClothSystem,
+    tumble.Wind,
+    tumble.ShapeType,
+    tumble.TumbleError,
+    tumble.SceneError,
+    tumble.SimulationError,
+    tumble.HandleError,
+    tumble.Snapshot,
+    tumble.SnapshotError,
 )
 #: functions of the package itself
 FUNCTIONS = (tumble.load_scene, tumble.wedge, tumble.save_snapshot, tumble.read_snapshot, tumble.load_snapshot)
@@ -199,8 +211,16 @@ def _class_section(cls) -> list[str]:
             note = "property, settable" if value.fset is not None else "property"
             parts += [f"### `{name}.{member}` ({note})", "", _markdown(value.__doc__), ""]
         else:
-            parts += [f"### `{name}.{member}`", "", "```python", _signature(member, value), "```", "",
-                      _markdown(value.__doc__), ""]
+            parts += [
+                f"### `{name}.{member}`",
+                "",
+                "```python",
+                _signature(member, value),
+                "```",
+                "",
+                _markdown(value.__doc__),
+                "",
+            ]
     return parts
 
 
@@ -211,8 +231,16 @@ def render() -> str:
     parts += [f"- `tumble.{c.__name__}`" for c in CLASSES]
     parts.append("")
     for func in FUNCTIONS:
-        parts += [f"## `tumble.{func.__name__}`", "", "```python", _signature(func.__name__, func), "```", "",
-                  _markdown(func.__doc__), ""]
+        parts += [
+            f"## `tumble.{func.__name__}`",
+            "",
+            "```python",
+            _signature(func.__name__, func),
+            "```",
+            "",
+            _markdown(func.__doc__),
+            "",
+        ]
     for cls in CLASSES:
         parts += _class_section(cls)
     text = "\n".join(parts)

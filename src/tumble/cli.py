@@ -71,10 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog="tumble",
         description="Tumble: particles, rigid bodies and cloth, simulated headless, viewed, rendered and plotted.",
         epilog="Scenes are TOML files (docs/scenes.md) or the names of bundled samples, e.g. sphere_pile. "
-               f"Errors are one line on stderr; --debug or {DEBUG_ENV}=1 adds the traceback.",
+        f"Errors are one line on stderr; --debug or {DEBUG_ENV}=1 adds the traceback.",
     )
-    parser.add_argument("-V", "--version", action="version", version=f"tumble {_version()}",
-                        help="print the version and exit")
+    parser.add_argument(
+        "-V", "--version", action="version", version=f"tumble {_version()}", help="print the version and exit"
+    )
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, module_name in COMMANDS.items():
@@ -86,8 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
             continue  # command not built yet in this checkout
         p = sub.add_parser(name, help=module.HELP, description=module.HELP[0].upper() + module.HELP[1:] + ".")
         module.add_arguments(p)
-        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
-                       help="print the traceback of an error")
+        p.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help="print the traceback of an error"
+        )
         p.set_defaults(_main=module.main)
     return parser
 
@@ -111,15 +113,21 @@ def main(argv: list[str] | None = None) -> int:
         top = (exc.name or "").split(".")[0]
         if top not in OPTIONAL or debug:
             return _unexpected(args.command, exc, debug)
-        print(f"{prefix} `tumble {args.command}` needs the Python package {top!r}, which is not installed; "
-              f"install it with: {OPTIONAL[top]}", file=sys.stderr)
+        print(
+            f"{prefix} `tumble {args.command}` needs the Python package {top!r}, which is not installed; "
+            f"install it with: {OPTIONAL[top]}",
+            file=sys.stderr,
+        )
         return 2
     except MemoryError as exc:
         if debug:
             raise
         detail = f" ({exc})" if str(exc) else ""
-        print(f"{prefix} out of memory{detail}; reduce the number of bodies (emitter count), the cloth "
-              "resolution, or the recorded duration and --fps", file=sys.stderr)
+        print(
+            f"{prefix} out of memory{detail}; reduce the number of bodies (emitter count), the cloth "
+            "resolution, or the recorded duration and --fps",
+            file=sys.stderr,
+        )
         return 2
     except RecursionError as exc:
         return _unexpected(args.command, exc, debug)
@@ -143,8 +151,11 @@ def _one_line(exc: BaseException) -> str:
 def _unexpected(command: str, exc: BaseException, debug: bool) -> int:
     if debug:
         raise exc
-    print(f"tumble {command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
-          f"(run again with --debug or {DEBUG_ENV}=1 for the traceback, and please report it)", file=sys.stderr)
+    print(
+        f"tumble {command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+        f"(run again with --debug or {DEBUG_ENV}=1 for the traceback, and please report it)",
+        file=sys.stderr,
+    )
     return 1
 
 

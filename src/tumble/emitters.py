@@ -50,8 +50,11 @@ HULL_SCALES = 16
 
 def _range(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) from a value or a [min, max] pair; vectors have `width` components."""
-    a = validate.array(value, name, "a number or a [min, max] pair" if width is None else
-                       f"a {width}-vector or a pair of them [min, max]")
+    a = validate.array(
+        value,
+        name,
+        "a number or a [min, max] pair" if width is None else f"a {width}-vector or a pair of them [min, max]",
+    )
     if width is None:
         if a.shape == ():
             lo = hi = a
@@ -140,8 +143,10 @@ class Emitter:
         self.shapes = [shape_from_name(validate.text(s, "shape")) for s in names]
         for fixed in (ShapeType.PLANE, ShapeType.MESH):
             if fixed in self.shapes:
-                raise ValueError(f"an emitter cannot emit {fixed.name.lower()}s (static): use shape 'sphere', "
-                                 "'box', 'capsule' or 'convex'")
+                raise ValueError(
+                    f"an emitter cannot emit {fixed.name.lower()}s (static): use shape 'sphere', "
+                    "'box', 'capsule' or 'convex'"
+                )
         self.rate = validate.positive(rate, "rate")  # > 0 to start with; the setter allows 0 (paused)
         self.count = validate.integer(count, "count", low=1)
         self.position = validate.vector(position, "position")
@@ -182,9 +187,14 @@ class Emitter:
             raise ValueError("give mass or density, not both")
         self.mass = None if mass is None else _range(mass, "mass")
         self.density = _range(1000.0 if density is None else density, "density")
-        for name, (lo, _hi) in (("speed", self.speed), ("radius", self.radius), ("half_extents", self.half_extents),
-                                ("half_height", self.half_height), ("scale", self.scale),
-                                ("density", self.density)) + ((("mass", self.mass),) if self.mass else ()):
+        for name, (lo, _hi) in (
+            ("speed", self.speed),
+            ("radius", self.radius),
+            ("half_extents", self.half_extents),
+            ("half_height", self.half_height),
+            ("scale", self.scale),
+            ("density", self.density),
+        ) + ((("mass", self.mass),) if self.mass else ()):
             if np.any(lo < 0) or (name != "speed" and np.any(lo <= 0)):
                 raise ValueError(f"{name} must be > 0, got {lo!r}")
         self.restitution = validate.number(restitution, "restitution", low=0.0, high=1.0)
@@ -282,8 +292,9 @@ class Emitter:
         a = np.where(is_capsule, half_height * scale, 0.0)
         half = np.where(is_box[:, None], half * scale[:, None], 0.0)
         half = np.where(is_capsule[:, None], np.stack([radius, radius, a + radius], axis=1), half)
-        volume = np.select([is_sphere, is_box, is_capsule], [sphere_volume(radius), box_volume(half),
-                                                            capsule_volume(radius, a)], 0.0)
+        volume = np.select(
+            [is_sphere, is_box, is_capsule], [sphere_volume(radius), box_volume(half), capsule_volume(radius, a)], 0.0
+        )
 
         bound = np.select([is_sphere, is_box, is_capsule], [radius, np.linalg.norm(half, axis=1), a + radius], 0.0)
         if self.hull is not None:
@@ -302,13 +313,25 @@ class Emitter:
         with np.errstate(invalid="ignore", divide="ignore"):  # each shape's formula on every row, one kept
             inertia = np.select(
                 [is_sphere[:, None], is_box[:, None], is_capsule[:, None]],
-                [sphere_inertia(mass, radius), box_inertia(mass, half), capsule_inertia(mass, radius, a)], 0.0)
+                [sphere_inertia(mass, radius), box_inertia(mass, half), capsule_inertia(mass, radius, a)],
+                0.0,
+            )
         if self.hull is not None:
             # moments at density 1 scale as s^5, the volume as s^3: I = I_1 s^5 m / (V_1 s^3)
             moments = self.hull.inertia[None] * (scale**2 * mass / self.hull.volume)[:, None]
             inertia = np.where(is_hull[:, None], moments, inertia)
-        return dict(shape=shape, radius=radius, half_extents=half, mass=mass, inertia=inertia, velocity=velocity,
-                    orientation=orientation, angular_velocity=angular_velocity, bound=bound, hull_level=hull_level)
+        return dict(
+            shape=shape,
+            radius=radius,
+            half_extents=half,
+            mass=mass,
+            inertia=inertia,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            bound=bound,
+            hull_level=hull_level,
+        )
 
     def _varying(self, bounds: tuple[np.ndarray, np.ndarray], k: int) -> np.ndarray:
         """k draws from [lo, hi]; no draw (the generator untouched) when lo == hi."""
@@ -334,8 +357,9 @@ class Emitter:
     def add_hulls(self, world) -> None:
         """Store the scaled hull copies in `world.hulls` (`World.add_emitter` does, before any step)."""
         if self.hull is not None:
-            self.hull_rows = np.array([world.hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales],
-                                      dtype=np.int32)
+            self.hull_rows = np.array(
+                [world.hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales], dtype=np.int32
+            )
 
     # ------------------------------------------------------------------ emission
 
@@ -410,10 +434,17 @@ class Emitter:
             return 0  # no room this step: wait, and try again next step
         idx = np.asarray(accepted)
         rows = world._add_bodies(
-            shape=cand["shape"][idx], position=np.asarray(placed_x), orientation=cand["orientation"][idx],
-            radius=cand["radius"][idx], half_extents=cand["half_extents"][idx], mass=cand["mass"][idx],
-            inertia=cand["inertia"][idx], restitution=self.restitution, friction=self.friction,
-            velocity=cand["velocity"][idx], angular_velocity=cand["angular_velocity"][idx],
+            shape=cand["shape"][idx],
+            position=np.asarray(placed_x),
+            orientation=cand["orientation"][idx],
+            radius=cand["radius"][idx],
+            half_extents=cand["half_extents"][idx],
+            mass=cand["mass"][idx],
+            inertia=cand["inertia"][idx],
+            restitution=self.restitution,
+            friction=self.friction,
+            velocity=cand["velocity"][idx],
+            angular_velocity=cand["angular_velocity"][idx],
             bound=np.where(cand["shape"][idx] == ShapeType.CONVEX, cand["bound"][idx], np.inf),
         )
         convex = cand["shape"][idx] == ShapeType.CONVEX

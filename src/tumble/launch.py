@@ -71,7 +71,10 @@ class LaunchCache:
             if len(arrays) > 1:
                 getter = operator.itemgetter(*arrays)
             else:  # one array, or none (arrays in structs: a new struct is a changed scalar)
-                getter = lambda xs, i=tuple(arrays): tuple(xs[k] for k in i)
+
+                def getter(xs, i=tuple(arrays)):
+                    return tuple(xs[k] for k in i)
+
             layout = self._arrays_of[kernel] = (getter, scalars)
         getter, scalars = layout
         key = (kernel, dim, *map(id, getter(inputs)))

@@ -118,8 +118,9 @@ def prepare_kernels(device="cpu", *, report: Callable[[str], None] | None = None
         return 0.0
     missing = kernels_to_compile(device)
     if missing and report is not None:
-        report(f"compiling {len(missing)} Warp kernel modules (only on the first run on this machine; "
-               "up to a minute)...")
+        report(
+            f"compiling {len(missing)} Warp kernel modules (only on the first run on this machine; up to a minute)..."
+        )
     start = time.perf_counter()
     # one call for all of them, so that Warp compiles several modules at once
     wp.load_module("tumble", device=device, recursive=True, block_dim=1 if device.is_cpu else None)

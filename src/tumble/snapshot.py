@@ -82,18 +82,31 @@ class Snapshot:
     def differences(self, other: Snapshot) -> list[str]:
         """Paths whose value differs between two snapshots (empty when equal); caches are not compared."""
         derived = {p.rpartition("/:")[0] for p in self.values.keys() | other.values.keys() if p.endswith("/:derived")}
-        out = sorted(k for k in self.values.keys() | other.values.keys()
-                     if self.values.get(k, _MISSING) != other.values.get(k, _MISSING)
-                     and k.rpartition("/:")[0] not in derived and k not in derived)
-        out += sorted(k for k in self.arrays.keys() | other.arrays.keys()
-                      if k not in self.arrays or k not in other.arrays
-                      or not _same_array(self.arrays[k], other.arrays[k]))
+        out = sorted(
+            k
+            for k in self.values.keys() | other.values.keys()
+            if self.values.get(k, _MISSING) != other.values.get(k, _MISSING)
+            and k.rpartition("/:")[0] not in derived
+            and k not in derived
+        )
+        out += sorted(
+            k
+            for k in self.arrays.keys() | other.arrays.keys()
+            if k not in self.arrays or k not in other.arrays or not _same_array(self.arrays[k], other.arrays[k])
+        )
         return out
 
     def copy(self) -> Snapshot:
         """A deep copy (arrays copied), so that restoring one snapshot twice is safe."""
-        return Snapshot({k: a.copy() for k, a in self.arrays.items()}, json.loads(json.dumps(self.values)),
-                        self.step_count, self.time, self.scene, self.scene_path, dict(self.overrides))
+        return Snapshot(
+            {k: a.copy() for k, a in self.arrays.items()},
+            json.loads(json.dumps(self.values)),
+            self.step_count,
+            self.time,
+            self.scene,
+            self.scene_path,
+            dict(self.overrides),
+        )
 
 
 _MISSING = object()
@@ -106,6 +119,7 @@ def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
 # --- taking a snapshot -------------------------------------------------------------------------
 # Paths name attributes ("cloth/_contacts_prev"), list items ("emitters/0") and dict entries; a
 # segment starting with ":" is a marker of the walk itself (":class", ":dtype", ...), never a name.
+
 
 def take(world, *, arrays: bool = True) -> Snapshot:
     """Capture `world`'s state (see `World.snapshot`); with `arrays=False` only its layout (no array is copied)."""
@@ -167,8 +181,9 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
         for name, item in sorted(vars(value).items()):
             _capture(item, f"{path}/{name}", snap, seen, arrays)
     else:
-        raise SnapshotError(f"cannot snapshot {path}: a value of type "
-                            f"{type(value).__module__}.{type(value).__qualname__}")
+        raise SnapshotError(
+            f"cannot snapshot {path}: a value of type {type(value).__module__}.{type(value).__qualname__}"
+        )
 
 
 def _is_plain(value) -> bool:
@@ -243,6 +258,7 @@ def _dtype_name(dtype) -> str:
 
 # --- restoring ---------------------------------------------------------------------------------
 
+
 def restore(world, snap: Snapshot) -> None:
     """Put `snap` back into `world` (see `World.restore`). Raises `SnapshotError` when they do not match."""
     _check_layout(world, snap)
@@ -265,14 +281,17 @@ def restore(world, snap: Snapshot) -> None:
 
 def _check_layout(world, snap: Snapshot) -> None:
     """Refuse a snapshot of another kind of world (other stages, emitters, cloth) before changing anything."""
+
     def layout(s: Snapshot) -> dict[str, object]:
         return {p: v for p, v in s.values.items() if p.endswith(("/:class", "/:fields", "/:len"))}
 
     have, want = layout(take(world, arrays=False)), layout(snap)
     if have != want:
         diff = sorted(p.rpartition("/")[0] for p in have.keys() | want.keys() if have.get(p) != want.get(p))
-        raise SnapshotError(f"the snapshot does not match this world: {_few(diff)} differ (restore into a world "
-                            "built the same way as the one it was taken from)")
+        raise SnapshotError(
+            f"the snapshot does not match this world: {_few(diff)} differ (restore into a world "
+            "built the same way as the one it was taken from)"
+        )
 
 
 def _few(paths: list[str]) -> str:
@@ -329,8 +348,12 @@ class _Restore:
             data = snap.arrays[path]
             if isinstance(value, wp.array) and tuple(value.shape) == data.shape and value.numpy().dtype == data.dtype:
                 value.assign(data)  # in place: recorded launches that hold this array stay valid
-            elif isinstance(value, np.ndarray) and value.shape == data.shape and value.dtype == data.dtype \
-                    and value.flags.writeable:
+            elif (
+                isinstance(value, np.ndarray)
+                and value.shape == data.shape
+                and value.dtype == data.dtype
+                and value.flags.writeable
+            ):
                 value[...] = data
             else:
                 if isinstance(value, wp.array):
@@ -338,8 +361,11 @@ class _Restore:
                 _assign(owner, name, self.new(path))
         elif isinstance(value, ArraySet):
             before = dict(value.arrays)
-            value.load({n: snap.arrays[f"{path}/{n}"] for n in value.fields},
-                       count=snap.values[path + "/:count"], capacity=snap.values[path + "/:capacity"])
+            value.load(
+                {n: snap.arrays[f"{path}/{n}"] for n in value.fields},
+                count=snap.values[path + "/:count"],
+                capacity=snap.values[path + "/:capacity"],
+            )
             self.replaced.update((id(a), a) for n, a in before.items() if value.arrays[n] is not a)
             if id(value) not in self.seen:
                 self.seen.add(id(value))
@@ -380,14 +406,22 @@ def _assign(owner, name, value) -> None:
 
 # --- files -------------------------------------------------------------------------------------
 
+
 def save(snap: Snapshot, path) -> Path:
     """Write `snap` to `path` (.npz), atomically."""
     from .io.atomic import atomic_path
 
     path = Path(path)
-    manifest = {"format": FORMAT, "values": snap.values, "step_count": snap.step_count,
-                "time": float(snap.time).hex(), "scene": snap.scene, "scene_path": snap.scene_path,
-                "overrides": snap.overrides, "arrays": sorted(snap.arrays)}
+    manifest = {
+        "format": FORMAT,
+        "values": snap.values,
+        "step_count": snap.step_count,
+        "time": float(snap.time).hex(),
+        "scene": snap.scene,
+        "scene_path": snap.scene_path,
+        "overrides": snap.overrides,
+        "arrays": sorted(snap.arrays),
+    }
     payload = {f"a{i}": a for i, a in enumerate(snap.arrays[k] for k in manifest["arrays"])}
     payload["manifest"] = np.frombuffer(json.dumps(manifest).encode(), dtype=np.uint8)
     with atomic_path(path) as tmp:
@@ -405,8 +439,10 @@ def read(path) -> Snapshot:
             if not isinstance(manifest, dict) or "format" not in manifest:
                 raise ValueError("no manifest")
             if manifest["format"] != FORMAT:
-                raise SnapshotError(f"{path}: snapshot format {manifest['format']} is not the format {FORMAT} "
-                                    "this version of Tumble reads")
+                raise SnapshotError(
+                    f"{path}: snapshot format {manifest['format']} is not the format {FORMAT} "
+                    "this version of Tumble reads"
+                )
             arrays = {k: data[f"a{i}"] for i, k in enumerate(manifest["arrays"])}
     except SnapshotError:
         raise
@@ -414,12 +450,27 @@ def read(path) -> Snapshot:
         raise SnapshotError(f"{path}: no such snapshot file") from None
     except IsADirectoryError:
         raise SnapshotError(f"{path}: is a directory, not a snapshot file") from None
-    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile, json.JSONDecodeError,
-            UnicodeDecodeError) as exc:
+    except (
+        OSError,
+        ValueError,
+        KeyError,
+        TypeError,
+        EOFError,
+        zipfile.BadZipFile,
+        json.JSONDecodeError,
+        UnicodeDecodeError,
+    ) as exc:
         raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
     time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
-    return Snapshot(arrays, manifest["values"], int(manifest["step_count"]), time, manifest.get("scene"),
-                    manifest.get("scene_path"), dict(manifest.get("overrides") or {}))
+    return Snapshot(
+        arrays,
+        manifest["values"],
+        int(manifest["step_count"]),
+        time,
+        manifest.get("scene"),
+        manifest.get("scene_path"),
+        dict(manifest.get("overrides") or {}),
+    )
 
 
 def load(path, **overrides):
@@ -431,8 +482,10 @@ def load(path, **overrides):
 
     snap = read(path)
     if snap.scene is None:
-        raise SnapshotError(f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
-                            "build the same world and call world.restore(tumble.snapshot.read(path))")
+        raise SnapshotError(
+            f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
+            "build the same world and call world.restore(tumble.snapshot.read(path))"
+        )
     scene = parse_scene(snap.scene, snap.scene_path)
     world = build_world(scene, **{**snap.overrides, **overrides})
     restore(world, snap)

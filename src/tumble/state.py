@@ -96,7 +96,7 @@ class ArraySet:
             np_type, tail = numpy_dtype(dtype)
             src = np.asarray(values, dtype=np_type).reshape((k,) + tail)
             if self.device == "cpu":
-                self.arrays[name].numpy()[start:start + k] = src  # the host view is the array
+                self.arrays[name].numpy()[start : start + k] = src  # the host view is the array
             else:
                 src = wp.array(np.ascontiguousarray(src), dtype=dtype, device=self.device)
                 wp.copy(self.arrays[name], src, dest_offset=start, count=k)
@@ -107,7 +107,11 @@ class ArraySet:
         """Host view of the first `count` rows of one array (zero-copy on the CPU)."""
         n = self.count if count is None else count
         arr = self.arrays[name]
-        host = host_view(arr) if n else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
+        host = (
+            host_view(arr)
+            if n
+            else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
+        )
         return host[:n]
 
     def permute(self, order: np.ndarray) -> None:
@@ -141,8 +145,9 @@ class ArraySet:
         valid); otherwise they are reallocated at exactly `capacity`, as after a `reserve`.
         """
         if capacity != self.capacity:
-            self.arrays = {name: wp.zeros(capacity, dtype=dtype, device=self.device)
-                           for name, dtype in self.fields.items()}
+            self.arrays = {
+                name: wp.zeros(capacity, dtype=dtype, device=self.device) for name, dtype in self.fields.items()
+            }
             self.capacity = capacity
         for name, arr in self.arrays.items():
             arr.assign(arrays[name])
@@ -228,8 +233,12 @@ class Handle(int):
 
     def __eq__(self, other):
         if isinstance(other, Handle):
-            return (type(self) is type(other) and int(self) == int(other) and self.generation == other.generation
-                    and self.world_key == other.world_key)
+            return (
+                type(self) is type(other)
+                and int(self) == int(other)
+                and self.generation == other.generation
+                and self.world_key == other.world_key
+            )
         return int.__eq__(self, other)
 
     def __ne__(self, other):
@@ -261,18 +270,26 @@ class BodyId(Handle):
     def _get(self, field: str) -> np.ndarray:
         return getattr(self.world.body_state(self), field)
 
-    position = property(lambda self: self._get("position"),
-                        lambda self, v: self.world.set_body_state(self, position=v),
-                        doc="Centre of mass [m], shape (3,).")
-    orientation = property(lambda self: self._get("orientation"),
-                           lambda self, v: self.world.set_body_state(self, orientation=v),
-                           doc="Body-to-world rotation, unit quaternion (x, y, z, w), shape (4,).")
-    velocity = property(lambda self: self._get("velocity"),
-                        lambda self, v: self.world.set_body_state(self, velocity=v),
-                        doc="Linear velocity [m/s], shape (3,).")
-    angular_velocity = property(lambda self: self._get("angular_velocity"),
-                                lambda self, v: self.world.set_body_state(self, angular_velocity=v),
-                                doc="Angular velocity, world frame [rad/s], shape (3,).")
+    position = property(
+        lambda self: self._get("position"),
+        lambda self, v: self.world.set_body_state(self, position=v),
+        doc="Centre of mass [m], shape (3,).",
+    )
+    orientation = property(
+        lambda self: self._get("orientation"),
+        lambda self, v: self.world.set_body_state(self, orientation=v),
+        doc="Body-to-world rotation, unit quaternion (x, y, z, w), shape (4,).",
+    )
+    velocity = property(
+        lambda self: self._get("velocity"),
+        lambda self, v: self.world.set_body_state(self, velocity=v),
+        doc="Linear velocity [m/s], shape (3,).",
+    )
+    angular_velocity = property(
+        lambda self: self._get("angular_velocity"),
+        lambda self, v: self.world.set_body_state(self, angular_velocity=v),
+        doc="Angular velocity, world frame [rad/s], shape (3,).",
+    )
 
     @property
     def kind(self) -> BodyKind:
@@ -323,10 +340,10 @@ class ClothId(Handle):
     def particle_position(self) -> np.ndarray:
         """Positions of this cloth's particles [m], shape (nx * ny, 3), a copy."""
         record = self._record()
-        return self.world.cloth.particle_position[record.particle_start:record.particle_start + record.particle_count]
+        return self.world.cloth.particle_position[record.particle_start : record.particle_start + record.particle_count]
 
     @property
     def particle_velocity(self) -> np.ndarray:
         """Velocities of this cloth's particles [m/s], shape (nx * ny, 3), a copy."""
         record = self._record()
-        return self.world.cloth.particle_velocity[record.particle_start:record.particle_start + record.particle_count]
+        return self.world.cloth.particle_velocity[record.particle_start : record.particle_start + record.particle_count]

@@ -31,8 +31,9 @@ def show(value) -> str:
 def _real(value, name: str, what: str) -> float:
     """`value` as a float if it is a real number (not a bool, not a string), else TypeError."""
     if isinstance(value, (bool, np.bool_)) or not (
-        isinstance(value, numbers.Real) or (isinstance(value, np.ndarray) and value.ndim == 0
-                                            and value.dtype.kind in "iuf")):
+        isinstance(value, numbers.Real)
+        or (isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf")
+    ):
         raise TypeError(f"{name} must be {what}, got {show(value)}")
     return float(value)
 
@@ -48,8 +49,11 @@ def number(value, name: str, *, low: float | None = None, high: float | None = N
     if high is not None:
         what = f"in {'(' if above else '['}{low:g}, {high:g}]"
     v = _real(value, name, "a number")
-    if not math.isfinite(v) or (low is not None and (v <= low if above else v < low)) or (
-            high is not None and v > high):
+    if (
+        not math.isfinite(v)
+        or (low is not None and (v <= low if above else v < low))
+        or (high is not None and v > high)
+    ):
         raise ValueError(f"{name} must be {what}, got {show(value)}")
     return v
 

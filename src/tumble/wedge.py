@@ -139,28 +139,38 @@ def parse_key(text: str, doc: Mapping) -> KeyPath:
     text = KEY_ALIASES.get(text.strip(), text.strip())
     match = _KEY_RE.match(text)
     if match is None:
-        raise WedgeError(f"key path {text!r} should look like table.key or table[i].key, "
-                         f"e.g. world.gravity or plane[0].friction{_nearest(text, doc)}")
+        raise WedgeError(
+            f"key path {text!r} should look like table.key or table[i].key, "
+            f"e.g. world.gravity or plane[0].friction{_nearest(text, doc)}"
+        )
     table, index, key, component = match.groups()
     spec = SCHEMA.get(table)
     if spec is None or key not in spec.fields:
-        what = f"table {table!r}" if spec is None else f"key {key!r} in [{'[' if spec.array else ''}{table}" \
-               f"{']' if spec.array else ''}]"
+        what = (
+            f"table {table!r}"
+            if spec is None
+            else f"key {key!r} in [{'[' if spec.array else ''}{table}{']' if spec.array else ''}]"
+        )
         raise WedgeError(f"unknown key path {text!r}: no {what}{_nearest(text, doc)}")
     entries = len(doc.get(table, []) or []) if spec.array else None
     if spec.array:
         if entries == 0:
             raise WedgeError(f"key path {text!r}: the scene has no [[{table}]] table")
         if index is None:
-            raise WedgeError(f"key path {text!r}: [[{table}]] is an array of tables; write {table}[0].{key} "
-                             f"(or {table}[*].{key} for every one; the scene has {entries})")
+            raise WedgeError(
+                f"key path {text!r}: [[{table}]] is an array of tables; write {table}[0].{key} "
+                f"(or {table}[*].{key} for every one; the scene has {entries})"
+            )
         if index != "*" and int(index) >= entries:
-            raise WedgeError(f"key path {text!r}: the scene has {entries} [[{table}]] "
-                             f"table{'' if entries == 1 else 's'}{_nearest(text, doc)}")
+            raise WedgeError(
+                f"key path {text!r}: the scene has {entries} [[{table}]] "
+                f"table{'' if entries == 1 else 's'}{_nearest(text, doc)}"
+            )
     elif index is not None:
         raise WedgeError(f"key path {text!r}: [{table}] is a single table; write {table}.{key}")
-    return KeyPath(table, index if index in (None, "*") else int(index), key,
-                   None if component is None else int(component))
+    return KeyPath(
+        table, index if index in (None, "*") else int(index), key, None if component is None else int(component)
+    )
 
 
 def _nearest(text: str, doc: Mapping) -> str:
@@ -397,8 +407,9 @@ class Plan:
         return [k.label for k in self.keys]
 
 
-def plan_wedge(scene, vary: Mapping[str, object] | Sequence[tuple[str, object]], *, yes: bool = False,
-               limit: int = MAX_VARIANTS) -> Plan:
+def plan_wedge(
+    scene, vary: Mapping[str, object] | Sequence[tuple[str, object]], *, yes: bool = False, limit: int = MAX_VARIANTS
+) -> Plan:
     """Check a wedge request and expand it into variants, each validated as a scene file.
 
     Args:
@@ -432,8 +443,10 @@ def plan_wedge(scene, vary: Mapping[str, object] | Sequence[tuple[str, object]],
         values.append(vals)
     total = math.prod(len(v) for v in values)
     if total > limit and not yes:
-        raise WedgeError(f"{total:,} variants is more than the limit of {limit:,} "
-                         f"({' x '.join(str(len(v)) for v in values)}); pass --yes (yes=True) to run them all")
+        raise WedgeError(
+            f"{total:,} variants is more than the limit of {limit:,} "
+            f"({' x '.join(str(len(v)) for v in values)}); pass --yes (yes=True) to run them all"
+        )
     plan = Plan(source=source, doc=doc, keys=keys, values=values)
 
     # each value alone first, so that a bad one is named by itself
@@ -457,8 +470,9 @@ def plan_wedge(scene, vary: Mapping[str, object] | Sequence[tuple[str, object]],
         try:
             parse_scene(text, path=source)
         except SceneError as exc:
-            raise WedgeError(f"variant {', '.join(f'{k}={format_value(v)}' for k, v in chosen.items())}: {exc}") \
-                from None
+            raise WedgeError(
+                f"variant {', '.join(f'{k}={format_value(v)}' for k, v in chosen.items())}: {exc}"
+            ) from None
         name = _slug(chosen)
         if name in names:
             name += "-" + hashlib.sha1(json.dumps(combo).encode()).hexdigest()[:8]
@@ -481,8 +495,13 @@ class Settings:
     device: str = "cpu"
 
     def identity(self) -> dict:
-        return {"duration": self.duration, "fps": self.fps, "keep": sorted(self.keep),
-                "image_size": list(self.image_size), "device": self.device}
+        return {
+            "duration": self.duration,
+            "fps": self.fps,
+            "keep": sorted(self.keep),
+            "image_size": list(self.image_size),
+            "device": self.device,
+        }
 
 
 def check_settings(settings: Settings) -> Settings:
@@ -586,8 +605,10 @@ def _contact_extremes(world) -> tuple[float, float]:
     touches_plane = plane[pair[:, 0]] | plane[pair[:, 1]]
     overlap = depth[~touches_plane]
     penetration = depth[touches_plane]
-    return (max(0.0, float(overlap.max())) if len(overlap) else 0.0,
-            max(0.0, float(penetration.max())) if len(penetration) else 0.0)
+    return (
+        max(0.0, float(overlap.max())) if len(overlap) else 0.0,
+        max(0.0, float(penetration.max())) if len(penetration) else 0.0,
+    )
 
 
 def run_variant(task: dict) -> dict:
@@ -649,17 +670,19 @@ def run_variant(task: dict) -> dict:
                     frames.append(renderer.render(world, camera))
         stepping = time.perf_counter() - stepping
 
-        row.update({
-            "steps": steps,
-            "steps_per_s": steps / stepping if stepping > 0 else None,
-            "kinetic_energy_J": world.kinetic_energy(),
-            "max_overlap_m": overlap,
-            "max_penetration_m": penetration,
-            "max_strain": strain if cloth is not None else None,  # JSON null, an empty CSV cell
-            "body_count": int(world.body_count),
-            "contact_count": int(world.contact_count),
-            "state_hash": world.state_hash(),
-        })
+        row.update(
+            {
+                "steps": steps,
+                "steps_per_s": steps / stepping if stepping > 0 else None,
+                "kinetic_energy_J": world.kinetic_energy(),
+                "max_overlap_m": overlap,
+                "max_penetration_m": penetration,
+                "max_strain": strain if cloth is not None else None,  # JSON null, an empty CSV cell
+                "body_count": int(world.body_count),
+                "contact_count": int(world.contact_count),
+                "state_hash": world.state_hash(),
+            }
+        )
         if not np.isfinite(row["kinetic_energy_J"]):
             raise FloatingPointError("the kinetic energy is not finite at the end (the simulation diverged)")
 
@@ -700,9 +723,17 @@ def _write_kept(world, folder: Path, keep: set, recorder, frames, fps: float) ->
             import imageio.v2 as imageio
 
             with atomic_path(folder / "video.mp4") as tmp:
-                writer = imageio.get_writer(str(tmp), format="FFMPEG", mode="I", fps=float(fps), codec="libx264",
-                                            quality=8, pixelformat="yuv420p", macro_block_size=2,
-                                            ffmpeg_log_level="error")
+                writer = imageio.get_writer(
+                    str(tmp),
+                    format="FFMPEG",
+                    mode="I",
+                    fps=float(fps),
+                    codec="libx264",
+                    quality=8,
+                    pixelformat="yuv420p",
+                    macro_block_size=2,
+                    ffmpeg_log_level="error",
+                )
                 try:
                     for image in frames:
                         writer.append_data(image)
@@ -769,16 +800,23 @@ def cluster(address=None, *, workers: int | None = None, timeout: float = CONNEC
             else:
                 client = Client(address, timeout=timeout)
         except (OSError, TimeoutError, ValueError) as exc:
-            raise WedgeError(f"--address {address}: no Dask scheduler answered within {timeout:g} s "
-                             f"({_one_line(exc)})") from None
+            raise WedgeError(
+                f"--address {address}: no Dask scheduler answered within {timeout:g} s ({_one_line(exc)})"
+            ) from None
         try:
             yield client
         finally:
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    local = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                         silence_logs=logging.ERROR, env={"WARP_CACHE_PATH": warp_cache_dir()})
+    local = LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+        env={"WARP_CACHE_PATH": warp_cache_dir()},
+    )
     client = Client(local)
     try:
         yield client
@@ -796,8 +834,9 @@ def check_address(address: str | None) -> None:
             raise WedgeError(f"--address {address}: no such scheduler file")
         return
     if not re.fullmatch(r"(tcp|tls|ucx|inproc|ws|wss)://\S+|[^\s/:]+:\d+", address):
-        raise WedgeError(f"--address {address!r} should be a scheduler address like tcp://host:8786 "
-                         "or a scheduler file (.json)")
+        raise WedgeError(
+            f"--address {address!r} should be a scheduler address like tcp://host:8786 or a scheduler file (.json)"
+        )
 
 
 # ---------------------------------------------------------------------------------------- the wedge
@@ -859,11 +898,25 @@ def _is_done(result: dict | None, variant: Variant, settings: Settings, retry_fa
     return result.get("status") == "failed" and not retry_failed and not result.get("lost")
 
 
-def wedge(scene, vary, *, out, duration: float = 2.0, fps: float = 30.0, keep: Iterable[str] = (),
-          address: str | None = None, workers: int | None = None, yes: bool = False,
-          image_size: tuple[int, int] = (320, 180), device: str = "cpu", progress: bool | None = None,
-          retry_failed: bool = False, connect_timeout: float = CONNECT_TIMEOUT, contact_sheet: bool = True,
-          summary_figure: bool | None = None) -> Table:
+def wedge(
+    scene,
+    vary,
+    *,
+    out,
+    duration: float = 2.0,
+    fps: float = 30.0,
+    keep: Iterable[str] = (),
+    address: str | None = None,
+    workers: int | None = None,
+    yes: bool = False,
+    image_size: tuple[int, int] = (320, 180),
+    device: str = "cpu",
+    progress: bool | None = None,
+    retry_failed: bool = False,
+    connect_timeout: float = CONNECT_TIMEOUT,
+    contact_sheet: bool = True,
+    summary_figure: bool | None = None,
+) -> Table:
     """Run `scene` over every combination of the values in `vary`, each variant its own simulation.
 
     Args:
@@ -900,10 +953,18 @@ def wedge(scene, vary, *, out, duration: float = 2.0, fps: float = 30.0, keep: I
     try:
         import distributed  # noqa: F401
     except ImportError:
-        raise WedgeError("wedges run on Dask distributed, which is not installed: pip install 'tumble[wedge]'") \
-            from None
-    settings = check_settings(Settings(duration=float(duration), fps=float(fps), keep=tuple(sorted(set(keep))),
-                                       image_size=tuple(int(v) for v in image_size), device=device))
+        raise WedgeError(
+            "wedges run on Dask distributed, which is not installed: pip install 'tumble[wedge]'"
+        ) from None
+    settings = check_settings(
+        Settings(
+            duration=float(duration),
+            fps=float(fps),
+            keep=tuple(sorted(set(keep))),
+            image_size=tuple(int(v) for v in image_size),
+            device=device,
+        )
+    )
     check_address(address)
     if not (math.isfinite(connect_timeout) and connect_timeout > 0):
         raise WedgeError(f"connect timeout must be a positive number of seconds, got {connect_timeout:g}")
@@ -949,8 +1010,9 @@ def _describe(client) -> str:
     return f"{len(workers)} worker{'' if len(workers) == 1 else 's'} ({threads} threads) at {info.get('address', '?')}"
 
 
-def _run_all(client, plan: Plan, todo: list[Variant], settings: Settings, out: Path, results: dict,
-             report, write) -> None:
+def _run_all(
+    client, plan: Plan, todo: list[Variant], settings: Settings, out: Path, results: dict, report, write
+) -> None:
     from distributed import as_completed
 
     futures = {}
@@ -958,8 +1020,13 @@ def _run_all(client, plan: Plan, todo: list[Variant], settings: Settings, out: P
         folder = out / v.name
         folder.mkdir(exist_ok=True)
         atomic_write(folder / "scene.toml", v.text)
-        task = {"name": v.name, "text": v.text, "path": str(folder / "scene.toml"), "folder": str(folder.resolve()),
-                "settings": settings.identity()}
+        task = {
+            "name": v.name,
+            "text": v.text,
+            "path": str(folder / "scene.toml"),
+            "folder": str(folder.resolve()),
+            "settings": settings.identity(),
+        }
         future = client.submit(run_variant, task, key=f"tumble-wedge-{v.name}-{v.scene_sha[:12]}", pure=False)
         futures[future] = v
     for future in as_completed(futures):
@@ -1080,9 +1147,17 @@ class _Progress:
             skipped = f", {self.done} already done" if self.done else ""
             self.console.print(f"wedge: {self.total} variants{skipped}, on {engine}", highlight=False)
         if self.live and not self.lines:
-            self.bar = Progress(TextColumn("wedge"), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("{task.fields[failed]}"), TimeElapsedColumn(), TextColumn("left"),
-                                TimeRemainingColumn(), console=self.console, transient=False)
+            self.bar = Progress(
+                TextColumn("wedge"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[failed]}"),
+                TimeElapsedColumn(),
+                TextColumn("left"),
+                TimeRemainingColumn(),
+                console=self.console,
+                transient=False,
+            )
             self.bar.start()
             self.task = self.bar.add_task("wedge", total=self.total, completed=self.done, failed="")
 
@@ -1097,8 +1172,11 @@ class _Progress:
                 self.bar.console.print(f"failed {variant.name}: {row.get('error')}", highlight=False, markup=False)
         elif self.lines:
             status = "ok" if row.get("status") == "ok" else f"failed: {row.get('error')}"
-            print(f"[{self.done}/{self.total}] {variant.name} {status} ({row.get('wall_s', 0):.1f} s)",
-                  file=sys.stderr, flush=True)
+            print(
+                f"[{self.done}/{self.total}] {variant.name} {status} ({row.get('wall_s', 0):.1f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def stop(self) -> None:
         if self.bar is not None:
@@ -1166,11 +1244,18 @@ def write_contact_sheet(plan: Plan, rows: list[dict], out: Path, *, max_width: i
             draw.text((x + 6, y + 6), str(row.get("status", "")), fill=(255, 160, 160), font=font)
             draw.text((x + 6, y + 6 + line_h), str(row.get("error", ""))[:60], fill=(255, 200, 200), font=font)
         texts = [f"{n} = {format_value(row.get(k), digits=4)}" for n, k in zip(names, plan.labels)]
-        texts.append(row.get("status") if row.get("status") != "ok" else
-                     f"KE {_num(row.get('kinetic_energy_J'))} J  {_num(row.get('steps_per_s'))} steps/s")
+        texts.append(
+            row.get("status")
+            if row.get("status") != "ok"
+            else f"KE {_num(row.get('kinetic_energy_J'))} J  {_num(row.get('steps_per_s'))} steps/s"
+        )
         for j, text in enumerate(texts):
-            draw.text((x + 5, y + tile_h + 3 + j * line_h), text,
-                      fill=(235, 235, 235) if j < len(names) else (150, 150, 160), font=font)
+            draw.text(
+                (x + 5, y + tile_h + 3 + j * line_h),
+                text,
+                fill=(235, 235, 235) if j < len(names) else (150, 150, 160),
+                font=font,
+            )
     buffer = io.BytesIO()
     sheet.save(buffer, format="PNG")
     atomic_write(out / "contact_sheet.png", buffer.getvalue())
@@ -1213,16 +1298,26 @@ def plot_wedge(outdir, out=None, *, dpi: int = 100) -> Path:
     labels = list(meta["vary"])
     rows = meta["variants"]
     ok = [r for r in rows if r.get("status") == "ok"]
-    numeric = [k for k in labels
-               if len({json.dumps(r[k]) for r in rows}) > 1
-               and all(isinstance(r[k], (int, float)) and not isinstance(r[k], bool) for r in rows)]
+    numeric = [
+        k
+        for k in labels
+        if len({json.dumps(r[k]) for r in rows}) > 1
+        and all(isinstance(r[k], (int, float)) and not isinstance(r[k], bool) for r in rows)
+    ]
     xkey = numeric[0] if numeric else None
     others = [k for k in labels if k != xkey]
-    metrics = [m for m in (*METRICS, "steps_per_s", "wall_s")
-               if any(isinstance(r.get(m), (int, float)) and math.isfinite(r[m]) for r in ok)]
+    metrics = [
+        m
+        for m in (*METRICS, "steps_per_s", "wall_s")
+        if any(isinstance(r.get(m), (int, float)) and math.isfinite(r[m]) for r in ok)
+    ]
     cols = 2 if len(metrics) > 1 else 1
-    fig, axes = plt.subplots(math.ceil(len(metrics) / cols) or 1, cols, figsize=(5.5 * cols, 3.2 * math.ceil(
-        max(len(metrics), 1) / cols)), squeeze=False)
+    fig, axes = plt.subplots(
+        math.ceil(len(metrics) / cols) or 1,
+        cols,
+        figsize=(5.5 * cols, 3.2 * math.ceil(max(len(metrics), 1) / cols)),
+        squeeze=False,
+    )
     groups: dict[str, list[dict]] = {}
     for r in ok:
         groups.setdefault(", ".join(f"{k}={format_value(r[k], digits=4)}" for k in others), []).append(r)
@@ -1235,18 +1330,22 @@ def plot_wedge(outdir, out=None, *, dpi: int = 100) -> Path:
                 xs = [r[xkey] for r in members]
             ys = [r.get(metric) if isinstance(r.get(metric), (int, float)) else math.nan for r in members]
             ax.plot(xs, ys, "o-", ms=3, label=name or None)
-        ax.set_title(METRICS.get(metric, {"steps_per_s": "steps per second", "wall_s": "wall time [s]"}.get(metric)),
-                     fontsize=9)
+        ax.set_title(
+            METRICS.get(metric, {"steps_per_s": "steps per second", "wall_s": "wall time [s]"}.get(metric)), fontsize=9
+        )
         ax.set_xlabel(xkey or "variant", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(metrics):]:
+    for ax in list(axes.flat)[len(metrics) :]:
         ax.axis("off")
     if others and len(groups) > 1:
         axes.flat[0].legend(fontsize=6, loc="best")
     failed = len(rows) - len(ok)
-    fig.suptitle(f"wedge of {Path(meta['scene']).name}: {len(ok)} variants"
-                 + (f", {failed} failed or pending (not shown)" if failed else ""), fontsize=10)
+    fig.suptitle(
+        f"wedge of {Path(meta['scene']).name}: {len(ok)} variants"
+        + (f", {failed} failed or pending (not shown)" if failed else ""),
+        fontsize=10,
+    )
     fig.tight_layout()
     with atomic_path(out) as tmp:
         fig.savefig(tmp, dpi=dpi, format=out.suffix.lstrip(".") or "png")

@@ -24,9 +24,8 @@ import numpy as np
 import warp as wp
 from numpy.typing import ArrayLike
 
-from . import limits
+from . import limits, snapshot, validate
 from . import shapes as _shapes
-from . import snapshot, validate
 from .cloth.system import ClothSystem
 from .cloth.wind import AIR_DENSITY
 from .collision import broadphase, narrowphase
@@ -102,8 +101,12 @@ class BodyState(NamedTuple):
 
 
 #: BodyState field -> body array
-_STATE_NAMES = {"position": "body_position", "orientation": "body_orientation", "velocity": "body_velocity",
-                "angular_velocity": "body_angular_velocity"}
+_STATE_NAMES = {
+    "position": "body_position",
+    "orientation": "body_orientation",
+    "velocity": "body_velocity",
+    "angular_velocity": "body_angular_velocity",
+}
 
 
 def _restitution(value) -> float:
@@ -118,10 +121,15 @@ def _rotation_vector(q_to: np.ndarray, q_from: np.ndarray) -> np.ndarray:
     """Rotation vectors (axis * angle [rad]) of the rotations q_to q_from^-1, the shorter way, shape (k, 3)."""
     x1, y1, z1, w1 = q_to.T
     x0, y0, z0, w0 = -q_from[:, 0], -q_from[:, 1], -q_from[:, 2], q_from[:, 3]  # conjugate
-    d = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
-                  w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
-                  w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0,
-                  w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0], axis=1)
+    d = np.stack(
+        [
+            w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
+            w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
+            w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0,
+            w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0,
+        ],
+        axis=1,
+    )
     d = np.where(d[:, 3:] < 0.0, -d, d)  # q and -q are one rotation: take the one of angle <= pi
     s = np.linalg.norm(d[:, :3], axis=1)
     angle = 2.0 * np.arctan2(s, d[:, 3])
@@ -349,9 +357,17 @@ class World:
         """
         validate.positive(radius, "radius")
         return self.add_spheres(
-            position=validate.vector(position, "position")[None], radius=radius, mass=mass, density=density,
-            velocity=velocity, orientation=orientation, angular_velocity=angular_velocity, restitution=restitution,
-            friction=friction, static=static, kinematic=kinematic,
+            position=validate.vector(position, "position")[None],
+            radius=radius,
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
         )[0]
 
     def add_box(
@@ -372,9 +388,16 @@ class World:
         """Add a solid box. Arguments as `add_sphere`, with half extents [m], shape (3,), all > 0."""
         return self.add_boxes(
             position=validate.vector(position, "position")[None],
-            half_extents=validate.vector(half_extents, "half_extents"), mass=mass, density=density,
-            velocity=velocity, orientation=orientation, angular_velocity=angular_velocity, restitution=restitution,
-            friction=friction, static=static, kinematic=kinematic,
+            half_extents=validate.vector(half_extents, "half_extents"),
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
         )[0]
 
     def add_spheres(
@@ -408,9 +431,21 @@ class World:
         r = validate.positive_rows(radius, "radius", len(x))
         m = self._masses(mass, density, _shapes.sphere_volume(r))
         inertia = _shapes.sphere_inertia(m, r)
-        return self._add_solids(ShapeType.SPHERE, x, velocity, orientation, angular_velocity, radius=r,
-                                half_extents=np.zeros((len(x), 3)), mass=m, inertia=inertia,
-                                restitution=restitution, friction=friction, static=static, kinematic=kinematic)
+        return self._add_solids(
+            ShapeType.SPHERE,
+            x,
+            velocity,
+            orientation,
+            angular_velocity,
+            radius=r,
+            half_extents=np.zeros((len(x), 3)),
+            mass=m,
+            inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
+        )
 
     def add_boxes(
         self,
@@ -434,9 +469,21 @@ class World:
             raise ValueError(f"half_extents must all be > 0, got {validate.show(half_extents)}")
         m = self._masses(mass, density, _shapes.box_volume(h))
         inertia = _shapes.box_inertia(m, h)
-        return self._add_solids(ShapeType.BOX, x, velocity, orientation, angular_velocity, radius=np.zeros(len(x)),
-                                half_extents=h, mass=m, inertia=inertia, restitution=restitution,
-                                friction=friction, static=static, kinematic=kinematic)
+        return self._add_solids(
+            ShapeType.BOX,
+            x,
+            velocity,
+            orientation,
+            angular_velocity,
+            radius=np.zeros(len(x)),
+            half_extents=h,
+            mass=m,
+            inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
+        )
 
     def add_capsule(
         self,
@@ -462,14 +509,34 @@ class World:
             Others as `add_sphere`.
         """
         return self.add_capsules(
-            position=validate.vector(position, "position")[None], radius=radius, half_height=half_height, mass=mass,
-            density=density, velocity=velocity, orientation=orientation, angular_velocity=angular_velocity,
-            restitution=restitution, friction=friction, static=static,
+            position=validate.vector(position, "position")[None],
+            radius=radius,
+            half_height=half_height,
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
         )[0]
 
-    def add_capsules(self, *, position, radius, half_height, mass=None, density=None, velocity=(0.0, 0.0, 0.0),
-                     orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), restitution: float = 0.5,
-                     friction: float = 0.5, static: bool = False) -> list[BodyId]:
+    def add_capsules(
+        self,
+        *,
+        position,
+        radius,
+        half_height,
+        mass=None,
+        density=None,
+        velocity=(0.0, 0.0, 0.0),
+        orientation=(0.0, 0.0, 0.0, 1.0),
+        angular_velocity=(0.0, 0.0, 0.0),
+        restitution: float = 0.5,
+        friction: float = 0.5,
+        static: bool = False,
+    ) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
         x = validate.rows(position, "position", 3)
         r = validate.positive_rows(radius, "radius", len(x))
@@ -478,9 +545,20 @@ class World:
         inertia = _shapes.capsule_inertia(m, r, a)
         # half extents of the body-frame bounding box; the kernels read the half height as h_z - r
         h = np.stack([r, r, a + r], axis=1)
-        return self._add_solids(ShapeType.CAPSULE, x, velocity, orientation, angular_velocity, radius=r,
-                                half_extents=h, mass=m, inertia=inertia, restitution=restitution,
-                                friction=friction, static=static)
+        return self._add_solids(
+            ShapeType.CAPSULE,
+            x,
+            velocity,
+            orientation,
+            angular_velocity,
+            radius=r,
+            half_extents=h,
+            mass=m,
+            inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+        )
 
     def add_convex(
         self,
@@ -530,10 +608,21 @@ class World:
         m = self._masses(mass, density, np.array([proto.volume]))
         inertia = proto.inertia[None] * (m[0] / proto.volume)
         index = self.hulls.add(proto)
-        ids = self._add_solids(ShapeType.CONVEX, x[None], velocity, q, angular_velocity, radius=np.zeros(1),
-                               half_extents=np.abs(proto.vertex).max(axis=0)[None], mass=m, inertia=inertia,
-                               restitution=restitution, friction=friction, static=static,
-                               bound=np.array([proto.bound_radius]))
+        ids = self._add_solids(
+            ShapeType.CONVEX,
+            x[None],
+            velocity,
+            q,
+            angular_velocity,
+            radius=np.zeros(1),
+            half_extents=np.abs(proto.vertex).max(axis=0)[None],
+            mass=m,
+            inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            bound=np.array([proto.bound_radius]),
+        )
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
         return ids[0]
 
@@ -571,10 +660,15 @@ class World:
         v = v * factor
         index = self.meshes.add(v, t)
         ids = self._add_bodies(
-            shape=ShapeType.MESH, position=validate.vector(position, "position")[None],
-            orientation=validate.quaternion(orientation)[None], radius=np.zeros(1),
-            half_extents=np.abs(v).max(axis=0)[None], mass=np.zeros(1), inertia=np.zeros((1, 3)),
-            restitution=_restitution(restitution), friction=_friction(friction),
+            shape=ShapeType.MESH,
+            position=validate.vector(position, "position")[None],
+            orientation=validate.quaternion(orientation)[None],
+            radius=np.zeros(1),
+            half_extents=np.abs(v).max(axis=0)[None],
+            mass=np.zeros(1),
+            inertia=np.zeros((1, 3)),
+            restitution=_restitution(restitution),
+            friction=_friction(friction),
             bound=np.array([float(np.linalg.norm(v, axis=1).max())]),
         )
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
@@ -583,9 +677,14 @@ class World:
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(validate.text(shape, "shape"))
-        return {ShapeType.PLANE: self.add_plane, ShapeType.SPHERE: self.add_sphere, ShapeType.BOX: self.add_box,
-                ShapeType.CAPSULE: self.add_capsule, ShapeType.CONVEX: self.add_convex,
-                ShapeType.MESH: self.add_mesh}[kind](**kwargs)
+        return {
+            ShapeType.PLANE: self.add_plane,
+            ShapeType.SPHERE: self.add_sphere,
+            ShapeType.BOX: self.add_box,
+            ShapeType.CAPSULE: self.add_capsule,
+            ShapeType.CONVEX: self.add_convex,
+            ShapeType.MESH: self.add_mesh,
+        }[kind](**kwargs)
 
     def add_emitter(
         self,
@@ -618,12 +717,30 @@ class World:
         Returns:
             The `Emitter` (the emitter's handle), whose `rate` may be changed while the world runs.
         """
-        emitter = Emitter(shape=shape, rate=rate, count=count, position=position, region=region, extent=extent,
-                          direction=direction, cone_angle=cone_angle, speed=speed, radius=radius,
-                          half_extents=half_extents, half_height=half_height, points=points, file=file,
-                          scale=scale, mass=mass, density=density, restitution=restitution,
-                          friction=friction, random_orientation=random_orientation, angular_speed=angular_speed,
-                          seed=seed)
+        emitter = Emitter(
+            shape=shape,
+            rate=rate,
+            count=count,
+            position=position,
+            region=region,
+            extent=extent,
+            direction=direction,
+            cone_angle=cone_angle,
+            speed=speed,
+            radius=radius,
+            half_extents=half_extents,
+            half_height=half_height,
+            points=points,
+            file=file,
+            scale=scale,
+            mass=mass,
+            density=density,
+            restitution=restitution,
+            friction=friction,
+            random_orientation=random_orientation,
+            angular_speed=angular_speed,
+            seed=seed,
+        )
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
@@ -663,9 +780,20 @@ class World:
             The cloth's `ClothId` (an int, its index in creation order); `world.cloth` holds the
             particles of every cloth.
         """
-        index = self.cloth.add_cloth(size=size, resolution=resolution, position=position, orientation=orientation,
-                                     mass=mass, areal_density=areal_density, stiffness=stiffness, damping=damping,
-                                     max_stretch=max_stretch, pins=pins, thickness=thickness, friction=friction)
+        index = self.cloth.add_cloth(
+            size=size,
+            resolution=resolution,
+            position=position,
+            orientation=orientation,
+            mass=mass,
+            areal_density=areal_density,
+            stiffness=stiffness,
+            damping=damping,
+            max_stretch=max_stretch,
+            pins=pins,
+            thickness=thickness,
+            friction=friction,
+        )
         return ClothId(index, 0, self._key)
 
     @property
@@ -687,8 +815,15 @@ class World:
         air_density: float = AIR_DENSITY,
     ) -> None:
         """Set the wind acting on cloth; the keywords are `ClothSystem.set_wind`'s (model: `tumble.Wind`)."""
-        self.cloth.set_wind(velocity=velocity, turbulence=turbulence, scale=scale, seed=seed, drag=drag, lift=lift,
-                            air_density=air_density)
+        self.cloth.set_wind(
+            velocity=velocity,
+            turbulence=turbulence,
+            scale=scale,
+            seed=seed,
+            drag=drag,
+            lift=lift,
+            air_density=air_density,
+        )
 
     def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
         """Set restitution and/or friction of every body (planes included), effective at once."""
@@ -720,8 +855,10 @@ class World:
         Returns:
             The new joint's `JointId`; `joint_force[id.index]` is its force on b [N].
         """
-        ends = [joint_solver.JointBody.world() if body is None else self._joint_body(body, key)
-                for key, body in (("body_a", body_a), ("body_b", body_b))]
+        ends = [
+            joint_solver.JointBody.world() if body is None else self._joint_body(body, key)
+            for key, body in (("body_a", body_a), ("body_b", body_b))
+        ]
         rows = joint_solver.joint_rows(kind, *ends, **kwargs)
         return joint_solver.JointId(self.joints.add(rows)[0])
 
@@ -730,13 +867,17 @@ class World:
             i = self._slot(body)
         except (IndexError, TypeError, ValueError):
             raise joint_solver.JointArgumentError(
-                key, f"no body {body!r} (the world has {self.bodies.count} bodies)") from None
+                key, f"no body {body!r} (the world has {self.bodies.count} bodies)"
+            ) from None
         b = self.bodies
-        return joint_solver.JointBody(i, b.numpy("body_position")[i].copy(), b.numpy("body_orientation")[i].copy(),
-                                      bool(b.numpy("body_inv_mass")[i] > 0.0))
+        return joint_solver.JointBody(
+            i,
+            b.numpy("body_position")[i].copy(),
+            b.numpy("body_orientation")[i].copy(),
+            bool(b.numpy("body_inv_mass")[i] > 0.0),
+        )
 
-    def apply_force(self, body: BodyId | int, force: Sequence[float], *,
-                    point: Sequence[float] | None = None) -> None:
+    def apply_force(self, body: BodyId | int, force: Sequence[float], *, point: Sequence[float] | None = None) -> None:
         """Apply a force [N] (at a world `point`, default the centre of mass) during the next step only.
 
         Static and kinematic bodies are not moved by forces.
@@ -758,8 +899,9 @@ class World:
         """
         i = self._row(body)
         b = self.bodies
-        return BodyState(*(np.array(b.numpy(name)[i]) for name in _STATE_NAMES.values()),
-                         kind=BodyKind(int(b.numpy("body_kind")[i])))
+        return BodyState(
+            *(np.array(b.numpy(name)[i]) for name in _STATE_NAMES.values()), kind=BodyKind(int(b.numpy("body_kind")[i]))
+        )
 
     def set_body_state(
         self,
@@ -802,8 +944,10 @@ class World:
         if velocity is not None or angular_velocity is not None:
             static = self.bodies.numpy("body_kind")[rows] == BodyKind.STATIC
             if np.any(static):
-                raise ValueError(f"body {int(ids[np.argmax(static)])} is static and cannot be given a velocity; "
-                                 "add it with kinematic=True to move it by a velocity")
+                raise ValueError(
+                    f"body {int(ids[np.argmax(static)])} is static and cannot be given a velocity; "
+                    "add it with kinematic=True to move it by a velocity"
+                )
         for name, v in values.items():
             self.bodies.write(name, rows, v)
 
@@ -834,8 +978,10 @@ class World:
         h = self.dt if dt is None else validate.positive(dt, "dt")
         kinds = self.bodies.numpy("body_kind")[rows]
         if np.any(kinds != BodyKind.KINEMATIC):
-            raise ValueError(f"body {int(ids[np.argmax(kinds != BodyKind.KINEMATIC)])} is not kinematic; "
-                             "add it with kinematic=True to drive it by targets")
+            raise ValueError(
+                f"body {int(ids[np.argmax(kinds != BodyKind.KINEMATIC)])} is not kinematic; "
+                "add it with kinematic=True to drive it by targets"
+            )
         if position is not None:
             target = validate.rows(position, "position", 3, k)
             self.bodies.write("body_velocity", rows, (target - self.bodies.numpy("body_position")[rows]) / h)
@@ -865,8 +1011,10 @@ class World:
             held.append(np.asarray(self._cloth.body_pins._body))
         for attached in held:
             if np.isin(rows, attached).any():
-                raise ValueError(f"body {int(ids[np.isin(rows, attached)][0])} is held by a joint or a cloth pin; "
-                                 "bodies with joints or pins cannot be removed yet")
+                raise ValueError(
+                    f"body {int(ids[np.isin(rows, attached)][0])} is held by a joint or a cloth pin; "
+                    "bodies with joints or pins cannot be removed yet"
+                )
         n = self.bodies.count
         keep = np.ones(n, dtype=bool)
         keep[rows] = False
@@ -950,9 +1098,11 @@ class World:
                 if b.world_key is not None and b.world_key != self._key:
                     raise HandleError(f"body {i} belongs to another World")
                 if b.generation != self._body_generation[i]:
-                    raise HandleError(f"body {i} was removed from this World (its id now names a newer body)"
-                                      if self._slot_of_id is None or self._slot_of_id[i] >= 0
-                                      else f"body {i} was removed from this World")
+                    raise HandleError(
+                        f"body {i} was removed from this World (its id now names a newer body)"
+                        if self._slot_of_id is None or self._slot_of_id[i] >= 0
+                        else f"body {i} was removed from this World"
+                    )
             ids[k] = i
         rows = ids if self._slot_of_id is None else self._slot_of_id[ids]
         if np.any(rows < 0):
@@ -966,8 +1116,24 @@ class World:
             return validate.positive_rows(mass, "mass", len(volume))
         return validate.positive_rows(1000.0 if density is None else density, "density", len(volume)) * volume
 
-    def _add_solids(self, shape, position, velocity, orientation, angular_velocity, *, radius, half_extents,
-                    mass, inertia, restitution, friction, static, kinematic=False, bound=None) -> list[BodyId]:
+    def _add_solids(
+        self,
+        shape,
+        position,
+        velocity,
+        orientation,
+        angular_velocity,
+        *,
+        radius,
+        half_extents,
+        mass,
+        inertia,
+        restitution,
+        friction,
+        static,
+        kinematic=False,
+        bound=None,
+    ) -> list[BodyId]:
         n = len(position)
         q = validate.quaternion(orientation, "orientation", n)
         v = validate.rows(velocity, "velocity", 3, n)
@@ -983,14 +1149,38 @@ class World:
         if static:
             v, w = np.zeros((n, 3)), np.zeros((n, 3))
         return self._add_bodies(
-            shape=shape, position=position, velocity=v, orientation=q, angular_velocity=w, radius=radius,
-            half_extents=half_extents, mass=mass, inertia=inertia, restitution=restitution, friction=friction,
-            kind=kind, bound=bound,
+            shape=shape,
+            position=position,
+            velocity=v,
+            orientation=q,
+            angular_velocity=w,
+            radius=radius,
+            half_extents=half_extents,
+            mass=mass,
+            inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            kind=kind,
+            bound=bound,
         )
 
-    def _add_bodies(self, *, shape, position, orientation, radius, half_extents, mass, inertia,
-                    restitution, friction, velocity=None, angular_velocity=None, kind=None,
-                    bound=None) -> list[BodyId]:
+    def _add_bodies(
+        self,
+        *,
+        shape,
+        position,
+        orientation,
+        radius,
+        half_extents,
+        mass,
+        inertia,
+        restitution,
+        friction,
+        velocity=None,
+        angular_velocity=None,
+        kind=None,
+        bound=None,
+    ) -> list[BodyId]:
         """Append k bodies given as arrays with k rows (vectorised; used by emitters too).
 
         `kind` (BodyKind) defaults to static for bodies of mass 0, else dynamic; `bound` (k,)
@@ -1157,16 +1347,18 @@ class World:
                 if substep == 0:
                     contact_solver.warm_start(bodies, contacts)
                     self.joints.warm_start(bodies, h, cache=launches)
-                    contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=False,
-                                           cache=launches)
+                    contact_solver.impacts(
+                        bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=False, cache=launches
+                    )
                 self.joints.solve(bodies, h, use_bias=True, cache=launches)
                 contact_solver.solve(bodies, contacts, h, use_bias=True, cache=launches)
             with self._timer("integrate"):
                 integrate.integrate_positions(bodies, h, cache=launches)
             with self._timer("solver"):
                 self.joints.solve(bodies, h, use_bias=False, cache=launches)
-                contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True,
-                                       cache=launches)
+                contact_solver.impacts(
+                    bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True, cache=launches
+                )
                 contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             if cloth is not None:
                 with self._timer("cloth"):
@@ -1193,14 +1385,18 @@ class World:
         key = contacts.begin_solve(self.bodies)
         if self.device != "cpu" or self._cloth is not None:
             return None
-        key += (self.bodies.count, joints.count, self.substeps, dt, h, tuple(self.gravity),
-                self.restitution_threshold)
+        key += (self.bodies.count, joints.count, self.substeps, dt, h, tuple(self.gravity), self.restitution_threshold)
         if joints.count:
             joints.refresh(self.bodies.count)
             # every array the joint stages may launch with (a buffer made anew each step: no graph)
             key += tuple(map(id, _arrays_of(joints)))
-        return self._launches.graph("solver", key, lambda: self._solve(dt, h, None),
-                                    lambda: _arrays_of(self.bodies, contacts, contacts.previous, joints), self.device)
+        return self._launches.graph(
+            "solver",
+            key,
+            lambda: self._solve(dt, h, None),
+            lambda: _arrays_of(self.bodies, contacts, contacts.previous, joints),
+            self.device,
+        )
 
     def _collision_graph(self, dt: float):
         """The broad and narrow phases' launches recorded as one graph, or None to run them one by one.
@@ -1214,13 +1410,33 @@ class World:
         if self.device != "cpu" or self.joints.count or not bp.begin(bodies):
             return None
         hulls, meshes = self.hulls.struct(), self.meshes.ids()
-        key = (dt, bodies.count, bodies.capacity, id(bodies.arrays["body_velocity"]), bp._ordinary_limit,
-               bp.pair_capacity, id(bp.pair_a), id(bp.swept_radius), bp.grid.mask, id(bp.grid.cell_count),
-               id(bp.grid.entries), contacts.capacity, id(contacts.arrays["contact_body_a"]), id(hulls), id(meshes))
+        key = (
+            dt,
+            bodies.count,
+            bodies.capacity,
+            id(bodies.arrays["body_velocity"]),
+            bp._ordinary_limit,
+            bp.pair_capacity,
+            id(bp.pair_a),
+            id(bp.swept_radius),
+            bp.grid.mask,
+            id(bp.grid.cell_count),
+            id(bp.grid.entries),
+            contacts.capacity,
+            id(contacts.arrays["contact_body_a"]),
+            id(hulls),
+            id(meshes),
+        )
         return self._launches.graph(
-            "collision", key,
-            lambda: (bp.launch(bodies, dt), narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes)),
-            lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls], self.device)
+            "collision",
+            key,
+            lambda: (
+                bp.launch(bodies, dt),
+                narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),
+            ),
+            lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls],
+            self.device,
+        )
 
     def collide(self, dt: float | None = None) -> int:
         """Find contacts for the current state without stepping (broad + narrow phase only).
@@ -1314,32 +1530,48 @@ class World:
         return self.contacts.count
 
     body_shape = property(lambda self: self._view("body_shape"), doc="Shape types (ShapeType), shape (n,), int32.")
-    body_kind = property(lambda self: self._view("body_kind"),
-                         doc="How each body moves (BodyKind: dynamic, static, kinematic), shape (n,), int32.")
+    body_kind = property(
+        lambda self: self._view("body_kind"),
+        doc="How each body moves (BodyKind: dynamic, static, kinematic), shape (n,), int32.",
+    )
     body_radius = property(lambda self: self._view("body_radius"), doc="Sphere and capsule radii [m], shape (n,).")
-    body_geometry = property(lambda self: self._view("body_geometry"),
-                             doc="Row of each convex body's hull in `hulls.prototypes`, shape (n,), int32.")
-    body_half_extents = property(lambda self: self._view("body_half_extents"), doc="Box half extents [m], shape (n, 3).")
+    body_geometry = property(
+        lambda self: self._view("body_geometry"),
+        doc="Row of each convex body's hull in `hulls.prototypes`, shape (n,), int32.",
+    )
+    body_half_extents = property(
+        lambda self: self._view("body_half_extents"), doc="Box half extents [m], shape (n, 3)."
+    )
     body_mass = property(lambda self: self._view("body_mass"), doc="Masses [kg], shape (n,); 0 for static bodies.")
     body_inv_mass = property(lambda self: self._view("body_inv_mass"), doc="Inverse masses [1/kg], shape (n,).")
     body_restitution = property(lambda self: self._view("body_restitution"), doc="Restitution, shape (n,).")
     body_friction = property(lambda self: self._view("body_friction"), doc="Friction coefficients, shape (n,).")
     body_position = property(lambda self: self._view("body_position"), doc="Positions [m], shape (n, 3).")
-    body_orientation = property(lambda self: self._view("body_orientation"), doc="Orientations (x, y, z, w), shape (n, 4).")
+    body_orientation = property(
+        lambda self: self._view("body_orientation"), doc="Orientations (x, y, z, w), shape (n, 4)."
+    )
     body_velocity = property(lambda self: self._view("body_velocity"), doc="Linear velocities [m/s], shape (n, 3).")
     body_angular_velocity = property(
         lambda self: self._view("body_angular_velocity"), doc="Angular velocities, world frame [rad/s], shape (n, 3)."
     )
 
     joint_count = property(lambda self: self.joints.count, doc="Number of joints, broken ones included.")
-    joint_force = property(lambda self: self.joints.view("joint_force"),
-                           doc="Force of each joint on its body b over the last substep, world [N], shape (j, 3).")
-    joint_torque = property(lambda self: self.joints.view("joint_torque"),
-                            doc="Torque of each joint on its body b, world [N m], shape (j, 3).")
-    joint_error = property(lambda self: readonly(joint_solver.joint_error(self.joints, self.bodies)),
-                           doc="Position error (drift) of each joint [m], shape (j,).")
-    joint_broken = property(lambda self: readonly(self.joints.numpy("joint_enabled") == 0),
-                            doc="Whether each joint has broken, shape (j,), bool.")
+    joint_force = property(
+        lambda self: self.joints.view("joint_force"),
+        doc="Force of each joint on its body b over the last substep, world [N], shape (j, 3).",
+    )
+    joint_torque = property(
+        lambda self: self.joints.view("joint_torque"),
+        doc="Torque of each joint on its body b, world [N m], shape (j, 3).",
+    )
+    joint_error = property(
+        lambda self: readonly(joint_solver.joint_error(self.joints, self.bodies)),
+        doc="Position error (drift) of each joint [m], shape (j,).",
+    )
+    joint_broken = property(
+        lambda self: readonly(self.joints.numpy("joint_enabled") == 0),
+        doc="Whether each joint has broken, shape (j,), bool.",
+    )
 
     @property
     def body_plane_normal(self) -> np.ndarray:
@@ -1441,8 +1673,11 @@ class World:
 
 def _arrays_of(*owners) -> list:
     """The Warp arrays some objects hold: their attributes and, for an ArraySet, its named arrays."""
-    return [a for owner in owners for a in (*(v for v in vars(owner).values() if isinstance(v, wp.array)),
-                                            *getattr(owner, "arrays", {}).values())]
+    return [
+        a
+        for owner in owners
+        for a in (*(v for v in vars(owner).values() if isinstance(v, wp.array)), *getattr(owner, "arrays", {}).values())
+    ]
 
 
 def _inertia_world(inv_inertia: np.ndarray, q: np.ndarray) -> np.ndarray:

@@ -58,9 +58,21 @@ def test_blender_imports_the_instancer_and_the_cloth(tmp_path):
 
     render = tmp_path / "blender.png"
     report_path = tmp_path / "report.json"
-    subprocess.run([sys.executable, str(HERE / "blender_check.py"), str(stage), str(report_path),
-                    ",".join(map(str, CHECKED)), str(render), str(RENDER_FRAME), f"{SIZE[0]}x{SIZE[1]}"],
-                   check=True, timeout=600, capture_output=True)
+    subprocess.run(
+        [
+            sys.executable,
+            str(HERE / "blender_check.py"),
+            str(stage),
+            str(report_path),
+            ",".join(map(str, CHECKED)),
+            str(render),
+            str(RENDER_FRAME),
+            f"{SIZE[0]}x{SIZE[1]}",
+        ],
+        check=True,
+        timeout=600,
+        capture_output=True,
+    )
     report = json.loads(report_path.read_text(encoding="utf-8"))
     print(f"blender: import {report['import_seconds']:.2f} s, Cycles render {report['render_seconds']:.1f} s")
 

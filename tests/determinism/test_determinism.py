@@ -64,9 +64,23 @@ def test_two_processes_record_identical_files(tmp_path, tumble_subprocess_env):
     for k in range(2):
         out = tmp_path / f"run{k}.npz"
         result = subprocess.run(
-            [sys.executable, "-m", "tumble.cli", "run", str(SCENE), "--duration", "0.25", "--seed", "4",
-             "--record", str(out)],
-            capture_output=True, text=True, env=tumble_subprocess_env, timeout=300,
+            [
+                sys.executable,
+                "-m",
+                "tumble.cli",
+                "run",
+                str(SCENE),
+                "--duration",
+                "0.25",
+                "--seed",
+                "4",
+                "--record",
+                str(out),
+            ],
+            capture_output=True,
+            text=True,
+            env=tumble_subprocess_env,
+            timeout=300,
         )
         assert result.returncode == 0, result.stderr
         files.append(np.load(out))

@@ -31,8 +31,16 @@ def test_sliding_capsule_ends_rolling():
     r, a, v0, mu = 0.1, 0.2, 2.0, 0.3
     w = tumble.World()
     w.add_plane(friction=mu, restitution=0.0)
-    w.add_capsule(position=(0, 0, r), radius=r, half_height=a, orientation=quat_axis_angle((1, 0, 0), np.pi / 2),
-                  velocity=(v0, 0, 0), friction=mu, restitution=0.0, mass=1.0)
+    w.add_capsule(
+        position=(0, 0, r),
+        radius=r,
+        half_height=a,
+        orientation=quat_axis_angle((1, 0, 0), np.pi / 2),
+        velocity=(v0, 0, 0),
+        friction=mu,
+        restitution=0.0,
+        mass=1.0,
+    )
     # friction mu m g decelerates it and spins it up until v = w r: after v0 k / ((1 + k) mu g) ~ 0.3 s
     w.run(1.0)
     v = w.body_velocity[1]
@@ -87,8 +95,13 @@ def test_capsule_comes_to_rest_lying_on_a_box_and_on_a_capsule():
     w.add_plane(restitution=0.0)
     w.add_box(position=(0, 0, 0.1), half_extents=(0.4, 0.2, 0.1), static=True)
     w.add_capsule(position=(0, 0, 0.2 + r + 0.02), radius=r, half_height=a, orientation=flat, restitution=0.0)
-    w.add_capsule(position=(0, 0, 0.2 + 3 * r + 0.06), radius=r, half_height=a, restitution=0.0,
-                  orientation=quat_axis_angle((0, 1, 0), np.pi / 2))
+    w.add_capsule(
+        position=(0, 0, 0.2 + 3 * r + 0.06),
+        radius=r,
+        half_height=a,
+        restitution=0.0,
+        orientation=quat_axis_angle((0, 1, 0), np.pi / 2),
+    )
     w.run(2.0)
     assert w.body_position[2, 2] == pytest.approx(0.2 + r, abs=2e-4)
     assert w.body_position[3, 2] == pytest.approx(0.2 + 3 * r, abs=4e-4)

@@ -28,8 +28,15 @@ def test_spring_period_matches_analytic():
     k, m = 10.0, 0.01
     world = tumble.World(gravity=(0, 0, 0), dt=DT, substeps=4)
     # a 2 x 1 cloth is one structural spring; particle 0 pinned, particle 1 of mass m free
-    world.add_cloth(size=(0.1, 0.1), resolution=(2, 1), mass=2 * m, pins=[[0, 0]], max_stretch=None,
-                    stiffness={"structural": k}, damping=0.0)
+    world.add_cloth(
+        size=(0.1, 0.1),
+        resolution=(2, 1),
+        mass=2 * m,
+        pins=[[0, 0]],
+        max_stretch=None,
+        stiffness={"structural": k},
+        damping=0.0,
+    )
     cloth = world.cloth
     v0 = np.zeros((2, 3))
     v0[1, 0] = 0.01  # amplitude v0 / omega = 0.3 mm, far below the stretch limit
@@ -55,8 +62,9 @@ def test_spring_period_matches_analytic():
 def test_hanging_cloth_respects_stretch_limit_and_settles():
     """32 x 32 cloth from two corners for 5 s: strain <= 10 %, kinetic energy bounded and decaying."""
     world = tumble.World(dt=DT, substeps=4)
-    world.add_cloth(size=(1.0, 1.0), resolution=(32, 32), position=(0, 0, 2.0), orientation=FACING_X,
-                    pins="top-corners", mass=0.2)
+    world.add_cloth(
+        size=(1.0, 1.0), resolution=(32, 32), position=(0, 0, 2.0), orientation=FACING_X, pins="top-corners", mass=0.2
+    )
     cloth = world.cloth
     strains, energies = [], []
     for _ in range(int(5.0 / DT)):
@@ -76,8 +84,9 @@ def test_hanging_cloth_respects_stretch_limit_and_settles():
 
 def _wind_drift(velocity, turbulence=0.0, steps=240):
     world = tumble.World(dt=DT, substeps=4)
-    world.add_cloth(size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), orientation=FACING_X,
-                    pins="top-edge", mass=0.1)
+    world.add_cloth(
+        size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), orientation=FACING_X, pins="top-edge", mass=0.1
+    )
     world.set_wind(velocity=velocity, turbulence=turbulence, scale=0.5, seed=3)
     start = world.cloth.center_of_mass()
     for _ in range(steps):
@@ -128,8 +137,7 @@ def test_cloth_folding_on_ground_keeps_thickness():
     world.add_plane()
     # standing upright in the xz-plane, bottom edge just above the ground, then nudged over
     upright = (math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4))
-    world.add_cloth(size=(1.0, 1.0), resolution=(n, n), position=(0, 0, 0.55), orientation=upright,
-                    thickness=thickness)
+    world.add_cloth(size=(1.0, 1.0), resolution=(n, n), position=(0, 0, 0.55), orientation=upright, thickness=thickness)
     world.cloth.apply_force(n * n - 1, (0.0, 0.5, 0.0))
     world.run(3.0)
     x = world.cloth.particle_position
@@ -147,8 +155,9 @@ def test_wind_and_turbulence_are_deterministic():
     def run(seed):
         world = tumble.World(dt=DT, substeps=4, seed=0)
         world.add_plane()
-        world.add_cloth(size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), orientation=FACING_X,
-                        pins="top-corners")
+        world.add_cloth(
+            size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), orientation=FACING_X, pins="top-corners"
+        )
         world.set_wind(velocity=(3.0, 1.0, 0.0), turbulence=2.0, scale=0.3, seed=seed)
         world.run(0.5)
         return world.state_hash()
@@ -196,10 +205,12 @@ def test_box_in_hammock_settles():
     """
     world = tumble.World()
     world.add_plane()
-    world.add_cloth(size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), pins="corners",
-                    thickness=0.03, friction=0.5)
-    box = world.add_box(position=(0.05, 0.02, 1.3), half_extents=(0.1, 0.1, 0.1), mass=0.3, friction=0.5,
-                        restitution=0.0)
+    world.add_cloth(
+        size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), pins="corners", thickness=0.03, friction=0.5
+    )
+    box = world.add_box(
+        position=(0.05, 0.02, 1.3), half_extents=(0.1, 0.1, 0.1), mass=0.3, friction=0.5, restitution=0.0
+    )
     world.run(2.5)
     for _ in range(4):
         world.run(0.5)

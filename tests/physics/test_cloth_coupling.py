@@ -18,9 +18,16 @@ FACING_Y = (0.7071067811865476, 0.0, 0.0, 0.7071067811865476)
 
 def _hanging_cloth(world, *, nx=12, ny=8, mass=0.2, z=1.25):
     """A 0.6 x 0.4 m cloth in the xz-plane whose top row is at z + 0.2, limited to 10 % stretch."""
-    index = world.add_cloth(size=(0.6, 0.4), resolution=(nx, ny), position=(0, 0, z), orientation=FACING_Y,
-                            mass=mass, pins=[(i, ny - 1) for i in range(nx)], max_stretch=0.1,
-                            damping={"structural": 0.05, "shear": 0.01, "bend": 0.001})
+    index = world.add_cloth(
+        size=(0.6, 0.4),
+        resolution=(nx, ny),
+        position=(0, 0, z),
+        orientation=FACING_Y,
+        mass=mass,
+        pins=[(i, ny - 1) for i in range(nx)],
+        max_stretch=0.1,
+        damping={"structural": 0.05, "shear": 0.01, "bend": 0.001},
+    )
     return world.cloth.cloths[index]
 
 
@@ -60,8 +67,9 @@ def test_cloth_on_its_stretch_limit_hangs_its_weight_on_the_body():
 def _drop_cloth_on(world, z_top):
     """A 1 m cloth, 24 x 24, 0.3 m above a collider whose top is at z_top; 2 s."""
     thickness = 0.01
-    world.add_cloth(size=(1.0, 1.0), resolution=(24, 24), position=(0, 0, z_top + 0.3), thickness=thickness,
-                    friction=0.5)
+    world.add_cloth(
+        size=(1.0, 1.0), resolution=(24, 24), position=(0, 0, z_top + 0.3), thickness=thickness, friction=0.5
+    )
     world.run(2.0)
     return world.cloth.particle_position, thickness
 
@@ -122,7 +130,7 @@ def test_strict_limit_holds_the_hammock_while_balls_land_and_rest():
     world.run(3.0, callback=lambda w: strains.append(w.cloth.max_strain()))
     strains = np.array(strains)
     assert strains.max() <= 0.1 + 0.02
-    assert strains[-int(0.5 / world.dt):].max() <= 0.1 + 0.005
+    assert strains[-int(0.5 / world.dt) :].max() <= 0.1 + 0.005
     assert world.body_position[1:, 2].min() > 0.5  # all three still in the hammock
 
 

@@ -41,8 +41,12 @@ def test_convex_cube_slides_like_the_box(theta_deg, mu):
         w = ramp_run(kind, theta, mu)
         x1, t1 = w.body_position[1].copy(), w.time
         w.run(1.0)
-        out[kind] = (np.dot(w.body_position[1] - x1, down), w.time - t1, np.dot(w.body_velocity[1], down),
-                     w.body_position[1].copy())
+        out[kind] = (
+            np.dot(w.body_position[1] - x1, down),
+            w.time - t1,
+            np.dot(w.body_velocity[1], down),
+            w.body_position[1].copy(),
+        )
     box, cvx = out["box"], out["convex"]
     if np.tan(theta) < mu:
         assert abs(cvx[0]) < 1e-4
@@ -72,8 +76,7 @@ def convex_stack(count, half=0.1):
     w = tumble.World()
     w.add_plane(friction=0.5, restitution=0.0)
     for i in range(count):
-        w.add_convex(points=CUBE * half, position=(0, 0, half + 2 * half * i), mass=1.0, friction=0.5,
-                     restitution=0.0)
+        w.add_convex(points=CUBE * half, position=(0, 0, half + 2 * half * i), mass=1.0, friction=0.5, restitution=0.0)
     return w
 
 

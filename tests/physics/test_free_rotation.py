@@ -17,8 +17,7 @@ from tumble.world import quat_to_matrix
 
 HALF = np.array([0.3, 0.2, 0.05])  # three distinct moments: x minor, y intermediate, z major
 MASS = 2.0
-INERTIA = MASS / 3.0 * np.array([HALF[1] ** 2 + HALF[2] ** 2, HALF[0] ** 2 + HALF[2] ** 2,
-                                 HALF[0] ** 2 + HALF[1] ** 2])
+INERTIA = MASS / 3.0 * np.array([HALF[1] ** 2 + HALF[2] ** 2, HALF[0] ** 2 + HALF[2] ** 2, HALF[0] ** 2 + HALF[1] ** 2])
 
 
 def euler_reference(w0, times):
@@ -86,7 +85,7 @@ def test_free_box_keeps_angular_momentum_and_bounded_energy(name):
     np.testing.assert_allclose(run["L"], np.broadcast_to(L0, run["L"].shape), rtol=1e-9, atol=1e-12)
     err = np.abs(run["E"] / run["E0"] - 1.0)
     hw = run["h"] * np.linalg.norm(w0)
-    assert err.max() < hw ** 2
+    assert err.max() < hw**2
     if name.startswith(("tilted", "minor axis tilted")):
         # spins away from a principal axis go round their whole cycle within the first second
         # (the error is a function of the state, so near-principal spins are left to the bound above)
@@ -150,7 +149,7 @@ def test_nutation_cone_stays_where_euler_equations_keep_it(axis):
 def test_symmetric_top_cone_is_constant():
     """A box with two equal moments spun tilted 15 deg from its symmetry axis keeps a 15 deg cone exactly."""
     half = np.array([0.2, 0.2, 0.05])
-    i_xy, i_z = MASS / 3 * (0.2 ** 2 + 0.05 ** 2), MASS / 3 * (2 * 0.2 ** 2)
+    i_xy, i_z = MASS / 3 * (0.2**2 + 0.05**2), MASS / 3 * (2 * 0.2**2)
     tilt = np.radians(15.0)
     w0 = np.array([np.sin(tilt) / i_xy, 0.0, np.cos(tilt) / i_z]) * 0.5
     run = spin(w0, 5.0, half=half)

@@ -94,8 +94,14 @@ def _chain(world, points: np.ndarray, *, mass: float = 0.1, ends=(True, False)):
         axis = d / length
         # rotate +x onto the link direction
         half = np.array([0.0, -axis[2], axis[1], 1.0 + axis[0]])
-        links.append(world.add_box(position=(p + q) / 2, half_extents=(length / 2, 0.01, 0.01), mass=mass,
-                                   orientation=half / np.linalg.norm(half)))
+        links.append(
+            world.add_box(
+                position=(p + q) / 2,
+                half_extents=(length / 2, 0.01, 0.01),
+                mass=mass,
+                orientation=half / np.linalg.norm(half),
+            )
+        )
     for i in range(1, len(links)):
         world.add_joint("ball", links[i - 1], links[i], anchor=points[i])
     if ends[0]:
@@ -220,10 +226,16 @@ def test_hinge_limits_hold():
     """Flick a hinged arm against its lower limit (-30 deg); gravity then lays it on the upper one (+30 deg)."""
     world = tumble.World(gravity=(0, 0, -G), dt=DT)
     # spinning at -8 rad/s about the pivot (the centre moves at w x r): 2.7 J, the lower limit needs 1.2 J
-    arm = world.add_box(position=(0.25, 0, 1), half_extents=(0.25, 0.02, 0.02), mass=1.0,
-                        angular_velocity=(0, -8.0, 0), velocity=(0, 0, 2.0))
-    world.add_joint("hinge", None, arm, anchor=(0, 0, 1), axis=(0, 1, 0), lower=math.radians(-30),
-                    upper=math.radians(30))
+    arm = world.add_box(
+        position=(0.25, 0, 1),
+        half_extents=(0.25, 0.02, 0.02),
+        mass=1.0,
+        angular_velocity=(0, -8.0, 0),
+        velocity=(0, 0, 2.0),
+    )
+    world.add_joint(
+        "hinge", None, arm, anchor=(0, 0, 1), axis=(0, 1, 0), lower=math.radians(-30), upper=math.radians(30)
+    )
     angles = []
     for _ in range(int(3 / DT)):
         world.step()
@@ -242,8 +254,9 @@ def test_hinge_limits_hold():
 def test_slider_slides_freely_then_stops_at_its_limit():
     """Slide a block down a 45 degree slider: s = g t^2 / (2 sqrt 2), until it rests on the limit 0.5 m down."""
     world = tumble.World(gravity=(0, 0, -G), dt=DT)
-    block = world.add_box(position=(0, 0, 1), half_extents=(0.05, 0.05, 0.05), mass=1.0,
-                          angular_velocity=(1.0, 2.0, 3.0))
+    block = world.add_box(
+        position=(0, 0, 1), half_extents=(0.05, 0.05, 0.05), mass=1.0, angular_velocity=(1.0, 2.0, 3.0)
+    )
     axis = np.array([1.0, 0.0, -1.0]) / math.sqrt(2)
     world.add_joint("slider", None, block, anchor=(0, 0, 1), axis=axis, lower=-0.1, upper=0.5)
     t = 0.25
@@ -448,10 +461,17 @@ def test_cloth_pinned_to_a_body_pulls_on_it():
     rope = world.add_joint("rope", None, box, anchor_a=(0, 0, 2.0), anchor_b=(0, 0, 1.55))
     nx = ny = 8
     # rotated 90 degrees about x, the cloth hangs in the xz-plane with grid j along +z: its top row under the box
-    index = world.add_cloth(size=(0.4, 0.4), resolution=(nx, ny), position=(0, 0, 1.25),
-                            orientation=(0.7071067811865476, 0, 0, 0.7071067811865476), mass=0.2,
-                            pins=[(i, ny - 1) for i in range(nx)], stiffness=200.0, damping=0.05,
-                            max_stretch=None)  # carried by its springs: the pins feel all of its weight
+    index = world.add_cloth(
+        size=(0.4, 0.4),
+        resolution=(nx, ny),
+        position=(0, 0, 1.25),
+        orientation=(0.7071067811865476, 0, 0, 0.7071067811865476),
+        mass=0.2,
+        pins=[(i, ny - 1) for i in range(nx)],
+        stiffness=200.0,
+        damping=0.05,
+        max_stretch=None,
+    )  # carried by its springs: the pins feel all of its weight
     cloth = world.cloth.cloths[index]
     pins = [cloth.particle(i, ny - 1) for i in range(nx)]
     assert world.cloth.particle_position[pins, 2] == pytest.approx(1.45)
@@ -470,4 +490,4 @@ def test_cloth_pinned_to_a_body_pulls_on_it():
     assert np.abs(world.cloth.particle_position[pins] - expected).max() < 1e-12
     assert world.body_position[box.index, 0] > 0.01  # it swung
     # over the first second (before the push) the rope holds the box and the cloth: 2.2 kg
-    assert np.mean(forces[int(0.5 / DT):int(1 / DT)]) == pytest.approx(2.2 * G, rel=0.01)
+    assert np.mean(forces[int(0.5 / DT) : int(1 / DT)]) == pytest.approx(2.2 * G, rel=0.01)

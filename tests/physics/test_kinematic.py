@@ -17,8 +17,14 @@ from tumble import BodyKind
 
 def _wall_and_ball(e: float) -> tuple[tumble.World, tumble.BodyId, tumble.BodyId]:
     w = tumble.World(gravity=(0, 0, 0))
-    box = w.add_box(position=(0, 0, 0), half_extents=(0.1, 0.1, 0.1), kinematic=True, velocity=(1, 0, 0),
-                    restitution=e, density=500.0)
+    box = w.add_box(
+        position=(0, 0, 0),
+        half_extents=(0.1, 0.1, 0.1),
+        kinematic=True,
+        velocity=(1, 0, 0),
+        restitution=e,
+        density=500.0,
+    )
     ball = w.add_sphere(position=(0.5, 0, 0), radius=0.1, mass=1.0, restitution=e)
     return w, box, ball
 
@@ -45,8 +51,9 @@ def test_a_kinematic_box_pushes_a_ball_along_the_floor():
     """Gravity and friction on the ball, none on the box: the ball is pushed at the box's speed."""
     w = tumble.World()
     w.add_plane(friction=0.5)
-    box = w.add_box(position=(0, 0, 0.1), half_extents=(0.1, 0.1, 0.1), kinematic=True, velocity=(0.5, 0, 0),
-                    restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, 0.1), half_extents=(0.1, 0.1, 0.1), kinematic=True, velocity=(0.5, 0, 0), restitution=0.0
+    )
     ball = w.add_sphere(position=(0.3, 0, 0.05), radius=0.05, mass=0.1, restitution=0.0)
     gaps = []
     for _ in range(480):

@@ -90,8 +90,14 @@ def test_box_slides_down_a_mesh_ramp_as_down_a_plane(theta_deg, mu):
         else:
             v = np.array([[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], float)
             w.add_mesh(vertices=v, triangles=[[0, 1, 2], [0, 2, 3]], orientation=q, friction=mu, restitution=0.0)
-        w.add_box(position=n * 0.1 + 1.5 * np.cross(n, [1, 0, 0]) * 0, half_extents=(0.1,) * 3, orientation=q,
-                  mass=1.0, friction=mu, restitution=0.0)
+        w.add_box(
+            position=n * 0.1 + 1.5 * np.cross(n, [1, 0, 0]) * 0,
+            half_extents=(0.1,) * 3,
+            orientation=q,
+            mass=1.0,
+            friction=mu,
+            restitution=0.0,
+        )
         w.run(0.25)
         v1 = np.dot(w.body_velocity[1], down)
         w.run(1.0)
@@ -137,8 +143,17 @@ def test_no_tunnelling_through_a_thin_mesh_at_50_m_s(shape):
 
 def ridge_mesh(height=0.2, half=1.0):
     """A tent: two 45 degree slopes meeting at a sharp ridge along y at z = height, wound upwards."""
-    v = np.array([[-half, -half, height - half], [0, -half, height], [half, -half, height - half],
-                  [-half, half, height - half], [0, half, height], [half, half, height - half]], float)
+    v = np.array(
+        [
+            [-half, -half, height - half],
+            [0, -half, height],
+            [half, -half, height - half],
+            [-half, half, height - half],
+            [0, half, height],
+            [half, half, height - half],
+        ],
+        float,
+    )
     t = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]])
     return v, t
 
@@ -167,6 +182,7 @@ def test_a_plank_dropped_across_a_sharp_ridge_is_held_by_it(shape):
         w.step()
         q = w.body_orientation[1]
         from tumble.world import quat_to_matrix
+
         R = quat_to_matrix(q[None])[0]
         local = (ridge - w.body_position[1]) @ R  # R^T (p - x)
         inside = np.min(h - np.abs(local), axis=1)  # > 0: the point is inside the plank

@@ -14,10 +14,22 @@ def test_mixed_rain_stays_on_the_floor_and_out_of_the_wall():
     w.add_box(position=(0, 0, 0.3), half_extents=(0.02, 2, 0.3), static=True)
     for x, y, hx, hy in ((3.1, 0, 0.1, 3.2), (-3.1, 0, 0.1, 3.2), (0, 3.1, 3.2, 0.1), (0, -3.1, 3.2, 0.1)):
         w.add_box(position=(x, y, 0.5), half_extents=(hx, hy, 0.5), static=True)
-    w.add_emitter(shape=["sphere", "box"], rate=600, count=300, position=(0, 0, 2), region="box",
-                  extent=(1, 1, 0.3), speed=(0, 3), cone_angle=30, radius=(0.03, 0.08),
-                  half_extents=(0.03, 0.07), random_orientation=True, angular_speed=(0, 10),
-                  restitution=0.2, friction=0.6)
+    w.add_emitter(
+        shape=["sphere", "box"],
+        rate=600,
+        count=300,
+        position=(0, 0, 2),
+        region="box",
+        extent=(1, 1, 0.3),
+        speed=(0, 3),
+        cone_angle=30,
+        radius=(0.03, 0.08),
+        half_extents=(0.03, 0.07),
+        random_orientation=True,
+        angular_speed=(0, 10),
+        restitution=0.2,
+        friction=0.6,
+    )
     w.run(3.0)
     x = w.body_position[6:]
     assert w.body_count == 306

@@ -55,8 +55,14 @@ def test_box_slides_v2_over_2_mu_g():
     """A box sliding at 2 m/s with mu = 0.5 stops after v^2 / (2 mu g) = 0.408 m (within 2 %)."""
     w = tumble.World()
     w.add_plane(friction=0.5, restitution=0.0)
-    w.add_box(position=(0, 0, 0.1), half_extents=(0.1, 0.1, 0.1), mass=1.0, velocity=(2.0, 0, 0),
-              friction=0.5, restitution=0.0)
+    w.add_box(
+        position=(0, 0, 0.1),
+        half_extents=(0.1, 0.1, 0.1),
+        mass=1.0,
+        velocity=(2.0, 0, 0),
+        friction=0.5,
+        restitution=0.0,
+    )
     w.run(1.0)  # stops after v / (mu g) = 0.41 s
     expected = 2.0**2 / (2 * 0.5 * G)
     assert w.body_position[1, 0] == pytest.approx(expected, rel=0.02)
@@ -81,8 +87,15 @@ def _cloud(seed: int, count: int = 40, restitution: float = 1.0):
     side = int(np.ceil(count ** (1 / 3)))
     for i in range(count):
         p = 0.3 * np.array([i % side, (i // side) % side, i // side**2]) + rng.uniform(-0.03, 0.03, 3)
-        w.add_sphere(position=p, radius=0.1, mass=rng.uniform(0.5, 2.0), velocity=rng.normal(0, 1.0, 3),
-                     angular_velocity=rng.normal(0, 3.0, 3), restitution=restitution, friction=0.5)
+        w.add_sphere(
+            position=p,
+            radius=0.1,
+            mass=rng.uniform(0.5, 2.0),
+            velocity=rng.normal(0, 1.0, 3),
+            angular_velocity=rng.normal(0, 3.0, 3),
+            restitution=restitution,
+            friction=0.5,
+        )
     return w
 
 
@@ -122,8 +135,13 @@ def sphere_pile(count: int, *, seed: int = 0, half_width: float = 0.5, radius: f
     side = int((2 * half_width - 0.02) // pitch)
     for i in range(count):
         ix, iy, iz = i % side, (i // side) % side, i // side**2
-        p = np.array([-half_width + 0.01 + radius + ix * pitch, -half_width + 0.01 + radius + iy * pitch,
-                      radius + 0.05 + iz * pitch]) + rng.uniform(-0.004, 0.004, 3) * [1, 1, 0]
+        p = np.array(
+            [
+                -half_width + 0.01 + radius + ix * pitch,
+                -half_width + 0.01 + radius + iy * pitch,
+                radius + 0.05 + iz * pitch,
+            ]
+        ) + rng.uniform(-0.004, 0.004, 3) * [1, 1, 0]
         w.add_sphere(position=p, radius=radius, mass=0.1, restitution=0.5, friction=0.5)
     return w
 

@@ -30,8 +30,9 @@ def chain(count, *, from_end, v=1.0, gap=0.0):
             velocity = (v, 0.0, 0.0)
         if i == count - 1 and from_end:
             velocity = (-v, 0.0, 0.0)
-        world.add_sphere(position=((2 * r + gap) * i, 0, 0), radius=r, mass=1.0, velocity=velocity, restitution=1.0,
-                         friction=0.0)
+        world.add_sphere(
+            position=((2 * r + gap) * i, 0, 0), radius=r, mass=1.0, velocity=velocity, restitution=1.0, friction=0.0
+        )
     return world
 
 
@@ -56,8 +57,14 @@ def test_spaced_chain_of_unequal_balls_keeps_energy():
     world = tumble.World(gravity=(0, 0, 0))
     masses = [1.0, 2.0, 0.5, 1.5, 1.0, 3.0]
     for i, m in enumerate(masses):
-        world.add_sphere(position=(0.101 * i, 0, 0), radius=0.05, mass=m, velocity=(3.0 if i == 0 else 0.0, 0, 0),
-                         restitution=1.0, friction=0.0)
+        world.add_sphere(
+            position=(0.101 * i, 0, 0),
+            radius=0.05,
+            mass=m,
+            velocity=(3.0 if i == 0 else 0.0, 0, 0),
+            restitution=1.0,
+            friction=0.0,
+        )
     e0, p0 = world.kinetic_energy(), 3.0
     world.run(1.0)
     assert float(np.dot(world.body_mass, world.body_velocity[:, 0])) == pytest.approx(p0, abs=1e-12)
@@ -67,16 +74,28 @@ def test_spaced_chain_of_unequal_balls_keeps_energy():
 def gas(n, *, seed=1, gravity=(0, 0, 0)):
     """n^3 elastic frictionless balls (r 5 cm) with random velocities (2 m/s per axis) in a closed 1 m box."""
     world = tumble.World(gravity=gravity)
-    for normal, offset in [((0, 0, 1), 0), ((0, 0, -1), -1), ((1, 0, 0), 0), ((-1, 0, 0), -1), ((0, 1, 0), 0),
-                           ((0, -1, 0), -1)]:
+    for normal, offset in [
+        ((0, 0, 1), 0),
+        ((0, 0, -1), -1),
+        ((1, 0, 0), 0),
+        ((-1, 0, 0), -1),
+        ((0, 1, 0), 0),
+        ((0, -1, 0), -1),
+    ]:
         world.add_plane(normal=normal, offset=offset, restitution=1.0, friction=0.0)
     rng = np.random.default_rng(seed)
     grid = np.linspace(0.15, 0.85, n)
     for x in grid:
         for y in grid:
             for z in grid:
-                world.add_sphere(position=(x, y, z), radius=0.05, mass=rng.uniform(0.5, 2.0),
-                                 velocity=tuple(rng.normal(size=3) * 2.0), restitution=1.0, friction=0.0)
+                world.add_sphere(
+                    position=(x, y, z),
+                    radius=0.05,
+                    mass=rng.uniform(0.5, 2.0),
+                    velocity=tuple(rng.normal(size=3) * 2.0),
+                    restitution=1.0,
+                    friction=0.0,
+                )
     return world
 
 
@@ -110,8 +129,14 @@ def falling_balls(e, mu):
     world.add_plane(restitution=e, friction=mu)
     rng = np.random.default_rng(3)
     for i in range(20):
-        world.add_sphere(position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.2 + 0.15 * i), radius=0.05,
-                         mass=rng.uniform(0.5, 2.0), velocity=tuple(rng.normal(size=3)), restitution=e, friction=mu)
+        world.add_sphere(
+            position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.2 + 0.15 * i),
+            radius=0.05,
+            mass=rng.uniform(0.5, 2.0),
+            velocity=tuple(rng.normal(size=3)),
+            restitution=e,
+            friction=mu,
+        )
     return world
 
 
@@ -121,9 +146,15 @@ def falling_boxes(e, mu):
     rng = np.random.default_rng(4)
     for i in range(8):
         q = rng.normal(size=4)
-        world.add_box(position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.3 + 0.3 * i),
-                      half_extents=(0.1, 0.07, 0.04), mass=1.0, orientation=tuple(q / np.linalg.norm(q)),
-                      angular_velocity=tuple(rng.normal(size=3)), restitution=e, friction=mu)
+        world.add_box(
+            position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.3 + 0.3 * i),
+            half_extents=(0.1, 0.07, 0.04),
+            mass=1.0,
+            orientation=tuple(q / np.linalg.norm(q)),
+            angular_velocity=tuple(rng.normal(size=3)),
+            restitution=e,
+            friction=mu,
+        )
     return world
 
 

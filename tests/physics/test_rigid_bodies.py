@@ -62,8 +62,7 @@ def test_box_on_ramp(theta_deg, mu):
     w = tumble.World()
     w.add_plane(normal=n, offset=0.0, friction=mu, restitution=0.0)
     half = 0.1
-    w.add_box(position=n * half, half_extents=(half, half, half), orientation=q, mass=1.0, friction=mu,
-              restitution=0.0)
+    w.add_box(position=n * half, half_extents=(half, half, half), orientation=q, mass=1.0, friction=mu, restitution=0.0)
     w.run(0.25)  # settle onto the ramp
     x1, t1 = w.body_position[1].copy(), w.time
     w.run(1.0)
@@ -84,8 +83,13 @@ def box_tower(count, half=0.1):
     w = tumble.World()
     w.add_plane(friction=0.5, restitution=0.0)
     for i in range(count):
-        w.add_box(position=(0, 0, half + 2 * half * i), half_extents=(half, half, half), mass=1.0,
-                  friction=0.5, restitution=0.0)
+        w.add_box(
+            position=(0, 0, half + 2 * half * i),
+            half_extents=(half, half, half),
+            mass=1.0,
+            friction=0.5,
+            restitution=0.0,
+        )
     return w
 
 
@@ -106,8 +110,13 @@ def test_pyramid_of_55_boxes_stands():
     for row in range(10):
         for i in range(10 - row):
             x = (i - (9 - row) / 2) * (2 * half + gap)
-            w.add_box(position=(x, 0, half + 2 * half * row), half_extents=(half, half, half), mass=1.0,
-                      friction=0.6, restitution=0.0)
+            w.add_box(
+                position=(x, 0, half + 2 * half * row),
+                half_extents=(half, half, half),
+                mass=1.0,
+                friction=0.6,
+                restitution=0.0,
+            )
     x0 = w.body_position[1:].copy()
     w.run(5.0)
     assert np.max(np.linalg.norm(w.body_position[1:] - x0, axis=1)) < 5e-3
@@ -118,8 +127,14 @@ def test_box_dropped_on_edge_falls_flat_and_rests():
     """A box landing on an edge tips onto a face and is at rest (KE < 1e-4 J) within 3 s."""
     w = tumble.World()
     w.add_plane(friction=0.5, restitution=0.3)
-    w.add_box(position=(0, 0, 0.5), half_extents=(0.1, 0.1, 0.1), orientation=quat_axis_angle((1, 0.2, 0), 0.7),
-              mass=1.0, friction=0.5, restitution=0.3)
+    w.add_box(
+        position=(0, 0, 0.5),
+        half_extents=(0.1, 0.1, 0.1),
+        orientation=quat_axis_angle((1, 0.2, 0), 0.7),
+        mass=1.0,
+        friction=0.5,
+        restitution=0.3,
+    )
     w.run(3.0)
     assert w.kinetic_energy() < 1e-4
     # one face down: some body axis is vertical
@@ -145,9 +160,20 @@ def test_rotation_is_deterministic():
     def run():
         w = tumble.World(seed=3)
         w.add_plane()
-        w.add_emitter(shape=["sphere", "box"], rate=200, count=60, position=(0, 0, 1.0), region="box",
-                      extent=(0.3, 0.3, 0.1), speed=(0.5, 1.0), cone_angle=30, radius=(0.03, 0.06),
-                      half_extents=(0.03, 0.05), random_orientation=True, angular_speed=(0, 5))
+        w.add_emitter(
+            shape=["sphere", "box"],
+            rate=200,
+            count=60,
+            position=(0, 0, 1.0),
+            region="box",
+            extent=(0.3, 0.3, 0.1),
+            speed=(0.5, 1.0),
+            cone_angle=30,
+            radius=(0.03, 0.06),
+            half_extents=(0.03, 0.05),
+            random_orientation=True,
+            angular_speed=(0, 5),
+        )
         w.run(1.0)
         return w.state_hash(), w.body_count
 

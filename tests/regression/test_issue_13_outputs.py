@@ -53,8 +53,11 @@ def test_record_to_an_unwritable_place_is_refused_before_the_run(write_scene, tm
     scene = str(write_scene(BALL))
     (tmp_path / "folder.npz").mkdir()
     cases = [(why, str(p) + ".npz") for why, p in _unwritable(tmp_path)]
-    cases += [("a directory", str(tmp_path / "folder.npz")), ("missing folder", str(tmp_path / "no" / "r.npz")),
-              ("unknown suffix", str(tmp_path / "r.csv"))]
+    cases += [
+        ("a directory", str(tmp_path / "folder.npz")),
+        ("missing folder", str(tmp_path / "no" / "r.npz")),
+        ("unknown suffix", str(tmp_path / "r.csv")),
+    ]
     for why, out in cases:
         assert main(["run", scene, "--record", out]) == 2, why
         err = capsys.readouterr().err.strip()
@@ -70,9 +73,12 @@ def test_render_and_plot_outputs_are_refused_first(tmp_path, capsys, monkeypatch
 
     monkeypatch.setattr(tumble.render, "create_context", no_context)
     for why, p in _unwritable(tmp_path):
-        for argv in (["render", "bouncing_ball", "-o", f"{p}.mp4"], ["render", "bouncing_ball", "-o", f"{p}.gif"],
-                     ["render", "bouncing_ball", "-o", str(p / "frames")],
-                     ["plot", str(tmp_path / "missing.npz"), "-o", f"{p}.png"]):
+        for argv in (
+            ["render", "bouncing_ball", "-o", f"{p}.mp4"],
+            ["render", "bouncing_ball", "-o", f"{p}.gif"],
+            ["render", "bouncing_ball", "-o", str(p / "frames")],
+            ["plot", str(tmp_path / "missing.npz"), "-o", f"{p}.png"],
+        ):
             assert main(argv) == 2, (why, argv)
             err = capsys.readouterr().err.strip()
             assert err.count("\n") == 0 and f"-o '{p}" in err, (why, err)
@@ -159,18 +165,27 @@ def _limit_file_size(nbytes: int):
 
 
 def _tumble(args, env, *, limit: int | None = None, timeout: float = 240) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "tumble", *args], capture_output=True, text=True, env=env,
-                          timeout=timeout, preexec_fn=None if limit is None else _limit_file_size(limit))
+    return subprocess.run(
+        [sys.executable, "-m", "tumble", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=timeout,
+        preexec_fn=None if limit is None else _limit_file_size(limit),
+    )
 
 
 def test_a_full_disk_keeps_the_old_recording_and_plot(tmp_path, tumble_subprocess_env, write_scene):
     """With a 20 kB file-size limit, run --record and plot fail in one line; the old files survive."""
-    scene = write_scene(BALL + "[[emitter]]\nrate = 2000\ncount = 300\nposition = [0, 0, 2]\nregion = 'box'\n"
-                               "extent = [1, 1, 0.5]\nradius = 0.03\n")
+    scene = write_scene(
+        BALL + "[[emitter]]\nrate = 2000\ncount = 300\nposition = [0, 0, 2]\nregion = 'box'\n"
+        "extent = [1, 1, 0.5]\nradius = 0.03\n"
+    )
     record = tmp_path / "rec.npz"
     record.write_bytes(OLD)
-    result = _tumble(["run", str(scene), "--duration", "0.5", "--record", str(record)], tumble_subprocess_env,
-                     limit=20_000)
+    result = _tumble(
+        ["run", str(scene), "--duration", "0.5", "--record", str(record)], tumble_subprocess_env, limit=20_000
+    )
     assert result.returncode == 2, result.stderr
     last = result.stderr.strip().splitlines()[-1]
     assert last.startswith("tumble run: error: cannot write") and "File too large" in last
@@ -179,8 +194,9 @@ def test_a_full_disk_keeps_the_old_recording_and_plot(tmp_path, tumble_subproces
 
     # a real recording, then a plot over an existing image under a limit too small for it
     good = tmp_path / "good.npz"
-    assert _tumble(["run", str(scene), "--duration", "0.2", "--record", str(good)],
-                   tumble_subprocess_env).returncode == 0
+    assert (
+        _tumble(["run", str(scene), "--duration", "0.2", "--record", str(good)], tumble_subprocess_env).returncode == 0
+    )
     image = tmp_path / "plot.png"
     image.write_bytes(OLD)
     result = _tumble(["plot", str(good), "-o", str(image)], tumble_subprocess_env, limit=5_000)
@@ -195,8 +211,11 @@ def test_a_full_disk_keeps_the_old_video(tmp_path, tumble_subprocess_env, suffix
     pytest.importorskip("moderngl")
     out = tmp_path / f"v{suffix}"
     out.write_bytes(OLD)
-    result = _tumble(["render", "bouncing_ball", "-o", str(out), "--duration", "1", "--size", "160x120",
-                      "--no-progress"], tumble_subprocess_env, limit=3_000)
+    result = _tumble(
+        ["render", "bouncing_ball", "-o", str(out), "--duration", "1", "--size", "160x120", "--no-progress"],
+        tumble_subprocess_env,
+        limit=3_000,
+    )
     if "no OpenGL context" in result.stderr:
         pytest.skip("no headless OpenGL on this machine")
     assert result.returncode == 2, result.stderr
@@ -210,9 +229,13 @@ def test_a_full_disk_keeps_the_old_video(tmp_path, tumble_subprocess_env, suffix
 def test_ctrl_c_during_a_recording_saves_the_frames_so_far(tmp_path, tumble_subprocess_env):
     """SIGINT during run --record: exit 130, says how many frames went where, and the file holds them."""
     record = tmp_path / "long.npz"
-    proc = subprocess.Popen([sys.executable, "-m", "tumble", "run", "sphere_pile", "--duration", "600",
-                             "--record", str(record)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=tumble_subprocess_env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tumble", "run", "sphere_pile", "--duration", "600", "--record", str(record)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+    )
     try:
         # wait until the run is stepping (the first step is reported on stderr), then a little more
         deadline = time.monotonic() + 180

@@ -70,14 +70,23 @@ def test_plot_of_broken_recordings_exits_2_with_one_line(tmp_path, tumble_subpro
     """`tumble plot` on each broken kind: exit 2, one line naming the file, no traceback, no image."""
     for why, (path, fragment) in _bad_recordings(tmp_path).items():
         out = tmp_path / f"{why.replace(' ', '_')}.png"
-        result = subprocess.run([sys.executable, "-m", "tumble", "plot", str(path), "-o", str(out)],
-                                capture_output=True, text=True, env=tumble_subprocess_env, timeout=120)
+        result = subprocess.run(
+            [sys.executable, "-m", "tumble", "plot", str(path), "-o", str(out)],
+            capture_output=True,
+            text=True,
+            env=tumble_subprocess_env,
+            timeout=120,
+        )
         assert result.returncode == 2, (why, result.stderr)
         assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr, (why, result.stderr)
         assert result.stderr.startswith("tumble plot: error: ") and str(path) in result.stderr, why
         assert fragment in result.stderr and not out.exists(), why
-    result = subprocess.run([sys.executable, "-m", "tumble", "plot", str(SAMPLES_DIR / "rain.toml"), "-o",
-                             str(tmp_path / "r.png")], capture_output=True, text=True, env=tumble_subprocess_env)
+    result = subprocess.run(
+        [sys.executable, "-m", "tumble", "plot", str(SAMPLES_DIR / "rain.toml"), "-o", str(tmp_path / "r.png")],
+        capture_output=True,
+        text=True,
+        env=tumble_subprocess_env,
+    )
     assert "tumble run" in result.stderr and "--record" in result.stderr  # says how to make a recording
 
 
@@ -86,14 +95,26 @@ def test_plot_of_broken_recordings_exits_2_with_one_line(tmp_path, tumble_subpro
 HUGE_REQUESTS = {
     "substeps": ("[world]\nsubsteps = 1000000000\n" + BALL, "substeps", "1,000"),
     "dt": ("[world]\ndt = 1e9\n" + BALL, "dt", "0.1"),
-    "emitter count": (BALL + "[[emitter]]\nrate = 100\ncount = 1000000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
-                      "count", "available"),
-    "emitter rate": (BALL + "[[emitter]]\nrate = 1e9\ncount = 1000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
-                     "rate", "1,000 a step"),
-    "cloth int32": ("[[cloth]]\nsize = [1, 1]\nresolution = [100000, 100000]\nposition = [0, 0, 1]\n",
-                    "resolution", "int32"),
-    "cloth memory": ("[[cloth]]\nsize = [1, 1]\nresolution = [4000, 4000]\nposition = [0, 0, 1]\n",
-                     "resolution", "available"),
+    "emitter count": (
+        BALL + "[[emitter]]\nrate = 100\ncount = 1000000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
+        "count",
+        "available",
+    ),
+    "emitter rate": (
+        BALL + "[[emitter]]\nrate = 1e9\ncount = 1000000000\nposition = [0, 0, 2]\nradius = 0.05\n",
+        "rate",
+        "1,000 a step",
+    ),
+    "cloth int32": (
+        "[[cloth]]\nsize = [1, 1]\nresolution = [100000, 100000]\nposition = [0, 0, 1]\n",
+        "resolution",
+        "int32",
+    ),
+    "cloth memory": (
+        "[[cloth]]\nsize = [1, 1]\nresolution = [4000, 4000]\nposition = [0, 0, 1]\n",
+        "resolution",
+        "available",
+    ),
     "check duration": (BALL + "[check]\nduration = 1e300\n", "duration", "1,000,000,000 steps"),
 }
 
@@ -109,8 +130,12 @@ def test_huge_requests_are_refused_alike_by_every_command(case, write_scene, cap
     text, key, limit = HUGE_REQUESTS[case]
     path = write_scene(text, "huge.toml")
     messages = set()
-    for argv in (["check", str(path)], ["run", str(path)], ["view", str(path)],
-                 ["render", str(path), "-o", str(path.parent / "v.mp4")]):
+    for argv in (
+        ["check", str(path)],
+        ["run", str(path)],
+        ["view", str(path)],
+        ["render", str(path), "-o", str(path.parent / "v.mp4")],
+    ):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0, err
@@ -215,8 +240,13 @@ def test_an_unexpected_error_is_one_line_with_how_to_debug(monkeypatch, capsys, 
 def test_debug_shows_the_traceback_of_bad_input(tmp_path, tumble_subprocess_env):
     """TUMBLE_DEBUG=1 turns the one-line error of a missing file into a traceback."""
     env = dict(tumble_subprocess_env, TUMBLE_DEBUG="1")
-    result = subprocess.run([sys.executable, "-m", "tumble", "check", str(tmp_path / "none.toml")],
-                            capture_output=True, text=True, env=env, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "tumble", "check", str(tmp_path / "none.toml")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert result.returncode != 0 and "Traceback" in result.stderr
 
 
@@ -237,26 +267,32 @@ def test_out_of_memory_says_so_and_what_to_reduce(monkeypatch, capsys):
 def test_a_missing_optional_package_names_the_pip_command(command, module, tmp_path, tumble_subprocess_env):
     """Without matplotlib / PySide6 / moderngl: one line naming the package and the pip command, exit 2."""
     _recording(tmp_path / "r.npz")
-    argv = {"plot": ["plot", str(tmp_path / "r.npz"), "-o", str(tmp_path / "p.png")],
-            "view": ["view", "bouncing_ball"],
-            "render": ["render", "bouncing_ball", "-o", str(tmp_path / "v.mp4")]}[command]
+    argv = {
+        "plot": ["plot", str(tmp_path / "r.npz"), "-o", str(tmp_path / "p.png")],
+        "view": ["view", "bouncing_ball"],
+        "render": ["render", "bouncing_ball", "-o", str(tmp_path / "v.mp4")],
+    }[command]
     # a fresh interpreter in which importing `module` fails as it does where it is not installed
     program = f"import sys; sys.modules[{module!r}] = None; from tumble.cli import main; sys.exit(main({argv!r}))"
-    result = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
-                            env=tumble_subprocess_env, timeout=240)
+    result = subprocess.run(
+        [sys.executable, "-c", program], capture_output=True, text=True, env=tumble_subprocess_env, timeout=240
+    )
     assert result.returncode == 2, result.stderr
     err = result.stderr.strip()
     assert err.count("\n") == 0 and repr(module) in err and 'pip install "tumble[viewer]"' in err, err
     assert tumble.cli.OPTIONAL[module] == 'pip install "tumble[viewer]"'
 
 
-@pytest.mark.parametrize("body, key", [
-    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e300\n", "radius"),
-    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e-300\n", "radius"),
-    ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nmass = 1e-320\n", "radius"),
-    ("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-200, 1e-200, 1]\n", "half_extents"),
-    ("[[emitter]]\nrate = 10\ncount = 10\nposition = [0, 0, 1]\nradius = [1e-200, 0.1]\n", "radius"),
-])
+@pytest.mark.parametrize(
+    "body, key",
+    [
+        ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e300\n", "radius"),
+        ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1e-300\n", "radius"),
+        ("[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nmass = 1e-320\n", "radius"),
+        ("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-200, 1e-200, 1]\n", "half_extents"),
+        ("[[emitter]]\nrate = 10\ncount = 10\nposition = [0, 0, 1]\nradius = [1e-200, 0.1]\n", "radius"),
+    ],
+)
 def test_sizes_whose_mass_is_not_representable_are_refused(body, key):
     """A mass or inertia that overflows or vanishes in float64 is a SceneError naming the size key."""
     with pytest.raises(ValueError, match=f"{key}: a size of .* must be finite and > 0"):

@@ -31,8 +31,9 @@ def test_version(flag, capsys):
 
 def test_no_arguments_prints_help(tumble_subprocess_env):
     """`tumble` alone prints the help (every command listed) and exits 0."""
-    result = subprocess.run([sys.executable, "-m", "tumble"], capture_output=True, text=True,
-                            env=tumble_subprocess_env, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "tumble"], capture_output=True, text=True, env=tumble_subprocess_env, timeout=120
+    )
     assert result.returncode == 0 and result.stderr == ""
     assert result.stdout.startswith("usage: tumble")
     for name in COMMANDS:
@@ -97,8 +98,13 @@ def _flag_recording(seconds: float = 0.5):
     """A hanging flag in wind: bodies at rest, the cloth moving."""
     world = tumble.World(seed=1)
     world.add_plane()
-    world.add_cloth(size=(1.0, 0.6), resolution=(8, 5), position=(0, 0, 1.5), orientation=(0.7071068, 0, 0, 0.7071068),
-                    pins="top-edge")
+    world.add_cloth(
+        size=(1.0, 0.6),
+        resolution=(8, 5),
+        position=(0, 0, 1.5),
+        orientation=(0.7071068, 0, 0, 0.7071068),
+        pins="top-edge",
+    )
     world.set_wind(velocity=(4.0, 0.0, 0.0), turbulence=1.0)
     recorder = Recorder(world, fps=30)
     world.run(seconds, callback=recorder)
@@ -119,9 +125,16 @@ def test_momentum_includes_the_cloth():
 def test_momentum_from_cloth_velocity_when_not_recorded():
     """Without a recorded total, the cloth's sum m v from cloth_velocity joins the bodies'."""
     f, p = 4, 3
-    rec = {"time": np.arange(f) / 10.0, "position": np.zeros((f, 1, 3)), "velocity": np.ones((f, 1, 3)),
-           "mass": np.array([2.0]), "cloth_position": np.zeros((f, p, 3)), "cloth_mass": np.full(p, 0.5),
-           "cloth_velocity": np.full((f, p, 3), 4.0), "gravity": np.array([0.0, 0.0, -9.81])}
+    rec = {
+        "time": np.arange(f) / 10.0,
+        "position": np.zeros((f, 1, 3)),
+        "velocity": np.ones((f, 1, 3)),
+        "mass": np.array([2.0]),
+        "cloth_position": np.zeros((f, p, 3)),
+        "cloth_mass": np.full(p, 0.5),
+        "cloth_velocity": np.full((f, p, 3), 4.0),
+        "gravity": np.array([0.0, 0.0, -9.81]),
+    }
     s = compute_series(rec)
     np.testing.assert_allclose(s.momentum, np.full((f, 3), 2.0 * 1.0 + 3 * 0.5 * 4.0))
     del rec["cloth_velocity"]
@@ -137,8 +150,14 @@ def test_emitted_bodies_are_marked():
     pos[:, :, 2] = 1.0
     for k in range(5):  # body k + 1 appears at frame 5 + 2k
         pos[: 5 + 2 * k, k + 1] = np.nan
-    rec = {"time": t, "position": pos, "velocity": np.zeros_like(pos), "mass": np.ones(6),
-           "gravity": np.array([0.0, 0.0, -9.81]), "contact_count": np.arange(f)}
+    rec = {
+        "time": t,
+        "position": pos,
+        "velocity": np.zeros_like(pos),
+        "mass": np.ones(6),
+        "gravity": np.array([0.0, 0.0, -9.81]),
+        "contact_count": np.arange(f),
+    }
     assert emission_span(t, np.isfinite(pos[..., 0]).sum(axis=1)) == pytest.approx((0.4, 1.3))
     fig = build_figure(rec)
     title = fig.axes[1].get_title(loc="left")
@@ -153,13 +172,22 @@ def test_emitted_bodies_are_marked():
 def test_empty_panels_say_so():
     """A quantity zero throughout says so, on an axis with whole ticks -1, 0, 1."""
     f = 10
-    rec = {"time": np.arange(f) / 10.0, "position": np.ones((f, 1, 3)), "velocity": np.zeros((f, 1, 3)),
-           "mass": np.ones(1), "gravity": np.array([0.0, 0.0, -9.81]), "contact_count": np.zeros(f),
-           "kinetic_energy": np.zeros(f)}
+    rec = {
+        "time": np.arange(f) / 10.0,
+        "position": np.ones((f, 1, 3)),
+        "velocity": np.zeros((f, 1, 3)),
+        "mass": np.ones(1),
+        "gravity": np.array([0.0, 0.0, -9.81]),
+        "contact_count": np.zeros(f),
+        "kinetic_energy": np.zeros(f),
+    }
     fig = build_figure(rec)
     by_title = {ax.get_title(loc="left").split(" (")[0]: ax for ax in fig.axes}
-    for name, words in (("Kinetic energy", "zero throughout"), ("Linear momentum", "zero throughout"),
-                        ("Contact count", "no contacts")):
+    for name, words in (
+        ("Kinetic energy", "zero throughout"),
+        ("Linear momentum", "zero throughout"),
+        ("Contact count", "no contacts"),
+    ):
         ax = by_title[name]
         assert words in [t.get_text() for t in ax.texts], name
         assert list(ax.get_yticks()) == [-1.0, 0.0, 1.0], name

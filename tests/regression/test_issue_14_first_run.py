@@ -24,8 +24,12 @@ def test_every_module_a_world_uses_is_listed_and_an_empty_cache_compiles_them_al
     """kernel_modules covers collision, solver and cloth; with an empty cache all are to compile, after prepare none."""
     _world_with_cloth()
     names = {m.name for m in kernel_modules()}
-    for name in ("tumble.collision.narrowphase", "tumble.solver.contacts", "tumble.solver.integrate",
-                 "tumble.cloth.springs"):
+    for name in (
+        "tumble.collision.narrowphase",
+        "tumble.solver.contacts",
+        "tumble.solver.integrate",
+        "tumble.cloth.springs",
+    ):
         assert name in names
     prepare_kernels("cpu")
     assert kernels_to_compile("cpu") == []
@@ -36,7 +40,10 @@ def test_every_module_a_world_uses_is_listed_and_an_empty_cache_compiles_them_al
 def _run(env, scene="bouncing_ball", duration="1"):
     return subprocess.run(
         [sys.executable, "-m", "tumble", "run", scene, "--duration", duration],
-        capture_output=True, text=True, env=env, timeout=900,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=900,
     )
 
 

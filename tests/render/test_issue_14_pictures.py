@@ -40,8 +40,16 @@ def test_gif_delays_keep_time(fps):
 
 def test_gif_at_30_fps_plays_for_its_duration(tmp_path, make_falling_world, renderer):
     """A 1 s GIF at 30 fps reads back with 30 or 40 ms frames totalling 1 s (it was 30 ms each: 0.9 s)."""
-    out = export(make_falling_world(), tmp_path / "drop.gif", duration=1.0, fps=30, size=(48, 32),
-                 camera=CAMERA, progress=False, renderer=renderer)
+    out = export(
+        make_falling_world(),
+        tmp_path / "drop.gif",
+        duration=1.0,
+        fps=30,
+        size=(48, 32),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     delays = _gif_delays(out)
     assert sum(delays) == 1000
     assert set(delays) <= {30, 40, 60, 70, 100}  # (identical frames are merged, their delays summed)
@@ -51,16 +59,32 @@ def test_a_still_gif_keeps_its_length(tmp_path, renderer):
     """A scene at rest gives one merged frame, still lasting the whole duration."""
     world = tumble.World()
     world.add_plane()
-    out = export(world, tmp_path / "still.gif", duration=0.5, fps=30, size=(32, 24), camera=CAMERA,
-                 progress=False, renderer=renderer)
+    out = export(
+        world,
+        tmp_path / "still.gif",
+        duration=0.5,
+        fps=30,
+        size=(32, 24),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     assert sum(_gif_delays(out)) == 500
 
 
 def test_gif_faster_than_50_fps_is_refused_before_rendering(tmp_path, make_falling_world, renderer):
     """Delays under 2 cs are slowed down by GIF viewers: 60 fps is one clear error and no file."""
     with pytest.raises(ValueError, match="at most 50 frames per second"):
-        export(make_falling_world(), tmp_path / "fast.gif", duration=0.2, fps=60, size=(32, 24),
-               camera=CAMERA, progress=False, renderer=renderer)
+        export(
+            make_falling_world(),
+            tmp_path / "fast.gif",
+            duration=0.2,
+            fps=60,
+            size=(32, 24),
+            camera=CAMERA,
+            progress=False,
+            renderer=renderer,
+        )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -68,8 +92,16 @@ def test_mp4_plays_for_the_requested_duration(tmp_path, make_falling_world, rend
     """1.5 s at 24 fps: 36 frames stored at 24 fps, so it plays 1.5 s."""
     import imageio.v3 as iio
 
-    out = export(make_falling_world(), tmp_path / "drop.mp4", duration=1.5, fps=24, size=(48, 32),
-                 camera=CAMERA, progress=False, renderer=renderer)
+    out = export(
+        make_falling_world(),
+        tmp_path / "drop.mp4",
+        duration=1.5,
+        fps=24,
+        size=(48, 32),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     meta = iio.immeta(out, plugin="pyav") if _has_pyav() else iio.immeta(out)
     frames = sum(1 for _ in iio.imiter(out))
     assert frames == 36
@@ -138,7 +170,9 @@ def test_a_crumpled_cloth_is_shaded_without_dark_blotches(small_renderer, make_c
     world = tumble.World()
     cloth = make_cloth(48, 48, centre=(0.0, 0.0, 1.0), size=1.2)
     grid = cloth.particle_position.copy()
-    cloth.particle_position[:, 1] = 0.12 * np.sin(9 * grid[:, 0] + 2 * grid[:, 1]) + 0.05 * np.sin(17 * grid[:, 1] - 5 * grid[:, 0])
+    cloth.particle_position[:, 1] = 0.12 * np.sin(9 * grid[:, 0] + 2 * grid[:, 1]) + 0.05 * np.sin(
+        17 * grid[:, 1] - 5 * grid[:, 0]
+    )
     cloth.particle_position[:, 2] = 1.0 + grid[:, 1]
     world._cloth = cloth
     image = renderer.render(world, Camera(position=(0.8, -3.5, 1.3), target=(0.0, 0.0, 1.0), fov_deg=30)).astype(float)
@@ -186,8 +220,13 @@ def test_pins_on_a_static_pole_get_no_post():
     world = tumble.World()
     world.add_plane()
     world.add_box(position=(-0.53, 0.0, 1.0), half_extents=(0.02, 0.02, 1.0), static=True)
-    world.add_cloth(size=(1.0, 0.6), resolution=(6, 4), position=(0.0, 0.0, 1.5),
-                    orientation=(0.7071067811865476, 0, 0, 0.7071067811865476), pins=[[0, j] for j in range(4)])
+    world.add_cloth(
+        size=(1.0, 0.6),
+        resolution=(6, 4),
+        position=(0.0, 0.0, 1.5),
+        orientation=(0.7071067811865476, 0, 0, 0.7071067811865476),
+        pins=[[0, j] for j in range(4)],
+    )
     boxes = cloth_supports(world)
     assert len(boxes) == 0
 

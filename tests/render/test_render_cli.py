@@ -38,8 +38,9 @@ def test_render_writes_an_mp4(tmp_path, cli, scene):
     import imageio.v3 as iio
 
     out = tmp_path / "drop.mp4"
-    rc = cli(["render", "drop.toml", "-o", str(out), "--duration", "0.3", "--fps", "10", "--size", "96x64",
-              "--no-progress"])
+    rc = cli(
+        ["render", "drop.toml", "-o", str(out), "--duration", "0.3", "--fps", "10", "--size", "96x64", "--no-progress"]
+    )
     assert rc == 0
     assert iio.imread(out).shape == (3, 64, 96, 3)
     assert scene[0].time == pytest.approx(0.2, abs=scene[0].dt)
@@ -57,8 +58,27 @@ def test_render_camera_options_override_the_scene(tmp_path, cli, scene, monkeypa
         return original(world, out, **kwargs)
 
     monkeypatch.setattr(video, "export", spy)
-    rc = cli(["render", "s.toml", "-o", str(tmp_path / "f"), "--duration", "0.1", "--fps", "10", "--size", "32x24",
-              "--camera-position", "1,2,3", "--camera-target", "0,0,0.5", "--fov", "35", "--no-progress"])
+    rc = cli(
+        [
+            "render",
+            "s.toml",
+            "-o",
+            str(tmp_path / "f"),
+            "--duration",
+            "0.1",
+            "--fps",
+            "10",
+            "--size",
+            "32x24",
+            "--camera-position",
+            "1,2,3",
+            "--camera-target",
+            "0,0,0.5",
+            "--fov",
+            "35",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     cam = seen[0]
     assert np.allclose(cam.position, [1, 2, 3]) and np.allclose(cam.target, [0, 0, 0.5])
@@ -91,8 +111,15 @@ def test_render_rejects_an_unknown_format(tmp_path, cli, scene, capsys):
 def test_plot_command_writes_png(tmp_path, cli):
     """tumble plot RECORD.npz -o OUT.png writes a PNG."""
     t = np.linspace(0.0, 1.0, 11)
-    np.savez(tmp_path / "r.npz", time=t, position=np.zeros((11, 1, 3)), velocity=np.zeros((11, 1, 3)),
-             mass=np.ones(1), gravity=np.array([0, 0, -9.81]), contact_count=np.zeros(11))
+    np.savez(
+        tmp_path / "r.npz",
+        time=t,
+        position=np.zeros((11, 1, 3)),
+        velocity=np.zeros((11, 1, 3)),
+        mass=np.ones(1),
+        gravity=np.array([0, 0, -9.81]),
+        contact_count=np.zeros(11),
+    )
     rc = cli(["plot", str(tmp_path / "r.npz"), "-o", str(tmp_path / "p.png")])
     assert rc == 0
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -114,8 +141,21 @@ def test_render_a_sample_scene_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tumble.cli, "COMMANDS", {"render": "render"})
     out = tmp_path / "ball.gif"
-    rc = tumble.cli.main(["render", str(SAMPLES / "bouncing_ball.toml"), "-o", str(out), "--duration", "0.3",
-                          "--fps", "10", "--size", "64x48", "--no-progress"])
+    rc = tumble.cli.main(
+        [
+            "render",
+            str(SAMPLES / "bouncing_ball.toml"),
+            "-o",
+            str(out),
+            "--duration",
+            "0.3",
+            "--fps",
+            "10",
+            "--size",
+            "64x48",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     with Image.open(out) as im:
         assert im.size == (64, 48) and im.n_frames == 3
@@ -127,8 +167,12 @@ def test_run_record_then_plot(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tumble.cli, "COMMANDS", {"run": "run", "plot": "plot"})
     record = tmp_path / "ball.npz"
-    assert tumble.cli.main(["run", str(SAMPLES / "bouncing_ball.toml"), "--duration", "0.25", "--record",
-                            str(record), "--fps", "20"]) == 0
+    assert (
+        tumble.cli.main(
+            ["run", str(SAMPLES / "bouncing_ball.toml"), "--duration", "0.25", "--record", str(record), "--fps", "20"]
+        )
+        == 0
+    )
     assert tumble.cli.main(["plot", str(record), "-o", str(tmp_path / "ball.png")]) == 0
     fig = build_figure(load_record(record))
     titles = [ax.get_title(loc="left") for ax in fig.axes]
@@ -151,8 +195,22 @@ def test_render_joints_option_draws_the_joints(tmp_path, cli, monkeypatch):
     frames = {}
     for flag in ([], ["--joints"]):
         out = tmp_path / ("with" if flag else "without")
-        rc = cli(["render", "rope.toml", "-o", str(out), "--duration", "0.1", "--fps", "10", "--size", "96x96",
-                  "--no-progress", *flag])
+        rc = cli(
+            [
+                "render",
+                "rope.toml",
+                "-o",
+                str(out),
+                "--duration",
+                "0.1",
+                "--fps",
+                "10",
+                "--size",
+                "96x96",
+                "--no-progress",
+                *flag,
+            ]
+        )
         assert rc == 0
         frames[bool(flag)] = np.asarray(Image.open(out / "frame_00000.png"), dtype=int)
     # the rope runs up the middle of the image from the ball (below the centre) to its anchor (above)

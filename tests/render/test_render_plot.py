@@ -26,16 +26,27 @@ def _record(tmp_path, *, cloth=True, drop=(), name="rec.npz"):
     omega[:, 2] = (0.0, 0.0, 4.0)  # the box spins about its z axis
     pos[:10, 2] = vel[:10, 2] = omega[:10, 2] = np.nan  # not yet emitted
     arrays = dict(
-        time=t, position=pos, velocity=vel, orientation=np.tile([0.0, 0.0, 0.0, 1.0], (f, n, 1)),
-        angular_velocity=omega, shape=np.array([1, 1, 2]), shape_names=np.array(["plane", "sphere", "box"]),
-        radius=np.array([0.1, 0.2, 0.0]), half_extents=np.array([[0, 0, 0], [0, 0, 0], [0.1, 0.2, 0.3]]),
-        mass=mass, gravity=np.array([0.0, 0.0, -G]), contact_count=(t > 0.5).astype(np.int64) * 4,
+        time=t,
+        position=pos,
+        velocity=vel,
+        orientation=np.tile([0.0, 0.0, 0.0, 1.0], (f, n, 1)),
+        angular_velocity=omega,
+        shape=np.array([1, 1, 2]),
+        shape_names=np.array(["plane", "sphere", "box"]),
+        radius=np.array([0.1, 0.2, 0.0]),
+        half_extents=np.array([[0, 0, 0], [0, 0, 0], [0.1, 0.2, 0.3]]),
+        mass=mass,
+        gravity=np.array([0.0, 0.0, -G]),
+        contact_count=(t > 0.5).astype(np.int64) * 4,
     )
     if cloth:
         rest = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
         stretch = 1.0 + 0.1 * t  # uniform stretch: every edge is (1 + 0.1 t) times its rest length
-        arrays.update(cloth_position=rest[None] * stretch[:, None, None],
-                      cloth_triangles=np.array([[0, 1, 3], [0, 3, 2]]), cloth_rest_position=rest)
+        arrays.update(
+            cloth_position=rest[None] * stretch[:, None, None],
+            cloth_triangles=np.array([[0, 1, 3], [0, 3, 2]]),
+            cloth_rest_position=rest,
+        )
     for key in drop:
         arrays.pop(key)
     path = tmp_path / name
@@ -81,8 +92,7 @@ def test_figure_has_the_expected_panels(tmp_path):
     path, _, _ = _record(tmp_path)
     fig = build_figure(load_record(path))
     titles = [ax.get_title(loc="left").split(" (")[0] for ax in fig.axes]
-    assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count",
-                      "Largest cloth strain"]
+    assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count", "Largest cloth strain"]
     assert "bodies only" in fig.axes[1].get_title(loc="left")  # no cloth_mass in this recording
     assert all(ax.lines for ax in fig.axes)
 

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.render import Camera, body_colors, scene_arrays
-from tumble.render import solids
+from tumble.render import Camera, body_colors, scene_arrays, solids
 from tumble.viewer import picking
 
 pytest.importorskip("scipy")  # convex hulls are taken with SciPy
@@ -62,8 +61,14 @@ def test_every_body_is_packed_once_by_its_shape():
     """Each non-plane body is in exactly one instance array (nothing drawn twice, nothing left out)."""
     world = _mixed_world()
     arrays = scene_arrays(world)
-    drawn = np.concatenate([arrays.sphere_body, arrays.box_body[arrays.box_body >= 0], arrays.capsule_body,
-                            *[batch.body for batch in arrays.solids]])
+    drawn = np.concatenate(
+        [
+            arrays.sphere_body,
+            arrays.box_body[arrays.box_body >= 0],
+            arrays.capsule_body,
+            *[batch.body for batch in arrays.solids],
+        ]
+    )
     assert sorted(drawn.tolist()) == list(range(1, world.body_count))
     np.testing.assert_allclose(arrays.capsules[:, 7], [0.05, 0.08])  # radius
     np.testing.assert_allclose(arrays.capsules[:, 8], [0.1, 0.2], atol=1e-7)  # half height
@@ -109,8 +114,9 @@ def test_mesh_normals_are_smooth_on_a_bowl_and_sharp_on_a_step():
         first.setdefault(int(i), rows[k, 3:])
         np.testing.assert_allclose(rows[k, 3:], first[int(i)], atol=1e-6)
     # a step: two triangles meeting at 90 degrees keep their flat normals
-    rows = solids.mesh_vertices(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float),
-                                np.array([[0, 1, 2], [0, 2, 3]]))
+    rows = solids.mesh_vertices(
+        np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float), np.array([[0, 1, 2], [0, 2, 3]])
+    )
     np.testing.assert_allclose(rows[:3, 3:], np.tile([0, 0, 1], (3, 1)), atol=1e-6)
     np.testing.assert_allclose(rows[3:, 3:], np.tile([1, 0, 0], (3, 1)), atol=1e-6)
 

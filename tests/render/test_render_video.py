@@ -31,8 +31,16 @@ def test_mp4_has_n_frames_of_the_given_size(tmp_path, make_falling_world, render
     """An MP4 of N frames at W x H reads back with N frames of W x H."""
     import imageio.v3 as iio
 
-    out = export(make_falling_world(), tmp_path / "drop.mp4", duration=0.4, fps=15, size=(160, 120),
-                 camera=CAMERA, progress=False, renderer=renderer)
+    out = export(
+        make_falling_world(),
+        tmp_path / "drop.mp4",
+        duration=0.4,
+        fps=15,
+        size=(160, 120),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     frames = iio.imread(out)
     assert frames.shape == (6, 120, 160, 3)
     assert frames[0].std() > 10
@@ -42,8 +50,16 @@ def test_odd_sizes_are_kept_in_mp4(tmp_path, make_falling_world, renderer):
     """A 161 x 121 MP4 is padded to even size only, never to multiples of 16."""
     import imageio.v3 as iio
 
-    out = export(make_falling_world(), tmp_path / "odd.mp4", duration=0.1, fps=20, size=(161, 121),
-                 camera=CAMERA, progress=False, renderer=renderer)
+    out = export(
+        make_falling_world(),
+        tmp_path / "odd.mp4",
+        duration=0.1,
+        fps=20,
+        size=(161, 121),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     frames = iio.imread(out)
     assert frames.shape[0] == 2
     assert frames.shape[1:3] in ((121, 161), (122, 162))
@@ -65,13 +81,29 @@ def test_gif_and_png_folder_are_written(tmp_path, make_falling_world, renderer):
     """A .gif path gives a looping GIF; a path with no suffix gives a folder of PNGs."""
     from PIL import Image
 
-    gif = export(make_falling_world(), tmp_path / "drop.gif", duration=0.3, fps=10, size=(80, 60),
-                 camera=CAMERA, progress=False, renderer=renderer)
+    gif = export(
+        make_falling_world(),
+        tmp_path / "drop.gif",
+        duration=0.3,
+        fps=10,
+        size=(80, 60),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     with Image.open(gif) as im:
         assert im.format == "GIF" and im.size == (80, 60)
         assert im.n_frames == 3
-    folder = export(make_falling_world(), tmp_path / "frames", duration=0.2, fps=10, size=(80, 60),
-                    camera=CAMERA, progress=False, renderer=renderer)
+    folder = export(
+        make_falling_world(),
+        tmp_path / "frames",
+        duration=0.2,
+        fps=10,
+        size=(80, 60),
+        camera=CAMERA,
+        progress=False,
+        renderer=renderer,
+    )
     pngs = sorted(folder.glob("*.png"))
     assert len(pngs) == 2
     with Image.open(pngs[0]) as im:
@@ -80,8 +112,16 @@ def test_gif_and_png_folder_are_written(tmp_path, make_falling_world, renderer):
 
 def test_progress_bar_reports_frames(tmp_path, make_falling_world, renderer, capsys):
     """With progress on, the bar on stderr counts frames."""
-    export(make_falling_world(), tmp_path / "p", duration=0.2, fps=10, size=(32, 24), camera=CAMERA,
-           progress=True, renderer=renderer)
+    export(
+        make_falling_world(),
+        tmp_path / "p",
+        duration=0.2,
+        fps=10,
+        size=(32, 24),
+        camera=CAMERA,
+        progress=True,
+        renderer=renderer,
+    )
     assert "2/2" in capsys.readouterr().err
 
 

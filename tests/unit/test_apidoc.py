@@ -50,5 +50,8 @@ def test_the_page_names_nothing_that_does_not_exist():
     for cls_name, member in re.findall(r"`(\w+)\.(\w+)`", page):
         if cls_name in classes:
             owner = world if cls_name == "World" else classes[cls_name]
-            assert hasattr(owner, member) or member in getattr(owner, "_fields", ()) or member in getattr(
-                owner, "__dataclass_fields__", {}), f"{cls_name}.{member}"
+            assert (
+                hasattr(owner, member)
+                or member in getattr(owner, "_fields", ())
+                or member in getattr(owner, "__dataclass_fields__", {})
+            ), f"{cls_name}.{member}"

@@ -26,8 +26,13 @@ def _scattered_world(seed: int = 0) -> tuple[tumble.World, np.ndarray]:
     grid = np.stack(np.meshgrid(np.arange(6), np.arange(6), np.arange(6), indexing="ij"), -1).reshape(-1, 3)
     x = grid[rng.permutation(len(grid))] * 2.0 + rng.uniform(-0.1, 0.1, (len(grid), 3))
     w = tumble.World()
-    w.add_spheres(position=x, radius=0.1, mass=rng.uniform(0.5, 2.0, len(x)),
-                  velocity=rng.normal(size=(len(x), 3)), angular_velocity=rng.normal(size=(len(x), 3)))
+    w.add_spheres(
+        position=x,
+        radius=0.1,
+        mass=rng.uniform(0.5, 2.0, len(x)),
+        velocity=rng.normal(size=(len(x), 3)),
+        angular_velocity=rng.normal(size=(len(x), 3)),
+    )
     return w, x
 
 

@@ -55,8 +55,9 @@ def _must_find(w) -> set[tuple[int, int]]:
 
 
 @settings(max_examples=12, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), speed=st.sampled_from([0.0, 1.0, 20.0, 200.0]),
-       spread=st.sampled_from([0.3, 1.0]))
+@given(
+    seed=st.integers(0, 2**31 - 1), speed=st.sampled_from([0.0, 1.0, 20.0, 200.0]), spread=st.sampled_from([0.3, 1.0])
+)
 def test_finds_every_pair_that_can_touch_once(seed, speed, spread):
     w = _world(seed, 120, speed, spread)
     found = _pairs_found(w)

@@ -67,8 +67,10 @@ def test_add_capsule_uses_density_and_inertia():
     np.testing.assert_allclose(i, shapes.capsule_inertia(m, 0.1, 0.3), rtol=1e-12)
 
 
-@pytest.mark.parametrize("kwargs", [dict(radius=0.0, half_height=0.1), dict(radius=0.1, half_height=-1),
-                                    dict(radius=float("nan"), half_height=0.1)])
+@pytest.mark.parametrize(
+    "kwargs",
+    [dict(radius=0.0, half_height=0.1), dict(radius=0.1, half_height=-1), dict(radius=float("nan"), half_height=0.1)],
+)
 def test_add_capsule_rejects_bad_sizes(kwargs):
     """Reject a capsule radius or half height that is not a positive number."""
     with pytest.raises(ValueError, match="radius|half_height"):
@@ -78,8 +80,11 @@ def test_add_capsule_rejects_bad_sizes(kwargs):
 # ------------------------------------------------------------------ plane-capsule
 
 
-@pytest.mark.parametrize("gap, expect", [(0.5, 0), (MARGIN / 2, 2), (0.0, 2), (-0.01, 2)],
-                         ids=["separated", "speculative", "touching", "overlapping"])
+@pytest.mark.parametrize(
+    "gap, expect",
+    [(0.5, 0), (MARGIN / 2, 2), (0.0, 2), (-0.01, 2)],
+    ids=["separated", "speculative", "touching", "overlapping"],
+)
 def test_plane_capsule_lying_gives_two_contacts(gap, expect):
     """Give a capsule lying on a plane one contact under each end sphere, depth -gap, normal +z."""
     w = tumble.World(gravity=(0, 0, 0))
@@ -284,8 +289,10 @@ def test_capsule_table_builds_a_capsule(write_scene):
     """Build a [[capsule]] table into a capsule body with its radius and half height."""
     from tumble.io.scene import load_scene
 
-    path = write_scene("[[plane]]\n[[capsule]]\nposition = [0, 0, 1]\nradius = 0.1\nhalf_height = 0.25\n"
-                       "orientation = [0.7071068, 0, 0, 0.7071068]\n")
+    path = write_scene(
+        "[[plane]]\n[[capsule]]\nposition = [0, 0, 1]\nradius = 0.1\nhalf_height = 0.25\n"
+        "orientation = [0.7071068, 0, 0, 0.7071068]\n"
+    )
     w = load_scene(path)
     assert list(w.body_shape) == [tumble.ShapeType.PLANE, tumble.ShapeType.CAPSULE]
     assert w.body_radius[1] == pytest.approx(0.1)

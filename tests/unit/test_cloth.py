@@ -250,8 +250,12 @@ def test_wind_field_seeded_smooth_and_time_varying():
     rng = np.random.default_rng(0)
     pts = rng.uniform(-20, 20, size=(20000, 3))
     u = wind.sample(pts, 0.0)
-    assert np.array_equal(u, Wind(velocity=(1.0, 0.0, 0.0), turbulence=2.0, scale=0.5, seed=4, modes=64).sample(pts, 0.0))
-    assert not np.allclose(u, Wind(velocity=(1.0, 0.0, 0.0), turbulence=2.0, scale=0.5, seed=5, modes=64).sample(pts, 0.0))
+    assert np.array_equal(
+        u, Wind(velocity=(1.0, 0.0, 0.0), turbulence=2.0, scale=0.5, seed=4, modes=64).sample(pts, 0.0)
+    )
+    assert not np.allclose(
+        u, Wind(velocity=(1.0, 0.0, 0.0), turbulence=2.0, scale=0.5, seed=5, modes=64).sample(pts, 0.0)
+    )
     # mean = U, RMS per component = turbulence (to sampling error)
     assert u.mean(axis=0) == pytest.approx([1.0, 0.0, 0.0], abs=0.1)
     assert (u - [1.0, 0.0, 0.0]).std(axis=0) == pytest.approx([2.0, 2.0, 2.0], rel=0.1)
@@ -270,10 +274,13 @@ def test_body_collision_pushes_particle_out_of_static_shapes():
     world = make_world(gravity=(0, 0, 0))
     world.add_plane(offset=-1.0)
     world.add_sphere(position=(5.0, 0.0, 0.0), radius=0.5, static=True)
-    world.add_box(position=(-5.0, 0.0, 0.0), half_extents=(0.5, 0.5, 0.5), static=True,
-                  orientation=(0.0, 0.0, math.sin(0.3), math.cos(0.3)))
-    world.add_cloth(size=(0.01, 0.01), resolution=(3, 1), thickness=0.05, max_stretch=None, stiffness=0.0,
-                    damping=0.0)
+    world.add_box(
+        position=(-5.0, 0.0, 0.0),
+        half_extents=(0.5, 0.5, 0.5),
+        static=True,
+        orientation=(0.0, 0.0, math.sin(0.3), math.cos(0.3)),
+    )
+    world.add_cloth(size=(0.01, 0.01), resolution=(3, 1), thickness=0.05, max_stretch=None, stiffness=0.0, damping=0.0)
     cloth = world.cloth
     cloth.set_state(position=np.array([[0.0, 0.0, -1.02], [5.1, 0.1, 0.0], [-5.0, 0.0, 0.4]]))
     world.step()
@@ -289,8 +296,7 @@ def test_candidate_bodies_skip_far_spheres():
     world.add_plane()
     near = world.add_sphere(position=(0.0, 0.0, 0.3), radius=0.1)
     world.add_sphere(position=(50.0, 0.0, 0.3), radius=0.1)
-    got = collide.candidate_bodies(world.bodies, np.array([-0.5, -0.5, 0.0]), np.array([0.5, 0.5, 0.5]), 0.01,
-                                   world.dt)
+    got = collide.candidate_bodies(world.bodies, np.array([-0.5, -0.5, 0.0]), np.array([0.5, 0.5, 0.5]), 0.01, world.dt)
     assert list(got) == [0, near.index]
 
 

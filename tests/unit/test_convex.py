@@ -82,11 +82,14 @@ def test_add_convex_puts_the_body_frame_at_the_centre_of_mass():
     assert np.min(np.linalg.norm(world_vertices - [1, 0, 2], axis=1)) < 1e-12
 
 
-@pytest.mark.parametrize("points, message", [
-    (np.zeros((3, 3)), "at least 4"),
-    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float), "no volume"),
-    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, np.nan]]), "not finite"),
-])
+@pytest.mark.parametrize(
+    "points, message",
+    [
+        (np.zeros((3, 3)), "at least 4"),
+        (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float), "no volume"),
+        (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, np.nan]]), "not finite"),
+    ],
+)
 def test_add_convex_rejects_bad_points(points, message):
     """Reject too few, coplanar or non-finite points with one line."""
     with pytest.raises(ValueError, match=message):
@@ -210,8 +213,11 @@ def test_convex_cube_on_box_face_gives_four_corners():
 def test_sphere_convex(where, depth):
     """Measure a sphere's depth in a convex cube on a face, at an edge and from inside."""
     r = 0.05
-    p = {"face": [0.14, 0, 0], "edge": [0.1 + (r - depth) / 2**0.5, 0.1 + (r - depth) / 2**0.5, 0],
-         "inside": [0.0, 0.0, 0.05]}[where]
+    p = {
+        "face": [0.14, 0, 0],
+        "edge": [0.1 + (r - depth) / 2**0.5, 0.1 + (r - depth) / 2**0.5, 0],
+        "inside": [0.0, 0.0, 0.05],
+    }[where]
     w = tumble.World(gravity=(0, 0, 0))
     w.add_sphere(position=p, radius=r)
     w.add_convex(points=CUBE * 0.1)

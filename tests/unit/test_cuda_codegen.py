@@ -35,8 +35,13 @@ def _kernel_modules() -> list[str]:
 
 def test_every_kernel_module_is_found():
     names = _kernel_modules()
-    for expected in ("tumble.collision.broadphase", "tumble.collision.narrowphase", "tumble.solver.contacts",
-                     "tumble.solver.integrate", "tumble.cloth.springs"):
+    for expected in (
+        "tumble.collision.broadphase",
+        "tumble.collision.narrowphase",
+        "tumble.solver.contacts",
+        "tumble.solver.integrate",
+        "tumble.cloth.springs",
+    ):
         assert expected in names
 
 

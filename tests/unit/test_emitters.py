@@ -28,9 +28,19 @@ def test_point_emitter_never_overlaps():
     """Bodies released from a single point scatter or wait rather than overlap anything."""
     w = tumble.World(seed=4)
     w.add_plane()
-    em = w.add_emitter(shape=["sphere", "box"], rate=2000, count=200, position=(0, 0, 0.1), region="point",
-                       speed=(1.0, 2.0), cone_angle=60, direction=(0, 0, 1), radius=(0.03, 0.05),
-                       half_extents=(0.02, 0.04), random_orientation=True)
+    em = w.add_emitter(
+        shape=["sphere", "box"],
+        rate=2000,
+        count=200,
+        position=(0, 0, 0.1),
+        region="point",
+        speed=(1.0, 2.0),
+        cone_angle=60,
+        direction=(0, 0, 1),
+        radius=(0.03, 0.05),
+        half_extents=(0.02, 0.04),
+        random_orientation=True,
+    )
     # release without moving anything, so every body is still where it was born
     for _ in range(100):
         em.emit(w, w.dt)
@@ -68,8 +78,9 @@ def test_bodies_centred_outside_the_region_still_block_it(shape):
         w.add_box(position=(1.1, 0, 0), half_extents=(1.0, 1.0, 1.0), mass=1.0)
     far = np.stack(np.meshgrid(np.arange(10), np.arange(10), np.arange(3), indexing="ij"), -1).reshape(-1, 3)
     w.add_spheres(position=far * 0.2 + (-1.0, -1.0, -5.0), radius=0.09, mass=1.0)
-    em = w.add_emitter(rate=2400, count=100, position=(0, 0, 0), region="box", extent=(0.2, 0.2, 0.2),
-                       radius=0.02, seed=3)
+    em = w.add_emitter(
+        rate=2400, count=100, position=(0, 0, 0), region="box", extent=(0.2, 0.2, 0.2), radius=0.02, seed=3
+    )
     first = w.body_count
     for _ in range(10):
         em.emit(w, w.dt)
@@ -86,8 +97,19 @@ def test_bodies_centred_outside_the_region_still_block_it(shape):
 def test_cone_speed_and_size_ranges():
     """Launch directions lie in the cone, speeds and radii in their ranges, masses from density."""
     w = tumble.World(gravity=(0, 0, 0))
-    em = w.add_emitter(rate=1e4, count=300, position=(0, 0, 0), region="disc", extent=5.0, direction=(1, 0, 0),
-                       cone_angle=20, speed=(2.0, 3.0), radius=(0.01, 0.02), density=500.0, seed=7)
+    em = w.add_emitter(
+        rate=1e4,
+        count=300,
+        position=(0, 0, 0),
+        region="disc",
+        extent=5.0,
+        direction=(1, 0, 0),
+        cone_angle=20,
+        speed=(2.0, 3.0),
+        radius=(0.01, 0.02),
+        density=500.0,
+        seed=7,
+    )
     em.emit(w, 1.0)
     v = w.body_velocity
     speed = np.linalg.norm(v, axis=1)
@@ -167,8 +189,7 @@ def _shape_emitter(seed=7, **kwargs):
 
 def test_capsules_are_emitted_with_sizes_in_range():
     """Capsules get a radius and half height from their ranges times a scale from its range, exact mass."""
-    w, _ = _shape_emitter(shape="capsule", radius=(0.02, 0.04), half_height=(0.05, 0.1), scale=(0.5, 2.0),
-                          density=800)
+    w, _ = _shape_emitter(shape="capsule", radius=(0.02, 0.04), half_height=(0.05, 0.1), scale=(0.5, 2.0), density=800)
     assert np.all(w.body_shape == ShapeType.CAPSULE)
     r = w.body_radius
     a = w.body_half_extents[:, 2] - r
@@ -229,9 +250,20 @@ def test_mixed_shapes_do_not_overlap_at_birth():
     """Spheres, boxes, capsules and hulls from one point emitter land clear of each other and the ground."""
     w = tumble.World(seed=2)
     w.add_plane()
-    em = w.add_emitter(shape=["sphere", "box", "capsule", "convex"], rate=4000, count=120, position=(0, 0, 0.2),
-                       region="box", extent=(0.4, 0.4, 0.1), radius=(0.02, 0.03), half_extents=0.02,
-                       half_height=(0.02, 0.04), points=PEBBLE * 0.03, scale=(0.6, 1.0), random_orientation=True)
+    em = w.add_emitter(
+        shape=["sphere", "box", "capsule", "convex"],
+        rate=4000,
+        count=120,
+        position=(0, 0, 0.2),
+        region="box",
+        extent=(0.4, 0.4, 0.1),
+        radius=(0.02, 0.03),
+        half_extents=0.02,
+        half_height=(0.02, 0.04),
+        points=PEBBLE * 0.03,
+        scale=(0.6, 1.0),
+        random_orientation=True,
+    )
     for _ in range(60):
         em.emit(w, w.dt)
     assert em.emitted > 60
@@ -244,8 +276,17 @@ def test_a_run_with_emitted_hulls_restores_from_a_snapshot_bit_for_bit():
     """Snapshot while a convex emitter runs, run on, restore, run again: the same state hash."""
     w = tumble.World(seed=1)
     w.add_plane()
-    w.add_emitter(shape="convex", points=PEBBLE * 0.03, scale=(0.8, 1.2), rate=200, count=20, position=(0, 0, 0.5),
-                  region="box", extent=(0.3, 0.3, 0.1), random_orientation=True)
+    w.add_emitter(
+        shape="convex",
+        points=PEBBLE * 0.03,
+        scale=(0.8, 1.2),
+        rate=200,
+        count=20,
+        position=(0, 0, 0.5),
+        region="box",
+        extent=(0.3, 0.3, 0.1),
+        random_orientation=True,
+    )
     w.run(0.05)
     snap = w.snapshot()
     w.run(0.1)
@@ -259,10 +300,17 @@ def test_shape_emitters_repeat_with_the_seed_and_differ_without():
     """The same seed releases the same capsules and hulls bit for bit; another seed others."""
 
     def run(seed):
-        w, _ = _shape_emitter(seed=seed, shape=["capsule", "convex"], radius=0.02, half_height=(0.02, 0.05),
-                              points=PEBBLE, scale=(0.01, 0.03))
-        return np.concatenate([w.body_position.ravel(), w.body_orientation.ravel(), w.body_mass,
-                               w.body_half_extents.ravel()])
+        w, _ = _shape_emitter(
+            seed=seed,
+            shape=["capsule", "convex"],
+            radius=0.02,
+            half_height=(0.02, 0.05),
+            points=PEBBLE,
+            scale=(0.01, 0.03),
+        )
+        return np.concatenate(
+            [w.body_position.ravel(), w.body_orientation.ravel(), w.body_mass, w.body_half_extents.ravel()]
+        )
 
     a, b, c = run(5), run(5), run(6)
     assert a.tobytes() == b.tobytes()

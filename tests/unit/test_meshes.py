@@ -55,8 +55,9 @@ def test_mesh_drops_nan_and_degenerate_triangles_with_counts(caplog):
     assert len(w.meshes.triangles[w.body_geometry[m]]) == 4
 
 
-@pytest.mark.parametrize("triangles, message", [(np.zeros((0, 3), int), "no triangles"),
-                                                 ([[0, 1, 1]], "no usable triangles")])
+@pytest.mark.parametrize(
+    "triangles, message", [(np.zeros((0, 3), int), "no triangles"), ([[0, 1, 1]], "no usable triangles")]
+)
 def test_mesh_with_nothing_left_is_rejected(triangles, message):
     """Reject a mesh with no triangles, or none left after cleaning."""
     with pytest.raises(ValueError, match=message):
@@ -91,8 +92,9 @@ def test_convex_and_mesh_tables_build_bodies(write_scene, tmp_path):
 
     trimesh.Trimesh(TETRA_V, TETRA_T).export(tmp_path / "tetra.stl")
     path = write_scene(
-        '[[convex]]\nposition = [0, 0, 1]\npoints = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]\nscale = 0.1\n'
-        '[[mesh]]\nfile = "tetra.stl"\nscale = 3\n')
+        "[[convex]]\nposition = [0, 0, 1]\npoints = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]\nscale = 0.1\n"
+        '[[mesh]]\nfile = "tetra.stl"\nscale = 3\n'
+    )
     w = load_scene(path)
     assert list(w.body_shape) == [tumble.ShapeType.CONVEX, tumble.ShapeType.MESH]
     assert w.body_mass[0] == pytest.approx(1000 * 0.1**3 / 6)
@@ -128,26 +130,30 @@ def test_emitter_table_releases_capsules_and_hulls_of_a_file(write_scene, tmp_pa
     path = write_scene(
         '[[plane]]\n[[emitter]]\nshape = ["capsule", "convex"]\nrate = 2400\ncount = 20\nposition = [0, 0, 1]\n'
         'region = "box"\nextent = [1, 1, 0.5]\nradius = 0.02\nhalf_height = [0.03, 0.06]\nfile = "tetra.stl"\n'
-        'scale = [0.05, 0.1]\nrandom_orientation = true\n')
+        "scale = [0.05, 0.1]\nrandom_orientation = true\n"
+    )
     w = load_scene(path)
     w.run(0.05)
     shapes = set(w.body_shape[1:].tolist())
     assert w.body_count == 21 and shapes == {tumble.ShapeType.CAPSULE, tumble.ShapeType.CONVEX}
 
 
-@pytest.mark.parametrize("text, fragment", [
-    ('shape = "capsule"\nradius = 0.02\n', "half_height.*capsule emitter needs radius and half_height"),
-    ('shape = "convex"\n', "points.*convex emitter needs points or file"),
-    ('shape = "sphere"\nradius = 0.02\nfile = "rock.obj"\n', 'file.*is for shape "convex"'),
-    ('shape = "cylinder"\n', "unknown shape 'cylinder'"),
-    ('shape = "convex"\nfile = "rock.obj"\n', r"rock\.obj: no such mesh file"),
-])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ('shape = "capsule"\nradius = 0.02\n', "half_height.*capsule emitter needs radius and half_height"),
+        ('shape = "convex"\n', "points.*convex emitter needs points or file"),
+        ('shape = "sphere"\nradius = 0.02\nfile = "rock.obj"\n', 'file.*is for shape "convex"'),
+        ('shape = "cylinder"\n', "unknown shape 'cylinder'"),
+        ('shape = "convex"\nfile = "rock.obj"\n', r"rock\.obj: no such mesh file"),
+    ],
+)
 def test_bad_shape_emitter_tables_get_one_line(write_scene, text, fragment):
     """Reject a bad capsule or convex [[emitter]] with one line naming the table and the key or file."""
     from tumble.errors import SceneError
     from tumble.io.scene import load_scene
 
-    path = write_scene('[[emitter]]\nrate = 10\ncount = 5\nposition = [0, 0, 1]\n' + text)
+    path = write_scene("[[emitter]]\nrate = 10\ncount = 5\nposition = [0, 0, 1]\n" + text)
     with pytest.raises(SceneError, match=fragment) as info:
         load_scene(path)
     assert "\n" not in str(info.value) and "emitter" in str(info.value)

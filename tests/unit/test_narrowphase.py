@@ -97,8 +97,9 @@ def test_sphere_sphere_matches_distance(offset, r1, r2):
 # ------------------------------------------------------------------ plane-sphere, plane-box
 
 
-@pytest.mark.parametrize("height, expect", [(1.0, 0), (0.1, 1), (0.05, 1), (-0.2, 1)],
-                         ids=["separated", "touching", "overlapping", "deep"])
+@pytest.mark.parametrize(
+    "height, expect", [(1.0, 0), (0.1, 1), (0.05, 1), (-0.2, 1)], ids=["separated", "touching", "overlapping", "deep"]
+)
 def test_plane_sphere(height, expect):
     """Depth of a sphere on a tilted plane is r - signed distance of its centre."""
     n = np.array([0.0, 0.6, 0.8])
@@ -113,8 +114,9 @@ def test_plane_sphere(height, expect):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
-       st.floats(-0.1, 0.3))
+@given(
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1), st.floats(-0.1, 0.3)
+)
 def test_plane_box_deepest_corners(q, z):
     """Report up to four corners, the deepest ones, each at its true depth below the plane."""
     q = np.asarray(q) / np.linalg.norm(q)
@@ -136,8 +138,10 @@ def test_plane_box_deepest_corners(q, z):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3),
-       st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1))
+@given(
+    st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3),
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
+)
 def test_sphere_box_closest_point(centre, q):
     """Depth is r minus the distance to the box's closest point (or plus the depth inside)."""
     q = np.asarray(q) / np.linalg.norm(q)
@@ -170,8 +174,9 @@ def test_sphere_box_closest_point(centre, q):
 # ------------------------------------------------------------------ box-box
 
 
-@pytest.mark.parametrize("gap, expect", [(0.3, 0), (0.0, 4), (-0.01, 4), (-0.08, 4)],
-                         ids=["separated", "touching", "overlapping", "deep"])
+@pytest.mark.parametrize(
+    "gap, expect", [(0.3, 0), (0.0, 4), (-0.01, 4), (-0.08, 4)], ids=["separated", "touching", "overlapping", "deep"]
+)
 def test_box_box_face_manifold(gap, expect):
     """Stacked boxes give a four-point manifold at the overlap depth with an upward normal."""
     w = tumble.World(gravity=(0, 0, 0))
@@ -220,7 +225,7 @@ def test_box_box_normal_points_from_a_to_b(swapped):
     """Whichever body comes first, the normal points from body a to body b."""
     w = tumble.World(gravity=(0, 0, 0))
     lower, upper = dict(position=(0, 0, 0)), dict(position=(0.19, 0.03, 0.02))
-    for kw in ((upper, lower) if swapped else (lower, upper)):
+    for kw in (upper, lower) if swapped else (lower, upper):
         w.add_box(half_extents=(0.1, 0.1, 0.1), mass=1, **kw)
     pairs, normals, depths, _ = contacts(w)
     assert len(depths) == 4

@@ -9,8 +9,10 @@ from tumble.runtime import unexpected_lines
 
 
 def test_only_the_expected_no_gpu_line_is_dropped():
-    text = ("Warp CUDA warning: Could not find or load the NVIDIA CUDA driver. GPU execution will not be available.\n"
-            "Warp error: something else went wrong\n")
+    text = (
+        "Warp CUDA warning: Could not find or load the NVIDIA CUDA driver. GPU execution will not be available.\n"
+        "Warp error: something else went wrong\n"
+    )
     assert unexpected_lines(text) == "Warp error: something else went wrong\n"
     assert unexpected_lines("") == ""
 

@@ -24,9 +24,14 @@ mass = 1.0
 
 # (id, TOML text, table named in the error, key named in the error or None, fragment of the message)
 BAD_SCENES = [
-    ("unknown key", "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nraduis = 2", "sphere[0]", "raduis",
-     "did you mean 'radius'"),
-    ("wrong type", "[[sphere]]\nposition = [0, 0, 1]\nradius = \"big\"", "sphere[0]", "radius", "number"),
+    (
+        "unknown key",
+        "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nraduis = 2",
+        "sphere[0]",
+        "raduis",
+        "did you mean 'radius'",
+    ),
+    ("wrong type", '[[sphere]]\nposition = [0, 0, 1]\nradius = "big"', "sphere[0]", "radius", "number"),
     ("wrong type bool", "[world]\nsubsteps = true", "world", "substeps", "integer"),
     ("wrong length", "[world]\ngravity = [0, -9.81]", "world", "gravity", "3 components"),
     ("negative radius", "[[sphere]]\nposition = [0, 0, 1]\nradius = -0.1", "sphere[0]", "radius", "> 0"),
@@ -37,33 +42,95 @@ BAD_SCENES = [
     ("nan", "[[sphere]]\nposition = [0, 0, nan]\nradius = 0.1", "sphere[0]", "position", "finite"),
     ("inf", "[world]\ndt = inf", "world", "dt", "finite"),
     ("zero normal", "[[plane]]\nnormal = [0, 0, 0]", "plane[0]", "normal", "zero"),
-    ("unknown shape", "[[emitter]]\nshape = \"cone\"\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1",
-     "emitter[0]", "shape", "unknown shape 'cone'"),
-    ("unknown shape in list", "[[emitter]]\nshape = [\"sphere\", \"cube\"]\nrate = 1\ncount = 1\n"
-     "position = [0, 0, 1]\nradius = 0.1", "emitter[0]", "shape", "unknown shape 'cube'"),
+    (
+        "unknown shape",
+        '[[emitter]]\nshape = "cone"\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1',
+        "emitter[0]",
+        "shape",
+        "unknown shape 'cone'",
+    ),
+    (
+        "unknown shape in list",
+        '[[emitter]]\nshape = ["sphere", "cube"]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1',
+        "emitter[0]",
+        "shape",
+        "unknown shape 'cube'",
+    ),
     ("restitution above 1", "[[plane]]\nrestitution = 1.5", "plane[0]", "restitution", "<= 1"),
     ("negative friction", "[[plane]]\nfriction = -0.1", "plane[0]", "friction", ">= 0"),
-    ("mass and density", "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nmass = 1\ndensity = 1000",
-     "sphere[0]", "density", "not both"),
+    (
+        "mass and density",
+        "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nmass = 1\ndensity = 1000",
+        "sphere[0]",
+        "density",
+        "not both",
+    ),
     ("missing key", "[[sphere]]\nposition = [0, 0, 1]", "sphere[0]", "radius", "missing"),
-    ("third table", "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\n" * 2
-     + "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nvelocity = [1, 2]", "sphere[2]", "velocity", "3 components"),
-    ("bad speed range", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\nspeed = [2, 1]",
-     "emitter[0]", "speed", "min <= max"),
-    ("box region without extent", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\n"
-     "region = \"box\"", "emitter[0]", "extent", "half-sizes"),
-    ("sphere emitter without radius", "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]",
-     "emitter[0]", "radius", "needs radius"),
-    ("cloth pin outside grid", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
-     "pins = [[0, 0], [4, 3]]", "cloth[0]", "pins", "outside"),
-    ("cloth unknown pin name", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
-     "pins = \"left-edge\"", "cloth[0]", "pins", "unknown value"),
-    ("cloth unknown spring kind", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
-     "stiffness = { structural = 1, twist = 2 }", "cloth[0]", "stiffness", "twist"),
-    ("cloth mass and areal density", "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
-     "mass = 0.2\nareal_density = 0.1", "cloth[0]", "areal_density", "not both"),
-    ("cloth tiny resolution", "[[cloth]]\nsize = [1, 1]\nresolution = [1, 4]\nposition = [0, 0, 1]",
-     "cloth[0]", "resolution", ">= 2"),
+    (
+        "third table",
+        "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\n" * 2
+        + "[[sphere]]\nposition = [0, 0, 1]\nradius = 1\nvelocity = [1, 2]",
+        "sphere[2]",
+        "velocity",
+        "3 components",
+    ),
+    (
+        "bad speed range",
+        "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\nspeed = [2, 1]",
+        "emitter[0]",
+        "speed",
+        "min <= max",
+    ),
+    (
+        "box region without extent",
+        '[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]\nradius = 0.1\nregion = "box"',
+        "emitter[0]",
+        "extent",
+        "half-sizes",
+    ),
+    (
+        "sphere emitter without radius",
+        "[[emitter]]\nrate = 1\ncount = 1\nposition = [0, 0, 1]",
+        "emitter[0]",
+        "radius",
+        "needs radius",
+    ),
+    (
+        "cloth pin outside grid",
+        "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\npins = [[0, 0], [4, 3]]",
+        "cloth[0]",
+        "pins",
+        "outside",
+    ),
+    (
+        "cloth unknown pin name",
+        '[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\npins = "left-edge"',
+        "cloth[0]",
+        "pins",
+        "unknown value",
+    ),
+    (
+        "cloth unknown spring kind",
+        "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\n"
+        "stiffness = { structural = 1, twist = 2 }",
+        "cloth[0]",
+        "stiffness",
+        "twist",
+    ),
+    (
+        "cloth mass and areal density",
+        "[[cloth]]\nsize = [1, 1]\nresolution = [4, 4]\nposition = [0, 0, 1]\nmass = 0.2\nareal_density = 0.1",
+        "cloth[0]",
+        "areal_density",
+        "not both",
+    ),
+    (
+        "cloth tiny resolution",
+        "[[cloth]]\nsize = [1, 1]\nresolution = [1, 4]\nposition = [0, 0, 1]",
+        "cloth[0]",
+        "resolution",
+        ">= 2",
+    ),
     ("camera fov", "[camera]\nfov = 0", "camera", "fov", "> 0"),
     ("unknown table", "[planet]\nradius = 1", "planet", None, "unknown table 'planet'"),
     ("single table for array", "[sphere]\nposition = [0, 0, 1]\nradius = 1", "sphere", None, "[[sphere]]"),
@@ -71,8 +138,9 @@ BAD_SCENES = [
 ]
 
 
-@pytest.mark.parametrize("text, table, key, fragment", [case[1:] for case in BAD_SCENES],
-                         ids=[case[0] for case in BAD_SCENES])
+@pytest.mark.parametrize(
+    "text, table, key, fragment", [case[1:] for case in BAD_SCENES], ids=[case[0] for case in BAD_SCENES]
+)
 def test_bad_scene_names_file_table_and_key(write_scene, text, table, key, fragment):
     """Reject each malformed scene with a SceneError naming the file, the table and the key."""
     path = write_scene(text, "bad.toml")
@@ -143,15 +211,23 @@ def test_cloth_table_accepts_per_kind_springs_and_pin_lists():
     assert c["stiffness"] == {"structural": 1000.0, "bend": 10.0}
     assert c["damping"] == 0.5 and c["pins"] == [(0, 15), (7, 15)]
     assert c["max_stretch"] == 0.1
-    assert scene.table("wind") == {"velocity": [3.0, 0.0, 0.0], "turbulence": 1.0, "scale": 1.0, "seed": 0,
-                                   "drag": 1.2, "lift": 0.3, "air_density": 1.2}
+    assert scene.table("wind") == {
+        "velocity": [3.0, 0.0, 0.0],
+        "turbulence": 1.0,
+        "scale": 1.0,
+        "seed": 0,
+        "drag": 1.2,
+        "lift": 0.3,
+        "air_density": 1.2,
+    }
     assert "(128 particles)" in scene.summary()
 
 
 def test_load_scene_builds_the_world(write_scene):
     """Build planes and spheres with the file's values and keep path and camera in metadata."""
     path = write_scene(
-        "[world]\ngravity = [0, 0, -1.62]\ndt = 0.01\nsubsteps = 2\nseed = 5\n" + BALL
+        "[world]\ngravity = [0, 0, -1.62]\ndt = 0.01\nsubsteps = 2\nseed = 5\n"
+        + BALL
         + "\n[[box]]\nposition = [1, 0, 1]\nhalf_extents = [0.1, 0.2, 0.3]\ndensity = 500\nstatic = true\n"
         "[camera]\nfov = 60\n"
     )

@@ -32,11 +32,14 @@ def test_saved_run_resumes_in_a_new_process_bit_for_bit(name, tmp_path):
     _steps(world, 1.0)
     path = tumble.save_snapshot(world.snapshot(), tmp_path / "state.npz")
     _steps(world, 1.0)
-    code = ("import sys, tumble; w = tumble.load_snapshot(sys.argv[1]); "
-            "[w.step() for _ in range(round(1.0 / w.dt))]; print(w.state_hash(), w.step_count, w.time)")
+    code = (
+        "import sys, tumble; w = tumble.load_snapshot(sys.argv[1]); "
+        "[w.step() for _ in range(round(1.0 / w.dt))]; print(w.state_hash(), w.step_count, w.time)"
+    )
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env,
-                         timeout=600, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env, timeout=600, check=True
+    ).stdout.split()
     assert out[0] == world.state_hash()
     assert int(out[1]) == world.step_count
     assert float(out[2]) == world.time
@@ -72,6 +75,7 @@ def test_snapshot_is_a_copy():
 
 def test_world_built_in_python_restores(tmp_path):
     """A world built with the API (no scene) restores into a world built the same way; `load` says it can't."""
+
     def build():
         w = tumble.World(seed=3)
         w.add_plane()
@@ -112,11 +116,14 @@ def test_values_come_back_with_their_types(tmp_path):
     assert back.scene == state.scene and back.overrides == state.overrides
 
 
-@pytest.mark.parametrize("content, message", [
-    (b"", "not a Tumble snapshot file"),
-    (b"PK\x03\x04 broken zip", "not a Tumble snapshot file"),
-    (None, "no such snapshot file"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"", "not a Tumble snapshot file"),
+        (b"PK\x03\x04 broken zip", "not a Tumble snapshot file"),
+        (None, "no such snapshot file"),
+    ],
+)
 def test_broken_files_get_one_line(tmp_path, content, message):
     path = tmp_path / "bad.npz"
     if content is not None:
@@ -138,8 +145,9 @@ def test_cli_save_state_and_resume(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
 
     def run(*args):
-        done = subprocess.run([sys.executable, "-m", "tumble", "run", *args], capture_output=True, text=True,
-                              env=env, timeout=600)
+        done = subprocess.run(
+            [sys.executable, "-m", "tumble", "run", *args], capture_output=True, text=True, env=env, timeout=600
+        )
         return done.returncode, done.stdout, done.stderr
 
     def state_hash(stdout: str) -> str:
@@ -154,10 +162,13 @@ def test_cli_save_state_and_resume(tmp_path):
     assert rc == 0
     assert state_hash(resumed) == state_hash(whole)
 
-    for args, needle in [((), "give a SCENE"), (("bouncing_ball", "--resume", str(state)), "not both"),
-                         (("--resume", str(tmp_path / "none.npz")), "no such snapshot file"),
-                         (("--resume", str(state), "--seed", "3"), "--seed cannot"),
-                         (("bouncing_ball", "--save-state", str(tmp_path / "x.txt")), "--save-state")]:
+    for args, needle in [
+        ((), "give a SCENE"),
+        (("bouncing_ball", "--resume", str(state)), "not both"),
+        (("--resume", str(tmp_path / "none.npz")), "no such snapshot file"),
+        (("--resume", str(state), "--seed", "3"), "--seed cannot"),
+        (("bouncing_ball", "--save-state", str(tmp_path / "x.txt")), "--save-state"),
+    ]:
         rc, _, err = run(*args)
         assert rc == 2, args
         assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err

@@ -12,8 +12,13 @@ from tumble.state import vec3
 
 
 @wp.kernel
-def _closest(p: wp.array(dtype=vec3), a: wp.array(dtype=vec3), b: wp.array(dtype=vec3), c: wp.array(dtype=vec3),
-             out: wp.array(dtype=vec3)):
+def _closest(
+    p: wp.array(dtype=vec3),
+    a: wp.array(dtype=vec3),
+    b: wp.array(dtype=vec3),
+    c: wp.array(dtype=vec3),
+    out: wp.array(dtype=vec3),
+):
     i = wp.tid()
     out[i] = closest_on_triangle(p[i], a[i], b[i], c[i])
 

@@ -231,7 +231,9 @@ def test_static_geometry_colors_and_camera(recording, stage_path):
     bound = pole.ComputeWorldBound(0, UsdGeom.Tokens.default_).ComputeAlignedRange()
     np.testing.assert_allclose(np.array(bound.GetMin()), (-0.82, -0.02, 0.0), atol=1e-6)
     np.testing.assert_allclose(np.array(bound.GetMax()), (-0.78, 0.02, 1.2), atol=1e-6)
-    np.testing.assert_allclose(np.array(pole.GetDisplayColorAttr().Get()[0]), linear(body_colors([pole_index])[0]), rtol=1e-6)
+    np.testing.assert_allclose(
+        np.array(pole.GetDisplayColorAttr().Get()[0]), linear(body_colors([pole_index])[0]), rtol=1e-6
+    )
     inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
     colors = UsdGeom.PrimvarsAPI(inst.GetPrim()).GetPrimvar("displayColor")
     assert colors.GetInterpolation() == UsdGeom.Tokens.vertex
@@ -271,8 +273,9 @@ def test_xforms_mode_animates_one_xform_per_body(recording, tmp_path):
         assert len(geom.GetPointsAttr().Get()) > 100  # the sphere prototype, through its reference
 
 
-@pytest.mark.parametrize("suffix, magic", [(".usd", b"PXR-USDC"), (".usdc", b"PXR-USDC"), (".usda", b"#usda"),
-                                           (".usdz", b"PK")])
+@pytest.mark.parametrize(
+    "suffix, magic", [(".usd", b"PXR-USDC"), (".usdc", b"PXR-USDC"), (".usda", b"#usda"), (".usdz", b"PK")]
+)
 def test_every_extension_writes_its_format(recording, tmp_path, suffix, magic):
     """.usd/.usdc write binary crate, .usda text, .usdz a package; each opens with all frames and no temp file left."""
     path = usd.export(recording, tmp_path / f"shot{suffix}")
@@ -298,15 +301,21 @@ def test_physics_schemas(recording, tmp_path):
     spheres = np.flatnonzero((recording["shape_names"][recording["shape"]] == "sphere") & (recording["mass"] > 0))
     want = np.median(recording["mass"][spheres] / (4 / 3 * np.pi * recording["radius"][spheres] ** 3))
     assert UsdPhysics.MassAPI(sphere).GetDensityAttr().Get() == pytest.approx(want, rel=1e-6)
-    restitutions = sorted(UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
-                          for p in stage.Traverse() if p.HasAPI(UsdPhysics.MaterialAPI))
+    restitutions = sorted(
+        UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
+        for p in stage.Traverse()
+        if p.HasAPI(UsdPhysics.MaterialAPI)
+    )
     assert restitutions == [0.5]  # the spheres' prototype binds the first sphere's; 0.8 is per body in xforms
     stage = _open(usd.export(recording, tmp_path / "phys_xf.usda", physics=True, bodies="xforms"))
     light = int(np.flatnonzero(recording["mass"] == 0.5)[0])
     body = stage.GetPrimAtPath(f"/Root/Bodies/body_{light:06d}")
     assert UsdPhysics.MassAPI(body).GetMassAttr().Get() == pytest.approx(0.5)
-    restitutions = sorted(UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
-                          for p in stage.Traverse() if p.HasAPI(UsdPhysics.MaterialAPI))
+    restitutions = sorted(
+        UsdPhysics.MaterialAPI(p).GetRestitutionAttr().Get()
+        for p in stage.Traverse()
+        if p.HasAPI(UsdPhysics.MaterialAPI)
+    )
     assert restitutions == pytest.approx([0.5, 0.8])
 
 
@@ -316,7 +325,9 @@ def test_lower_fps_takes_every_other_frame(recording, tmp_path):
     assert stage.GetTimeCodesPerSecond() == 15
     assert stage.GetEndTimeCode() == (FRAMES - 1) // 2
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Cloth"))
-    np.testing.assert_array_equal(np.array(mesh.GetPointsAttr().Get(3)), recording["cloth_position"][6].astype(np.float32))
+    np.testing.assert_array_equal(
+        np.array(mesh.GetPointsAttr().Get(3)), recording["cloth_position"][6].astype(np.float32)
+    )
     with pytest.raises(tumble.errors.TumbleError, match="more than the recording"):
         usd.export(recording, tmp_path / "fast.usdc", fps=60)
     with pytest.raises(tumble.errors.TumbleError, match="the recording holds"):
@@ -370,17 +381,34 @@ def test_cli_exports_a_scene_and_a_recording(write_scene, recording, tmp_path, c
     assert main(["export", str(scene), "-o", str(tmp_path / "a.usda"), "--frames", "4", "--no-progress"]) == 0
     assert _open(tmp_path / "a.usda").GetEndTimeCode() == 3
     np.savez_compressed(tmp_path / "r.npz", **recording)
-    assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "r.usdz"), "--fps", "10",
-                 "--bodies", "xforms", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "export",
+                str(tmp_path / "r.npz"),
+                "-o",
+                str(tmp_path / "r.usdz"),
+                "--fps",
+                "10",
+                "--bodies",
+                "xforms",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert _open(tmp_path / "r.usdz").GetTimeCodesPerSecond() == 10
     assert "wrote" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("out, message", [
-    ("shot.abc", "must end in .usd, .usda, .usdc or .usdz"),
-    ("missing/shot.usd", "does not exist"),
-    ("file.txt/shot.usd", "does not exist"),
-])
+@pytest.mark.parametrize(
+    "out, message",
+    [
+        ("shot.abc", "must end in .usd, .usda, .usdc or .usdz"),
+        ("missing/shot.usd", "does not exist"),
+        ("file.txt/shot.usd", "does not exist"),
+    ],
+)
 def test_cli_bad_output_is_one_line(write_scene, tmp_path, capsys, monkeypatch, out, message):
     """A wrong extension or a folder that is missing or a file: one line on stderr, exit 2, nothing written."""
     monkeypatch.chdir(tmp_path)

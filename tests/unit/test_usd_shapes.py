@@ -41,7 +41,9 @@ def build():
     world = tumble.World(dt=1 / 240)
     world.add_plane()  # 0
     v, t = _bowl()
-    world.add_mesh(vertices=v, triangles=t, position=(0, 0, 0.05), orientation=(0, 0, math.sin(0.3), math.cos(0.3)))  # 1
+    world.add_mesh(
+        vertices=v, triangles=t, position=(0, 0, 0.05), orientation=(0, 0, math.sin(0.3), math.cos(0.3))
+    )  # 1
     post = world.add_box(position=(-1.0, 0, 0.5), half_extents=(0.05, 0.05, 0.5), static=True)  # 2
     q = (0.0, math.sin(math.pi / 4), 0.0, math.cos(math.pi / 4))
     c1 = world.add_capsule(position=(-0.6, 0, 1.0), radius=0.05, half_height=0.2, orientation=q)  # 3
@@ -50,7 +52,9 @@ def build():
     rock = world.add_convex(points=ROCK, position=(0.3, -0.3, 0.5))  # 6
     world.add_convex(points=ROCK * 0.7, position=(0.6, -0.3, 0.5))  # 7
     ball = world.add_sphere(position=(0.3, -0.3, 1.2), radius=0.05)  # 8
-    world.add_joint("hinge", post, c1, anchor=(-0.85, 0, 1.0), axis=(0, 1, 0), lower=-0.5, upper=1.0)  # to a static body
+    world.add_joint(
+        "hinge", post, c1, anchor=(-0.85, 0, 1.0), axis=(0, 1, 0), lower=-0.5, upper=1.0
+    )  # to a static body
     world.add_joint("ball", c1, c2, anchor=(-0.35, 0, 1.0))
     world.add_joint("rope", None, ball, anchor_a=(0.3, -0.3, 1.6), break_force=500.0)  # to the world
     world.add_joint("distance", rock, ball, min_length=0.3, max_length=0.8)
@@ -81,7 +85,7 @@ def test_recording_holds_the_geometry_and_the_joint_model(rec, world_after):
     starts = rec["hull_point_start"]
     assert len(starts) == len(protos) + 1
     for row, proto in enumerate(protos):
-        np.testing.assert_allclose(rec["hull_points"][starts[row]:starts[row + 1]], proto.vertex)
+        np.testing.assert_allclose(rec["hull_points"][starts[row] : starts[row + 1]], proto.vertex)
     np.testing.assert_array_equal(rec["mesh_triangles"], world_after.meshes.triangles[0])
     np.testing.assert_array_equal(rec["geometry"], world_after.body_geometry)
     assert rec["joint_kind"].tolist() == [1, 0, 4, 4]
@@ -187,7 +191,8 @@ def test_joints_are_usdphysics_joints_between_rigid_bodies(rec, tmp_path, bodies
     assert [str(p) for p in hinge.GetBody1Rel().GetTargets()] == [f"{root}/body_000003"]
     assert hinge.GetAxisAttr().Get() == "X"
     assert (hinge.GetLowerLimitAttr().Get(), hinge.GetUpperLimitAttr().Get()) == pytest.approx(
-        (math.degrees(-0.5), math.degrees(1.0)))
+        (math.degrees(-0.5), math.degrees(1.0))
+    )
     # the hinge axis (the joint frame's x) is world y, seen from body1's frame at frame 0
     q = hinge.GetLocalRot1Attr().Get()
     cache = UsdGeom.XformCache(0)

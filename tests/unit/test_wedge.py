@@ -212,5 +212,7 @@ def test_contact_sheet_without_frames_says_why(scene_file, tmp_path):
 def test_variant_folder_names_are_readable_and_unique(scene_file):
     """Name folders key=value joined by '__', lists without brackets, one name per variant."""
     plan = plan_wedge(scene_file, {"world.gravity": "[0,0,-9.81],[0,0,-1.62]", "plane[*].friction": "0.5"})
-    assert [v.name for v in plan.variants] == ["world.gravity=0,0,-9.81__plane.friction=0.5",
-                                               "world.gravity=0,0,-1.62__plane.friction=0.5"]
+    assert [v.name for v in plan.variants] == [
+        "world.gravity=0,0,-9.81__plane.friction=0.5",
+        "world.gravity=0,0,-1.62__plane.friction=0.5",
+    ]

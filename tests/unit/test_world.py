@@ -66,8 +66,10 @@ def test_arrays_grow_past_their_capacity():
         (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, restitution=1.5), "restitution must be in"),
         (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, friction=-1), "friction"),
         (lambda w: w.add_box(position=(0, 0, 0), half_extents=(1, 0, 1)), "half_extents must all be > 0"),
-        (lambda w: w.add_box(position=(0, 0, 0), half_extents=(1, 1, 1), orientation=(0, 0, 0, 0)),
-         "non-zero quaternion"),
+        (
+            lambda w: w.add_box(position=(0, 0, 0), half_extents=(1, 1, 1), orientation=(0, 0, 0, 0)),
+            "non-zero quaternion",
+        ),
         (lambda w: w.add_plane(normal=(0, 0, 0)), "normal must not be zero"),
         (lambda w: w.add_plane(offset=float("inf")), "offset must be finite"),
         (lambda w: w.add_body("cylinder", position=(0, 0, 0)), "unknown shape 'cylinder'"),

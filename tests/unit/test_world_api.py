@@ -44,8 +44,12 @@ def test_a_handle_from_another_world_is_refused():
     ball = a.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
     other = b.add_sphere(position=(5, 0, 0), radius=0.1, mass=1.0)
     assert ball == 3 and other == 3 and ball != other
-    for call in (lambda: b.set_body_state(ball, position=(0, 0, 1)), lambda: b.apply_force(ball, (1, 0, 0)),
-                 lambda: b.remove_body(ball), lambda: b.body_state(ball)):
+    for call in (
+        lambda: b.set_body_state(ball, position=(0, 0, 1)),
+        lambda: b.apply_force(ball, (1, 0, 0)),
+        lambda: b.remove_body(ball),
+        lambda: b.body_state(ball),
+    ):
         with pytest.raises(HandleError, match="body 3 belongs to another World"):
             call()
     assert not b.has_body(ball) and a.has_body(ball)
@@ -66,8 +70,10 @@ def test_a_removed_handle_is_refused_even_after_its_id_is_reused():
     assert w.body_radius[1] == 0.2 and w.body_mass[1] == 2.0
 
 
-@pytest.mark.parametrize("bad, error", [(1.0, TypeError), ("1", TypeError), (True, TypeError), (None, TypeError),
-                                        (17, IndexError), (-1, IndexError)])
+@pytest.mark.parametrize(
+    "bad, error",
+    [(1.0, TypeError), ("1", TypeError), (True, TypeError), (None, TypeError), (17, IndexError), (-1, IndexError)],
+)
 def test_bad_body_arguments_are_named(bad, error):
     """Anything but a live body's handle or int id is refused, naming the body."""
     w = _free_world()
@@ -246,8 +252,9 @@ def test_emitters_keep_emitting_while_bodies_are_removed():
     """An emitter fills the ids freed by removals; nothing is born inside another body."""
     w = tumble.World()
     w.add_plane()
-    em = w.add_emitter(rate=200.0, count=60, position=(0, 0, 0.5), region="disc", extent=0.3, radius=0.03,
-                       direction=(0, 0, 1))
+    em = w.add_emitter(
+        rate=200.0, count=60, position=(0, 0, 0.5), region="disc", extent=0.3, radius=0.03, direction=(0, 0, 1)
+    )
     for _ in range(6):
         w.run(0.1)
         alive = np.flatnonzero(w.body_alive)[1:]  # not the plane
@@ -326,12 +333,19 @@ def _world_with_body():
 @pytest.mark.parametrize(
     "call, error, message",
     [
-        (lambda w: w.add_sphere(position=(0, 0, 0), radius=-1), ValueError, r"radius must be a positive number, got -1$"),
+        (
+            lambda w: w.add_sphere(position=(0, 0, 0), radius=-1),
+            ValueError,
+            r"radius must be a positive number, got -1$",
+        ),
         (lambda w: w.add_sphere(position=(0, 0, 0), radius="big"), TypeError, r"radius must be a .*got 'big'"),
         (lambda w: w.add_sphere(position="here", radius=0.1), TypeError, r"position must be 3 finite numbers"),
         (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, static=1), TypeError, r"static must be True or False"),
-        (lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, static=True, kinematic=True), ValueError,
-         "static or kinematic, not both"),
+        (
+            lambda w: w.add_sphere(position=(0, 0, 0), radius=0.1, static=True, kinematic=True),
+            ValueError,
+            "static or kinematic, not both",
+        ),
         (lambda w: w.add_box(position=(0, 0, 0), half_extents="big"), TypeError, r"half_extents must be 3"),
         (lambda w: w.add_spheres(position=[(0, 0, 0), (1, 0)], radius=0.1), ValueError, r"position must be"),
         (lambda w: w.add_plane(offset="low"), TypeError, r"offset must be a number, got 'low'"),
@@ -393,8 +407,11 @@ def test_settings_are_checked_when_changed():
 
 def test_forwarding_calls_have_the_real_signatures():
     """add_emitter, add_cloth and set_wind list the same keywords and defaults as what they build."""
-    pairs = [(tumble.World.add_emitter, tumble.Emitter.__init__), (tumble.World.add_cloth, ClothSystem.add_cloth),
-             (tumble.World.set_wind, ClothSystem.set_wind)]
+    pairs = [
+        (tumble.World.add_emitter, tumble.Emitter.__init__),
+        (tumble.World.add_cloth, ClothSystem.add_cloth),
+        (tumble.World.set_wind, ClothSystem.set_wind),
+    ]
     for front, back in pairs:
         a = [(p.name, p.default, p.kind) for p in inspect.signature(front).parameters.values()]
         b = [(p.name, p.default, p.kind) for p in inspect.signature(back).parameters.values()]

@@ -30,4 +30,3 @@ def open_viewer(qtbot, tmp_path):
     yield open_
     for win in windows:
         win.close()
-

@@ -56,6 +56,9 @@ def test_gl_window_draws_under_xvfb():
     env = dict(os.environ, PYTHONPATH=str(src), QT_QPA_PLATFORM="xcb")
     result = subprocess.run(
         ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable, "-c", SCRIPT],
-        capture_output=True, text=True, timeout=120, env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
     )
     assert result.returncode == 0 and "GL window OK" in result.stdout, result.stdout + result.stderr[-2000:]

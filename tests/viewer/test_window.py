@@ -124,9 +124,14 @@ def test_drag_on_empty_view_orbits_and_right_drag_pans(window, qtbot):
 
     distance = cam.distance
     wheel = QtGui.QWheelEvent(
-        QtCore.QPointF(100, 100), QtCore.QPointF(view.mapToGlobal(QtCore.QPoint(100, 100))),
-        QtCore.QPoint(0, 0), QtCore.QPoint(0, 120), Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier,
-        Qt.ScrollPhase.NoScrollPhase, False,
+        QtCore.QPointF(100, 100),
+        QtCore.QPointF(view.mapToGlobal(QtCore.QPoint(100, 100))),
+        QtCore.QPoint(0, 0),
+        QtCore.QPoint(0, 120),
+        Qt.MouseButton.NoButton,
+        Qt.KeyboardModifier.NoModifier,
+        Qt.ScrollPhase.NoScrollPhase,
+        False,
     )
     QtWidgets.QApplication.sendEvent(view, wheel)
     assert cam.distance < distance

@@ -45,8 +45,20 @@ def test_unreachable_address_fails_fast(tmp_path, capsys):
     """Give up on a scheduler that does not answer within --connect-timeout, with one line."""
     out = tmp_path / "out"
     address = f"tcp://127.0.0.1:{_free_port()}"
-    code = cli_main(["wedge", "sphere_pile", "-o", str(out), "--vary", "world.seed=0..1", "--address", address,
-                     "--connect-timeout", "1"])
+    code = cli_main(
+        [
+            "wedge",
+            "sphere_pile",
+            "-o",
+            str(out),
+            "--vary",
+            "world.seed=0..1",
+            "--address",
+            address,
+            "--connect-timeout",
+            "1",
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert f"--address {address}: no Dask scheduler answered within 1 s" in err

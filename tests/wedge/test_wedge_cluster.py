@@ -79,9 +79,21 @@ def test_manifest_has_one_row_per_variant(run):
     with open(out / "manifest.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert [r["variant"] for r in rows] == [row["variant"] for row in table]
-    assert set(rows[0]) >= {"world.seed", "sphere[0].velocity", "status", "error", "wall_s", "steps_per_s",
-                            "kinetic_energy_J", "max_overlap_m", "max_penetration_m", "max_strain", "body_count",
-                            "contact_count", "state_hash"}
+    assert set(rows[0]) >= {
+        "world.seed",
+        "sphere[0].velocity",
+        "status",
+        "error",
+        "wall_s",
+        "steps_per_s",
+        "kinetic_energy_J",
+        "max_overlap_m",
+        "max_penetration_m",
+        "max_strain",
+        "body_count",
+        "contact_count",
+        "state_hash",
+    }
     meta = json.loads((out / "manifest.json").read_text())
     assert meta["vary"] == {"world.seed": [1, 2], "sphere[0].velocity": [[0, 0, 0], [0, 0, 1e300]]}
     assert [r["status"] for r in meta["variants"]] == [r["status"] for r in rows]
@@ -166,8 +178,15 @@ def test_run_variant_keeps_a_video(tmp_path):
     from tumble.wedge import Settings, run_variant
 
     settings = Settings(duration=0.25, fps=20, keep=("video",)).identity()
-    row = run_variant({"name": "v", "text": (SAMPLES_DIR / "bouncing_ball.toml").read_text(), "path": "ball.toml",
-                       "folder": str(tmp_path), "settings": settings})
+    row = run_variant(
+        {
+            "name": "v",
+            "text": (SAMPLES_DIR / "bouncing_ball.toml").read_text(),
+            "path": "ball.toml",
+            "folder": str(tmp_path),
+            "settings": settings,
+        }
+    )
     if row.get("image_error"):
         pytest.skip(f"no EGL here: {row['image_error']}")
     assert row["status"] == "ok" and row["files"] == ["video.mp4"]

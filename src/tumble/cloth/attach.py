@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..launch import LaunchCache, launch
 from ..solver.contacts import inv_inertia_times
 from ..solver.joints import add_velocity
-from ..launch import LaunchCache, launch
 from ..state import float_t, quat, vec3
 
 
@@ -75,8 +75,14 @@ def _follow(
 
 
 @wp.kernel
-def _sum_pin_load(pins: wp.array(dtype=wp.int32), force: wp.array(dtype=vec3), mass: wp.array(dtype=float_t),
-                  gravity: vec3, h: float_t, total: wp.array(dtype=vec3)):
+def _sum_pin_load(
+    pins: wp.array(dtype=wp.int32),
+    force: wp.array(dtype=vec3),
+    mass: wp.array(dtype=float_t),
+    gravity: vec3,
+    h: float_t,
+    total: wp.array(dtype=vec3),
+):
     p = pins[wp.tid()]
     wp.atomic_add(total, 0, (force[p] + gravity * mass[p]) * h)
 
@@ -94,8 +100,7 @@ def sum_pin_load(pins, force, mass, gravity, total, h, *, cache: LaunchCache | N
         h: substep [s].
     """
     if pins.shape[0]:
-        launch(_sum_pin_load, pins.shape[0], [pins, force, mass, vec3(*gravity), float(h), total], pins.device,
-               cache)
+        launch(_sum_pin_load, pins.shape[0], [pins, force, mass, vec3(*gravity), float(h), total], pins.device, cache)
 
 
 class BodyPins:
@@ -138,11 +143,27 @@ class BodyPins:
         if self.count == 0:
             return
         b = bodies.arrays
-        wp.launch(_reaction, dim=self.count, device=self.device,
-                  inputs=[self.particle, self.body, self.local, arrays["particle_force"], arrays["particle_mass"],
-                          vec3(*gravity), h, b["body_position"], b["body_orientation"], b["body_velocity"],
-                          b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
-                          1 if self.device == "cpu" else 0])
+        wp.launch(
+            _reaction,
+            dim=self.count,
+            device=self.device,
+            inputs=[
+                self.particle,
+                self.body,
+                self.local,
+                arrays["particle_force"],
+                arrays["particle_mass"],
+                vec3(*gravity),
+                h,
+                b["body_position"],
+                b["body_orientation"],
+                b["body_velocity"],
+                b["body_angular_velocity"],
+                b["body_inv_mass"],
+                b["body_inv_inertia"],
+                1 if self.device == "cpu" else 0,
+            ],
+        )
 
     def react_constraints(self, arrays: dict, bodies, h: float) -> None:
         """The stretch limit's and tethers' pull on the pins this substep (`particle_pin_load`,
@@ -150,18 +171,44 @@ class BodyPins:
         if self.count == 0:
             return
         b = bodies.arrays
-        wp.launch(_reaction, dim=self.count, device=self.device,
-                  inputs=[self.particle, self.body, self.local, arrays["particle_pin_load"], arrays["particle_mass"],
-                          vec3(0.0, 0.0, 0.0),
-                          1.0 / h, b["body_position"], b["body_orientation"], b["body_velocity"],
-                          b["body_angular_velocity"], b["body_inv_mass"], b["body_inv_inertia"],
-                          1 if self.device == "cpu" else 0])
+        wp.launch(
+            _reaction,
+            dim=self.count,
+            device=self.device,
+            inputs=[
+                self.particle,
+                self.body,
+                self.local,
+                arrays["particle_pin_load"],
+                arrays["particle_mass"],
+                vec3(0.0, 0.0, 0.0),
+                1.0 / h,
+                b["body_position"],
+                b["body_orientation"],
+                b["body_velocity"],
+                b["body_angular_velocity"],
+                b["body_inv_mass"],
+                b["body_inv_inertia"],
+                1 if self.device == "cpu" else 0,
+            ],
+        )
 
     def follow(self, arrays: dict, bodies) -> None:
         """Put the pinned particles on their body points."""
         if self.count == 0:
             return
         b = bodies.arrays
-        wp.launch(_follow, dim=self.count, device=self.device,
-                  inputs=[self.particle, self.body, self.local, b["body_position"], b["body_orientation"],
-                          arrays["particle_position"], arrays["particle_pin_target"]])
+        wp.launch(
+            _follow,
+            dim=self.count,
+            device=self.device,
+            inputs=[
+                self.particle,
+                self.body,
+                self.local,
+                b["body_position"],
+                b["body_orientation"],
+                arrays["particle_position"],
+                arrays["particle_pin_target"],
+            ],
+        )

@@ -37,13 +37,13 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..shapes import ShapeType
 from ..collision.hashgrid import HashGrid, cell_hash, cell_of
 from ..collision.hulls import Hulls
 from ..collision.narrowphase import box_closest, hull_closest
+from ..launch import LaunchCache, launch
+from ..shapes import ShapeType
 from ..solver.contacts import inv_inertia_times
 from ..state import float_t, quat, vec3
-from ..launch import LaunchCache, launch
 from .springs import Limits, Tethers
 
 PLANE = wp.constant(int(ShapeType.PLANE))
@@ -107,8 +107,18 @@ def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), 
 
 
 @wp.func
-def _coulomb(dx: vec3, n: vec3, r_b: vec3, w_point: float_t, w_lin: float_t, split: float_t, mu: float_t,
-             lam: float_t, q: quat, inv_i: vec3):
+def _coulomb(
+    dx: vec3,
+    n: vec3,
+    r_b: vec3,
+    w_point: float_t,
+    w_lin: float_t,
+    split: float_t,
+    mu: float_t,
+    lam: float_t,
+    q: quat,
+    inv_i: vec3,
+):
     """Friction against a cloth point's tangential motion dx relative to the body surface this substep.
 
     Returns the direction of that motion and the size lambda_t of the friction displacement:
@@ -129,8 +139,7 @@ def _coulomb(dx: vec3, n: vec3, r_b: vec3, w_point: float_t, w_lin: float_t, spl
 
 
 @wp.func
-def _push_body(b: int, impulse: vec3, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, h: float_t,
-               bodies: BodyArrays):
+def _push_body(b: int, impulse: vec3, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, h: float_t, bodies: BodyArrays):
     """Two-way coupling: a dynamic body gets `impulse` (a displacement times mass) at r_b from its centre.
 
     As in position-based dynamics it moves and turns by it, and its velocities change by it / h
@@ -160,8 +169,9 @@ def _slack_along(a: vec3, n: vec3, limit: float_t):
 
 
 @wp.func
-def _slack(p: int, xp: vec3, n: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), limits: Limits,
-           tethers: Tethers):
+def _slack(
+    p: int, xp: vec3, n: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), limits: Limits, tethers: Tethers
+):
     """How far particle p may move along n before one of its limited springs or tethers reaches its limit
     (the other ends held where they are)."""
     s = float_t(1.0e30)
@@ -190,8 +200,9 @@ def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
     """
     zero = float_t(0.0)
     pl = wp.quat_rotate_inv(q, xp - c)
-    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(wp.float32(pl[0]), wp.float32(pl[1]), wp.float32(pl[2])),
-                                            wp.float32(reach))
+    query = wp.mesh_query_point_sign_normal(
+        mesh, wp.vec3f(wp.float32(pl[0]), wp.float32(pl[1]), wp.float32(pl[2])), wp.float32(reach)
+    )
     n = vec3(zero, zero, float_t(1.0))
     if not query.result:
         return False, zero, n
@@ -214,8 +225,9 @@ def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
 
 
 @wp.func
-def _surface(shape: int, b: int, xp: vec3, bodies: BodyArrays, hulls: Hulls, mesh_ids: wp.array(dtype=wp.uint64),
-             reach: float_t):
+def _surface(
+    shape: int, b: int, xp: vec3, bodies: BodyArrays, hulls: Hulls, mesh_ids: wp.array(dtype=wp.uint64), reach: float_t
+):
     """Signed distance d of point xp from body b's surface and the outward normal n there; found is
     False where the body cannot be near (a mesh with no triangle within `reach`)."""
     zero = float_t(0.0)
@@ -290,7 +302,7 @@ def _collide_bodies(
         b = candidates[k % candidate_count]
         dynamic_pass = k >= candidate_count
         k += 1
-        if (bodies.inv_mass[b] > zero) != dynamic_pass :
+        if (bodies.inv_mass[b] > zero) != dynamic_pass:
             continue
         c = bodies.position[b]
         q = bodies.orientation[b]
@@ -430,7 +442,9 @@ def _catch_small_spheres(
     w2 = inv_m[i2]
     zero = float_t(0.0)
     # spheres that fit between this triangle's particles: no wider than its longest rest edge
-    edge = wp.max(wp.length(rest[i1] - rest[i0]), wp.max(wp.length(rest[i2] - rest[i1]), wp.length(rest[i0] - rest[i2])))
+    edge = wp.max(
+        wp.length(rest[i1] - rest[i0]), wp.max(wp.length(rest[i2] - rest[i1]), wp.length(rest[i0] - rest[i2]))
+    )
     gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
     for k in range(candidate_count):
         b = candidates[k]
@@ -620,8 +634,26 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, limits: Limits, candidates, bodies, hulls, mesh_ids, contact_count_prev, contact_count_next, h,
-                   *, taut: float = 0.97, strict: bool = False, cache: LaunchCache | None = None):
+def collide_bodies(
+    x,
+    x_prev,
+    inv_mass,
+    thickness,
+    friction,
+    tethers: Tethers,
+    limits: Limits,
+    candidates,
+    bodies,
+    hulls,
+    mesh_ids,
+    contact_count_prev,
+    contact_count_next,
+    h,
+    *,
+    taut: float = 0.97,
+    strict: bool = False,
+    cache: LaunchCache | None = None,
+):
     """Push particles out of the candidate bodies, with friction, and push the bodies back.
 
     Args:
@@ -648,14 +680,51 @@ def collide_bodies(x, x_prev, inv_mass, thickness, friction, tethers: Tethers, l
     k = candidates.shape[0]
     if k == 0:
         return
-    launch(_collide_bodies, x.shape[0], [
-        x, x_prev, inv_mass, thickness, friction, tethers, limits, candidates, k, body_arrays(bodies),
-        hulls, mesh_ids, contact_count_prev, contact_count_next, float(h), float(taut), int(strict)], x.device, cache)
+    launch(
+        _collide_bodies,
+        x.shape[0],
+        [
+            x,
+            x_prev,
+            inv_mass,
+            thickness,
+            friction,
+            tethers,
+            limits,
+            candidates,
+            k,
+            body_arrays(bodies),
+            hulls,
+            mesh_ids,
+            contact_count_prev,
+            contact_count_next,
+            float(h),
+            float(taut),
+            int(strict),
+        ],
+        x.device,
+        cache,
+    )
 
 
-def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction, tethers: Tethers, triangles,
-                        candidates, bodies, contact_count_prev, contact_count_next, h, *, taut: float = 0.97,
-                        cache: LaunchCache | None = None):
+def catch_small_spheres(
+    x,
+    x_prev,
+    inv_mass,
+    rest_position,
+    thickness,
+    friction,
+    tethers: Tethers,
+    triangles,
+    candidates,
+    bodies,
+    contact_count_prev,
+    contact_count_next,
+    h,
+    *,
+    taut: float = 0.97,
+    cache: LaunchCache | None = None,
+):
     """Keep spheres that fit between particles from passing through the cloth's triangles.
 
     Particles alone stop only bodies wider than the gaps between them. For each triangle and each
@@ -669,9 +738,29 @@ def catch_small_spheres(x, x_prev, inv_mass, rest_position, thickness, friction,
     k = candidates.shape[0]
     if k == 0 or triangles.shape[0] == 0:
         return
-    launch(_catch_small_spheres, triangles.shape[0], [
-        x, x_prev, inv_mass, rest_position, thickness, friction, tethers, triangles, candidates, k,
-        body_arrays(bodies), contact_count_prev, contact_count_next, float(h), float(taut)], x.device, cache)
+    launch(
+        _catch_small_spheres,
+        triangles.shape[0],
+        [
+            x,
+            x_prev,
+            inv_mass,
+            rest_position,
+            thickness,
+            friction,
+            tethers,
+            triangles,
+            candidates,
+            k,
+            body_arrays(bodies),
+            contact_count_prev,
+            contact_count_next,
+            float(h),
+            float(taut),
+        ],
+        x.device,
+        cache,
+    )
 
 
 class SelfCollisionGrid:
@@ -689,8 +778,19 @@ class SelfCollisionGrid:
         self.count = 0  # pairs found by the last `find_pairs`
         self.overflow = 0  # pairs that did not fit (the buffer grows for the next step)
 
-    def find_pairs(self, x, inv_mass, thickness, particle_cloth, particle_i, particle_j, max_thickness: float,
-                   margin: float, *, cache: LaunchCache | None = None) -> int:
+    def find_pairs(
+        self,
+        x,
+        inv_mass,
+        thickness,
+        particle_cloth,
+        particle_i,
+        particle_j,
+        max_thickness: float,
+        margin: float,
+        *,
+        cache: LaunchCache | None = None,
+    ) -> int:
         """Once per world step: every non-neighbour pair within its mean thickness + `margin`.
 
         Args:
@@ -712,9 +812,30 @@ class SelfCollisionGrid:
         grid = self.grid.build(x, n, 1.0 / inv_cell)
         # candidate pairs
         self.pair_count.zero_()
-        launch(_find_pairs, n, [x, inv_mass, thickness, particle_cloth, particle_i, particle_j, margin, reach,
-                                grid.inv_cell, grid.mask, grid.cell_start, grid.cell_count, grid.entries,
-                                grid.point_cell_coord, self.pair_count, self.pairs], dev, cache)
+        launch(
+            _find_pairs,
+            n,
+            [
+                x,
+                inv_mass,
+                thickness,
+                particle_cloth,
+                particle_i,
+                particle_j,
+                margin,
+                reach,
+                grid.inv_cell,
+                grid.mask,
+                grid.cell_start,
+                grid.cell_count,
+                grid.entries,
+                grid.point_cell_coord,
+                self.pair_count,
+                self.pairs,
+            ],
+            dev,
+            cache,
+        )
         found = int(self.pair_count.numpy()[0])
         capacity = self.pairs.shape[0]
         self.count = min(found, capacity)
@@ -738,5 +859,6 @@ class SelfCollisionGrid:
         if self.count:
             # launched over the whole buffer (threads past `count` return), so the recorded
             # launch is reused whatever the count
-            launch(_separate_pairs, self.pairs.shape[0], [x, inv_mass, thickness, self.pairs, self.count],
-                   x.device, cache)
+            launch(
+                _separate_pairs, self.pairs.shape[0], [x, inv_mass, thickness, self.pairs, self.count], x.device, cache
+            )

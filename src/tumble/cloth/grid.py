@@ -78,9 +78,7 @@ def per_kind(value, name: str) -> dict[str, float]:
     if isinstance(value, dict):
         unknown = set(value) - set(SPRING_KINDS)
         if unknown:
-            raise ValueError(
-                f"{name} has unknown spring kind(s) {sorted(unknown)}; expected {', '.join(SPRING_KINDS)}"
-            )
+            raise ValueError(f"{name} has unknown spring kind(s) {sorted(unknown)}; expected {', '.join(SPRING_KINDS)}")
         out = {kind: value.get(kind, 0.0) for kind in SPRING_KINDS}
     else:
         out = {kind: value for kind in SPRING_KINDS}
@@ -115,9 +113,7 @@ def pin_indices(pins, nx: int, ny: int) -> np.ndarray:
             "top-edge": [(i, top) for i in range(nx)],
         }
         if pins not in named:
-            raise ValueError(
-                f"unknown pins {pins!r}: expected a list of [i, j] or one of {', '.join(named)}"
-            )
+            raise ValueError(f"unknown pins {pins!r}: expected a list of [i, j] or one of {', '.join(named)}")
         points = named[pins]
     else:
         points = []

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..state import float_t, vec3
 from ..launch import LaunchCache, launch
+from ..state import float_t, vec3
 
 
 @wp.struct
@@ -161,8 +161,9 @@ def _strain(
     strain[s] = wp.length(x[ids[s, 1]] - x[ids[s, 0]]) / rest[s] - float_t(1.0)
 
 
-def accumulate_spring_forces(x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force, *,
-                             cache: LaunchCache | None = None):
+def accumulate_spring_forces(
+    x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force, *, cache: LaunchCache | None = None
+):
     """Add spring forces into `force`.
 
     Args:
@@ -176,12 +177,29 @@ def accumulate_spring_forces(x, v, spring_ids, spring_rest_length, spring_stiffn
     """
     m = spring_ids.shape[0]
     if m:
-        launch(_spring_forces, m, [x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force],
-               x.device, cache)
+        launch(
+            _spring_forces,
+            m,
+            [x, v, spring_ids, spring_rest_length, spring_stiffness, spring_damping, force],
+            x.device,
+            cache,
+        )
 
 
-def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity, h, pin_alpha, *,
-              cache: LaunchCache | None = None):
+def integrate(
+    x,
+    v,
+    x_prev,
+    force,
+    external_force,
+    inv_mass,
+    pin_target,
+    gravity,
+    h,
+    pin_alpha,
+    *,
+    cache: LaunchCache | None = None,
+):
     """Semi-implicit Euler for free particles; pinned ones (inverse mass 0) move towards their target.
 
     Stores the start positions in `x_prev` and clears `force` for the next substep.
@@ -196,13 +214,30 @@ def integrate(x, v, x_prev, force, external_force, inv_mass, pin_target, gravity
         h: substep [s].
         pin_alpha: fraction of the remaining way to the pin target covered by this substep.
     """
-    launch(_integrate, x.shape[0], [x, v, x_prev, force, external_force, inv_mass, pin_target, vec3(*gravity),
-                                    float(h), float(pin_alpha)], x.device, cache)
+    launch(
+        _integrate,
+        x.shape[0],
+        [x, v, x_prev, force, external_force, inv_mass, pin_target, vec3(*gravity), float(h), float(pin_alpha)],
+        x.device,
+        cache,
+    )
 
 
-def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, pin_load=None, min_iterations: int = 2,
-                  max_iterations: int = 32, margin: float = 0.99, relax: float = 1.0, plain: int = 2,
-                  cache: LaunchCache | None = None) -> int:
+def limit_stretch(
+    x,
+    inv_mass,
+    stretch_ids,
+    stretch_limit,
+    violated,
+    *,
+    pin_load=None,
+    min_iterations: int = 2,
+    max_iterations: int = 32,
+    margin: float = 0.99,
+    relax: float = 1.0,
+    plain: int = 2,
+    cache: LaunchCache | None = None,
+) -> int:
     """Provot's deformation constraint: springs longer than their limit are shortened to it.
 
     Gauss-Seidel sweeps over the springs (plain ones alternate direction, over-relaxed ones keep
@@ -242,9 +277,22 @@ def limit_stretch(x, inv_mass, stretch_ids, stretch_limit, violated, *, pin_load
         while it < min(target, max_iterations):
             # plain projections first (enough for cloth that is barely over its limit), then
             # over-relaxed ones, which converge much faster where the whole cloth is taut
-            launch(_limit_stretch, count, [x, inv_mass, stretch_ids, stretch_limit, pin_load, margin,
-                                           1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0],
-                   x.device, cache)
+            launch(
+                _limit_stretch,
+                count,
+                [
+                    x,
+                    inv_mass,
+                    stretch_ids,
+                    stretch_limit,
+                    pin_load,
+                    margin,
+                    1.0 if it < plain else relax,
+                    it % 2 if relax == 1.0 else 0,
+                ],
+                x.device,
+                cache,
+            )
             it += 1
         if it >= max_iterations:
             return it
@@ -309,9 +357,13 @@ def tether_arrays(first, count, pin, limit) -> Tethers:
 
 
 @wp.kernel
-def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers,
-                   pin_load: wp.array(dtype=vec3),
-                   margin: float_t):
+def _limit_tethers(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    tethers: Tethers,
+    pin_load: wp.array(dtype=vec3),
+    margin: float_t,
+):
     # one thread per particle, its tethers in turn: no two threads move the same particle, and
     # pins do not move, so the sweep is the same on the CPU and on CUDA
     p = wp.tid()
@@ -334,8 +386,9 @@ def _limit_tethers(x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), teth
     x[p] = xp
 
 
-def limit_tethers(x, inv_mass, tethers: Tethers, *, pin_load=None, margin: float = 0.99,
-                  cache: LaunchCache | None = None):
+def limit_tethers(
+    x, inv_mass, tethers: Tethers, *, pin_load=None, margin: float = 0.99, cache: LaunchCache | None = None
+):
     """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
 
     Args:

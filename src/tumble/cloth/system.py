@@ -34,10 +34,10 @@ import warp as wp
 
 from .. import validate
 from ..errors import HandleError, SimulationError
+from ..launch import LaunchCache
 from ..state import ClothId, Handle, float_t, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
-from ..launch import LaunchCache
 from .wind import Wind, accumulate_air_forces, sample_wind
 
 #: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution
@@ -276,22 +276,31 @@ class ClothSystem:
         limited = structural if max_stretch is not None else structural[:0]
         triangles = grid.grid_triangles(nx, ny) + start
 
-        cloth = Cloth(index=len(self.cloths), particle_start=start, nx=nx, ny=ny, size=size,
-                      triangle_start=len(self._host.get("triangles", ())), triangle_count=len(triangles),
-                      max_stretch=max_stretch)
+        cloth = Cloth(
+            index=len(self.cloths),
+            particle_start=start,
+            nx=nx,
+            ny=ny,
+            size=size,
+            triangle_start=len(self._host.get("triangles", ())),
+            triangle_count=len(triangles),
+            max_stretch=max_stretch,
+        )
         self.cloths.append(cloth)
-        self._append({
-            **new,
-            "spring_ids": np.concatenate(ids) if ids else np.zeros((0, 2), np.int32),
-            "spring_rest_length": np.concatenate(rest) if rest else np.zeros(0),
-            "spring_stiffness": np.concatenate(stiff) if stiff else np.zeros(0),
-            "spring_damping": np.concatenate(damp) if damp else np.zeros(0),
-            "structural_ids": structural + start,
-            "structural_rest_length": structural_rest,
-            "stretch_ids": limited + start,
-            "stretch_limit": (1.0 + (max_stretch or 0.0)) * structural_rest[: len(limited)],
-            "triangles": triangles,
-        })
+        self._append(
+            {
+                **new,
+                "spring_ids": np.concatenate(ids) if ids else np.zeros((0, 2), np.int32),
+                "spring_rest_length": np.concatenate(rest) if rest else np.zeros(0),
+                "spring_stiffness": np.concatenate(stiff) if stiff else np.zeros(0),
+                "spring_damping": np.concatenate(damp) if damp else np.zeros(0),
+                "structural_ids": structural + start,
+                "structural_rest_length": structural_rest,
+                "stretch_ids": limited + start,
+                "stretch_limit": (1.0 + (max_stretch or 0.0)) * structural_rest[: len(limited)],
+                "triangles": triangles,
+            }
+        )
         return cloth.index
 
     def set_wind(
@@ -315,11 +324,15 @@ class ClothSystem:
             drag, lift: aerodynamic coefficients of a cloth face.
             air_density: [kg/m^3].
         """
-        self.wind = Wind(velocity=validate.vector(velocity, "velocity"),
-                         turbulence=validate.number(turbulence, "turbulence", low=0.0),
-                         scale=validate.positive(scale, "scale"), seed=validate.integer(seed, "seed", low=0),
-                         drag=validate.number(drag, "drag", low=0.0), lift=validate.number(lift, "lift", low=0.0),
-                         air_density=validate.number(air_density, "air_density", low=0.0))
+        self.wind = Wind(
+            velocity=validate.vector(velocity, "velocity"),
+            turbulence=validate.number(turbulence, "turbulence", low=0.0),
+            scale=validate.positive(scale, "scale"),
+            seed=validate.integer(seed, "seed", low=0),
+            drag=validate.number(drag, "drag", low=0.0),
+            lift=validate.number(lift, "lift", low=0.0),
+            air_density=validate.number(air_density, "air_density", low=0.0),
+        )
         wave, amplitude, omega, phase = self.wind.mode_arrays()
         self._wind_modes = (
             wp.array(wave, dtype=vec3, device=self.device),
@@ -341,16 +354,26 @@ class ClothSystem:
         self._particle_count = p
         for name, dtype in _PARTICLE_FIELDS.items():
             values = self._host.get(name)
-            self._arrays[name] = (wp.zeros(p, dtype=dtype, device=self.device) if values is None
-                                  else wp.array(np.ascontiguousarray(values), dtype=dtype, device=self.device))
+            self._arrays[name] = (
+                wp.zeros(p, dtype=dtype, device=self.device)
+                if values is None
+                else wp.array(np.ascontiguousarray(values), dtype=dtype, device=self.device)
+            )
         for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
-            self._arrays[name] = wp.array(np.ascontiguousarray(self._host[name], dtype=np.int32), dtype=wp.int32,
-                                          device=self.device)
-        for name in ("spring_rest_length", "spring_stiffness", "spring_damping", "structural_rest_length",
-                     "stretch_limit"):
+            self._arrays[name] = wp.array(
+                np.ascontiguousarray(self._host[name], dtype=np.int32), dtype=wp.int32, device=self.device
+            )
+        for name in (
+            "spring_rest_length",
+            "spring_stiffness",
+            "spring_damping",
+            "structural_rest_length",
+            "stretch_limit",
+        ):
             self._arrays[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
-        self._arrays["structural_strain"] = wp.zeros(len(self._host["structural_ids"]), dtype=float_t,
-                                                     device=self.device)
+        self._arrays["structural_strain"] = wp.zeros(
+            len(self._host["structural_ids"]), dtype=float_t, device=self.device
+        )
         self._build_limits()
         self._grid = collide.SelfCollisionGrid(p, self.device)
         self._pair_travel = math.inf
@@ -394,9 +417,13 @@ class ClothSystem:
             parts.append(particle + cloth.particle_start)
             pins.append(pin + cloth.particle_start)
             limits.append(limit)
-        cat = (lambda xs, dtype: np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype))
-        self._arrays["pin_index"] = wp.array(np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32,
-                                             device=self.device)
+
+        def cat(xs, dtype):
+            return np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype)
+
+        self._arrays["pin_index"] = wp.array(
+            np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32, device=self.device
+        )
         self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
         self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
         # per particle: its first tether and how many (tethers are sorted by particle)
@@ -407,8 +434,9 @@ class ClothSystem:
         self._arrays["particle_tether_first"] = wp.array(first, dtype=wp.int32, device=self.device)
         self._arrays["particle_tether_count"] = wp.array(count, dtype=wp.int32, device=self.device)
         a = self._arrays
-        self._tethers = springs.tether_arrays(a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"],
-                                              a["tether_limit"])
+        self._tethers = springs.tether_arrays(
+            a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"], a["tether_limit"]
+        )
         self._cache.clear()
         self._update_stable_step()
 
@@ -462,23 +490,50 @@ class ClothSystem:
         total = self._cloth_total
         cache = self._cache
         # forces: springs, then air on every triangle
-        springs.accumulate_spring_forces(a["particle_position"], a["particle_velocity"], a["spring_ids"],
-                                         a["spring_rest_length"], a["spring_stiffness"], a["spring_damping"],
-                                         a["particle_force"], cache=cache)
+        springs.accumulate_spring_forces(
+            a["particle_position"],
+            a["particle_velocity"],
+            a["spring_ids"],
+            a["spring_rest_length"],
+            a["spring_stiffness"],
+            a["spring_damping"],
+            a["particle_force"],
+            cache=cache,
+        )
         if self.wind is not None:
             w = self.wind
-            accumulate_air_forces(a["particle_position"], a["particle_velocity"], a["particle_wind"],
-                                  a["triangles"], w.drag, w.lift, w.air_density, a["particle_force"], cache=cache)
+            accumulate_air_forces(
+                a["particle_position"],
+                a["particle_velocity"],
+                a["particle_wind"],
+                a["triangles"],
+                w.drag,
+                w.lift,
+                w.air_density,
+                a["particle_force"],
+                cache=cache,
+            )
 
         self.body_pins.react(a, world.bodies, world.gravity, hi)  # the pull on body pins moves their bodies
-        attach.sum_pin_load(a["pin_index"], a["particle_force"], a["particle_mass"], world.gravity,
-                            self._pin_impulse, hi, cache=cache)
+        attach.sum_pin_load(
+            a["pin_index"], a["particle_force"], a["particle_mass"], world.gravity, self._pin_impulse, hi, cache=cache
+        )
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
         remaining = max(1, total - self._substep_index)
-        springs.integrate(a["particle_position"], a["particle_velocity"], a["particle_position_prev"],
-                          a["particle_force"], a["particle_external_force"], a["particle_inv_mass"],
-                          a["particle_pin_target"], world.gravity, hi, 1.0 / remaining, cache=cache)
+        springs.integrate(
+            a["particle_position"],
+            a["particle_velocity"],
+            a["particle_position_prev"],
+            a["particle_force"],
+            a["particle_external_force"],
+            a["particle_inv_mass"],
+            a["particle_pin_target"],
+            world.gravity,
+            hi,
+            1.0 / remaining,
+            cache=cache,
+        )
         self._substep_index += 1
         self.body_pins.follow(a, world.bodies)  # body pins sit on their body points
 
@@ -489,23 +544,42 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         pin_load = a["particle_pin_load"]
         pin_load.zero_()
-        for it in range(self.contact_iterations if touching else 1):
+        for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache)
+            springs.limit_tethers(
+                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache
+            )
             lo_it, hi_it = self.stretch_iterations
             self.last_stretch_sweeps = springs.limit_stretch(
-                a["particle_position"], a["particle_inv_mass"], a["stretch_ids"], a["stretch_limit"],
-                self._violated, pin_load=pin_load, min_iterations=lo_it, max_iterations=hi_it,
-                relax=1.0 if touching else self.stretch_relaxation, cache=cache)
+                a["particle_position"],
+                a["particle_inv_mass"],
+                a["stretch_ids"],
+                a["stretch_limit"],
+                self._violated,
+                pin_load=pin_load,
+                min_iterations=lo_it,
+                max_iterations=hi_it,
+                relax=1.0 if touching else self.stretch_relaxation,
+                cache=cache,
+            )
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
             if self.self_collision and self._grid.count:
-                self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                    cache=cache)
-                springs.limit_stretch(a["particle_position"], a["particle_inv_mass"], a["stretch_ids"],
-                                      a["stretch_limit"], self._violated, pin_load=pin_load, min_iterations=0,
-                                      max_iterations=hi_it, cache=cache)
+                self._grid.separate(
+                    a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
+                )
+                springs.limit_stretch(
+                    a["particle_position"],
+                    a["particle_inv_mass"],
+                    a["stretch_ids"],
+                    a["stretch_limit"],
+                    self._violated,
+                    pin_load=pin_load,
+                    min_iterations=0,
+                    max_iterations=hi_it,
+                    cache=cache,
+                )
 
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
@@ -514,18 +588,21 @@ class ClothSystem:
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
                 if self.self_collision and self._grid.count:
-                    self._grid.separate(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                        cache=cache)
+                    self._grid.separate(
+                        a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
+                    )
                     self._collide_bodies(hi)
 
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
         self.body_pins.react_constraints(a, world.bodies, hi)
-        attach.sum_pin_load(a["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse,
-                            1.0 / hi, cache=cache)
+        attach.sum_pin_load(
+            a["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
+        )
 
         # velocities from the corrected positions
-        springs.update_velocities(a["particle_position"], a["particle_position_prev"], a["particle_velocity"],
-                                  hi, cache=cache)
+        springs.update_velocities(
+            a["particle_position"], a["particle_position_prev"], a["particle_velocity"], hi, cache=cache
+        )
 
     def _collide_bodies(self, hi: float) -> None:
         """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
@@ -533,15 +610,40 @@ class ClothSystem:
         world = self.world
         bodies = world.bodies
         self._contacts_next.zero_()
-        collide.collide_bodies(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                               a["particle_thickness"], a["particle_friction"], self._tethers, self._limits,
-                               self._candidates, bodies, world.hulls.struct(),
-                               world.meshes.ids(), self._contacts_prev, self._contacts_next, hi,
-                               strict=self.strict_limit, cache=self._cache)
-        collide.catch_small_spheres(a["particle_position"], a["particle_position_prev"], a["particle_inv_mass"],
-                                    a["particle_rest_position"], a["particle_thickness"], a["particle_friction"],
-                                    self._tethers, a["triangles"], self._candidates, bodies, self._contacts_prev,
-                                    self._contacts_next, hi, cache=self._cache)
+        collide.collide_bodies(
+            a["particle_position"],
+            a["particle_position_prev"],
+            a["particle_inv_mass"],
+            a["particle_thickness"],
+            a["particle_friction"],
+            self._tethers,
+            self._limits,
+            self._candidates,
+            bodies,
+            world.hulls.struct(),
+            world.meshes.ids(),
+            self._contacts_prev,
+            self._contacts_next,
+            hi,
+            strict=self.strict_limit,
+            cache=self._cache,
+        )
+        collide.catch_small_spheres(
+            a["particle_position"],
+            a["particle_position_prev"],
+            a["particle_inv_mass"],
+            a["particle_rest_position"],
+            a["particle_thickness"],
+            a["particle_friction"],
+            self._tethers,
+            a["triangles"],
+            self._candidates,
+            bodies,
+            self._contacts_prev,
+            self._contacts_next,
+            hi,
+            cache=self._cache,
+        )
         self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
     def _begin_step(self, dt: float) -> None:
@@ -570,8 +672,17 @@ class ClothSystem:
         # wind: sample the field at every particle at the start of the step
         if self.wind is not None:
             wave, amplitude, omega, phase = self._wind_modes
-            sample_wind(a["particle_position"], self.wind.velocity, wave, amplitude, omega, phase, world.time,
-                        a["particle_wind"], cache=self._cache)
+            sample_wind(
+                a["particle_position"],
+                self.wind.velocity,
+                wave,
+                amplitude,
+                omega,
+                phase,
+                world.time,
+                a["particle_wind"],
+                cache=self._cache,
+            )
 
         v = a["particle_velocity"].numpy()[:p]
         with np.errstate(over="ignore", invalid="ignore"):
@@ -596,9 +707,17 @@ class ClothSystem:
             if self._pair_travel >= self._pair_margin:
                 self._pair_margin = min(max(0.25 * self._reach, 2.0 * speed * dt), self._reach)
                 self._pair_travel = 2.0 * speed * dt
-                self._grid.find_pairs(a["particle_position"], a["particle_inv_mass"], a["particle_thickness"],
-                                      a["particle_cloth"], a["particle_i"], a["particle_j"], self._reach,
-                                      self._pair_margin, cache=self._cache)
+                self._grid.find_pairs(
+                    a["particle_position"],
+                    a["particle_inv_mass"],
+                    a["particle_thickness"],
+                    a["particle_cloth"],
+                    a["particle_i"],
+                    a["particle_j"],
+                    self._reach,
+                    self._pair_margin,
+                    cache=self._cache,
+                )
         else:
             self._grid.count = 0
             self._pair_travel = math.inf
@@ -754,12 +873,17 @@ class ClothSystem:
         """Number of springs of every kind (all cloths)."""
         return len(self._host.get("spring_ids", ()))
 
-    particle_position = property(lambda self: self._view("particle_position"),
-                                 doc="Particle positions [m], shape (P, 3), cloths in creation order, i fastest.")
-    particle_velocity = property(lambda self: self._view("particle_velocity"),
-                                 doc="Particle velocities [m/s], shape (P, 3).")
-    rest_position = property(lambda self: self._view("particle_rest_position"),
-                             doc="Particle positions when the cloth was added [m], shape (P, 3).")
+    particle_position = property(
+        lambda self: self._view("particle_position"),
+        doc="Particle positions [m], shape (P, 3), cloths in creation order, i fastest.",
+    )
+    particle_velocity = property(
+        lambda self: self._view("particle_velocity"), doc="Particle velocities [m/s], shape (P, 3)."
+    )
+    rest_position = property(
+        lambda self: self._view("particle_rest_position"),
+        doc="Particle positions when the cloth was added [m], shape (P, 3).",
+    )
 
     @property
     def particle_mass(self) -> np.ndarray:
@@ -792,8 +916,9 @@ class ClothSystem:
         if not self._arrays or len(self._host["structural_ids"]) == 0:
             return 0.0
         a = self._arrays
-        s = springs.strain(a["particle_position"], a["structural_ids"], a["structural_rest_length"],
-                           a["structural_strain"])
+        s = springs.strain(
+            a["particle_position"], a["structural_ids"], a["structural_rest_length"], a["structural_strain"]
+        )
         return float(s.max())
 
     def pin_force(self) -> np.ndarray:

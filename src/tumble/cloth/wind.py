@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..state import float_t, vec3
 from ..launch import LaunchCache, launch
+from ..state import float_t, vec3
 
 AIR_DENSITY = 1.2  # [kg/m^3] at sea level, 20 C
 
@@ -185,5 +185,10 @@ def accumulate_air_forces(x, v, u, triangles, drag, lift, air_density, force, *,
         force: per-particle force accumulator [N], shape (P,) vec3 (added to).
     """
     if triangles.shape[0]:
-        launch(_air_forces, triangles.shape[0],
-               [x, v, u, triangles, 0.5 * air_density * drag, 0.5 * air_density * lift, force], x.device, cache)
+        launch(
+            _air_forces,
+            triangles.shape[0],
+            [x, v, u, triangles, 0.5 * air_density * drag, 0.5 * air_density * lift, force],
+            x.device,
+            cache,
+        )

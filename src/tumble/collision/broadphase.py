@@ -84,8 +84,14 @@ def _emits(i: int, j: int, ri: float_t, rj: float_t, inv_mass: wp.array(dtype=fl
 
 
 @wp.func
-def _push_pair(i: int, j: int, body_id: wp.array(dtype=wp.int32), pair_count: wp.array(dtype=wp.int32),
-               pair_a: wp.array(dtype=wp.int32), pair_b: wp.array(dtype=wp.int32)):
+def _push_pair(
+    i: int,
+    j: int,
+    body_id: wp.array(dtype=wp.int32),
+    pair_count: wp.array(dtype=wp.int32),
+    pair_a: wp.array(dtype=wp.int32),
+    pair_b: wp.array(dtype=wp.int32),
+):
     # stored lower id first, so a pair keeps its order (and its warm start) from step to step,
     # even when the world renumbers its body rows
     k = wp.atomic_add(pair_count, 0, 1)
@@ -253,8 +259,21 @@ class BroadPhase:
         n = bodies.count
         b = bodies.arrays
         dev = self.device
-        launch(_swept_radius, n, [b["body_shape"], b["body_bound_radius"], b["body_velocity"],
-                                  b["body_angular_velocity"], dt, MARGIN, self.swept_radius], dev, cache)
+        launch(
+            _swept_radius,
+            n,
+            [
+                b["body_shape"],
+                b["body_bound_radius"],
+                b["body_velocity"],
+                b["body_angular_velocity"],
+                dt,
+                MARGIN,
+                self.swept_radius,
+            ],
+            dev,
+            cache,
+        )
         # cell edge: twice the largest swept radius among ordinary bodies, so most scan 2-3 cells a side
         launch(_cell_size, 1, [self.swept_radius, n, self._ordinary_limit, self.cell_params], dev, cache)
         # counting sort of bodies into hashed cells; the biggest stay out and test everything
@@ -266,14 +285,49 @@ class BroadPhase:
         n = bodies.count
         b = bodies.arrays
         grid = self.grid
-        launch(_query_grid, n,
-               [b["body_position"], self.swept_radius, grid.point_cell, b["body_inv_mass"], self.cell_params, grid.mask, grid.cell_start, grid.cell_count,
-                grid.entries, grid.sorted_x, grid.sorted_radius, grid.sorted_coord,
-                b["body_id"], self.pair_count_array, self.pair_a, self.pair_b], self.device, cache)
-        launch(_query_large, n,
-               [n, grid.point_cell, b["body_shape"], b["body_position"], b["body_orientation"],
-                self.swept_radius, b["body_inv_mass"], b["body_id"], self.pair_count_array, self.pair_a,
-                self.pair_b], self.device, cache)
+        launch(
+            _query_grid,
+            n,
+            [
+                b["body_position"],
+                self.swept_radius,
+                grid.point_cell,
+                b["body_inv_mass"],
+                self.cell_params,
+                grid.mask,
+                grid.cell_start,
+                grid.cell_count,
+                grid.entries,
+                grid.sorted_x,
+                grid.sorted_radius,
+                grid.sorted_coord,
+                b["body_id"],
+                self.pair_count_array,
+                self.pair_a,
+                self.pair_b,
+            ],
+            self.device,
+            cache,
+        )
+        launch(
+            _query_large,
+            n,
+            [
+                n,
+                grid.point_cell,
+                b["body_shape"],
+                b["body_position"],
+                b["body_orientation"],
+                self.swept_radius,
+                b["body_inv_mass"],
+                b["body_id"],
+                self.pair_count_array,
+                self.pair_a,
+                self.pair_b,
+            ],
+            self.device,
+            cache,
+        )
 
     def end(self, bodies, cache: LaunchCache | None = None) -> bool:
         """Host side after `launch`: read the pair count; grow the pair buffers and query again if

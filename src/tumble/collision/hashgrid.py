@@ -139,8 +139,15 @@ class HashGrid:
             self.sorted_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
 
-    def build(self, x: wp.array, count: int, cell_size: float, radius: wp.array | None = None,
-              max_radius: float = np.inf, cache: LaunchCache | None = None) -> HashGrid:
+    def build(
+        self,
+        x: wp.array,
+        count: int,
+        cell_size: float,
+        radius: wp.array | None = None,
+        max_radius: float = np.inf,
+        cache: LaunchCache | None = None,
+    ) -> HashGrid:
         """Sort the first `count` points of `x` into cells of edge `cell_size` [m].
 
         Points whose `radius` exceeds `max_radius` are left out (`point_cell` = -1). With
@@ -158,8 +165,9 @@ class HashGrid:
             self.params.assign(params)
         return self.build_from(x, count, self.params, radius, cache)
 
-    def build_from(self, x: wp.array, count: int, params: wp.array, radius: wp.array,
-                   cache: LaunchCache | None = None) -> HashGrid:
+    def build_from(
+        self, x: wp.array, count: int, params: wp.array, radius: wp.array, cache: LaunchCache | None = None
+    ) -> HashGrid:
         """`build` with the cell edge, its inverse and `max_radius` read by the kernels from the
         device array `params` (so that they may be computed there); `cell_size` and `inv_cell`
         are then not updated. Call `reserve(count)` first."""
@@ -167,12 +175,32 @@ class HashGrid:
         self.cell_fill.zero_()
         if count == 0:
             return self
-        launch(_count, count, [x, radius, params, self.mask, self.point_cell,
-                               self.point_cell_coord, self.cell_count], self.device, cache)
+        launch(
+            _count,
+            count,
+            [x, radius, params, self.mask, self.point_cell, self.point_cell_coord, self.cell_count],
+            self.device,
+            cache,
+        )
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        launch(_scatter, count, [x, radius, self.point_cell, self.point_cell_coord, self.cell_start, self.cell_fill,
-                                 self.entries, self.sorted_x, self.sorted_radius, self.sorted_coord],
-               self.device, cache)
+        launch(
+            _scatter,
+            count,
+            [
+                x,
+                radius,
+                self.point_cell,
+                self.point_cell_coord,
+                self.cell_start,
+                self.cell_fill,
+                self.entries,
+                self.sorted_x,
+                self.sorted_radius,
+                self.sorted_coord,
+            ],
+            self.device,
+            cache,
+        )
         return self
 
 

@@ -57,8 +57,14 @@ class HullPrototype:
 
     def scaled(self, s: float) -> HullPrototype:
         """The same hull scaled by s about its centre of mass (volume s^3, unit-density moments s^5)."""
-        return replace(self, vertex=self.vertex * s, offset=self.offset * s, volume=self.volume * s**3,
-                       inertia=self.inertia * s**5, offset_com=self.offset_com * s)
+        return replace(
+            self,
+            vertex=self.vertex * s,
+            offset=self.offset * s,
+            volume=self.volume * s**3,
+            inertia=self.inertia * s**5,
+            offset_com=self.offset_com * s,
+        )
 
     @property
     def bound_radius(self) -> float:
@@ -94,8 +100,16 @@ def polyhedron_mass_properties(vertex: np.ndarray, faces) -> tuple[float, np.nda
     volume = float(vol.sum())
     com_o = (vol[:, None] * (a + b + c)).sum(axis=0) / 4.0 / volume
     s = a + b + c
-    cov = (vol[:, None, None] / 20.0 * (np.einsum("ni,nj->nij", a, a) + np.einsum("ni,nj->nij", b, b)
-                                         + np.einsum("ni,nj->nij", c, c) + np.einsum("ni,nj->nij", s, s))).sum(axis=0)
+    cov = (
+        vol[:, None, None]
+        / 20.0
+        * (
+            np.einsum("ni,nj->nij", a, a)
+            + np.einsum("ni,nj->nij", b, b)
+            + np.einsum("ni,nj->nij", c, c)
+            + np.einsum("ni,nj->nij", s, s)
+        )
+    ).sum(axis=0)
     cov -= volume * np.outer(com_o, com_o)  # parallel-axis shift from o to the centre of mass
     inertia = np.trace(cov) * np.eye(3) - cov
     return volume, o + com_o, inertia
@@ -175,8 +189,9 @@ def hull_from_points(points, *, name: str = "points") -> HullPrototype:
         raise ValueError(f"{name}: the points span no volume (they are coplanar or collinear)")
     used = hull.vertices
     if len(used) > MAX_HULL_VERTICES:
-        raise ValueError(f"{name}: the hull has {len(used)} vertices, more than {MAX_HULL_VERTICES}; "
-                         "simplify the mesh first")
+        raise ValueError(
+            f"{name}: the hull has {len(used)} vertices, more than {MAX_HULL_VERTICES}; simplify the mesh first"
+        )
     remap = np.full(len(p), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     verts = p[used]
@@ -188,20 +203,35 @@ def hull_from_points(points, *, name: str = "points") -> HullPrototype:
     body = (verts - com) @ axes  # rows: R^T (v - com)
     normals = _normals @ axes
     offsets = np.einsum("ij,ij->i", normals, np.array([body[f[0]] for f in faces]))
-    return HullPrototype(vertex=body, faces=faces, normal=normals, offset=offsets, volume=volume,
-                         inertia=moments, offset_com=com, rotation=_matrix_to_quat(axes))
+    return HullPrototype(
+        vertex=body,
+        faces=faces,
+        normal=normals,
+        offset=offsets,
+        volume=volume,
+        inertia=moments,
+        offset_com=com,
+        rotation=_matrix_to_quat(axes),
+    )
 
 
 def box_prototype() -> HullPrototype:
     """The cube [-1, 1]^3 as a hull (no SciPy needed), scaled by half extents when a box meets a convex body."""
     corners = np.array([[x, y, z] for z in (-1.0, 1.0) for y in (-1.0, 1.0) for x in (-1.0, 1.0)])
     # corner k has bit i set when coordinate i is +1; each face counter-clockwise from outside
-    faces = [np.array(f) for f in ([0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4],
-                                   [2, 6, 7, 3])]
+    faces = [np.array(f) for f in ([0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3])]
     normal = np.array([[0, 0, -1], [0, 0, 1], [-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0]], dtype=np.float64)
     volume, com, inertia = polyhedron_mass_properties(corners, faces)
-    return HullPrototype(vertex=corners, faces=faces, normal=normal, offset=np.ones(6), volume=volume,
-                         inertia=np.diag(inertia).copy(), offset_com=com, rotation=np.array([0.0, 0.0, 0.0, 1.0]))
+    return HullPrototype(
+        vertex=corners,
+        faces=faces,
+        normal=normal,
+        offset=np.ones(6),
+        volume=volume,
+        inertia=np.diag(inertia).copy(),
+        offset_com=com,
+        rotation=np.array([0.0, 0.0, 0.0, 1.0]),
+    )
 
 
 @wp.struct

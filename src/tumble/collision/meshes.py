@@ -26,8 +26,9 @@ class MeshSet:
     def add(self, vertices: np.ndarray, triangles: np.ndarray) -> int:
         """Build the BVH of a cleaned mesh (vertices (V, 3) in its frame, triangles (T, 3)); returns its row."""
         points = wp.array(np.ascontiguousarray(vertices, dtype=np.float32), dtype=wp.vec3f, device=self.device)
-        indices = wp.array(np.ascontiguousarray(triangles, dtype=np.int32).reshape(-1), dtype=wp.int32,
-                           device=self.device)
+        indices = wp.array(
+            np.ascontiguousarray(triangles, dtype=np.int32).reshape(-1), dtype=wp.int32, device=self.device
+        )
         self.meshes.append(wp.Mesh(points=points, indices=indices))
         self.vertices.append(np.asarray(vertices, dtype=np.float64))
         self.triangles.append(np.asarray(triangles, dtype=np.int32))

@@ -270,8 +270,9 @@ def _reduce_manifold(u2: vec8, v2: vec8, d2: vec8, m: int):
 
 
 @wp.func
-def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool,
-                   axis: int, max_sep: float_t):
+def _face_contacts(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool, axis: int, max_sep: float_t
+):
     """Manifold for a face axis: `axis` of the reference box (A if ref_is_a) against the other box."""
     R = A
     I = B
@@ -364,8 +365,9 @@ def _face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3,
 
 
 @wp.func
-def _edge_contact(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int,
-                  L: vec3, max_sep: float_t):
+def _edge_contact(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int, L: vec3, max_sep: float_t
+):
     """Closest points of edge i of A and edge j of B for the cross axis L (oriented A -> B)."""
     pa = A.x
     pb = B.x
@@ -475,8 +477,19 @@ def _perpendicular(u: vec3):
 
 
 @wp.func
-def _sphere_pair(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ca: vec3, ra: float_t, cb: vec3, rb: float_t,
-                 fallback: vec3, max_sep: float_t):
+def _sphere_pair(
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    ca: vec3,
+    ra: float_t,
+    cb: vec3,
+    rb: float_t,
+    fallback: vec3,
+    max_sep: float_t,
+):
     """Contact of two spheres (centres ca on a, cb on b); `fallback` is the normal for coincident centres."""
     d = cb - ca
     dist = wp.length(d)
@@ -501,8 +514,9 @@ def collide_plane_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r:
 
 
 @wp.func
-def collide_sphere_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, h: vec3,
-                           max_sep: float_t):
+def collide_sphere_capsule(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, h: vec3, max_sep: float_t
+):
     # the sphere against the nearest point of the capsule's segment
     u = _axis(B.q, 2)
     hh = _capsule_half_height(rb, h)
@@ -539,8 +553,9 @@ def _golden_min_box(p0: vec3, u: vec3, lo: float_t, hi: float_t, hb: vec3):
 
 
 @wp.func
-def collide_box_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, rb: float_t, hb: vec3,
-                        max_sep: float_t):
+def collide_box_capsule(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
+):
     # the capsule's segment in the box frame: p(t) = p0 + t u, t in [-a, a]
     hh = _capsule_half_height(rb, hb)
     p0 = wp.quat_rotate_inv(A.q, B.x - A.x)
@@ -617,8 +632,9 @@ def _segment_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3, hb: fl
 
 
 @wp.func
-def collide_capsule_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t,
-                            hb: vec3, max_sep: float_t):
+def collide_capsule_capsule(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
+):
     la = _capsule_half_height(ra, ha)
     lb = _capsule_half_height(rb, hb)
     ua = _axis(A.q, 2)
@@ -742,8 +758,9 @@ def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
 
 
 @wp.func
-def collide_plane_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, sc: vec3,
-                       max_sep: float_t):
+def collide_plane_hull(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, sc: vec3, max_sep: float_t
+):
     # the deepest vertex, the vertex farthest from it along the plane, then the largest triangles
     # on either side of that line: up to four of the vertices within the speculative distance
     n = _axis(A.q, 2)
@@ -800,8 +817,9 @@ def collide_plane_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hu
 
 
 @wp.func
-def collide_sphere_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, H: Hulls, h: int,
-                        max_sep: float_t):
+def collide_sphere_hull(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, H: Hulls, h: int, max_sep: float_t
+):
     # nearest point of the hull to the sphere centre, in the hull frame
     q, out, _d = hull_closest(H, h, vec3(_ONE, _ONE, _ONE), wp.quat_rotate_inv(B.q, A.x - B.x))
     n = -wp.quat_rotate(B.q, out)  # sphere (a) -> hull (b)
@@ -833,8 +851,9 @@ def _golden_min_hull(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: i
 
 
 @wp.func
-def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls,
-                         h: int, max_sep: float_t):
+def collide_capsule_hull(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
+):
     # the capsule's segment in the hull frame, its deepest point by golden-section search
     hh = _capsule_half_height(ra, ha)
     one = vec3(_ONE, _ONE, _ONE)
@@ -878,8 +897,17 @@ def collide_capsule_hull(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra:
                     te = hi
                 pe = p0 + u * te
                 dist = wp.dot(nf, pe) - df
-                emit(c, a, b, A, B, n, B.x + wp.quat_rotate(B.q, pe - nf * ra),
-                     B.x + wp.quat_rotate(B.q, pe - nf * dist), max_sep)
+                emit(
+                    c,
+                    a,
+                    b,
+                    A,
+                    B,
+                    n,
+                    B.x + wp.quat_rotate(B.q, pe - nf * ra),
+                    B.x + wp.quat_rotate(B.q, pe - nf * dist),
+                    max_sep,
+                )
             if t >= lo - tol and t <= hi + tol:
                 return  # else the deepest point, over an edge, is a third contact
     n = -wp.quat_rotate(B.q, out)
@@ -927,19 +955,30 @@ def _clip3(p: Polygon3, m: vec3, o: float_t):
 
 
 @wp.func
-def _hull_face_contacts(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int,
-                        sb: vec3, ref_is_a: bool, fref: int, max_sep: float_t):
+def _hull_face_contacts(
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    H: Hulls,
+    ha: int,
+    sa: vec3,
+    hb: int,
+    sb: vec3,
+    ref_is_a: bool,
+    fref: int,
+    max_sep: float_t,
+):
     """Manifold for a face axis: face `fref` of the reference hull clips the other hull's incident face."""
     R = A
     I = B
-    hr = ha
     sr = sa
     hi = hb
     si = sb
     if not ref_is_a:
         R = B
         I = A
-        hr = hb
         sr = sb
         hi = ha
         si = sa
@@ -1041,8 +1080,9 @@ def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq:
 
 
 @wp.func
-def collide_hulls(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int,
-                  sb: vec3, max_sep: float_t):
+def collide_hulls(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int, sb: vec3, max_sep: float_t
+):
     """Separating axis test over both hulls' face normals and their Minkowski-face edge pairs
     (Gregorius, "The Separating Axis Test between Convex Polyhedra", GDC 2013), then face
     clipping (up to four points) or the closest points of two edges."""
@@ -1163,8 +1203,9 @@ def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
 
 
 @wp.func
-def _sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64,
-                 max_sep: float_t):
+def _sphere_mesh(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64, max_sep: float_t
+):
     found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
     if found:
         # n points out of the mesh towards the sphere; the contact normal runs a -> b
@@ -1178,8 +1219,9 @@ def _mesh_vertex(mesh: wp.uint64, i: int):
 
 
 @wp.func
-def collide_sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64,
-                        max_sep: float_t):
+def collide_sphere_mesh(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t
+):
     """The nearest mesh point, then every other face the sphere nearly touches inside the face.
 
     A sphere in a crease (a V-groove, a concave corner) rests on two or three faces at once: a
@@ -1220,8 +1262,9 @@ def collide_sphere_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: f
 
 
 @wp.func
-def collide_capsule_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3,
-                         mesh: wp.uint64, max_sep: float_t):
+def collide_capsule_mesh(
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, mesh: wp.uint64, max_sep: float_t
+):
     # spheres at both ends and the middle of the segment (a line contact on a slope; a capsule
     # lying across a ridge rests on its middle)
     u = _axis(A.q, 2)
@@ -1240,8 +1283,20 @@ def _solid_vertex(shape: int, H: Hulls, g: int, h: vec3, i: int):
 
 
 @wp.func
-def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, hp: int, sc: vec3,
-                           bound: float_t, mesh: wp.uint64, max_sep: float_t, d0: float_t):
+def _mesh_edges_into_solid(
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    H: Hulls,
+    hp: int,
+    sc: vec3,
+    bound: float_t,
+    mesh: wp.uint64,
+    max_sep: float_t,
+    d0: float_t,
+):
     """The deepest point of the mesh's triangle edges inside a box or hull, when deeper than its vertices.
 
     A ridge or a spike of the mesh pressing into a face between the body's vertices is missed by
@@ -1358,8 +1413,20 @@ def _mesh_edges_into_solid(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H
 
 
 @wp.func
-def collide_vertices_mesh(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, shape: int, H: Hulls, g: int, h: vec3,
-                          bound: float_t, mesh: wp.uint64, max_sep: float_t):
+def collide_vertices_mesh(
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    shape: int,
+    H: Hulls,
+    g: int,
+    h: vec3,
+    bound: float_t,
+    mesh: wp.uint64,
+    max_sep: float_t,
+):
     """A box's or hull's vertices against a mesh: up to four, chosen as against a plane; then the
     mesh's own edges, for a ridge or a spike pressing into a face between the vertices.
 
@@ -1527,8 +1594,15 @@ _default_hulls: dict[str, HullSet] = {}
 _default_meshes: dict[str, MeshSet] = {}
 
 
-def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, meshes: MeshSet | None = None,
-            cache: LaunchCache | None = None) -> None:
+def collide(
+    bodies,
+    pairs,
+    contacts,
+    dt: float,
+    hulls: HullSet | None = None,
+    meshes: MeshSet | None = None,
+    cache: LaunchCache | None = None,
+) -> None:
     """Run the pair table over the broad phase's pairs, filling `contacts` (grown as needed).
 
     `hulls` and `meshes` hold the convex prototypes and triangle meshes that the bodies'
@@ -1544,8 +1618,9 @@ def collide(bodies, pairs, contacts, dt: float, hulls: HullSet | None = None, me
         launch_pairs(bodies, pairs, contacts, dt, hulls, meshes, cache)
 
 
-def launch_pairs(bodies, pairs, contacts, dt: float, hulls: HullSet | None, meshes: MeshSet | None,
-                 cache: LaunchCache | None = None) -> None:
+def launch_pairs(
+    bodies, pairs, contacts, dt: float, hulls: HullSet | None, meshes: MeshSet | None, cache: LaunchCache | None = None
+) -> None:
     """The launch of `collide` (no host decision, so it can be recorded): over the pair capacity,
     the pair count read on the device from `pairs.pair_count_array` (when `pairs` has none, its
     `pair_count` is put there first)."""
@@ -1564,10 +1639,27 @@ def launch_pairs(bodies, pairs, contacts, dt: float, hulls: HullSet | None, mesh
     launch(
         _collide_pairs,
         pairs.pair_a.shape[0],
-        [pairs.pair_a, pairs.pair_b, b["body_shape"], b["body_radius"], b["body_half_extents"],
-         b["body_bound_radius"], b["body_geometry"], hulls.struct(), meshes.ids(), b["body_position"], b["body_orientation"], b["body_velocity"],
-         b["body_angular_velocity"], dt, SPECULATIVE_MARGIN, contacts.writer(), count],
-        bodies.device, cache,
+        [
+            pairs.pair_a,
+            pairs.pair_b,
+            b["body_shape"],
+            b["body_radius"],
+            b["body_half_extents"],
+            b["body_bound_radius"],
+            b["body_geometry"],
+            hulls.struct(),
+            meshes.ids(),
+            b["body_position"],
+            b["body_orientation"],
+            b["body_velocity"],
+            b["body_angular_velocity"],
+            dt,
+            SPECULATIVE_MARGIN,
+            contacts.writer(),
+            count,
+        ],
+        bodies.device,
+        cache,
     )
 
 

@@ -11,17 +11,36 @@ HELP = "simulate a scene (or convert a recording .npz) and write a USD stage (.u
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("source", metavar="SOURCE", help="scene file (.toml), bundled sample name, or recording (.npz)")
-    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="stage to write: .usd, .usda, .usdc or .usdz")
-    parser.add_argument("--fps", type=float, default=None, metavar="F",
-                        help="frames per second (default 60 for a scene, the recorded rate for a recording)")
+    parser.add_argument(
+        "-o", "--output", required=True, metavar="OUT", help="stage to write: .usd, .usda, .usdc or .usdz"
+    )
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        metavar="F",
+        help="frames per second (default 60 for a scene, the recorded rate for a recording)",
+    )
     length = parser.add_mutually_exclusive_group()
-    length.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="seconds to export (default: the scene's duration, else 2; all of a recording)")
+    length.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds to export (default: the scene's duration, else 2; all of a recording)",
+    )
     length.add_argument("--frames", type=int, default=None, metavar="N", help="number of frames, instead of --duration")
-    parser.add_argument("--bodies", choices=("instancer", "xforms"), default="instancer",
-                        help="instancer: one PointInstancer (default); xforms: one animated Xform per body")
-    parser.add_argument("--physics", action="store_true",
-                        help="also write UsdPhysics schemas (scene, colliders, rigid bodies, masses, materials)")
+    parser.add_argument(
+        "--bodies",
+        choices=("instancer", "xforms"),
+        default="instancer",
+        help="instancer: one PointInstancer (default); xforms: one animated Xform per body",
+    )
+    parser.add_argument(
+        "--physics",
+        action="store_true",
+        help="also write UsdPhysics schemas (scene, colliders, rigid bodies, masses, materials)",
+    )
     parser.add_argument("--seed", type=int, default=None, metavar="N", help="replace the scene's [world] seed")
     parser.add_argument("--no-progress", action="store_true", help="do not show the progress bars")
 
@@ -40,7 +59,15 @@ def main(args: argparse.Namespace) -> int:
         from ..io.scene import load_scene
 
         source = load_scene(source, seed=args.seed)
-    out = usd.export(source, args.output, fps=args.fps, duration=args.duration, frames=args.frames,
-                     bodies=args.bodies, physics=args.physics, progress=not args.no_progress)
+    out = usd.export(
+        source,
+        args.output,
+        fps=args.fps,
+        duration=args.duration,
+        frames=args.frames,
+        bodies=args.bodies,
+        physics=args.physics,
+        progress=not args.no_progress,
+    )
     print(f"wrote {out}", file=sys.stderr)
     return 0

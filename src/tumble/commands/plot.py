@@ -8,14 +8,23 @@ HELP = "plot energy, momentum, contact count and cloth strain of a recording (.n
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("record", metavar="RECORD",
-                        help="recording written by `tumble run SCENE --record RECORD.npz` (not a scene file), "
-                             "or a wedge's output folder")
-    parser.add_argument("-o", "--output", default=None, metavar="OUT",
-                        help="image to write: OUT.png, OUT.svg or OUT.pdf (checked before the recording is read); "
-                             "for a wedge folder default OUTDIR/summary.png")
-    parser.add_argument("--dpi", type=int, default=100, metavar="N",
-                        help="resolution of raster images in dots per inch (default 100)")
+    parser.add_argument(
+        "record",
+        metavar="RECORD",
+        help="recording written by `tumble run SCENE --record RECORD.npz` (not a scene file), "
+        "or a wedge's output folder",
+    )
+    parser.add_argument(
+        "-o",
+        "--output",
+        default=None,
+        metavar="OUT",
+        help="image to write: OUT.png, OUT.svg or OUT.pdf (checked before the recording is read); "
+        "for a wedge folder default OUTDIR/summary.png",
+    )
+    parser.add_argument(
+        "--dpi", type=int, default=100, metavar="N", help="resolution of raster images in dots per inch (default 100)"
+    )
 
 
 def main(args: argparse.Namespace) -> int:

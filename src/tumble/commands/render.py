@@ -21,18 +21,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from .run import SCENE_HELP
 
     parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
-    parser.add_argument("-o", "--output", required=True, metavar="OUT",
-                        help="output: NAME.mp4, NAME.gif, or a folder for numbered PNG frames (checked before "
-                             "rendering, written atomically)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="simulated seconds to render (default: the scene's duration, else 5)")
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="OUT",
+        help="output: NAME.mp4, NAME.gif, or a folder for numbered PNG frames (checked before "
+        "rendering, written atomically)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated seconds to render (default: the scene's duration, else 5)",
+    )
     parser.add_argument("--fps", type=float, default=30.0, metavar="F", help="frames per simulated second (default 30)")
     parser.add_argument("--size", default="1280x720", metavar="WxH", help="image size in pixels (default 1280x720)")
     parser.add_argument("--camera-position", type=_triple, metavar="X,Y,Z", help="camera position [m]")
     parser.add_argument("--camera-target", type=_triple, metavar="X,Y,Z", help="point the camera looks at [m]")
     parser.add_argument("--fov", type=float, metavar="DEG", help="vertical field of view [degrees]")
-    parser.add_argument("--joints", action="store_true",
-                        help="draw the joints: rods from each body's centre to its anchors, a dot on each anchor")
+    parser.add_argument(
+        "--joints",
+        action="store_true",
+        help="draw the joints: rods from each body's centre to its anchors, a dot on each anchor",
+    )
     parser.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
 
 
@@ -66,14 +79,17 @@ def _check_limits(args, world, duration: float, kind: str, width: int, height: i
     limits.check_steps("--duration", duration, world.dt)
     n = frame_count(duration, args.fps)
     if n > limits.MAX_FRAMES:
-        raise limits.LimitError(f"--duration {duration:g} s at --fps {args.fps:g} is {n:,} frames; "
-                                f"the limit is {limits.MAX_FRAMES:,} frames")
+        raise limits.LimitError(
+            f"--duration {duration:g} s at --fps {args.fps:g} is {n:,} frames; "
+            f"the limit is {limits.MAX_FRAMES:,} frames"
+        )
     if kind == "gif":  # a GIF is assembled in memory: one byte per pixel per frame, and as much again
         try:
             limits.check_memory("--duration", "GIF frames", n, 2 * width * height)
         except limits.LimitError as exc:
-            raise limits.LimitError(f"{exc} at {width}x{height}; lower --duration, --fps or --size, "
-                                    "or write an .mp4") from None
+            raise limits.LimitError(
+                f"{exc} at {width}x{height}; lower --duration, --fps or --size, or write an .mp4"
+            ) from None
 
 
 def main(args: argparse.Namespace) -> int:
@@ -98,8 +114,17 @@ def main(args: argparse.Namespace) -> int:
         duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)
-        out = export(world, args.output, duration=duration, fps=args.fps, size=(width, height), camera=camera,
-                     progress=not args.no_progress, renderer=renderer, joints=args.joints)
+        out = export(
+            world,
+            args.output,
+            duration=duration,
+            fps=args.fps,
+            size=(width, height),
+            camera=camera,
+            progress=not args.no_progress,
+            renderer=renderer,
+            joints=args.joints,
+        )
     finally:
         renderer.release()
         ctx.release()

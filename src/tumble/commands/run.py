@@ -21,26 +21,50 @@ SCENE_HELP = "scene file (.toml), or the name of a bundled sample (e.g. sphere_p
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", metavar="SCENE", nargs="?", default=None,
-                        help=SCENE_HELP + "; left out with --resume")
-    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, metavar="S",
-                        help=f"simulated time in seconds (default {DEFAULT_DURATION:g}); with --resume, the time "
-                             "to run on from the saved moment")
-    parser.add_argument("--save-state", default=None, metavar="FILE.npz",
-                        help="at the end, save the whole simulation state to FILE.npz, to continue later with "
-                             "--resume (written atomically, also on Ctrl-C)")
-    parser.add_argument("--resume", default=None, metavar="FILE.npz",
-                        help="continue the run saved by --save-state in FILE.npz, bit for bit as if it had not "
-                             "stopped (the scene is stored in the file)")
-    parser.add_argument("--seed", type=int, default=None, metavar="N",
-                        help="replace the scene's [world] seed (emitters without their own seed follow it)")
-    parser.add_argument("--record", default=None, metavar="FILE.npz",
-                        help="write the trajectory to FILE.npz (format in docs/scenes.md); checked before the "
-                             "run starts, written atomically, kept up to Ctrl-C")
-    parser.add_argument("--fps", type=float, default=60.0, metavar="F",
-                        help="recorded frames per second of simulated time (default 60)")
+    parser.add_argument("scene", metavar="SCENE", nargs="?", default=None, help=SCENE_HELP + "; left out with --resume")
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=DEFAULT_DURATION,
+        metavar="S",
+        help=f"simulated time in seconds (default {DEFAULT_DURATION:g}); with --resume, the time "
+        "to run on from the saved moment",
+    )
+    parser.add_argument(
+        "--save-state",
+        default=None,
+        metavar="FILE.npz",
+        help="at the end, save the whole simulation state to FILE.npz, to continue later with "
+        "--resume (written atomically, also on Ctrl-C)",
+    )
+    parser.add_argument(
+        "--resume",
+        default=None,
+        metavar="FILE.npz",
+        help="continue the run saved by --save-state in FILE.npz, bit for bit as if it had not "
+        "stopped (the scene is stored in the file)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="N",
+        help="replace the scene's [world] seed (emitters without their own seed follow it)",
+    )
+    parser.add_argument(
+        "--record",
+        default=None,
+        metavar="FILE.npz",
+        help="write the trajectory to FILE.npz (format in docs/scenes.md); checked before the "
+        "run starts, written atomically, kept up to Ctrl-C",
+    )
+    parser.add_argument(
+        "--fps", type=float, default=60.0, metavar="F", help="recorded frames per second of simulated time (default 60)"
+    )
     parser.add_argument("--profile", action="store_true", help="print the time spent in each stage of the step")
-    parser.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device to run the kernels on (default cpu)")
+    parser.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device to run the kernels on (default cpu)"
+    )
 
 
 def _check_arguments(args: argparse.Namespace) -> None:
@@ -94,13 +118,18 @@ def main(args: argparse.Namespace) -> int:
         if args.save_state is not None:
             snapshot.save(world.snapshot(), args.save_state)
             saved.append(f"the state to {args.save_state}")
-        print(f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,}); "
-              f"saved {' and '.join(saved)}", file=sys.stderr)
+        print(
+            f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,}); "
+            f"saved {' and '.join(saved)}",
+            file=sys.stderr,
+        )
         return 130
     if args.save_state is not None:
         snapshot.save(world.snapshot(), args.save_state)
-        print(f"{'saved state':<14}  {args.save_state} (t = {world.time:.6g} s, step {world.step_count:,}; "
-              f"continue with: tumble run --resume {args.save_state})")
+        print(
+            f"{'saved state':<14}  {args.save_state} (t = {world.time:.6g} s, step {world.step_count:,}; "
+            f"continue with: tumble run --resume {args.save_state})"
+        )
     return 0
 
 
@@ -113,8 +142,9 @@ def _check_record_memory(args: argparse.Namespace, world, steps: int) -> None:
     try:
         limits.check_memory("--record", "frames", frames, per_frame)
     except limits.LimitError as exc:
-        raise limits.LimitError(f"{exc} of {bodies:,} bodies and {particles:,} cloth particles; "
-                                "lower --fps or --duration") from None
+        raise limits.LimitError(
+            f"{exc} of {bodies:,} bodies and {particles:,} cloth particles; lower --fps or --duration"
+        ) from None
 
 
 def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
@@ -137,8 +167,14 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
     start = time.perf_counter()
     every = max(1, (steps - 1) // 200)
     with Progress(
-        TextColumn("simulating"), BarColumn(), MofNCompleteColumn(), TextColumn("steps"), TimeRemainingColumn(),
-        console=err, transient=True, disable=not err.is_terminal,
+        TextColumn("simulating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("steps"),
+        TimeRemainingColumn(),
+        console=err,
+        transient=True,
+        disable=not err.is_terminal,
     ) as progress:
         task = progress.add_task("steps", total=steps - 1)
         for k in range(1, steps):
@@ -164,8 +200,11 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
     rate = (steps - 1) / wall if steps > 1 and wall > 0 else 1.0 / max(first_step, 1e-9)
     lines = [
         ("scene", str(world.metadata.get("path", args.scene))),
-        ("bodies", f"{world.body_count:,} ({_count(counts[ShapeType.PLANE], 'plane')}, "
-                   f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})"),
+        (
+            "bodies",
+            f"{world.body_count:,} ({_count(counts[ShapeType.PLANE], 'plane')}, "
+            f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})",
+        ),
     ]
     if world._cloth is not None:
         lines.append(("cloth", f"{world.cloth.particle_count:,} particles"))

@@ -26,13 +26,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     parser.add_argument("--paused", action="store_true", help="start paused (space plays)")
-    parser.add_argument("--size", type=parse_size, default=(1280, 720), metavar="WxH",
-                        help="size of the 3D view in pixels (default 1280x720)")
-    parser.add_argument("--view", choices=("auto", "gl", "image"), default="auto",
-                        help="auto: an OpenGL window where possible, else offscreen rendering shown as "
-                             "an image; gl or image to force one")
-    parser.add_argument("--out-dir", default=".", metavar="DIR",
-                        help="folder for screenshots and videos (default: the current folder)")
+    parser.add_argument(
+        "--size",
+        type=parse_size,
+        default=(1280, 720),
+        metavar="WxH",
+        help="size of the 3D view in pixels (default 1280x720)",
+    )
+    parser.add_argument(
+        "--view",
+        choices=("auto", "gl", "image"),
+        default="auto",
+        help="auto: an OpenGL window where possible, else offscreen rendering shown as "
+        "an image; gl or image to force one",
+    )
+    parser.add_argument(
+        "--out-dir", default=".", metavar="DIR", help="folder for screenshots and videos (default: the current folder)"
+    )
 
 
 def main(args: argparse.Namespace) -> int:

@@ -115,8 +115,9 @@ class AtomicFile:
 
     def __init__(self, path):
         self.path = Path(path)
-        fd, name = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}.",
-                                    suffix=f".tmp{self.path.suffix}")
+        fd, name = tempfile.mkstemp(
+            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=f".tmp{self.path.suffix}"
+        )
         os.close(fd)
         self.tmp = Path(name)
 

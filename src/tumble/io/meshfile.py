@@ -42,11 +42,14 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, object]:
         raise ValueError(f"{path}: is a directory, not a mesh file")
     ext = p.suffix.lower().lstrip(".")
     if ext not in FORMATS:
-        raise ValueError(f"{path}: unknown mesh format {p.suffix or '(no extension)'!r}; "
-                         f"expected one of {', '.join('.' + f for f in FORMATS)}")
+        raise ValueError(
+            f"{path}: unknown mesh format {p.suffix or '(no extension)'!r}; "
+            f"expected one of {', '.join('.' + f for f in FORMATS)}"
+        )
     if p.stat().st_size > 64 * MAX_TRIANGLES:
-        raise ValueError(f"{path}: {p.stat().st_size / 1e6:.0f} MB is too large a mesh file "
-                         f"(at most {MAX_TRIANGLES:,} triangles)")
+        raise ValueError(
+            f"{path}: {p.stat().st_size / 1e6:.0f} MB is too large a mesh file (at most {MAX_TRIANGLES:,} triangles)"
+        )
     try:
         import trimesh
     except ImportError:
@@ -87,8 +90,9 @@ def clean_triangles(vertices, triangles, *, name: str) -> tuple[np.ndarray, np.n
     finite = np.isfinite(v).all(axis=1)
     nan_tri = ~finite[t].all(axis=1)
     if nan_tri.any():
-        notice(f"{name}: dropped {int(nan_tri.sum())} triangles with non-finite vertices "
-               f"({int((~finite).sum())} vertices)")
+        notice(
+            f"{name}: dropped {int(nan_tri.sum())} triangles with non-finite vertices ({int((~finite).sum())} vertices)"
+        )
         t = t[~nan_tri]
     if len(t):
         a, b, c = (v[t[:, k]] for k in range(3))

@@ -126,7 +126,8 @@ def compute_series(record: dict) -> Series:
         s.kinetic = np.asarray(recorded_kinetic, dtype=np.float64).reshape(-1)[:f]
     elif pos is None or vel is None or mass is None:
         s.missing["kinetic"] = "needs " + " and ".join(
-            k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None)
+            k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None
+        )
     else:
         v = np.where(present[..., None], vel, 0.0)
         v = np.nan_to_num(v)
@@ -146,7 +147,8 @@ def compute_series(record: dict) -> Series:
     # potential energy: -sum m g . x (zero at the origin)
     if pos is None or mass is None or gravity is None:
         s.missing["potential"] = "needs " + " and ".join(
-            k for k, v in (("position", pos), ("mass", mass), ("gravity", gravity)) if v is None)
+            k for k, v in (("position", pos), ("mass", mass), ("gravity", gravity)) if v is None
+        )
     else:
         x = np.nan_to_num(np.where(present[..., None], pos, 0.0))
         s.potential = -np.einsum("n,fn->f", mass, x @ g)
@@ -157,7 +159,8 @@ def compute_series(record: dict) -> Series:
         s.momentum = np.asarray(recorded_momentum, dtype=np.float64).reshape(-1, 3)[:f]
     elif vel is None or mass is None or pos is None:
         s.missing["momentum"] = "needs " + " and ".join(
-            k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None)
+            k for k, v in (("position", pos), ("velocity", vel), ("mass", mass)) if v is None
+        )
     else:
         v = np.nan_to_num(np.where(present[..., None], vel, 0.0))
         s.momentum = np.einsum("n,fni->fi", mass, v)
@@ -195,7 +198,8 @@ def compute_series(record: dict) -> Series:
         tri, rest = record.get("cloth_triangles"), record.get("cloth_rest_position")
         if tri is None or rest is None:
             s.missing["strain"] = "needs " + " and ".join(
-                k for k, v in (("cloth_triangles", tri), ("cloth_rest_position", rest)) if v is None)
+                k for k, v in (("cloth_triangles", tri), ("cloth_rest_position", rest)) if v is None
+            )
         else:
             s.strain = max_strain(cloth_pos, np.asarray(tri), np.asarray(rest, dtype=np.float64))
             s.notes["strain"] = "over triangle edges, diagonals included"
@@ -290,8 +294,10 @@ def build_figure(record: dict, *, name: str | None = None):
         if key == "potential" and emitting is not None:
             first, last = int(s.bodies[0]), int(s.bodies.max())
             notes = [s.notes[key]] if key in s.notes else []
-            notes.append(f"changes as bodies are emitted: {first:,} to {last:,} bodies "
-                         f"from {emitting[0]:.3g} to {emitting[1]:.3g} s, shaded")
+            notes.append(
+                f"changes as bodies are emitted: {first:,} to {last:,} bodies "
+                f"from {emitting[0]:.3g} to {emitting[1]:.3g} s, shaded"
+            )
             ax.set_title(f"{label} ({'; '.join(notes)})", loc="left", fontsize=10)
     axes[-1].set_xlabel("time [s]")
     if len(t) > 1 and t[-1] > t[0]:

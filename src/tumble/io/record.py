@@ -164,8 +164,11 @@ class Recorder:
                 out["cloth_rest_position"] = np.array(rest, dtype=np.float64)
         if getattr(w, "joint_count", 0):
             j = w.joint_count
-            for name, tail, fill in (("joint_force", (3,), np.nan), ("joint_torque", (3,), np.nan),
-                                     ("joint_broken", (), False)):
+            for name, tail, fill in (
+                ("joint_force", (3,), np.nan),
+                ("joint_torque", (3,), np.nan),
+                ("joint_broken", (), False),
+            ):
                 a = np.full((f, j, *tail), fill)
                 for k, fr in enumerate(self.frames):
                     rows = fr.get(name)
@@ -226,8 +229,11 @@ def _geometry(w) -> dict[str, np.ndarray]:
     if has_hull:
         tris = []
         for p in w.hulls.prototypes:
-            tris.append(np.array([(f[0], f[k], f[k + 1]) for f in p.faces for k in range(1, len(f) - 1)],
-                                 dtype=np.int64).reshape(-1, 3))
+            tris.append(
+                np.array(
+                    [(f[0], f[k], f[k + 1]) for f in p.faces for k in range(1, len(f) - 1)], dtype=np.int64
+                ).reshape(-1, 3)
+            )
         out.update(_flat("hull", [p.vertex for p in w.hulls.prototypes], tris))
     if has_mesh:
         out.update(_flat("mesh", meshes.vertices, meshes.triangles))
@@ -240,8 +246,9 @@ def _flat(kind: str, points: list, triangles: list) -> dict[str, np.ndarray]:
     triangle_start = np.concatenate([[0], np.cumsum([len(t) for t in triangles])]).astype(np.int64)
     return {
         f"{kind}_points": np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points]),
-        f"{kind}_triangles": np.concatenate([np.asarray(t, dtype=np.int64).reshape(-1, 3) for t in triangles])
-        .astype(np.int32),
+        f"{kind}_triangles": np.concatenate([np.asarray(t, dtype=np.int64).reshape(-1, 3) for t in triangles]).astype(
+            np.int32
+        ),
         f"{kind}_point_start": point_start,
         f"{kind}_triangle_start": triangle_start,
     }
@@ -290,8 +297,9 @@ def load_recording(path) -> dict[str, np.ndarray]:
                 raise bad("it holds a single array, not named arrays")
             out = {name: data[name] for name in data.files}
     except zipfile.BadZipFile as exc:
-        raise bad(f"corrupt ({exc})" if "CRC" in str(exc) else "truncated or corrupt (not a complete zip archive)") \
-            from None
+        raise bad(
+            f"corrupt ({exc})" if "CRC" in str(exc) else "truncated or corrupt (not a complete zip archive)"
+        ) from None
     except ValueError as exc:
         if "pickle" in str(exc):
             raise bad("it holds object (pickled) arrays, which Tumble never loads") from None
@@ -303,8 +311,10 @@ def load_recording(path) -> dict[str, np.ndarray]:
         raise RecordingError(f"{p}: a recording needs a non-empty 1-D 'time' array")
     version = int(out.get("format_version", 1))
     if version > FORMAT_VERSION:
-        raise TumbleError(f"{path}: recording format version {version} is newer than this Tumble reads "
-                          f"(up to {FORMAT_VERSION}); upgrade Tumble")
+        raise TumbleError(
+            f"{path}: recording format version {version} is newer than this Tumble reads "
+            f"(up to {FORMAT_VERSION}); upgrade Tumble"
+        )
     return out
 
 

@@ -85,8 +85,9 @@ def _show(value) -> str:
     return text if len(text) <= 80 else text[:76] + " ..."  # a deeply nested or long value stays readable
 
 
-def number(*, low: float | None = None, high: float | None = None, low_open: bool = False,
-           limit: str | None = None) -> Check:
+def number(
+    *, low: float | None = None, high: float | None = None, low_open: bool = False, limit: str | None = None
+) -> Check:
     """A finite float, optionally bounded: low < v (low_open) or low <= v, v <= high.
 
     `limit` names what `high` is (e.g. "the largest dt Tumble supports"), for the message.
@@ -97,8 +98,10 @@ def number(*, low: float | None = None, high: float | None = None, low_open: boo
         if low is not None and (v <= low if low_open else v < low):
             raise _Bad(f"must be {'>' if low_open else '>='} {low:g}, got {_show(value)}")
         if high is not None and v > high:
-            raise _Bad(f"{_show(value)} is too large: must be <= {high:g}"
-                       + (f" ({limit}, docs/scenes.md#limits)" if limit else ""))
+            raise _Bad(
+                f"{_show(value)} is too large: must be <= {high:g}"
+                + (f" ({limit}, docs/scenes.md#limits)" if limit else "")
+            )
         return v
 
     if low == 0 and low_open and high is None:
@@ -121,8 +124,9 @@ def integer(*, low: int | None = None, high: int | None = None, limit: str | Non
         if low is not None and value < low:
             raise _Bad(f"must be >= {low}, got {value}")
         if high is not None and value > high:
-            raise _Bad(f"{value:,} is too large: must be <= {high:,}"
-                       + (f" ({limit}, docs/scenes.md#limits)" if limit else ""))
+            raise _Bad(
+                f"{value:,} is too large: must be <= {high:,}" + (f" ({limit}, docs/scenes.md#limits)" if limit else "")
+            )
         return int(value)
 
     if high is not None:
@@ -256,7 +260,7 @@ def shape_list() -> Check:
             if not isinstance(item, str):
                 raise _Bad(f"must be a shape name or a list of them, got {_show(value)}")
             if item not in names:
-                raise _Bad(f"unknown shape {item!r}: expected \"sphere\", \"box\", \"capsule\" or \"convex\"")
+                raise _Bad(f'unknown shape {item!r}: expected "sphere", "box", "capsule" or "convex"')
         return value if isinstance(value, str) else list(items)
 
     return Check('"sphere", "box", "capsule", "convex" or a list of them', convert)
@@ -422,11 +426,16 @@ def _mass_representable(values: dict) -> None:
                 for m in masses:
                     inertia = box_inertia(m, h) if key == "half_extents" else sphere_inertia(m, h)
                     numbers = np.concatenate([[m], np.ravel(inertia)])
-                    if not (np.all(np.isfinite(numbers)) and np.all(numbers > 0) and np.all(np.isfinite(1.0 / numbers))):
+                    if not (
+                        np.all(np.isfinite(numbers)) and np.all(numbers > 0) and np.all(np.isfinite(1.0 / numbers))
+                    ):
                         shown = _show(h if exact_box else (h[0] if isinstance(h, list) else h))
-                        raise _KeyBad(key, f"a size of {shown} m gives a mass of {m:g} kg and moments of inertia "
-                                           f"down to {float(np.min(inertia)):g} kg m^2; both (and their inverses) "
-                                           "must be finite and > 0 in float64")
+                        raise _KeyBad(
+                            key,
+                            f"a size of {shown} m gives a mass of {m:g} kg and moments of inertia "
+                            f"down to {float(np.min(inertia)):g} kg m^2; both (and their inverses) "
+                            "must be finite and > 0 in float64",
+                        )
 
 
 class _KeyBad(Exception):
@@ -451,7 +460,7 @@ def _emitter_rules(values: dict) -> None:
         raise _KeyBad("points", "a convex emitter needs points or file (one of them)")
     if "convex" not in shapes and (values.get("points") is not None or values.get("file") is not None):
         key = "points" if values.get("points") is not None else "file"
-        raise _KeyBad(key, f"{key} is for shape \"convex\", which this emitter does not emit")
+        raise _KeyBad(key, f'{key} is for shape "convex", which this emitter does not emit')
     region, ext = values["region"], values.get("extent")
     if region == "box" and not isinstance(ext, list):
         raise _KeyBad("extent", 'region "box" needs extent = [x, y, z] half-sizes')
@@ -520,14 +529,25 @@ SCHEMA: dict[str, TableSpec] = {
             "Global settings.",
             {
                 "gravity": Field(vector(3), [0.0, 0.0, -9.81], "m/s^2", "gravitational acceleration"),
-                "dt": Field(number(low=0, low_open=True, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
-                            1.0 / 240.0, "s", "fixed time step", "1/240"),
-                "substeps": Field(integer(low=1, high=limits.MAX_SUBSTEPS, limit="the most Tumble supports"), 8, "",
-                                  "solver substeps per step"),
+                "dt": Field(
+                    number(low=0, low_open=True, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
+                    1.0 / 240.0,
+                    "s",
+                    "fixed time step",
+                    "1/240",
+                ),
+                "substeps": Field(
+                    integer(low=1, high=limits.MAX_SUBSTEPS, limit="the most Tumble supports"),
+                    8,
+                    "",
+                    "solver substeps per step",
+                ),
                 "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
                 "restitution_threshold": Field(
-                    number(low=0), 0.5, "m/s",
-                    "impact speed below which contacts that carry load do not bounce (others bounce down to 2 g h)"
+                    number(low=0),
+                    0.5,
+                    "m/s",
+                    "impact speed below which contacts that carry load do not bounce (others bounce down to 2 g h)",
                 ),
             },
         ),
@@ -573,8 +593,9 @@ SCHEMA: dict[str, TableSpec] = {
             "placed at position/orientation; the body's centre of mass is where the hull puts it.",
             {
                 "points": Field(point_list(), None, "m", "points whose hull is the body, in its frame", "none"),
-                "file": Field(file_name(), None, "", "mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose hull is the body",
-                              "none"),
+                "file": Field(
+                    file_name(), None, "", "mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose hull is the body", "none"
+                ),
                 "scale": Field(scale_factor(), 1.0, "", "factor(s) applied to the points or the file"),
                 "position": Field(vector(3), REQUIRED, "m", "origin of the points' frame"),
                 "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation of the points' frame"),
@@ -618,16 +639,24 @@ SCHEMA: dict[str, TableSpec] = {
                 "speed": Field(value_or_range(positive=False), 0.0, "m/s", "release speed, value or [min, max]"),
                 "radius": Field(value_or_range(positive=True), None, "m", "sphere radius, value or [min, max]", "none"),
                 "half_extents": Field(size_or_range(), None, "m", "box half sizes, value or [min, max]", "none"),
-                "half_height": Field(value_or_range(positive=True), None, "m",
-                                     "capsule half height (of its segment), value or [min, max]", "none"),
+                "half_height": Field(
+                    value_or_range(positive=True),
+                    None,
+                    "m",
+                    "capsule half height (of its segment), value or [min, max]",
+                    "none",
+                ),
                 "points": Field(point_list(), None, "m", "points whose hull a convex body is, in its frame", "none"),
                 "file": Field(file_name(), None, "", "mesh file whose vertices' hull a convex body is", "none"),
-                "scale": Field(value_or_range(positive=True), None, "",
-                               "factor on each body's size (all shapes), value or [min, max]", "1"),
-                "mass": Field(value_or_range(positive=True), None, "kg", "mass, value or [min, max]", "from density"),
-                "density": Field(
-                    value_or_range(positive=True), None, "kg/m^3", "density, value or [min, max]", "1000"
+                "scale": Field(
+                    value_or_range(positive=True),
+                    None,
+                    "",
+                    "factor on each body's size (all shapes), value or [min, max]",
+                    "1",
                 ),
+                "mass": Field(value_or_range(positive=True), None, "kg", "mass, value or [min, max]", "from density"),
+                "density": Field(value_or_range(positive=True), None, "kg/m^3", "density, value or [min, max]", "1000"),
                 "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
                 "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
                 "seed": Field(integer(low=0), None, "", "seed of this emitter's generator", "from [world] seed"),
@@ -648,19 +677,39 @@ SCHEMA: dict[str, TableSpec] = {
                 "resolution": Field(resolution(), REQUIRED, "", "particles [nx, ny]"),
                 "position": Field(vector(3), REQUIRED, "m", "centre of the cloth"),
                 "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation quaternion (x, y, z, w)"),
-                "mass": Field(number(low=0, low_open=True), None, "kg", "total mass; give mass or areal_density",
-                              "from areal_density"),
-                "areal_density": Field(number(low=0, low_open=True), None, "kg/m^2",
-                                       "mass per area; give mass or areal_density", "0.2"),
-                "stiffness": Field(per_spring(), None, "N/m",
-                                   "spring stiffness ks, one value or per kind (a missing kind has no springs)",
-                                   "{ structural = 12, shear = 1.2, bend = 0.3 }"),
-                "damping": Field(per_spring(), None, "N s/m", "spring damping kd, one value or per kind",
-                                 "{ structural = 0.002, shear = 0.0005, bend = 0.0001 }"),
+                "mass": Field(
+                    number(low=0, low_open=True),
+                    None,
+                    "kg",
+                    "total mass; give mass or areal_density",
+                    "from areal_density",
+                ),
+                "areal_density": Field(
+                    number(low=0, low_open=True), None, "kg/m^2", "mass per area; give mass or areal_density", "0.2"
+                ),
+                "stiffness": Field(
+                    per_spring(),
+                    None,
+                    "N/m",
+                    "spring stiffness ks, one value or per kind (a missing kind has no springs)",
+                    "{ structural = 12, shear = 1.2, bend = 0.3 }",
+                ),
+                "damping": Field(
+                    per_spring(),
+                    None,
+                    "N s/m",
+                    "spring damping kd, one value or per kind",
+                    "{ structural = 0.002, shear = 0.0005, bend = 0.0001 }",
+                ),
                 "max_stretch": Field(number(low=0), 0.1, "", "largest strain of a structural spring (Provot)"),
                 "pins": Field(pins(), None, "", "pinned grid points", "none"),
-                "thickness": Field(number(low=0, low_open=True), None, "m",
-                                   "distance kept from bodies and between layers of cloth", "0.01"),
+                "thickness": Field(
+                    number(low=0, low_open=True),
+                    None,
+                    "m",
+                    "distance kept from bodies and between layers of cloth",
+                    "0.01",
+                ),
                 "friction": Field(number(low=0), None, "", "Coulomb friction against bodies", "0.3"),
                 "pin_body": Field(body_ref(), None, "", 'body the pins follow and pull on, e.g. "box[0]"', "none"),
             },
@@ -693,11 +742,15 @@ SCHEMA: dict[str, TableSpec] = {
                 "anchor": Field(vector(3), None, "m", "shared anchor point, world", "a's centre"),
                 "anchor_a": Field(vector(3), None, "m", "anchor on a (instead of anchor)", "anchor"),
                 "anchor_b": Field(vector(3), None, "m", "anchor on b (instead of anchor)", "anchor"),
-                "frame": Field(choice("world", "body"), "world", "", "frame of anchor_a/anchor_b (each body's) and axis (a's)"),
+                "frame": Field(
+                    choice("world", "body"), "world", "", "frame of anchor_a/anchor_b (each body's) and axis (a's)"
+                ),
                 "axis": Field(vector(3, nonzero=True), None, "", "hinge / slider axis", "[0, 0, 1]"),
                 "lower": Field(number(), None, "deg or m", "lower limit: hinge angle (deg), slider offset (m)", "none"),
                 "upper": Field(number(), None, "deg or m", "upper limit: hinge angle (deg), slider offset (m)", "none"),
-                "motor_speed": Field(number(), None, "deg/s or m/s", "motor target speed of b relative to a", "no motor"),
+                "motor_speed": Field(
+                    number(), None, "deg/s or m/s", "motor target speed of b relative to a", "no motor"
+                ),
                 "max_torque": Field(number(low=0), None, "N m", "hinge motor's largest torque", "none"),
                 "max_force": Field(number(low=0), None, "N", "slider motor's largest force", "none"),
                 "length": Field(number(low=0), None, "m", "distance joint rest length", "current distance"),
@@ -713,7 +766,7 @@ SCHEMA: dict[str, TableSpec] = {
         TableSpec(
             "camera",
             False,
-            "Initial view for the viewer and video export (stored in world.metadata[\"camera\"]).",
+            'Initial view for the viewer and video export (stored in world.metadata["camera"]).',
             {
                 "position": Field(vector(3), [3.0, -3.0, 2.0], "m", "eye position"),
                 "target": Field(vector(3), [0.0, 0.0, 0.5], "m", "point looked at"),
@@ -723,7 +776,7 @@ SCHEMA: dict[str, TableSpec] = {
         TableSpec(
             "check",
             False,
-            "What the sample tests assert after running the scene headless (stored in world.metadata[\"check\"]). "
+            'What the sample tests assert after running the scene headless (stored in world.metadata["check"]). '
             "Always checked: all values finite, no body centre behind a plane, every body within max_extent.",
             {
                 "duration": Field(number(low=0, low_open=True), 1.0, "s", "simulated time the test runs"),
@@ -909,7 +962,10 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
             raise SceneError(
                 f"{e['rate']:g} bodies/s at dt {dt:g} s releases {per_step:,.0f} bodies in one step; "
                 f"the limit is {limits.MAX_RELEASE_PER_STEP:,} a step (docs/scenes.md#limits)",
-                path=path, table=_table_label("emitter", i), key="rate")
+                path=path,
+                table=_table_label("emitter", i),
+                key="rate",
+            )
     check = scene.table("check")
     if check is not None:
         try:
@@ -924,8 +980,16 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
         if n:
             requests.append((n * limits.BYTES_PER_BODY, name, None, n, f"{name} bodies", limits.BYTES_PER_BODY))
     for i, e in enumerate(scene.items("emitter")):
-        requests.append((e["count"] * limits.BYTES_PER_BODY, _table_label("emitter", i), "count", e["count"],
-                         "bodies", limits.BYTES_PER_BODY))
+        requests.append(
+            (
+                e["count"] * limits.BYTES_PER_BODY,
+                _table_label("emitter", i),
+                "count",
+                e["count"],
+                "bodies",
+                limits.BYTES_PER_BODY,
+            )
+        )
     particles = 0
     for i, c in enumerate(scene.items("cloth")):
         n = c["resolution"][0] * c["resolution"][1]
@@ -934,9 +998,20 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
             raise SceneError(
                 f"{c['resolution'][0]:,} x {c['resolution'][1]:,} = {n:,} particles; cloth indices are int32, "
                 f"which allows at most {limits.MAX_PARTICLES_INT32:,} particles in all (docs/scenes.md#limits)",
-                path=path, table=_table_label("cloth", i), key="resolution")
-        requests.append((n * limits.BYTES_PER_PARTICLE, _table_label("cloth", i), "resolution", n, "particles",
-                         limits.BYTES_PER_PARTICLE))
+                path=path,
+                table=_table_label("cloth", i),
+                key="resolution",
+            )
+        requests.append(
+            (
+                n * limits.BYTES_PER_PARTICLE,
+                _table_label("cloth", i),
+                "resolution",
+                n,
+                "particles",
+                limits.BYTES_PER_PARTICLE,
+            )
+        )
     need = sum(r[0] for r in requests)
     if requests:
         have = limits.available_memory()
@@ -1020,8 +1095,14 @@ def build_world(scene: Scene, **overrides):
 
     # bodies: planes, spheres, boxes, capsules, convex bodies, meshes, each in file order
     made = {}
-    for name, add in (("plane", world.add_plane), ("sphere", world.add_sphere), ("box", world.add_box),
-                      ("capsule", world.add_capsule), ("convex", world.add_convex), ("mesh", world.add_mesh)):
+    for name, add in (
+        ("plane", world.add_plane),
+        ("sphere", world.add_sphere),
+        ("box", world.add_box),
+        ("capsule", world.add_capsule),
+        ("convex", world.add_convex),
+        ("mesh", world.add_mesh),
+    ):
         made[name] = []
         for i, values in enumerate(scene.items(name)):
             values = dict(values)
@@ -1048,7 +1129,7 @@ def build_world(scene: Scene, **overrides):
         if pin_body is not None:
             body = _named_body(made, pin_body, path, label, "pin_body")
             start = cloth.particle_start
-            pinned = start + np.nonzero(world.cloth.particle_inv_mass[start:start + cloth.nx * cloth.ny] == 0.0)[0]
+            pinned = start + np.nonzero(world.cloth.particle_inv_mass[start : start + cloth.nx * cloth.ny] == 0.0)[0]
             with _api_errors(path, label):
                 world.cloth.pin_to_body(pinned, body)
     if scene.table("wind") is not None:
@@ -1196,8 +1277,14 @@ def reference_markdown() -> str:
     lines = []
     for spec in SCHEMA.values():
         header = f"[[{spec.name}]]" if spec.array else f"[{spec.name}]"
-        lines += [f"### `{header}`", "", spec.doc, "", "| key | type | default | units | meaning |",
-                  "|---|---|---|---|---|"]
+        lines += [
+            f"### `{header}`",
+            "",
+            spec.doc,
+            "",
+            "| key | type | default | units | meaning |",
+            "|---|---|---|---|---|",
+        ]
         for key, f in spec.fields.items():
             if f.default is REQUIRED:
                 default = "required"

@@ -94,8 +94,9 @@ def check_output(path) -> Path:
 # ---------------------------------------------------------------------------------------------- frames
 
 
-def frame_times(fps: float | None, duration: float | None, frames: int | None, *,
-                default_fps: float, default_duration: float) -> tuple[float, int]:
+def frame_times(
+    fps: float | None, duration: float | None, frames: int | None, *, default_fps: float, default_duration: float
+) -> tuple[float, int]:
     """(fps, frame count) from the options; frame 0 is the start, so `duration` s give fps * duration + 1.
 
     Raises:
@@ -116,8 +117,14 @@ def frame_times(fps: float | None, duration: float | None, frames: int | None, *
     return fps, round(duration * fps) + 1
 
 
-def simulate(world, *, fps: float | None = None, duration: float | None = None, frames: int | None = None,
-             advance: Callable[[], None] = lambda: None) -> dict[str, np.ndarray]:
+def simulate(
+    world,
+    *,
+    fps: float | None = None,
+    duration: float | None = None,
+    frames: int | None = None,
+    advance: Callable[[], None] = lambda: None,
+) -> dict[str, np.ndarray]:
     """Step `world` and record it (`tumble.io.record.Recorder`); return the recording's arrays.
 
     Frame k is the world at its start time + k / fps. `duration` defaults to the scene's
@@ -145,8 +152,9 @@ def _world_frames(world, fps, duration, frames) -> tuple[float, int]:
     return frame_times(fps, duration, frames, default_fps=60.0, default_duration=default_duration)
 
 
-def select_frames(rec: dict, *, fps: float | None = None, duration: float | None = None,
-                  frames: int | None = None) -> tuple[np.ndarray, float]:
+def select_frames(
+    rec: dict, *, fps: float | None = None, duration: float | None = None, frames: int | None = None
+) -> tuple[np.ndarray, float]:
     """Which recorded frames to export: (indices, fps). Fewer fps than recorded takes the nearest frames.
 
     Raises:
@@ -156,8 +164,9 @@ def select_frames(rec: dict, *, fps: float | None = None, duration: float | None
     rec_fps = float(rec["fps"])
     total = len(times)
     length = (times[-1] - times[0]) if total else 0.0
-    fps, n = frame_times(fps, duration, frames, default_fps=rec_fps,
-                         default_duration=length if length > 0 else 1.0 / rec_fps)
+    fps, n = frame_times(
+        fps, duration, frames, default_fps=rec_fps, default_duration=length if length > 0 else 1.0 / rec_fps
+    )
     if duration is None and frames is None:
         # every output frame that falls within the recording (0.5 s at 15 fps: 8 frames, not
         # round(7.5) + 1 = 9); the 1e-6 absorbs a clock that falls short by a rounding
@@ -166,8 +175,10 @@ def select_frames(rec: dict, *, fps: float | None = None, duration: float | None
         raise TumbleError(f"fps {fps:g} is more than the recording's {rec_fps:g}")
     want = times[0] + np.arange(n) / fps
     if want[-1] > times[-1] + 0.5 / rec_fps:
-        raise TumbleError(f"the recording holds {length:g} s ({total} frames at {rec_fps:g} fps); "
-                          f"{n} frames at {fps:g} fps need {(n - 1) / fps:g} s")
+        raise TumbleError(
+            f"the recording holds {length:g} s ({total} frames at {rec_fps:g} fps); "
+            f"{n} frames at {fps:g} fps need {(n - 1) / fps:g} s"
+        )
     index = np.clip(np.rint((want - times[0]) * rec_fps).astype(np.int64), 0, total - 1)
     return index, fps
 
@@ -233,8 +244,9 @@ def unit_sphere(segments: int = 32, rings: int = 16) -> Prototype:
     tri_n, tri_s = faces
     counts = np.concatenate([np.full(segments, 3), np.full(len(quads) * segments, 4), np.full(segments, 3)])
     indices = np.concatenate([tri_n.ravel(), np.concatenate(quads).ravel(), tri_s.ravel()])
-    return Prototype("sphere", points, counts.astype(np.int32), indices.astype(np.int32), points.copy(),
-                     collision="boundingSphere")
+    return Prototype(
+        "sphere", points, counts.astype(np.int32), indices.astype(np.int32), points.copy(), collision="boundingSphere"
+    )
 
 
 def unit_cube() -> Prototype:
@@ -252,8 +264,9 @@ def unit_cube() -> Prototype:
                 normals.append(n)
     counts = np.full(6, 4, dtype=np.int32)
     indices = np.arange(24, dtype=np.int32)
-    return Prototype("box", np.array(points, np.float32), counts, indices, np.array(normals, np.float32),
-                     collision="boundingCube")
+    return Prototype(
+        "box", np.array(points, np.float32), counts, indices, np.array(normals, np.float32), collision="boundingCube"
+    )
 
 
 def _sphere_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
@@ -273,12 +286,21 @@ def capsule_prototype(radius: float, half_height: float, name: str = "capsule") 
     r, a = float(radius), float(half_height)
     corners = np.array([[-r, -r, -a - r], [r, r, a + r]], dtype=np.float32)
     volume = math.pi * r * r * (2.0 * a + 4.0 / 3.0 * r)
-    return Prototype(name, corners, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 3), np.float32),
-                     collision="none", capsule=(r, a), volume=volume)
+    return Prototype(
+        name,
+        corners,
+        np.zeros(0, np.int32),
+        np.zeros(0, np.int32),
+        np.zeros((0, 3), np.float32),
+        collision="none",
+        capsule=(r, a),
+        volume=volume,
+    )
 
 
-def triangle_prototype(name: str, points: np.ndarray, triangles: np.ndarray, *, flat: bool,
-                       collision: str, color=None) -> Prototype:
+def triangle_prototype(
+    name: str, points: np.ndarray, triangles: np.ndarray, *, flat: bool, collision: str, color=None
+) -> Prototype:
     """A triangle mesh prototype: flat (one normal per face corner: hulls) or smooth (vertex normals: meshes)."""
     p = np.asarray(points, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
@@ -290,9 +312,17 @@ def triangle_prototype(name: str, points: np.ndarray, triangles: np.ndarray, *, 
         normals, interpolation = np.repeat(unit, 3, axis=0), "faceVarying"
     else:
         normals, interpolation = vertex_normals(p, t), "vertex"
-    return Prototype(name, p.astype(np.float32), np.full(len(t), 3, np.int32), t.reshape(-1).astype(np.int32),
-                     normals.astype(np.float32), collision=collision, normals_interpolation=interpolation,
-                     volume=max(volume, 0.0), color=color)
+    return Prototype(
+        name,
+        p.astype(np.float32),
+        np.full(len(t), 3, np.int32),
+        t.reshape(-1).astype(np.int32),
+        normals.astype(np.float32),
+        collision=collision,
+        normals_interpolation=interpolation,
+        volume=max(volume, 0.0),
+        color=color,
+    )
 
 
 def _capsule_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
@@ -301,15 +331,17 @@ def _capsule_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
     a = np.asarray(rec["half_extents"], dtype=np.float64)[bodies, 2] - r
     pairs, which = np.unique(np.stack([r, a], axis=1), axis=0, return_inverse=True)
     which = which.reshape(-1)
-    return [PrototypeUse(capsule_prototype(ri, ai, f"capsule_{k}"), bodies[which == k], np.ones(((which == k).sum(), 3)))
-            for k, (ri, ai) in enumerate(pairs)]
+    return [
+        PrototypeUse(capsule_prototype(ri, ai, f"capsule_{k}"), bodies[which == k], np.ones(((which == k).sum(), 3)))
+        for k, (ri, ai) in enumerate(pairs)
+    ]
 
 
 def _rows(rec: dict, kind: str, row: int) -> tuple[np.ndarray, np.ndarray]:
     """Points and triangles (local indices) of hull or mesh `row` of a recording."""
     ps, ts = rec[f"{kind}_point_start"], rec[f"{kind}_triangle_start"]
-    points = np.asarray(rec[f"{kind}_points"])[ps[row]:ps[row + 1]]
-    triangles = np.asarray(rec[f"{kind}_triangles"])[ts[row]:ts[row + 1]]
+    points = np.asarray(rec[f"{kind}_points"])[ps[row] : ps[row + 1]]
+    triangles = np.asarray(rec[f"{kind}_triangles"])[ts[row] : ts[row + 1]]
     return points, triangles
 
 
@@ -338,8 +370,9 @@ def _mesh_prototypes(rec: dict, bodies: np.ndarray) -> list[PrototypeUse]:
     uses = []
     for row in np.unique(rows):
         points, triangles = _rows(rec, "mesh", int(row))
-        proto = triangle_prototype(f"mesh_{int(row)}", points, triangles, flat=False, collision="none",
-                                   color=MESH_COLOR)
+        proto = triangle_prototype(
+            f"mesh_{int(row)}", points, triangles, flat=False, collision="none", color=MESH_COLOR
+        )
         uses.append(PrototypeUse(proto, bodies[rows == row], np.ones(((rows == row).sum(), 3))))
     return uses
 
@@ -462,15 +495,16 @@ class Take:
         position = np.nan_to_num(position)
         orientation = np.where(np.isfinite(orientation), orientation, [0.0, 0.0, 0.0, 1.0])
         lo, hi = cls._bounds(rec, frames, pos, finite, moving, static)
-        return cls(rec, np.asarray(frames), float(fps), planes, static, moving, visible, position, orientation,
-                   lo, hi)
+        return cls(rec, np.asarray(frames), float(fps), planes, static, moving, visible, position, orientation, lo, hi)
 
     @staticmethod
     def _bounds(rec, frames, pos, finite, moving, static) -> tuple[np.ndarray, np.ndarray]:
         """Box [m] around moving and static bodies (grown by their size) and cloth, over all frames."""
         lo, hi = [], []
-        size = np.maximum(np.asarray(rec["radius"], dtype=np.float64),
-                          np.linalg.norm(np.asarray(rec["half_extents"], dtype=np.float64), axis=1))
+        size = np.maximum(
+            np.asarray(rec["radius"], dtype=np.float64),
+            np.linalg.norm(np.asarray(rec["half_extents"], dtype=np.float64), axis=1),
+        )
         for bodies in (moving, static):
             if len(bodies):
                 p = pos[:, bodies]
@@ -500,7 +534,14 @@ class _Writer:
         from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdShade, Vt
 
         self.Gf, self.Sdf, self.Usd, self.UsdGeom, self.UsdPhysics, self.UsdShade, self.Vt = (
-            Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdShade, Vt)
+            Gf,
+            Sdf,
+            Usd,
+            UsdGeom,
+            UsdPhysics,
+            UsdShade,
+            Vt,
+        )
         self.stage, self.take, self.bodies, self.physics, self.advance = stage, take, bodies, physics, advance
         self.colors = srgb_to_linear(body_colors(np.arange(len(take.rec["shape"]))))
         self._materials: dict[tuple[float, float], object] = {}
@@ -607,7 +648,8 @@ class _Writer:
             api.CreateDynamicFrictionAttr(key[1])
             self._materials[key] = material
         self.UsdShade.MaterialBindingAPI.Apply(prim).Bind(
-            material, self.UsdShade.Tokens.weakerThanDescendants, "physics")
+            material, self.UsdShade.Tokens.weakerThanDescendants, "physics"
+        )
 
     # -------------------------------------------------------------------- parts
 
@@ -635,9 +677,14 @@ class _Writer:
             # the quad: centred where the action's centre projects onto the plane, in the plane's frame
             n = rotate(q, np.array([0.0, 0.0, 1.0]))
             c = centre - float(np.dot(centre - p, n)) * n
-            quad = Prototype("plane", np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]],
-                                               np.float32), np.array([4], np.int32), np.arange(4, dtype=np.int32),
-                             np.tile(np.float32([0, 0, 1]), (4, 1)), collision="none")
+            quad = Prototype(
+                "plane",
+                np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], np.float32),
+                np.array([4], np.int32),
+                np.arange(4, dtype=np.int32),
+                np.tile(np.float32([0, 0, 1]), (4, 1)),
+                collision="none",
+            )
             mesh = self._mesh(f"/Root/Static/plane_{b}", quad, color=srgb_to_linear(PLANE_COLOR))
             self._place(mesh, c, q)
             if self.physics:
@@ -679,7 +726,8 @@ class _Writer:
         ids = bodies.astype(np.int64)
         inst.CreateIdsAttr(Vt.Int64Array.FromNumpy(ids))
         colors = self.UsdGeom.PrimvarsAPI(inst.GetPrim()).CreatePrimvar(
-            "displayColor", self.Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+            "displayColor", self.Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
+        )
         colors.Set(self._f3(self.colors[bodies]))
 
         positions = inst.CreatePositionsAttr()
@@ -694,8 +742,11 @@ class _Writer:
             scale_attr.Set(self._f3(scales))
         # bounds of the prototypes at their scales: unit sphere and cube (the cube reaches sqrt 3), or
         # the capsule's, hull's or mesh's own points
-        bound = {id(u.prototype): float(np.linalg.norm(u.prototype.points, axis=1).max()) for u in uses
-                 if u.prototype.name not in ("sphere", "box")}
+        bound = {
+            id(u.prototype): float(np.linalg.norm(u.prototype.points, axis=1).max())
+            for u in uses
+            if u.prototype.name not in ("sphere", "box")
+        }
         radius = np.linalg.norm(scales, axis=1)
         for use in uses:
             if id(use.prototype) in bound:
@@ -764,7 +815,8 @@ class _Writer:
                     UsdGeom.Xformable(geom).AddScaleOp().Set(Gf.Vec3f(*map(float, s)))
                 self._body_prims[int(b)] = xf.GetPath()
                 UsdGeom.Gprim(geom).CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
-                    self._f3(self.colors[b][None]))
+                    self._f3(self.colors[b][None])
+                )
                 if self.physics:
                     UsdPhysics = self.UsdPhysics
                     UsdPhysics.RigidBodyAPI.Apply(xf.GetPrim())
@@ -801,9 +853,13 @@ class _Writer:
         from ..solver.joints import JointKind
 
         UsdPhysics, Gf, rec, take = self.UsdPhysics, self.Gf, self.take.rec, self.take
-        kinds = {JointKind.BALL: UsdPhysics.SphericalJoint, JointKind.HINGE: UsdPhysics.RevoluteJoint,
-                 JointKind.SLIDER: UsdPhysics.PrismaticJoint, JointKind.FIXED: UsdPhysics.FixedJoint,
-                 JointKind.DISTANCE: UsdPhysics.DistanceJoint}
+        kinds = {
+            JointKind.BALL: UsdPhysics.SphericalJoint,
+            JointKind.HINGE: UsdPhysics.RevoluteJoint,
+            JointKind.SLIDER: UsdPhysics.PrismaticJoint,
+            JointKind.FIXED: UsdPhysics.FixedJoint,
+            JointKind.DISTANCE: UsdPhysics.DistanceJoint,
+        }
         self.UsdGeom.Scope.Define(self.stage, "/Root/Joints")
         frame0 = take.frames[0]
         ends = np.asarray(rec["joint_bodies"], dtype=np.int64)
@@ -914,15 +970,27 @@ def _recording(source) -> dict:
         raise
     except Exception as exc:  # noqa: BLE001 - a broken archive, whatever numpy makes of it
         raise TumbleError(f"{str(path)!r}: not a readable recording ({type(exc).__name__}: {exc})") from None
-    missing = [k for k in ("time", "fps", "position", "orientation", "shape", "shape_names", "radius",
-                           "half_extents", "mass") if k not in rec]
+    missing = [
+        k
+        for k in ("time", "fps", "position", "orientation", "shape", "shape_names", "radius", "half_extents", "mass")
+        if k not in rec
+    ]
     if missing:
         raise TumbleError(f"{str(path)!r}: not a Tumble recording (no {', '.join(missing)})")
     return rec
 
 
-def export(source, path, *, fps: float | None = None, duration: float | None = None, frames: int | None = None,
-           bodies: str = "instancer", physics: bool = False, progress: bool = False) -> Path:
+def export(
+    source,
+    path,
+    *,
+    fps: float | None = None,
+    duration: float | None = None,
+    frames: int | None = None,
+    bodies: str = "instancer",
+    physics: bool = False,
+    progress: bool = False,
+) -> Path:
     """Write a simulation or a recording to a USD stage at `path`; return the path.
 
     Args:

@@ -28,7 +28,7 @@ FORMATS = {".mp4": "mp4", ".gif": "gif"}
 
 
 def output_kind(out) -> str:
-    """"mp4", "gif" or "png" (a folder of numbered PNG frames) for an output path.
+    """ "mp4", "gif" or "png" (a folder of numbered PNG frames) for an output path.
 
     Raises:
         ValueError: for any other suffix, naming the ones supported.
@@ -144,8 +144,13 @@ def _progress(total: int, label: str, enabled: bool):
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
-               TimeRemainingColumn())
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("frames"),
+        TimeRemainingColumn(),
+    )
     with Progress(*columns, console=Console(stderr=True), transient=False) as bar:
         task = bar.add_task(label, total=total)
         yield lambda: bar.advance(task)
@@ -190,8 +195,16 @@ def export(
     check_output(out, suffixes=tuple(FORMATS), folder=kind == "png", option="")
     if kind == "gif":
         gif_delays_ms(n, fps)  # (refuses a rate a GIF cannot play before rendering anything)
-    frames = render_frames(world, duration=duration, fps=fps, size=(width, height), camera=camera,
-                           renderer=renderer, dither=kind != "gif", joints=joints)
+    frames = render_frames(
+        world,
+        duration=duration,
+        fps=fps,
+        size=(width, height),
+        camera=camera,
+        renderer=renderer,
+        dither=kind != "gif",
+        joints=joints,
+    )
     label = f"rendering {out.name or out}"
 
     # every kind is written beside `out` and renamed into place when complete (tumble.io.atomic)
@@ -213,12 +226,23 @@ def export(
 
             images = []
             for image in frames:
-                images.append(Image.fromarray(image).quantize(colors=256, method=Image.Quantize.MEDIANCUT,
-                                                              dither=Image.Dither.NONE))
+                images.append(
+                    Image.fromarray(image).quantize(
+                        colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE
+                    )
+                )
                 advance()
             with atomic_path(out) as tmp:
-                images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
-                               duration=gif_delays_ms(len(images), fps), loop=0, optimize=False, disposal=1)
+                images[0].save(
+                    tmp,
+                    format="GIF",
+                    save_all=True,
+                    append_images=images[1:],
+                    duration=gif_delays_ms(len(images), fps),
+                    loop=0,
+                    optimize=False,
+                    disposal=1,
+                )
     return out
 
 
@@ -238,8 +262,9 @@ def gif_delays_ms(n: int, fps: float) -> list[int]:
     """
     fps = float(fps)
     if fps > GIF_MAX_FPS:
-        raise ValueError(f"a GIF plays at most {GIF_MAX_FPS:g} frames per second, got --fps {fps:g}; "
-                         "use a lower fps or an .mp4")
+        raise ValueError(
+            f"a GIF plays at most {GIF_MAX_FPS:g} frames per second, got --fps {fps:g}; use a lower fps or an .mp4"
+        )
     ends = np.round(100.0 * np.arange(n + 1) / fps).astype(np.int64)
     return [int(10 * d) for d in np.diff(ends)]
 
@@ -272,16 +297,37 @@ class FfmpegWriter:
             exe = imageio_ffmpeg.get_ffmpeg_exe()
         except RuntimeError as exc:
             raise OSError(f"no ffmpeg binary found ({exc}); install it with: pip install imageio-ffmpeg") from None
-        cmd = [exe, "-y", "-v", "error", "-f", "rawvideo", "-vcodec", "rawvideo",
-               "-s", f"{w}x{h}", "-pix_fmt", "rgb24", "-r", str(Fraction(float(fps)).limit_denominator()),
-               "-i", "-", "-an", "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "10"]
+        cmd = [
+            exe,
+            "-y",
+            "-v",
+            "error",
+            "-f",
+            "rawvideo",
+            "-vcodec",
+            "rawvideo",
+            "-s",
+            f"{w}x{h}",
+            "-pix_fmt",
+            "rgb24",
+            "-r",
+            str(Fraction(float(fps)).limit_denominator()),
+            "-i",
+            "-",
+            "-an",
+            "-vcodec",
+            "libx264",
+            "-pix_fmt",
+            "yuv420p",
+            "-crf",
+            "10",
+        ]
         if w % 2 or h % 2:
             cmd += ["-vf", f"scale={w + w % 2}:{h + h % 2}"]
         cmd += ["-f", "mp4", str(self.path)]
         self._log = tempfile.TemporaryFile()  # noqa: SIM115 (open while ffmpeg runs; closed in close/__exit__)
         try:
-            self._process = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                             stderr=self._log)
+            self._process = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._log)
         except OSError as exc:
             self._log.close()
             raise self._error(f"cannot start ffmpeg ({exc.strerror or exc})") from None

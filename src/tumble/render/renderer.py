@@ -29,9 +29,8 @@ import numpy as np
 
 from ..errors import TumbleError
 from ..shapes import ShapeType
-from . import shaders
+from . import shaders, solids
 from .camera import Camera, scene_bounds, scene_box
-from . import solids
 from .colors import CLOTH_COLOR, body_colors
 from .solids import CAPSULE_FLOATS, SOLID_FLOATS
 from .supports import cloth_supports
@@ -55,19 +54,24 @@ def create_context(*, require: tuple[int, int] = (3, 3)):
     try:
         import moderngl
     except ImportError:  # pragma: no cover - moderngl is a declared dependency
-        raise TumbleError('no OpenGL context: the Python package \'moderngl\' is not installed; install it with: '
-                          'pip install "tumble[viewer]"') from None
+        raise TumbleError(
+            "no OpenGL context: the Python package 'moderngl' is not installed; install it with: "
+            'pip install "tumble[viewer]"'
+        ) from None
     version = require[0] * 100 + require[1] * 10
     errors = []
     for kwargs in ({"backend": "egl"}, {}):
         try:
             ctx = moderngl.create_standalone_context(require=version, **kwargs)
         except Exception as exc:  # moderngl raises plain Exceptions from its loaders
-            errors.append(f"{kwargs.get('backend', 'default')}: {str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__}")
+            errors.append(
+                f"{kwargs.get('backend', 'default')}: {str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__}"
+            )
             continue
         return ctx
     raise TumbleError(
-        "no OpenGL context: " + "; ".join(errors)
+        "no OpenGL context: "
+        + "; ".join(errors)
         + " (headless rendering needs EGL and Mesa: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1)"
     )
 
@@ -192,8 +196,19 @@ def scene_arrays(world) -> SceneArrays:
     capsules[:, 8] = np.asarray(world.body_half_extents)[capsule_body, 2] - capsules[:, 7]
     capsules[:, 9:12] = colors[capsule_body]
     batches = _solid_batches(world, shape, pos, quat, colors, finite)
-    return SceneArrays(spheres, sphere_body, boxes, box_body, planes, cloth_position, cloth_triangles,
-                       capsules, capsule_body, batches, solids.joint_segments(world))
+    return SceneArrays(
+        spheres,
+        sphere_body,
+        boxes,
+        box_body,
+        planes,
+        cloth_position,
+        cloth_triangles,
+        capsules,
+        capsule_body,
+        batches,
+        solids.joint_segments(world),
+    )
 
 
 def _solid_batches(world, shape, pos, quat, colors, finite) -> list[SolidBatch]:
@@ -210,16 +225,30 @@ def _solid_batches(world, shape, pos, quat, colors, finite) -> list[SolidBatch]:
             continue
         proto = hulls.prototypes[int(index)]
         body = picked[is_hull & (geometry == index)]
-        out.append(SolidBatch(("hull", id(proto)), proto, lambda p=proto: solids.hull_vertices(p),
-                              _solid_instances(pos, quat, colors[body], body), body))
+        out.append(
+            SolidBatch(
+                ("hull", id(proto)),
+                proto,
+                lambda p=proto: solids.hull_vertices(p),
+                _solid_instances(pos, quat, colors[body], body),
+                body,
+            )
+        )
     for body in picked[~is_hull]:
         index = int(np.asarray(world.body_geometry)[body])
         if meshes is None or not 0 <= index < len(meshes.vertices):
             continue
         v, t = meshes.vertices[index], meshes.triangles[index]
         color = np.asarray(solids.MESH_COLOR, dtype=np.float32)[None]
-        out.append(SolidBatch(("mesh", id(v)), v, lambda v=v, t=t: solids.mesh_vertices(v, t),
-                              _solid_instances(pos, quat, color, np.array([body])), np.array([body])))
+        out.append(
+            SolidBatch(
+                ("mesh", id(v)),
+                v,
+                lambda v=v, t=t: solids.mesh_vertices(v, t),
+                _solid_instances(pos, quat, color, np.array([body])),
+                np.array([body]),
+            )
+        )
     return out
 
 
@@ -315,8 +344,16 @@ class Renderer:
     camera's target).
     """
 
-    def __init__(self, ctx, width: int = 1280, height: int = 720, *, samples: int = 0, shadows: bool = True,
-                 shadow_size: int = 1024):
+    def __init__(
+        self,
+        ctx,
+        width: int = 1280,
+        height: int = 720,
+        *,
+        samples: int = 0,
+        shadows: bool = True,
+        shadow_size: int = 1024,
+    ):
         import moderngl
 
         self._mgl = moderngl
@@ -348,15 +385,17 @@ class Renderer:
         self._sphere = prog(vertex_shader=shaders.SPHERE_VERTEX, fragment_shader=shaders.SPHERE_FRAGMENT)
         self._box = prog(vertex_shader=shaders.BOX_VERTEX, fragment_shader=shaders.BOX_FRAGMENT)
         self._cloth = prog(vertex_shader=shaders.CLOTH_VERTEX, fragment_shader=shaders.CLOTH_FRAGMENT)
-        self._shadow_sphere = prog(vertex_shader=shaders.SHADOW_SPHERE_VERTEX,
-                                   fragment_shader=shaders.SHADOW_SPHERE_FRAGMENT)
+        self._shadow_sphere = prog(
+            vertex_shader=shaders.SHADOW_SPHERE_VERTEX, fragment_shader=shaders.SHADOW_SPHERE_FRAGMENT
+        )
         self._shadow_box = prog(vertex_shader=shaders.SHADOW_BOX_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
         self._shadow_mesh = prog(vertex_shader=shaders.SHADOW_MESH_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
         self._solid = prog(vertex_shader=shaders.SOLID_VERTEX, fragment_shader=shaders.SOLID_FRAGMENT)
         self._capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX, fragment_shader=shaders.CAPSULE_FRAGMENT)
         self._shadow_solid = prog(vertex_shader=shaders.SHADOW_SOLID_VERTEX, fragment_shader=shaders.EMPTY_FRAGMENT)
-        self._shadow_capsule = prog(vertex_shader=shaders.CAPSULE_VERTEX,
-                                    fragment_shader=shaders.SHADOW_CAPSULE_FRAGMENT)
+        self._shadow_capsule = prog(
+            vertex_shader=shaders.CAPSULE_VERTEX, fragment_shader=shaders.SHADOW_CAPSULE_FRAGMENT
+        )
         self._lit = (self._sky, self._plane, self._sphere, self._box, self._cloth, self._solid, self._capsule)
 
         # static geometry
@@ -377,36 +416,61 @@ class Renderer:
         va = ctx.vertex_array
         self._sky_vao = va(self._sky, [])
         self._plane_vao = va(self._plane, [])
-        self._sphere_vao = va(self._sphere, [
-            (self._quad_vbo, "2f", "in_corner"),
-            (self._sphere_buf, "3f 1f 4f 3f/i", "in_center", "in_radius", "in_quat", "in_color"),
-        ])
-        self._box_vao = va(self._box, [
-            (self._cube_vbo, "3f 3f", "in_position", "in_normal"),
-            (self._box_buf, "3f 4f 3f 3f/i", "in_center", "in_quat", "in_half", "in_color"),
-        ])
-        self._cloth_vao = va(self._cloth, [(self._cloth_vbo, "3f 3f", "in_position", "in_normal")],
-                             index_buffer=self._cloth_ibo, index_element_size=4)
-        self._shadow_sphere_vao = va(self._shadow_sphere, [
-            (self._quad_vbo, "2f", "in_corner"),
-            (self._sphere_buf, "3f 1f 28x/i", "in_center", "in_radius"),
-        ])
-        self._shadow_box_vao = va(self._shadow_box, [
-            (self._cube_vbo, "3f 12x", "in_position"),
-            (self._box_buf, "3f 4f 3f 12x/i", "in_center", "in_quat", "in_half"),
-        ])
-        self._shadow_cloth_vao = va(self._shadow_mesh, [(self._cloth_vbo, "3f 12x", "in_position")],
-                                    index_buffer=self._cloth_ibo, index_element_size=4)
+        self._sphere_vao = va(
+            self._sphere,
+            [
+                (self._quad_vbo, "2f", "in_corner"),
+                (self._sphere_buf, "3f 1f 4f 3f/i", "in_center", "in_radius", "in_quat", "in_color"),
+            ],
+        )
+        self._box_vao = va(
+            self._box,
+            [
+                (self._cube_vbo, "3f 3f", "in_position", "in_normal"),
+                (self._box_buf, "3f 4f 3f 3f/i", "in_center", "in_quat", "in_half", "in_color"),
+            ],
+        )
+        self._cloth_vao = va(
+            self._cloth,
+            [(self._cloth_vbo, "3f 3f", "in_position", "in_normal")],
+            index_buffer=self._cloth_ibo,
+            index_element_size=4,
+        )
+        self._shadow_sphere_vao = va(
+            self._shadow_sphere,
+            [
+                (self._quad_vbo, "2f", "in_corner"),
+                (self._sphere_buf, "3f 1f 28x/i", "in_center", "in_radius"),
+            ],
+        )
+        self._shadow_box_vao = va(
+            self._shadow_box,
+            [
+                (self._cube_vbo, "3f 12x", "in_position"),
+                (self._box_buf, "3f 4f 3f 12x/i", "in_center", "in_quat", "in_half"),
+            ],
+        )
+        self._shadow_cloth_vao = va(
+            self._shadow_mesh,
+            [(self._cloth_vbo, "3f 12x", "in_position")],
+            index_buffer=self._cloth_ibo,
+            index_element_size=4,
+        )
         # capsules are ray cast inside their bounding boxes: the cube's corners, no normals
         capsule_layout = ("3f 4f 1f 1f 3f/i", "in_center", "in_quat", "in_radius", "in_half", "in_color")
-        self._capsule_vao = va(self._capsule, [(self._cube_vbo, "3f 12x", "in_position"),
-                                               (self._capsule_buf, *capsule_layout)])
-        self._joint_vao = va(self._capsule, [(self._cube_vbo, "3f 12x", "in_position"),
-                                             (self._joint_buf, *capsule_layout)])
-        self._shadow_capsule_vao = va(self._shadow_capsule, [
-            (self._cube_vbo, "3f 12x", "in_position"),
-            (self._capsule_buf, "3f 4f 1f 1f 12x/i", "in_center", "in_quat", "in_radius", "in_half"),
-        ])
+        self._capsule_vao = va(
+            self._capsule, [(self._cube_vbo, "3f 12x", "in_position"), (self._capsule_buf, *capsule_layout)]
+        )
+        self._joint_vao = va(
+            self._capsule, [(self._cube_vbo, "3f 12x", "in_position"), (self._joint_buf, *capsule_layout)]
+        )
+        self._shadow_capsule_vao = va(
+            self._shadow_capsule,
+            [
+                (self._cube_vbo, "3f 12x", "in_position"),
+                (self._capsule_buf, "3f 4f 1f 1f 12x/i", "in_center", "in_quat", "in_radius", "in_half"),
+            ],
+        )
 
         # sun shadow map: a depth texture read as plain values (no hardware comparison)
         self._shadow_tex = ctx.depth_texture((shadow_size, shadow_size))
@@ -480,8 +544,9 @@ class Renderer:
         light = light / np.linalg.norm(light)
 
         # shadow map: depth of the scene seen from the sun, orthographic around its bounds
-        shadow_on = self.shadows and (len(arrays.spheres) or len(arrays.boxes) or len(arrays.capsules) or batches
-                                      or n_cloth_idx)
+        shadow_on = self.shadows and (
+            len(arrays.spheres) or len(arrays.boxes) or len(arrays.capsules) or batches or n_cloth_idx
+        )
         light_vp = np.eye(4)
         if shadow_on:
             light_vp = self._draw_shadow_map(world, arrays, light, n_cloth_idx, batches)
@@ -584,8 +649,11 @@ class Renderer:
             self._draw_joints(fbo, arrays.joints, camera, vh)
 
         # glass: walls seen from behind (a container's near walls), blended over everything
-        near_walls = [k for k, plane in enumerate(arrays.planes)
-                      if self._is_wall(plane, camera) and float(np.dot(plane[:3], camera.position)) < plane[3]]
+        near_walls = [
+            k
+            for k, plane in enumerate(arrays.planes)
+            if self._is_wall(plane, camera) and float(np.dot(plane[:3], camera.position)) < plane[3]
+        ]
         if near_walls:
             p = self._plane
             self._set(p, "u_glass", 1.0)
@@ -739,10 +807,13 @@ class Renderer:
         vertices = batch.build()
         vbo = ctx.buffer(vertices.tobytes())
         inst = ctx.buffer(reserve=max(1, len(batch.instances)) * SOLID_FLOATS * 4, dynamic=True)
-        vao = ctx.vertex_array(self._solid, [(vbo, "3f 3f", "in_position", "in_normal"),
-                                             (inst, "3f 4f 3f/i", "in_center", "in_quat", "in_color")])
-        shadow = ctx.vertex_array(self._shadow_solid, [(vbo, "3f 12x", "in_position"),
-                                                       (inst, "3f 4f 12x/i", "in_center", "in_quat")])
+        vao = ctx.vertex_array(
+            self._solid,
+            [(vbo, "3f 3f", "in_position", "in_normal"), (inst, "3f 4f 3f/i", "in_center", "in_quat", "in_color")],
+        )
+        shadow = ctx.vertex_array(
+            self._shadow_solid, [(vbo, "3f 12x", "in_position"), (inst, "3f 4f 12x/i", "in_center", "in_quat")]
+        )
         entry = (batch.source, vbo, inst, vao, shadow, len(vertices))
         self._solid_cache[batch.key] = entry
         return entry
@@ -791,8 +862,9 @@ class Renderer:
         ctx.depth_func = "<"
         ctx.disable(mgl.BLEND)
 
-    def _draw_shadow_map(self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int,
-                         batches=()) -> np.ndarray:
+    def _draw_shadow_map(
+        self, world, arrays: SceneArrays, light: np.ndarray, n_cloth_idx: int, batches=()
+    ) -> np.ndarray:
         """Render depth from the sun into the shadow map; return the world -> sun clip matrix."""
         ctx, mgl = self.ctx, self._mgl
         centre, radius = scene_bounds(world)

@@ -296,7 +296,8 @@ vec3 rotate(vec4 q, vec3 v) {  // rotate by unit quaternion q = (x, y, z, w)
 }
 """
 
-BOX_VERTEX = """
+BOX_VERTEX = (
+    """
 #version 330
 in vec3 in_position;
 in vec3 in_normal;
@@ -310,7 +311,9 @@ out vec3 v_normal;
 out vec3 v_local;
 flat out vec3 v_half;
 flat out vec3 v_color;
-""" + ROTATE + """
+"""
+    + ROTATE
+    + """
 void main() {
     v_local = in_position * in_half;
     v_half = in_half;
@@ -320,6 +323,7 @@ void main() {
     gl_Position = u_vp * vec4(v_world, 1.0);
 }
 """
+)
 
 BOX_FRAGMENT = (
     """
@@ -652,18 +656,22 @@ void main() {
 }
 """
 
-SHADOW_BOX_VERTEX = """
+SHADOW_BOX_VERTEX = (
+    """
 #version 330
 in vec3 in_position;
 in vec3 in_center;
 in vec4 in_quat;
 in vec3 in_half;
 uniform mat4 u_light_vp;
-""" + ROTATE + """
+"""
+    + ROTATE
+    + """
 void main() {
     gl_Position = u_light_vp * vec4(in_center + rotate(in_quat, in_position * in_half), 1.0);
 }
 """
+)
 
 EMPTY_FRAGMENT = """
 #version 330

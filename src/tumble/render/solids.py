@@ -130,7 +130,9 @@ def joint_capsules(lines: np.ndarray, rod_radius: float, dot_radius: float) -> n
     rods = rods[np.linalg.norm(rods[:, 1] - rods[:, 0], axis=1) > 1e-9]
     apart = np.linalg.norm(lines[:, 2] - lines[:, 1], axis=1) > 1e-6
     dots = np.concatenate([lines[:, 1], lines[apart, 2]])
-    return np.concatenate([
-        segment_capsules(rods, rod_radius, JOINT_COLOR),
-        segment_capsules(np.stack([dots, dots], axis=1), dot_radius, ANCHOR_COLOR),
-    ])
+    return np.concatenate(
+        [
+            segment_capsules(rods, rod_radius, JOINT_COLOR),
+            segment_capsules(np.stack([dots, dots], axis=1), dot_radius, ANCHOR_COLOR),
+        ]
+    )

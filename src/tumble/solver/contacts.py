@@ -374,8 +374,18 @@ def _prepare(
 
 
 @wp.func
-def _add_pair(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), ia: int, ib: int,
-              dva: vec3, dwa: vec3, dvb: vec3, dwb: vec3, serial: int):
+def _add_pair(
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    ia: int,
+    ib: int,
+    dva: vec3,
+    dwa: vec3,
+    dvb: vec3,
+    dwb: vec3,
+    serial: int,
+):
     """Add one contact's changes to the rows of its two bodies (static bodies never change).
 
     `serial` (CPU): plain updates, one contact after another (Gauss-Seidel); else atomics (CUDA).
@@ -509,8 +519,7 @@ def _solve(
 
     # current separation, linearised in the motion since the step began:
     # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
-    s = c_separation[k] + wp.dot(
-        n, b_dx[ib] + wp.cross(b_dtheta[ib], rb) - b_dx[ia] - wp.cross(b_dtheta[ia], ra))
+    s = c_separation[k] + wp.dot(n, b_dx[ib] + wp.cross(b_dtheta[ib], rb) - b_dx[ia] - wp.cross(b_dtheta[ia], ra))
 
     # normal: speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is
     # pushed out softly (bias) and only in the biased pass
@@ -528,8 +537,7 @@ def _solve(
             bias = wp.max(static_bias_rate * (s + slop), -max_push)
             ms = static_mass_scale
             isc = static_impulse_scale
-    vn = (wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n))
-          - wp.dot(wa + dwa, wp.cross(ra, n)))
+    vn = wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n)) - wp.dot(wa + dwa, wp.cross(ra, n))
     jn_old = c_jn[k]
     jn = wp.max(jn_old + (-c_mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
     c_jn[k] = jn
@@ -552,8 +560,17 @@ def _solve(
 
 
 @wp.func
-def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t,
-            ahead: int, serial: int):
+def _impact(
+    k: int,
+    c: Contacts,
+    b: Bodies,
+    gravity: vec3,
+    h: float_t,
+    threshold: float_t,
+    floor: float_t,
+    ahead: int,
+    serial: int,
+):
     """Collide contact k now if it closes within the substep faster than `threshold` [m/s].
 
     One two-body collision: the normal impulse j = m_n (u - v_n) turns the approach speed v_n
@@ -660,9 +677,19 @@ def _impact(k: int, c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
 
 
 @wp.kernel
-def _impacts_serial(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t, ahead: int,
-                    counts: wp.array(dtype=wp.int32), tested: wp.array(dtype=wp.int64),
-                    changed: wp.array(dtype=wp.int64), clock: wp.array(dtype=wp.int64)):
+def _impacts_serial(
+    c: Contacts,
+    b: Bodies,
+    gravity: vec3,
+    h: float_t,
+    threshold: float_t,
+    floor: float_t,
+    ahead: int,
+    counts: wp.array(dtype=wp.int32),
+    tested: wp.array(dtype=wp.int64),
+    changed: wp.array(dtype=wp.int64),
+    clock: wp.array(dtype=wp.int64),
+):
     # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
     # (a collision passes along a chain of touching bodies in either direction within a sweep;
     # a body caught between two others needs several); at most IMPACT_SWEEPS.
@@ -703,9 +730,19 @@ def _impacts_serial(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold
 
 
 @wp.kernel
-def _impacts_parallel(c: Contacts, b: Bodies, gravity: vec3, h: float_t, threshold: float_t, floor: float_t,
-                      ahead: int, counts: wp.array(dtype=wp.int32), tested: wp.array(dtype=wp.int64),
-                      changed: wp.array(dtype=wp.int64), clock: wp.array(dtype=wp.int64)):
+def _impacts_parallel(
+    c: Contacts,
+    b: Bodies,
+    gravity: vec3,
+    h: float_t,
+    threshold: float_t,
+    floor: float_t,
+    ahead: int,
+    counts: wp.array(dtype=wp.int32),
+    tested: wp.array(dtype=wp.int64),
+    changed: wp.array(dtype=wp.int64),
+    clock: wp.array(dtype=wp.int64),
+):
     k = wp.tid()
     if k < counts[0]:
         _impact(k, c, b, gravity, h, threshold, floor, ahead, 0)
@@ -756,8 +793,17 @@ class ContactSet(ArraySet):
         a = self.arrays
         c = Contacts()
         c.body_a, c.body_b, c.normal, c.separation = (
-            a["contact_body_a"], a["contact_body_b"], a["contact_normal"], a["contact_separation"])
-        c.local_a, c.local_b, c.r_a, c.r_b = a["contact_local_a"], a["contact_local_b"], a["contact_r_a"], a["contact_r_b"]
+            a["contact_body_a"],
+            a["contact_body_b"],
+            a["contact_normal"],
+            a["contact_separation"],
+        )
+        c.local_a, c.local_b, c.r_a, c.r_b = (
+            a["contact_local_a"],
+            a["contact_local_b"],
+            a["contact_r_a"],
+            a["contact_r_b"],
+        )
         c.t1, c.t2 = a["contact_tangent1"], a["contact_tangent2"]
         c.ang_a_n, c.ang_b_n = a["contact_angular_a_n"], a["contact_angular_b_n"]
         c.ang_a_t1, c.ang_b_t1 = a["contact_angular_a_t1"], a["contact_angular_b_t1"]
@@ -766,7 +812,11 @@ class ContactSet(ArraySet):
         c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
         c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
         c.jn, c.jt1, c.jt2, c.jn_max = (
-            a["contact_impulse_n"], a["contact_impulse_t1"], a["contact_impulse_t2"], a["contact_max_impulse_n"])
+            a["contact_impulse_n"],
+            a["contact_impulse_t1"],
+            a["contact_impulse_t2"],
+            a["contact_max_impulse_n"],
+        )
         return c
 
     def begin_solve(self, bodies) -> tuple:
@@ -777,9 +827,16 @@ class ContactSet(ArraySet):
         """
         p = self.previous
         p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
-        sized = (bodies.capacity, self.capacity, p.capacity, id(bodies.arrays["body_velocity"]),
-                 id(self.arrays["contact_normal"]), id(p.arrays["previous_body_a"]), id(self.jt_world))
-        if sized != self._sized[:len(sized)] or self._structs is None:
+        sized = (
+            bodies.capacity,
+            self.capacity,
+            p.capacity,
+            id(bodies.arrays["body_velocity"]),
+            id(self.arrays["contact_normal"]),
+            id(p.arrays["previous_body_a"]),
+            id(self.jt_world),
+        )
+        if sized != self._sized[: len(sized)] or self._structs is None:
             dev = self.device
             if bodies.capacity != self._owner_capacity:
                 self._owner_capacity = bodies.capacity
@@ -808,17 +865,48 @@ class ContactSet(ArraySet):
         self.owner_count.zero_()
         self.owner_fill.zero_()
         # last step's contacts bucketed by owner (counting sort), launched over their capacity
-        wp.launch(_owner_count, dim=p.capacity, device=dev,
-                  inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count, self.counts])
+        wp.launch(
+            _owner_count,
+            dim=p.capacity,
+            device=dev,
+            inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count, self.counts],
+        )
         wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
-        wp.launch(_owner_scatter, dim=p.capacity, device=dev,
-                  inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_start,
-                          self.owner_fill, self.owner_entries, self.counts])
-        wp.launch(_match, dim=self.capacity, device=dev,
-                  inputs=[self._structs[0], b["body_inv_mass"], b["body_bound_radius"], MATCH_TOLERANCE,
-                          self.owner_start, self.owner_count, self.owner_entries, p.previous_body_a,
-                          p.previous_body_b, p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t,
-                          self.jt_world, self.counts])
+        wp.launch(
+            _owner_scatter,
+            dim=p.capacity,
+            device=dev,
+            inputs=[
+                p.previous_body_a,
+                p.previous_body_b,
+                b["body_inv_mass"],
+                self.owner_start,
+                self.owner_fill,
+                self.owner_entries,
+                self.counts,
+            ],
+        )
+        wp.launch(
+            _match,
+            dim=self.capacity,
+            device=dev,
+            inputs=[
+                self._structs[0],
+                b["body_inv_mass"],
+                b["body_bound_radius"],
+                MATCH_TOLERANCE,
+                self.owner_start,
+                self.owner_count,
+                self.owner_entries,
+                p.previous_body_a,
+                p.previous_body_b,
+                p.previous_local_owner,
+                p.previous_impulse_n,
+                p.previous_impulse_t,
+                self.jt_world,
+                self.counts,
+            ],
+        )
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
         """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them in
@@ -828,7 +916,8 @@ class ContactSet(ArraySet):
         renumbering never swaps a pair's bodies and every other contact keeps its warm start.
         """
         for contacts, a, b in ((self.previous, "previous_body_a", "previous_body_b"),) + (
-                ((self, "contact_body_a", "contact_body_b"),) if current else ()):
+            ((self, "contact_body_a", "contact_body_b"),) if current else ()
+        ):
             if slot.min(initial=0) < 0:
                 kept = np.flatnonzero((slot[contacts.numpy(a)] >= 0) & (slot[contacts.numpy(b)] >= 0))
                 if len(kept) < contacts.count:
@@ -843,9 +932,21 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         p = self.previous
-        wp.launch(_store, dim=self.capacity, device=self.device,
-                  inputs=[self._structs[0], bodies.arrays["body_inv_mass"], p.previous_body_a, p.previous_body_b,
-                          p.previous_local_owner, p.previous_impulse_n, p.previous_impulse_t, self.counts])
+        wp.launch(
+            _store,
+            dim=self.capacity,
+            device=self.device,
+            inputs=[
+                self._structs[0],
+                bodies.arrays["body_inv_mass"],
+                p.previous_body_a,
+                p.previous_body_b,
+                p.previous_local_owner,
+                p.previous_impulse_n,
+                p.previous_impulse_t,
+                self.counts,
+            ],
+        )
 
     def end_solve(self) -> None:
         """Host side after the solver stages: the contacts stored for warm starting are this step's."""
@@ -889,20 +990,41 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
     c, b = contacts._structs
     if jacobi:
         contacts.body_count.zero_()
-        wp.launch(_body_contact_count, dim=contacts.capacity, device=contacts.device,
-                  inputs=[c, contacts.body_count, contacts.counts])
+        wp.launch(
+            _body_contact_count,
+            dim=contacts.capacity,
+            device=contacts.device,
+            inputs=[c, contacts.body_count, contacts.counts],
+        )
     a = bodies.arrays
-    wp.launch(_prepare, dim=contacts.capacity, device=contacts.device,
-              inputs=[c, b, a["body_friction"], a["body_restitution"], contacts.jt_world, vec3(*gravity), jacobi,
-                      contacts.body_count, contacts.counts])
+    wp.launch(
+        _prepare,
+        dim=contacts.capacity,
+        device=contacts.device,
+        inputs=[
+            c,
+            b,
+            a["body_friction"],
+            a["body_restitution"],
+            contacts.jt_world,
+            vec3(*gravity),
+            jacobi,
+            contacts.body_count,
+            contacts.counts,
+        ],
+    )
 
 
 def warm_start(bodies, contacts: ContactSet) -> None:
     """Apply last step's impulses of the matched contacts to the velocities (first substep only;
     later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
-        wp.launch(_warm_start, dim=contacts.capacity, device=contacts.device,
-                  inputs=[*contacts._structs, _serial(contacts), contacts.counts])
+        wp.launch(
+            _warm_start,
+            dim=contacts.capacity,
+            device=contacts.device,
+            inputs=[*contacts._structs, _serial(contacts), contacts.counts],
+        )
 
 
 def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: LaunchCache | None = None) -> None:
@@ -912,28 +1034,73 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
     soft = softness(h)
     soft_static = softness(h, stiffness=2.0)
     c, b = contacts.arrays, bodies.arrays
-    launch(_solve, contacts.capacity,
-           [*(c[name] for name in _SOLVE_CONTACT_ARRAYS), *(b[name] for name in _SOLVE_BODY_ARRAYS),
-            1.0 / h, int(use_bias), *soft, *soft_static, MAX_PUSH_VELOCITY, LINEAR_SLOP, _serial(contacts),
-            contacts.counts], contacts.device, cache)
+    launch(
+        _solve,
+        contacts.capacity,
+        [
+            *(c[name] for name in _SOLVE_CONTACT_ARRAYS),
+            *(b[name] for name in _SOLVE_BODY_ARRAYS),
+            1.0 / h,
+            int(use_bias),
+            *soft,
+            *soft_static,
+            MAX_PUSH_VELOCITY,
+            LINEAR_SLOP,
+            _serial(contacts),
+            contacts.counts,
+        ],
+        contacts.device,
+        cache,
+    )
 
 
 #: the arrays `_solve` takes, in its argument order
 _SOLVE_CONTACT_ARRAYS = (
-    "contact_body_a", "contact_body_b", "contact_normal", "contact_separation", "contact_r_a", "contact_r_b",
-    "contact_tangent1", "contact_tangent2", "contact_angular_a_n", "contact_angular_b_n", "contact_angular_a_t1",
-    "contact_angular_b_t1", "contact_angular_a_t2", "contact_angular_b_t2", "contact_mass_n", "contact_mass_t1",
-    "contact_mass_t2", "contact_friction", "contact_scale", "contact_impulse_n", "contact_impulse_t1",
-    "contact_impulse_t2", "contact_max_impulse_n",
+    "contact_body_a",
+    "contact_body_b",
+    "contact_normal",
+    "contact_separation",
+    "contact_r_a",
+    "contact_r_b",
+    "contact_tangent1",
+    "contact_tangent2",
+    "contact_angular_a_n",
+    "contact_angular_b_n",
+    "contact_angular_a_t1",
+    "contact_angular_b_t1",
+    "contact_angular_a_t2",
+    "contact_angular_b_t2",
+    "contact_mass_n",
+    "contact_mass_t1",
+    "contact_mass_t2",
+    "contact_friction",
+    "contact_scale",
+    "contact_impulse_n",
+    "contact_impulse_t1",
+    "contact_impulse_t2",
+    "contact_max_impulse_n",
 )
 _SOLVE_BODY_ARRAYS = (
-    "body_velocity", "body_angular_velocity", "body_inv_mass", "body_delta_position", "body_delta_rotation",
-    "body_warm_velocity", "body_warm_angular_velocity",
+    "body_velocity",
+    "body_angular_velocity",
+    "body_inv_mass",
+    "body_delta_position",
+    "body_delta_rotation",
+    "body_warm_velocity",
+    "body_warm_angular_velocity",
 )
 
 
-def impacts(bodies, contacts: ContactSet, gravity: np.ndarray, h: float, threshold: float, *, ahead: bool,
-            cache: LaunchCache | None = None) -> None:
+def impacts(
+    bodies,
+    contacts: ContactSet,
+    gravity: np.ndarray,
+    h: float,
+    threshold: float,
+    *,
+    ahead: bool,
+    cache: LaunchCache | None = None,
+) -> None:
     """Collide the contacts that close within the substep faster than `threshold` [m/s] (restitution).
 
     Called before the first substep's solve (`ahead` False: the contacts that close within it)
@@ -946,8 +1113,18 @@ def impacts(bodies, contacts: ContactSet, gravity: np.ndarray, h: float, thresho
     if contacts.count == 0:
         return
     floor = 2.0 * float(np.linalg.norm(gravity)) * h
-    args = [*contacts._structs, vec3(*gravity), h, threshold, floor, int(ahead), contacts.counts,
-            contacts.impact_tested, contacts.impact_changed, contacts.impact_clock]
+    args = [
+        *contacts._structs,
+        vec3(*gravity),
+        h,
+        threshold,
+        floor,
+        int(ahead),
+        contacts.counts,
+        contacts.impact_tested,
+        contacts.impact_changed,
+        contacts.impact_clock,
+    ]
     if _serial(contacts):
         launch(_impacts_serial, 1, args, contacts.device, cache)
     else:

@@ -141,10 +141,27 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
     if bodies.count == 0:
         return  # a cloth-only world: no launch over an empty capacity
     a = bodies.arrays
-    launch(_integrate_velocities, bodies.capacity,
-           [a["body_inv_mass"], a["body_inv_inertia"], a["body_orientation"], a["body_force"], a["body_torque"],
-            vec3(*gravity), h, int(warm), a["body_velocity"], a["body_angular_velocity"], a["body_warm_velocity"],
-            a["body_warm_angular_velocity"], bodies.count], bodies.device, cache)
+    launch(
+        _integrate_velocities,
+        bodies.capacity,
+        [
+            a["body_inv_mass"],
+            a["body_inv_inertia"],
+            a["body_orientation"],
+            a["body_force"],
+            a["body_torque"],
+            vec3(*gravity),
+            h,
+            int(warm),
+            a["body_velocity"],
+            a["body_angular_velocity"],
+            a["body_warm_velocity"],
+            a["body_warm_angular_velocity"],
+            bodies.count,
+        ],
+        bodies.device,
+        cache,
+    )
 
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
@@ -153,10 +170,24 @@ def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -
     if bodies.count == 0:
         return
     a = bodies.arrays
-    launch(_integrate_positions, bodies.capacity,
-           [a["body_inv_mass"], a["body_inv_inertia"], h, a["body_position"], a["body_orientation"],
-            a["body_velocity"], a["body_angular_velocity"], a["body_delta_position"], a["body_delta_rotation"],
-            bodies.count], bodies.device, cache)
+    launch(
+        _integrate_positions,
+        bodies.capacity,
+        [
+            a["body_inv_mass"],
+            a["body_inv_inertia"],
+            h,
+            a["body_position"],
+            a["body_orientation"],
+            a["body_velocity"],
+            a["body_angular_velocity"],
+            a["body_delta_position"],
+            a["body_delta_rotation"],
+            bodies.count,
+        ],
+        bodies.device,
+        cache,
+    )
 
 
 def begin_step(bodies) -> None:

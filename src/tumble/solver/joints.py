@@ -111,8 +111,14 @@ class JointKind(IntEnum):
 
 
 #: names accepted by `World.add_joint` and scene files ("rope" is a distance joint that only pulls)
-JOINT_NAMES = {"ball": JointKind.BALL, "hinge": JointKind.HINGE, "slider": JointKind.SLIDER,
-               "fixed": JointKind.FIXED, "distance": JointKind.DISTANCE, "rope": JointKind.DISTANCE}
+JOINT_NAMES = {
+    "ball": JointKind.BALL,
+    "hinge": JointKind.HINGE,
+    "slider": JointKind.SLIDER,
+    "fixed": JointKind.FIXED,
+    "distance": JointKind.DISTANCE,
+    "rope": JointKind.DISTANCE,
+}
 
 JOINT_FIELDS = {
     # model
@@ -190,7 +196,6 @@ class _Geometry:
     mb: float_t
 
 
-
 @wp.func
 def _axial_mass(g: _Geometry):
     """Effective mass of the axial row: 1 / (|n|^2 (1/m_a + 1/m_b) + ja.I_a^-1 ja + jb.I_b^-1 jb)."""
@@ -247,8 +252,19 @@ def _apply_angular(g: _Geometry, s: _Velocities, L: vec3):
 
 
 @wp.func
-def _limit(g: _Geometry, s: _Velocities, C: float_t, sign: float_t, accumulated: float_t, inv_h: float_t,
-           use_bias: int, bias_rate: float_t, mass_scale: float_t, impulse_scale: float_t, relax: float_t):
+def _limit(
+    g: _Geometry,
+    s: _Velocities,
+    C: float_t,
+    sign: float_t,
+    accumulated: float_t,
+    inv_h: float_t,
+    use_bias: int,
+    bias_rate: float_t,
+    mass_scale: float_t,
+    impulse_scale: float_t,
+    relax: float_t,
+):
     """New accumulated impulse (>= 0) of a one-sided row keeping C >= 0; `sign` -1 for an upper limit.
 
     Speculative while C > 0 (the gap may close within the substep, no more), soft when violated.
@@ -305,8 +321,9 @@ def _inv_inertia_loaded(q: quat, inv_i: vec3, load: float_t, h: float_t):
     """World inverse inertia with the joints' geometric stiffness: each moment I_k gains h^2 load."""
     e = h * h * load
     one = float_t(1.0)
-    return _inv_inertia_world(q, vec3(inv_i[0] / (one + e * inv_i[0]), inv_i[1] / (one + e * inv_i[1]),
-                                      inv_i[2] / (one + e * inv_i[2])))
+    return _inv_inertia_world(
+        q, vec3(inv_i[0] / (one + e * inv_i[0]), inv_i[1] / (one + e * inv_i[1]), inv_i[2] / (one + e * inv_i[2]))
+    )
 
 
 @wp.struct
@@ -320,9 +337,17 @@ class _Body:
 
 
 @wp.func
-def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(dtype=vec3),
-          w: wp.array(dtype=vec3), inv_mass: wp.array(dtype=float_t), inv_inertia: wp.array(dtype=vec3),
-          load: wp.array(dtype=float_t), h: float_t):
+def _load(
+    i: int,
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
+    h: float_t,
+):
     """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin.
 
     The inertia carries the joints' geometric stiffness (`_inv_inertia_loaded`).
@@ -340,8 +365,15 @@ def _load(i: int, x: wp.array(dtype=vec3), q: wp.array(dtype=quat), v: wp.array(
 
 
 @wp.func
-def add_velocity(i: int, dv: vec3, dw: vec3, v: wp.array(dtype=vec3), w: wp.array(dtype=vec3),
-                 inv_mass: wp.array(dtype=float_t), serial: int):
+def add_velocity(
+    i: int,
+    dv: vec3,
+    dw: vec3,
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    serial: int,
+):
     """Add a velocity change to body row i (not the world, not static bodies); atomics off the CPU."""
     if i < 0:
         return
@@ -359,8 +391,20 @@ def _make_solve(kind: int):
     """The solve kernel of one joint kind: the other kinds' rows are left out when Warp compiles it."""
 
     @wp.func
-    def geometry(xa: vec3, qa: quat, xb: vec3, qb: quat, local_a: vec3, local_b: vec3,
-                     frame_a: quat, frame_b: quat, ma: float_t, mb: float_t, Ia: wp.mat33d, Ib: wp.mat33d):
+    def geometry(
+        xa: vec3,
+        qa: quat,
+        xb: vec3,
+        qb: quat,
+        local_a: vec3,
+        local_b: vec3,
+        frame_a: quat,
+        frame_b: quat,
+        ma: float_t,
+        mb: float_t,
+        Ia: wp.mat33d,
+        Ib: wp.mat33d,
+    ):
         g = _Geometry()
         ra = wp.quat_rotate(qa, local_a)
         rb = wp.quat_rotate(qb, local_b)
@@ -591,13 +635,17 @@ def _make_solve(kind: int):
                 jb1 = wp.cross(g.rb, e1)
                 jb2 = wp.cross(g.rb, e2)
                 m = g.ma + g.mb
-                K2 = wp.mat22d(m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
-                               wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
-                               wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
-                               m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2))
+                K2 = wp.mat22d(
+                    m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
+                    wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
+                    wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
+                    m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2),
+                )
                 dv = s.vb - s.va
-                cdot2 = wp.vec2d(wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
-                                 wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa))
+                cdot2 = wp.vec2d(
+                    wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
+                    wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa),
+                )
                 bias2 = wp.vec2d()
                 if use_bias != 0:
                     bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
@@ -725,8 +773,6 @@ _SOLVE = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKin
 _SOLVE[JointKind.BALL] = _solve_ball
 
 
-
-
 @wp.kernel
 def _finish(
     break_force: wp.array(dtype=float_t),
@@ -846,24 +892,67 @@ def softness(h: float) -> tuple[float, float, float]:
 
 #: the arrays the solve kernels take, in their argument order (ball joints: the first list is `_BALL_JOINT_ARRAYS`)
 _SOLVE_JOINT_ARRAYS = (
-    "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_frame_a", "joint_frame_b",
-    "joint_limit", "joint_lower", "joint_upper", "joint_motor", "joint_motor_speed", "joint_motor_max",
-    "joint_length", "joint_stiffness", "joint_damping", "joint_scale", "joint_enabled", "joint_impulse_linear",
-    "joint_impulse_angular", "joint_impulse_axial", "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear",
+    "joint_body_a",
+    "joint_body_b",
+    "joint_local_a",
+    "joint_local_b",
+    "joint_frame_a",
+    "joint_frame_b",
+    "joint_limit",
+    "joint_lower",
+    "joint_upper",
+    "joint_motor",
+    "joint_motor_speed",
+    "joint_motor_max",
+    "joint_length",
+    "joint_stiffness",
+    "joint_damping",
+    "joint_scale",
+    "joint_enabled",
+    "joint_impulse_linear",
+    "joint_impulse_angular",
+    "joint_impulse_axial",
+    "joint_impulse_lower",
+    "joint_impulse_upper",
+    "joint_sum_linear",
     "joint_sum_angular",
 )
 _BALL_JOINT_ARRAYS = (
-    "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b", "joint_scale", "joint_enabled",
-    "joint_impulse_linear", "joint_sum_linear",
+    "joint_body_a",
+    "joint_body_b",
+    "joint_local_a",
+    "joint_local_b",
+    "joint_scale",
+    "joint_enabled",
+    "joint_impulse_linear",
+    "joint_sum_linear",
 )
 _SOLVE_BODY_ARRAYS = (
-    "body_position", "body_orientation", "body_velocity", "body_angular_velocity", "body_inv_mass",
-    "body_inv_inertia", "body_warm_velocity", "body_warm_angular_velocity",
+    "body_position",
+    "body_orientation",
+    "body_velocity",
+    "body_angular_velocity",
+    "body_inv_mass",
+    "body_inv_inertia",
+    "body_warm_velocity",
+    "body_warm_angular_velocity",
 )
 _FINISH_JOINT_ARRAYS = (
-    "joint_break_force", "joint_enabled", "joint_impulse_linear", "joint_impulse_angular", "joint_impulse_axial",
-    "joint_impulse_lower", "joint_impulse_upper", "joint_sum_linear", "joint_sum_angular", "joint_force",
-    "joint_torque", "joint_body_a", "joint_body_b", "joint_local_a", "joint_local_b",
+    "joint_break_force",
+    "joint_enabled",
+    "joint_impulse_linear",
+    "joint_impulse_angular",
+    "joint_impulse_axial",
+    "joint_impulse_lower",
+    "joint_impulse_upper",
+    "joint_sum_linear",
+    "joint_sum_angular",
+    "joint_force",
+    "joint_torque",
+    "joint_body_a",
+    "joint_body_b",
+    "joint_local_a",
+    "joint_local_b",
 )
 
 
@@ -899,8 +988,11 @@ class JointSet(ArraySet):
         self._dirty = False
         n = self.count
         kinds = self.numpy("joint_kind")
-        self._rows = {kind: wp.array(np.flatnonzero(kinds == kind).astype(np.int32), dtype=wp.int32,
-                                     device=self.device) for kind in JointKind if (kinds == kind).any()}
+        self._rows = {
+            kind: wp.array(np.flatnonzero(kinds == kind).astype(np.int32), dtype=wp.int32, device=self.device)
+            for kind in JointKind
+            if (kinds == kind).any()
+        }
         a = self.numpy("joint_body_a").astype(np.int64)
         b = self.numpy("joint_body_b").astype(np.int64)
         no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
@@ -936,7 +1028,7 @@ class JointSet(ArraySet):
         """The per-body geometric load (`geometric_load`), grown to the body capacity."""
         if self._load.shape[0] < bodies.capacity:
             grown = np.zeros(bodies.capacity)
-            grown[:self._load.shape[0]] = self._load.numpy()
+            grown[: self._load.shape[0]] = self._load.numpy()
             self._load = wp.array(grown, dtype=float_t, device=self.device)
         return self._load
 
@@ -957,25 +1049,51 @@ class JointSet(ArraySet):
             out.pair_b = wp.zeros(n, dtype=wp.int32, device=dev)
             out.keep = wp.zeros(n, dtype=wp.int32, device=dev)
             out.offset = wp.zeros(n, dtype=wp.int32, device=dev)
-        wp.launch(_keep_pair, dim=n, device=dev,
-                  inputs=[pairs.pair_a, pairs.pair_b, self._keys, self._key_joint, self._key_count,
-                          self.arrays["joint_enabled"], out.keep])
+        wp.launch(
+            _keep_pair,
+            dim=n,
+            device=dev,
+            inputs=[
+                pairs.pair_a,
+                pairs.pair_b,
+                self._keys,
+                self._key_joint,
+                self._key_count,
+                self.arrays["joint_enabled"],
+                out.keep,
+            ],
+        )
         wp.utils.array_scan(out.keep, out.offset, inclusive=False)
-        wp.launch(_compact_pairs, dim=n, device=dev,
-                  inputs=[pairs.pair_a, pairs.pair_b, out.keep, out.offset, out.pair_a, out.pair_b])
-        last = out.offset[n - 1:n].numpy()[0] + out.keep[n - 1:n].numpy()[0]
+        wp.launch(
+            _compact_pairs,
+            dim=n,
+            device=dev,
+            inputs=[pairs.pair_a, pairs.pair_b, out.keep, out.offset, out.pair_a, out.pair_b],
+        )
+        last = out.offset[n - 1 : n].numpy()[0] + out.keep[n - 1 : n].numpy()[0]
         out.pair_count = int(last)
         return out
 
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
         """One pass: the joints of each kind present, kind by kind (each in creation order)."""
         j, b = self.arrays, bodies.arrays
-        shared = [*(b[name] for name in _SOLVE_BODY_ARRAYS), self._body_load(bodies), mode, h, *softness(h),
-                  1 if self.device == "cpu" else 0]
+        shared = [
+            *(b[name] for name in _SOLVE_BODY_ARRAYS),
+            self._body_load(bodies),
+            mode,
+            h,
+            *softness(h),
+            1 if self.device == "cpu" else 0,
+        ]
         for kind, rows in self._rows.items():
             names = _BALL_JOINT_ARRAYS if kind == JointKind.BALL else _SOLVE_JOINT_ARRAYS
-            launch(_SOLVE[kind], rows.shape[0], [rows, *(j[name] for name in names), *shared, rows.shape[0]],
-                   self.device, cache)
+            launch(
+                _SOLVE[kind],
+                rows.shape[0],
+                [rows, *(j[name] for name in names), *shared, rows.shape[0]],
+                self.device,
+                cache,
+            )
 
     def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
         """Apply last step's impulses (first substep only; later ones warm start through the relax pass)."""
@@ -995,8 +1113,13 @@ class JointSet(ArraySet):
         j = self.arrays
         load = self._load
         load.zero_()
-        launch(_finish, self.capacity, [*(j[name] for name in _FINISH_JOINT_ARRAYS), load, 1.0 / dt, self.count],
-               self.device, cache)
+        launch(
+            _finish,
+            self.capacity,
+            [*(j[name] for name in _FINISH_JOINT_ARRAYS), load, 1.0 / dt, self.count],
+            self.device,
+            cache,
+        )
 
     # -------------------------------------------------------------- views
 
@@ -1020,8 +1143,14 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of quaternions (x, y, z, w)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 def _quat_conj(q: np.ndarray) -> np.ndarray:
@@ -1074,10 +1203,29 @@ class JointBody:
         return JointBody(-1, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), False)
 
 
-def joint_rows(kind, a: JointBody, b: JointBody, *, anchor=None, anchor_a=None, anchor_b=None, axis=None,
-               frame: str = "world", lower=None, upper=None, motor_speed=None, max_torque=None, max_force=None,
-               length=None, min_length=None, max_length=None, stiffness=0.0, damping=0.0,
-               break_force=math.inf, collide: bool = False) -> dict[str, np.ndarray]:
+def joint_rows(
+    kind,
+    a: JointBody,
+    b: JointBody,
+    *,
+    anchor=None,
+    anchor_a=None,
+    anchor_b=None,
+    axis=None,
+    frame: str = "world",
+    lower=None,
+    upper=None,
+    motor_speed=None,
+    max_torque=None,
+    max_force=None,
+    length=None,
+    min_length=None,
+    max_length=None,
+    stiffness=0.0,
+    damping=0.0,
+    break_force=math.inf,
+    collide: bool = False,
+) -> dict[str, np.ndarray]:
     """One joint's rows for `JointSet.add`, checked; see `World.add_joint` for the arguments."""
     if isinstance(kind, str):
         if kind not in JOINT_NAMES:
@@ -1163,10 +1311,16 @@ def joint_rows(kind, a: JointBody, b: JointBody, *, anchor=None, anchor_a=None, 
         rest = rest if length is None else _scalar(length, "length", low=0.0)
         # defaults: a rope is slack up to its length, a spring free, a plain distance joint a rigid rod
         rope, spring = name == "rope", k > 0.0 or c > 0.0
-        hi = (math.inf if spring and not rope else rest) if max_length is None else _scalar(
-            max_length, "max_length", low=0.0, allow_inf=True)
-        lo = (0.0 if rope or spring else min(rest, hi)) if min_length is None else _scalar(
-            min_length, "min_length", low=0.0)
+        hi = (
+            (math.inf if spring and not rope else rest)
+            if max_length is None
+            else _scalar(max_length, "max_length", low=0.0, allow_inf=True)
+        )
+        lo = (
+            (0.0 if rope or spring else min(rest, hi))
+            if min_length is None
+            else _scalar(min_length, "min_length", low=0.0)
+        )
         if lo > hi:
             raise JointArgumentError("min_length", f"min_length {lo:g} > max_length {hi:g}")
         limit = 1

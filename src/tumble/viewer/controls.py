@@ -63,7 +63,7 @@ class ParamControl(QtWidgets.QWidget):
         self.spin = QtWidgets.QDoubleSpinBox()
         self.spin.setDecimals(param.decimals)
         self.spin.setRange(param.minimum, param.maximum)
-        self.spin.setSingleStep(10.0 ** -param.decimals if param.decimals else 1.0)
+        self.spin.setSingleStep(10.0**-param.decimals if param.decimals else 1.0)
         self.spin.setKeyboardTracking(False)
         self.spin.setSuffix(f" {param.unit}" if param.unit else "")
         self.spin.setMinimumWidth(96)
@@ -249,37 +249,98 @@ def default_params() -> list[tuple[str, list[Param]]]:
         (
             "Material (all bodies)",
             [
-                Param("restitution", "Restitution", "", 0.0, 1.0, 2, rest[0], rest[1],
-                      tooltip="Bounciness of every body and plane: 0 = no bounce, 1 = elastic."),
-                Param("friction", "Friction", "", 0.0, 2.0, 2, fric[0], fric[1],
-                      tooltip="Coulomb friction coefficient of every body and plane."),
+                Param(
+                    "restitution",
+                    "Restitution",
+                    "",
+                    0.0,
+                    1.0,
+                    2,
+                    rest[0],
+                    rest[1],
+                    tooltip="Bounciness of every body and plane: 0 = no bounce, 1 = elastic.",
+                ),
+                Param(
+                    "friction",
+                    "Friction",
+                    "",
+                    0.0,
+                    2.0,
+                    2,
+                    fric[0],
+                    fric[1],
+                    tooltip="Coulomb friction coefficient of every body and plane.",
+                ),
             ],
         ),
         (
             "Wind",
             [
-                Param("wind_speed", "Wind speed", "m/s", 0.0, 30.0, 1, _wind_read("speed"),
-                      lambda w, v: _set_wind(w, speed=v), note="horizontal wind; acts on cloth only"),
-                Param("wind_heading", "Wind direction", "°", 0.0, 360.0, 0, _wind_read("heading"),
-                      lambda w, v: _set_wind(w, heading=v), tooltip="0° blows towards +x, 90° towards +y."),
-                Param("wind_turbulence", "Turbulence", "m/s", 0.0, 10.0, 2, _wind_read("turbulence"),
-                      lambda w, v: _set_wind(w, turbulence=v),
-                      tooltip="RMS speed of the gusts added to the mean wind, per component."),
+                Param(
+                    "wind_speed",
+                    "Wind speed",
+                    "m/s",
+                    0.0,
+                    30.0,
+                    1,
+                    _wind_read("speed"),
+                    lambda w, v: _set_wind(w, speed=v),
+                    note="horizontal wind; acts on cloth only",
+                ),
+                Param(
+                    "wind_heading",
+                    "Wind direction",
+                    "°",
+                    0.0,
+                    360.0,
+                    0,
+                    _wind_read("heading"),
+                    lambda w, v: _set_wind(w, heading=v),
+                    tooltip="0° blows towards +x, 90° towards +y.",
+                ),
+                Param(
+                    "wind_turbulence",
+                    "Turbulence",
+                    "m/s",
+                    0.0,
+                    10.0,
+                    2,
+                    _wind_read("turbulence"),
+                    lambda w, v: _set_wind(w, turbulence=v),
+                    tooltip="RMS speed of the gusts added to the mean wind, per component.",
+                ),
             ],
         ),
         (
             "Emitters",
             [
-                Param("emission_rate", "Emission rate", "bodies/s", 0.0, 1000.0, 0, _emitter_rate_read,
-                      _emitter_rate_write, note="sets every emitter; applies to bodies not yet emitted"),
+                Param(
+                    "emission_rate",
+                    "Emission rate",
+                    "bodies/s",
+                    0.0,
+                    1000.0,
+                    0,
+                    _emitter_rate_read,
+                    _emitter_rate_write,
+                    note="sets every emitter; applies to bodies not yet emitted",
+                ),
             ],
         ),
         (
             "Solver",
             [
-                Param("substeps", "Substeps", "per step", 1.0, 32.0, 0, lambda w: float(w.substeps),
-                      lambda w, v: setattr(w, "substeps", int(round(v))),
-                      tooltip="Solver substeps per world step: more = stiffer stacks, slower."),
+                Param(
+                    "substeps",
+                    "Substeps",
+                    "per step",
+                    1.0,
+                    32.0,
+                    0,
+                    lambda w: float(w.substeps),
+                    lambda w, v: setattr(w, "substeps", int(round(v))),
+                    tooltip="Solver substeps per world step: more = stiffer stacks, slower.",
+                ),
             ],
         ),
     ]
@@ -317,8 +378,17 @@ class ControlsPanel(QtWidgets.QWidget):
         time_box = QtWidgets.QGroupBox("Time")
         time_layout = QtWidgets.QVBoxLayout(time_box)
         self.time_scale = ParamControl(
-            Param("time_scale", "Time scale", "×", 0.05, 4.0, 2, lambda w: 1.0, lambda w, v: None,
-                  tooltip="Simulated seconds per real second; the step dt stays fixed.")
+            Param(
+                "time_scale",
+                "Time scale",
+                "×",
+                0.05,
+                4.0,
+                2,
+                lambda w: 1.0,
+                lambda w, v: None,
+                tooltip="Simulated seconds per real second; the step dt stays fixed.",
+            )
         )
         self.time_scale.set_value(1.0)
         self.time_scale.valueChanged.connect(self.timeScaleChanged)
@@ -367,7 +437,9 @@ class ControlsPanel(QtWidgets.QWidget):
         Groups that do not apply to this world (no cloth, no emitters) are disabled with a reason.
         """
         self.world = world
-        self.dt_label.setText(f"step dt = {world.dt * 1000:.3g} ms (fixed; {1 / world.dt:.0f} steps per simulated second)")
+        self.dt_label.setText(
+            f"step dt = {world.dt * 1000:.3g} ms (fixed; {1 / world.dt:.0f} steps per simulated second)"
+        )
         disabled: dict[str, str] = {}
         self.scene_values = {}
         for key, control in self.controls.items():

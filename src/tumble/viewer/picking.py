@@ -114,7 +114,9 @@ def pick(world, origin, direction, view_forward=None) -> Grab | None:
         if j >= 0 and (best is None or t < best.distance):
             # a pinned particle (inverse mass 0) is moved, pin and all; a free one is pulled
             pinned = hasattr(system, "set_pin_target") and float(np.asarray(cloth.particle_inv_mass)[j]) == 0.0
-            best = Grab("pin" if pinned else "particle", j, np.zeros(3), t, np.asarray(points[j], dtype=np.float64).copy())
+            best = Grab(
+                "pin" if pinned else "particle", j, np.zeros(3), t, np.asarray(points[j], dtype=np.float64).copy()
+            )
     if best is not None:
         forward = direction if view_forward is None else np.asarray(view_forward, dtype=np.float64)
         best.depth = best.distance * float(direction @ forward)
@@ -196,8 +198,14 @@ def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
             t = ray_box(origin, direction, centres[k], world.body_orientation[body], world.body_half_extents[body])
         elif shape == ShapeType.CAPSULE:
             radius = float(world.body_radius[body])
-            t = ray_capsule(origin, direction, centres[k], world.body_orientation[body], radius,
-                            float(world.body_half_extents[body][2]) - radius)
+            t = ray_capsule(
+                origin,
+                direction,
+                centres[k],
+                world.body_orientation[body],
+                radius,
+                float(world.body_half_extents[body][2]) - radius,
+            )
         elif shape == ShapeType.CONVEX and _hull(world, body) is not None:
             proto = _hull(world, body)
             t = ray_convex(origin, direction, centres[k], world.body_orientation[body], proto.normal, proto.offset)

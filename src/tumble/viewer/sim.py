@@ -184,8 +184,15 @@ class SimulationClock:
 
 #: world attributes a snapshot copies (what the renderer, the camera's framing and picking read)
 SNAPSHOT_ARRAYS = (
-    "body_shape", "body_position", "body_orientation", "body_radius", "body_half_extents",
-    "body_plane_normal", "body_inv_mass", "body_mass", "body_geometry",
+    "body_shape",
+    "body_position",
+    "body_orientation",
+    "body_radius",
+    "body_half_extents",
+    "body_plane_normal",
+    "body_inv_mass",
+    "body_mass",
+    "body_geometry",
 )
 SNAPSHOT_VALUES = ("body_count", "time", "step_count", "contact_count", "dt", "substeps")
 

@@ -746,15 +746,17 @@ class ViewerWindow(QtWidgets.QMainWindow):
             state = "paused"
         if self.recorder is not None:
             state += f", recording {max(0.0, world.time - self._video_start):.2f} s"
-        return "   ".join([
-            f"bodies {world.body_count:,}",
-            f"particles {particles:,}",
-            f"contacts {world.contact_count:,}",
-            f"t = {world.time:.3f} s (step {world.step_count:,})",
-            f"{self.clock.steps_per_second():.0f} steps/s",
-            f"{self._fps:.0f} fps",
-            state,
-        ])
+        return "   ".join(
+            [
+                f"bodies {world.body_count:,}",
+                f"particles {particles:,}",
+                f"contacts {world.contact_count:,}",
+                f"t = {world.time:.3f} s (step {world.step_count:,})",
+                f"{self.clock.steps_per_second():.0f} steps/s",
+                f"{self._fps:.0f} fps",
+                state,
+            ]
+        )
 
     def _update_status(self) -> None:
         self.status_label.setText(self.status_text())
