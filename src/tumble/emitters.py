@@ -29,6 +29,7 @@ import numpy as np
 
 from . import validate
 from .limits import MAX_RELEASE_PER_STEP
+from .npmath import quat_mul, quat_to_matrix
 from .shapes import (
     ShapeType,
     box_inertia,
@@ -305,9 +306,7 @@ class Emitter:
             bound = np.where(is_hull, hull.bound_radius * scale, bound)
             half = np.where(is_hull[:, None], np.abs(hull.vertex).max(axis=0) * scale[:, None], half)
             # the body frame is the hull's principal frame: the drawn orientation is the user frame's
-            from .world import _quat_mul
-
-            turned = np.array([_quat_mul(q, hull.rotation) for q in orientation]).reshape(k, 4)
+            turned = quat_mul(orientation, hull.rotation).reshape(k, 4)
             orientation = np.where(is_hull[:, None], turned, orientation)
         mass = drawn_mass if drawn_mass is not None else drawn_density * volume
         with np.errstate(invalid="ignore", divide="ignore"):  # each shape's formula on every row, one kept
@@ -354,26 +353,27 @@ class Emitter:
         t = (scale - levels[0]) / (levels[-1] - levels[0]) * (len(levels) - 1)
         return np.clip(np.rint(t), 0, len(levels) - 1).astype(np.int64)
 
-    def add_hulls(self, world) -> None:
-        """Store the scaled hull copies in `world.hulls` (`World.add_emitter` does, before any step)."""
+    def add_hulls(self, hulls) -> None:
+        """Store the scaled hull copies in the `HullSet` `hulls` (`World.add_emitter` does, before any step)."""
         if self.hull is not None:
-            self.hull_rows = np.array(
-                [world.hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales], dtype=np.int32
-            )
+            self.hull_rows = np.array([hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales], dtype=np.int32)
 
     # ------------------------------------------------------------------ emission
 
-    def emit(self, world, dt: float) -> int:
-        """Release the bodies owed for this step that find a free spot. Returns how many."""
+    def release(self, bodies, dt: float) -> dict[str, np.ndarray] | None:
+        """The bodies owed for this step that find a free spot among `bodies` (the world's body arrays).
+
+        Returns the new bodies' rows, as the keywords of the world's body append (the world's emit
+        stage adds them), or None when none is released this step. The emitter counts them as released.
+        """
         if self.done:
-            return 0
+            return None
         self._owed += self.rate * dt
         # at most MAX_RELEASE_PER_STEP a step: each candidate is placed in a NumPy loop below
         k = min(int(self._owed), self.count - self.emitted, MAX_RELEASE_PER_STEP)
         if k <= 0:
-            return 0
+            return None
         cand = self._sample_bodies(k)
-        bodies = world.bodies
         shape = bodies.numpy("body_shape")
         # what is already there: spheres by centre and radius, boxes as oriented boxes, planes
         x_all = bodies.numpy("body_position")
@@ -392,12 +392,12 @@ class Emitter:
         planes = shape == ShapeType.PLANE
         sphere_x, sphere_r = x_all[spheres], bodies.numpy("body_radius")[spheres]
         box_x, box_h = x_all[boxes], bodies.numpy("body_half_extents")[boxes]
-        box_rot = _matrices(bodies.numpy("body_orientation")[boxes])
+        box_rot = quat_to_matrix(bodies.numpy("body_orientation")[boxes])
         capsule_x, capsule_r = x_all[capsules], bodies.numpy("body_radius")[capsules]
         capsule_a = bodies.numpy("body_half_extents")[capsules][:, 2] - capsule_r
-        capsule_u = _matrices(bodies.numpy("body_orientation")[capsules])[:, :, 2]
+        capsule_u = quat_to_matrix(bodies.numpy("body_orientation")[capsules])[:, :, 2]
         hull_x, hull_r = x_all[hulls], bodies.numpy("body_bound_radius")[hulls]
-        plane_n = _matrices(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
+        plane_n = quat_to_matrix(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
         plane_x = x_all[planes]
         accepted = []
         placed_x, placed_r = [], []
@@ -431,36 +431,30 @@ class Emitter:
                     placed_r.append(cand["bound"][i])
                     break
         if not accepted:
-            return 0  # no room this step: wait, and try again next step
+            return None  # no room this step: wait, and try again next step
         idx = np.asarray(accepted)
-        rows = world._add_bodies(
-            shape=cand["shape"][idx],
-            position=np.asarray(placed_x),
-            orientation=cand["orientation"][idx],
-            radius=cand["radius"][idx],
-            half_extents=cand["half_extents"][idx],
-            mass=cand["mass"][idx],
-            inertia=cand["inertia"][idx],
-            restitution=self.restitution,
-            friction=self.friction,
-            velocity=cand["velocity"][idx],
-            angular_velocity=cand["angular_velocity"][idx],
-            bound=np.where(cand["shape"][idx] == ShapeType.CONVEX, cand["bound"][idx], np.inf),
-        )
-        convex = cand["shape"][idx] == ShapeType.CONVEX
+        shape = cand["shape"][idx]
+        convex = shape == ShapeType.CONVEX
+        geometry = np.zeros(len(idx), dtype=np.int32)  # a convex body's row in the world's hulls
         if convex.any():
-            slots = np.array([world._slot(rows[j]) for j in np.nonzero(convex)[0]])
-            world.bodies.write("body_geometry", slots, self.hull_rows[cand["hull_level"][idx][convex]])
-        self.emitted += len(rows)
-        self._owed -= len(rows)
-        return len(rows)
-
-
-def _matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of unit quaternions (x, y, z, w), shape (n, 4) -> (n, 3, 3)."""
-    from .world import quat_to_matrix
-
-    return quat_to_matrix(q) if len(q) else np.zeros((0, 3, 3))
+            geometry[convex] = self.hull_rows[cand["hull_level"][idx][convex]]
+        self.emitted += len(idx)
+        self._owed -= len(idx)
+        return {
+            "shape": shape,
+            "position": np.asarray(placed_x),
+            "orientation": cand["orientation"][idx],
+            "radius": cand["radius"][idx],
+            "half_extents": cand["half_extents"][idx],
+            "mass": cand["mass"][idx],
+            "inertia": cand["inertia"][idx],
+            "restitution": self.restitution,
+            "friction": self.friction,
+            "velocity": cand["velocity"][idx],
+            "angular_velocity": cand["angular_velocity"][idx],
+            "bound": np.where(convex, cand["bound"][idx], np.inf),
+            "geometry": geometry,
+        }
 
 
 def _basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

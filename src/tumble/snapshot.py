@@ -260,7 +260,10 @@ def _dtype_name(dtype) -> str:
 
 
 def restore(world, snap: Snapshot) -> None:
-    """Put `snap` back into `world` (see `World.restore`). Raises `SnapshotError` when they do not match."""
+    """Put `snap` back into `world` (see `World.restore`, which then forgets what it derived from the old arrays).
+
+    Raises `SnapshotError` when they do not match.
+    """
     _check_layout(world, snap)
     children: dict[str, set[str]] = {}
     for p in snap.values.keys() | snap.arrays.keys():
@@ -276,7 +279,6 @@ def restore(world, snap: Snapshot) -> None:
             value.clear()
         elif _refers_to(value, walk.replaced):
             _assign(owner, name, None)  # a struct over arrays the restore replaced: rebuilt on first use
-    world._after_restore()
 
 
 def _check_layout(world, snap: Snapshot) -> None:

@@ -654,7 +654,7 @@ def run_variant(task: dict) -> dict:
 
         # step as `tumble run` does; sample the contacts and the strain at the recording rate
         overlap = penetration = strain = 0.0
-        cloth = getattr(world, "_cloth", None)
+        cloth = world.cloth if world.has_cloth else None
         due, stepping = 0, time.perf_counter()
         for k in range(steps):
             world.step()

@@ -35,6 +35,7 @@ from .collision.meshes import MeshSet
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
 from .launch import LaunchCache
+from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
 from .runtime import init_warp
 from .shapes import ShapeType
 from .snapshot import Snapshot
@@ -115,50 +116,6 @@ def _restitution(value) -> float:
 
 def _friction(value) -> float:
     return validate.number(value, "friction", low=0.0)
-
-
-def _rotation_vector(q_to: np.ndarray, q_from: np.ndarray) -> np.ndarray:
-    """Rotation vectors (axis * angle [rad]) of the rotations q_to q_from^-1, the shorter way, shape (k, 3)."""
-    x1, y1, z1, w1 = q_to.T
-    x0, y0, z0, w0 = -q_from[:, 0], -q_from[:, 1], -q_from[:, 2], q_from[:, 3]  # conjugate
-    d = np.stack(
-        [
-            w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
-            w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
-            w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0,
-            w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0,
-        ],
-        axis=1,
-    )
-    d = np.where(d[:, 3:] < 0.0, -d, d)  # q and -q are one rotation: take the one of angle <= pi
-    s = np.linalg.norm(d[:, :3], axis=1)
-    angle = 2.0 * np.arctan2(s, d[:, 3])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        axis = np.where(s[:, None] > 1e-300, d[:, :3] / s[:, None], 0.0)
-    return axis * angle[:, None]
-
-
-def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product p q of quaternions (x, y, z, w): rotate by q, then by p."""
-    pv, pw, qv, qw = p[:3], p[3], q[:3], q[3]
-    return np.r_[pw * qv + qw * pv + np.cross(pv, qv), pw * qw - pv @ qv]
-
-
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """v rotated by the unit quaternion q (x, y, z, w): v + 2 u x (u x v + w v)."""
-    u = q[:3]
-    return v + 2.0 * np.cross(u, np.cross(u, v) + q[3] * v)
-
-
-def _quat_from_z(normal: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) rotating +z onto `normal` (unit)."""
-    z = np.array([0.0, 0.0, 1.0])
-    c = float(np.dot(z, normal))
-    if c < -1.0 + 1e-12:
-        return np.array([1.0, 0.0, 0.0, 0.0])
-    axis = np.cross(z, normal)
-    q = np.array([axis[0], axis[1], axis[2], 1.0 + c])
-    return q / np.linalg.norm(q)
 
 
 class World:
@@ -311,7 +268,7 @@ class World:
         return self._add_bodies(
             shape=ShapeType.PLANE,
             position=(n * offset)[None],
-            orientation=_quat_from_z(n)[None],
+            orientation=quat_from_z(n)[None],
             radius=np.zeros(1),
             half_extents=np.zeros((1, 3)),
             mass=np.zeros(1),
@@ -603,8 +560,8 @@ class World:
             raise ValueError(f"scale must be one positive number or three, got {scale!r}")
         proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
         q_user = validate.quaternion(orientation)
-        x = validate.vector(position, "position") + _quat_rotate(q_user, proto.offset_com)
-        q = _quat_mul(q_user, proto.rotation)
+        x = validate.vector(position, "position") + quat_rotate(q_user, proto.offset_com)
+        q = quat_mul(q_user, proto.rotation)
         m = self._masses(mass, density, np.array([proto.volume]))
         inertia = proto.inertia[None] * (m[0] / proto.volume)
         index = self.hulls.add(proto)
@@ -744,7 +701,7 @@ class World:
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
-        emitter.add_hulls(self)
+        emitter.add_hulls(self.hulls)
         emitter.world_key = self._key
         self.emitters.append(emitter)
         return emitter
@@ -795,6 +752,11 @@ class World:
             friction=friction,
         )
         return ClothId(index, 0, self._key)
+
+    @property
+    def has_cloth(self) -> bool:
+        """Whether the world holds cloth particles (asking does not create the `ClothSystem`)."""
+        return self._cloth is not None and self._cloth.particle_count > 0
 
     @property
     def cloth(self) -> ClothSystem:
@@ -987,7 +949,7 @@ class World:
             self.bodies.write("body_velocity", rows, (target - self.bodies.numpy("body_position")[rows]) / h)
         if orientation is not None:
             target = validate.quaternion(orientation, "orientation", k)
-            rotation = _rotation_vector(target, self.bodies.numpy("body_orientation")[rows])
+            rotation = rotation_vector(target, self.bodies.numpy("body_orientation")[rows])
             self.bodies.write("body_angular_velocity", rows, rotation / h)
 
     def remove_body(self, body: BodyId | int) -> None:
@@ -1180,11 +1142,13 @@ class World:
         angular_velocity=None,
         kind=None,
         bound=None,
+        geometry=None,
     ) -> list[BodyId]:
-        """Append k bodies given as arrays with k rows (vectorised; used by emitters too).
+        """Append k bodies given as arrays with k rows (vectorised; the emit stage adds emitters' releases).
 
         `kind` (BodyKind) defaults to static for bodies of mass 0, else dynamic; `bound` (k,)
-        overrides the bounding radius where finite (convex bodies: the hull's bounding sphere).
+        overrides the bounding radius where finite (convex bodies: the hull's bounding sphere);
+        `geometry` (k,) is each body's row in `hulls` or `meshes` (default 0).
         """
         k = len(position)
         if k == 0:
@@ -1222,6 +1186,7 @@ class World:
                 "body_orientation": orientation,
                 "body_velocity": np.zeros((k, 3)) if velocity is None else velocity,
                 "body_angular_velocity": np.zeros((k, 3)) if angular_velocity is None else angular_velocity,
+                **({} if geometry is None else {"body_geometry": geometry}),
             }
         )
         if self._slot_of_id is None and len(ids) and ids[0] == self._id_count:
@@ -1286,8 +1251,7 @@ class World:
 
         # emit: emitters release bodies where they overlap nothing
         with self._timer("emit"):
-            for emitter in self.emitters:
-                emitter.emit(self, dt)
+            self.emit(dt)
 
         # layout: now and then, renumber body rows so that neighbours in space share cache lines
         with self._timer("layout"):
@@ -1438,6 +1402,20 @@ class World:
             self.device,
         )
 
+    def emit(self, dt: float | None = None) -> int:
+        """Let every emitter release what it owes for `dt` seconds (the step's emit stage), without stepping.
+
+        Returns:
+            The number of bodies released.
+        """
+        dt = self.dt if dt is None else validate.positive(dt, "dt")
+        count = 0
+        for emitter in self.emitters:
+            released = emitter.release(self.bodies, dt)
+            if released is not None:
+                count += len(self._add_bodies(**released))
+        return count
+
     def collide(self, dt: float | None = None) -> int:
         """Find contacts for the current state without stepping (broad + narrow phase only).
 
@@ -1582,9 +1560,9 @@ class World:
         return np.where((self.body_shape == ShapeType.PLANE)[:, None], normal, 0.0)
 
     @property
-    def body_inertia_world(self) -> np.ndarray:
+    def bodyinertia_world(self) -> np.ndarray:
         """World-frame inertia tensors [kg m^2], shape (n, 3, 3) (zero for static and kinematic bodies)."""
-        return _inertia_world(self._view("body_inv_inertia"), self.body_orientation)
+        return inertia_world(self._view("body_inv_inertia"), self.body_orientation)
 
     @property
     def contact_point(self) -> np.ndarray:
@@ -1617,7 +1595,7 @@ class World:
         w = self.bodies.numpy("body_angular_velocity")
         energy = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
         if len(m):
-            inertia = _inertia_world(self.bodies.numpy("body_inv_inertia"), self.bodies.numpy("body_orientation"))
+            inertia = inertia_world(self.bodies.numpy("body_inv_inertia"), self.bodies.numpy("body_orientation"))
             energy += 0.5 * float(np.einsum("ni,nij,nj->", w, inertia, w))
         if self._cloth is not None:
             energy += self._cloth.kinetic_energy()
@@ -1654,10 +1632,7 @@ class World:
         if not isinstance(state, Snapshot):
             raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")
         snapshot.restore(self, state)
-
-    def _after_restore(self) -> None:
-        """Forget what was derived from the arrays that a restore replaced."""
-        self._launch_sizes = None
+        self._launch_sizes = None  # derived from the arrays that the restore replaced
 
     def state_hash(self) -> str:
         """SHA-256 of the state arrays, to check determinism bit for bit."""
@@ -1678,24 +1653,3 @@ def _arrays_of(*owners) -> list:
         for owner in owners
         for a in (*(v for v in vars(owner).values() if isinstance(v, wp.array)), *getattr(owner, "arrays", {}).values())
     ]
-
-
-def _inertia_world(inv_inertia: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """World-frame inertia tensors R diag(I) R^T [kg m^2], shape (n, 3, 3), from principal inverse moments."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inertia = np.where(inv_inertia > 0.0, 1.0 / np.where(inv_inertia > 0.0, inv_inertia, 1.0), 0.0)
-    rot = quat_to_matrix(q)
-    return np.einsum("nij,nj,nkj->nik", rot, inertia, rot)
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of unit quaternions (x, y, z, w), shape (n, 4) -> (n, 3, 3)."""
-    x, y, z, w = (q[:, i] for i in range(4))
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
-        ],
-        axis=1,
-    )

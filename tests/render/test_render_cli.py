@@ -163,7 +163,8 @@ def test_render_a_sample_scene_file(tmp_path, monkeypatch):
 
 def test_run_record_then_plot(tmp_path, monkeypatch):
     """A recording from tumble run --record plots with every body panel filled in."""
-    from tumble.io.plot import build_figure, load_record
+    from tumble.io.plot import build_figure
+    from tumble.io.record import load_recording
 
     monkeypatch.setattr(tumble.cli, "COMMANDS", {"run": "run", "plot": "plot"})
     record = tmp_path / "ball.npz"
@@ -174,7 +175,7 @@ def test_run_record_then_plot(tmp_path, monkeypatch):
         == 0
     )
     assert tumble.cli.main(["plot", str(record), "-o", str(tmp_path / "ball.png")]) == 0
-    fig = build_figure(load_record(record))
+    fig = build_figure(load_recording(record))
     titles = [ax.get_title(loc="left") for ax in fig.axes]
     assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count"]
 

@@ -7,7 +7,8 @@ import struct
 import numpy as np
 import pytest
 
-from tumble.io.plot import build_figure, compute_series, load_record, max_strain, plot_record
+from tumble.io.plot import build_figure, compute_series, max_strain, plot_record
+from tumble.io.record import load_recording
 
 G = 9.81
 
@@ -57,7 +58,7 @@ def _record(tmp_path, *, cloth=True, drop=(), name="rec.npz"):
 def test_energy_and_momentum_match_free_fall(tmp_path):
     """KE = 1/2 m v^2 (+ 1/2 I w^2 for the spinning box), PE = m g z, p = m v over present bodies."""
     path, t, mass = _record(tmp_path)
-    s = compute_series(load_record(path))
+    s = compute_series(load_recording(path))
     v = G * t
     present = np.where(np.arange(len(t)) >= 10, 1.0, 0.0)
     box_iz = 3.0 / 3.0 * (0.1**2 + 0.2**2)  # m/3 (a^2 + b^2) about z
@@ -76,7 +77,7 @@ def test_recorded_kinetic_energy_is_used_as_is(tmp_path):
     arrays = dict(np.load(path))
     arrays["kinetic_energy"] = 7.0 + t
     np.savez(tmp_path / "ke.npz", **arrays)
-    assert np.array_equal(compute_series(load_record(tmp_path / "ke.npz")).kinetic, 7.0 + t)
+    assert np.array_equal(compute_series(load_recording(tmp_path / "ke.npz")).kinetic, 7.0 + t)
 
 
 def test_max_strain_of_one_stretched_edge():
@@ -90,7 +91,7 @@ def test_max_strain_of_one_stretched_edge():
 def test_figure_has_the_expected_panels(tmp_path):
     """A cloth recording gives five panels: energies, momentum, contacts, strain."""
     path, _, _ = _record(tmp_path)
-    fig = build_figure(load_record(path))
+    fig = build_figure(load_recording(path))
     titles = [ax.get_title(loc="left").split(" (")[0] for ax in fig.axes]
     assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count", "Largest cloth strain"]
     assert "bodies only" in fig.axes[1].get_title(loc="left")  # no cloth_mass in this recording
@@ -100,7 +101,7 @@ def test_figure_has_the_expected_panels(tmp_path):
 def test_missing_arrays_leave_panels_saying_so(tmp_path):
     """Without mass or contact counts, the affected panels say 'not recorded'; no cloth, no strain panel."""
     path, _, _ = _record(tmp_path, cloth=False, drop=("mass", "contact_count"))
-    fig = build_figure(load_record(path))
+    fig = build_figure(load_recording(path))
     titles = [ax.get_title(loc="left") for ax in fig.axes]
     assert len(titles) == 4
     assert titles[0].startswith("Kinetic energy: not recorded") and "mass" in titles[0]
@@ -116,17 +117,17 @@ def test_plot_file_is_a_png_of_the_figure_size(tmp_path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert data[12:16] == b"IHDR"
     width, height = struct.unpack(">II", data[16:24])
-    fig = build_figure(load_record(path))
+    fig = build_figure(load_recording(path))
     assert (width, height) == (800, round(fig.get_figheight() * 100))
 
 
 def test_bad_recordings_are_clear_errors(tmp_path):
     """A missing file or one without time raises ValueError naming the problem."""
     with pytest.raises(ValueError, match="no such recording"):
-        load_record(tmp_path / "missing.npz")
+        load_recording(tmp_path / "missing.npz")
     np.savez(tmp_path / "empty.npz", position=np.zeros((2, 1, 3)))
     with pytest.raises(ValueError, match="'time'"):
-        load_record(tmp_path / "empty.npz")
+        load_recording(tmp_path / "empty.npz")
     (tmp_path / "junk.npz").write_text("not a zip")
     with pytest.raises(ValueError, match="not a readable"):
-        load_record(tmp_path / "junk.npz")
+        load_recording(tmp_path / "junk.npz")

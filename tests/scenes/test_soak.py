@@ -25,7 +25,7 @@ def test_sample_soak(path):
     """Check every simulated second: finite, above its planes, within max_extent, no energy gained."""
     world = tumble.load_scene(path)
     check = dict(world.metadata["check"])
-    driven = world._cloth is not None and getattr(world, "metadata", {}).get("scene").table("wind") is not None
+    driven = world.has_cloth and getattr(world, "metadata", {}).get("scene").table("wind") is not None
     reference = None
     for second in range(int(SOAK_S)):
         world.run(1.0)

@@ -43,7 +43,7 @@ def test_point_emitter_never_overlaps():
     )
     # release without moving anything, so every body is still where it was born
     for _ in range(100):
-        em.emit(w, w.dt)
+        w.emit()
     assert em.emitted > 50
     # the narrow phase (tested on its own) finds no overlap anywhere, ground included
     w.collide()
@@ -55,10 +55,10 @@ def test_new_bodies_clear_existing_ones():
     """A candidate spot taken by an existing body is not used."""
     w = tumble.World(gravity=(0, 0, 0))
     w.add_sphere(position=(0, 0, 0), radius=0.5, mass=1.0)
-    em = w.add_emitter(rate=240, count=20, position=(0, 0, 0), region="box", extent=(1, 1, 1), radius=0.05, seed=1)
+    w.add_emitter(rate=240, count=20, position=(0, 0, 0), region="box", extent=(1, 1, 1), radius=0.05, seed=1)
     for _ in range(10):
         before = w.body_count
-        em.emit(w, w.dt)
+        w.emit()
         x = w.body_position[before:]
         assert np.all(np.linalg.norm(x, axis=1) >= 0.55 - 1e-12)
         assert np.all(np.abs(x) <= 1.0 + 1e-12)
@@ -83,7 +83,7 @@ def test_bodies_centred_outside_the_region_still_block_it(shape):
     )
     first = w.body_count
     for _ in range(10):
-        em.emit(w, w.dt)
+        w.emit()
     assert em.emitted > 20
     w.collide()
     assert np.all(w.contact_depth <= 0.0)  # nothing overlaps the big body, or anything else
@@ -97,7 +97,7 @@ def test_bodies_centred_outside_the_region_still_block_it(shape):
 def test_cone_speed_and_size_ranges():
     """Launch directions lie in the cone, speeds and radii in their ranges, masses from density."""
     w = tumble.World(gravity=(0, 0, 0))
-    em = w.add_emitter(
+    w.add_emitter(
         rate=1e4,
         count=300,
         position=(0, 0, 0),
@@ -110,7 +110,7 @@ def test_cone_speed_and_size_ranges():
         density=500.0,
         seed=7,
     )
-    em.emit(w, 1.0)
+    w.emit(1.0)
     v = w.body_velocity
     speed = np.linalg.norm(v, axis=1)
     assert np.all((speed >= 2.0 - 1e-12) & (speed <= 3.0 + 1e-12))
@@ -265,7 +265,7 @@ def test_mixed_shapes_do_not_overlap_at_birth():
         random_orientation=True,
     )
     for _ in range(60):
-        em.emit(w, w.dt)
+        w.emit()
     assert em.emitted > 60
     assert {1, 2, 3, 4} <= set(w.body_shape.tolist())
     w.collide()

@@ -21,8 +21,8 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..solver.contacts import inv_inertia_times
 from ..solver.joints import add_velocity
+from ..solver.rigid import inv_inertia_times
 from ..state import float_t, quat, vec3
 
 

@@ -42,7 +42,7 @@ from ..collision.hulls import Hulls
 from ..collision.narrowphase import box_closest, hull_closest
 from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
-from ..solver.contacts import inv_inertia_times
+from ..solver.rigid import inv_inertia_times
 from ..state import float_t, quat, vec3
 from .springs import Limits, Tethers
 

@@ -18,15 +18,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..npmath import quat_rotate
+
 SPRING_KINDS = ("structural", "shear", "bend")
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors `v`, shape (n, 3), by the unit quaternion q = (x, y, z, w)."""
-    u, w = q[:3], q[3]
-    # v' = v + 2 w (u x v) + 2 u x (u x v)
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
 
 
 def grid_positions(size, resolution, position, orientation) -> np.ndarray:

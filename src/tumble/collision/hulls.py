@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
+from ..npmath import matrix_to_quat
 from ..state import float_t, vec3
 
 #: most vertices a hull may keep (more make every contact query against it slow)
@@ -115,24 +116,6 @@ def polyhedron_mass_properties(vertex: np.ndarray, faces) -> tuple[float, np.nda
     return volume, o + com_o, inertia
 
 
-def _matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a proper rotation matrix (Shepperd's method)."""
-    t = np.trace(m)
-    if t > 0:
-        s = 2.0 * np.sqrt(1.0 + t)
-        q = np.array([(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s])
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = np.zeros(4)
-        q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-        q[3] = (m[k, j] - m[j, k]) / s
-    return q / np.linalg.norm(q)
-
-
 def _merge_faces(points: np.ndarray, simplices: np.ndarray, equations: np.ndarray, tol: float):
     """Group the hull's triangles by plane and order each group's vertices counter-clockwise."""
     groups: list[list[int]] = []
@@ -211,7 +194,7 @@ def hull_from_points(points, *, name: str = "points") -> HullPrototype:
         volume=volume,
         inertia=moments,
         offset_com=com,
-        rotation=_matrix_to_quat(axes),
+        rotation=matrix_to_quat(axes),
     )
 
 

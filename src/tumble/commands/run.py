@@ -137,7 +137,7 @@ def _check_record_memory(args: argparse.Namespace, world, steps: int) -> None:
     """Refuse a --record whose frames would not fit in memory (docs/scenes.md#limits)."""
     frames = min(steps, int(args.duration * args.fps)) + 1  # at most one frame a step
     bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
-    particles = world.cloth.particle_count if world._cloth is not None else 0
+    particles = world.cloth.particle_count if world.has_cloth else 0
     per_frame = bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME
     try:
         limits.check_memory("--record", "frames", frames, per_frame)
@@ -206,7 +206,7 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
             f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})",
         ),
     ]
-    if world._cloth is not None:
+    if world.has_cloth:
         lines.append(("cloth", f"{world.cloth.particle_count:,} particles"))
     lines += [
         ("steps", f"{steps:,} ({world.time:.3f} s simulated, dt {world.dt:.6g} s, {world.substeps} substeps)"),

@@ -7,7 +7,7 @@ NaN and count as absent)::
     angular_velocity (F, N, 3)  shape (N,) int  shape_names  radius (N,)  half_extents (N, 3)
     mass (N,)  gravity (3,)  contact_count (F,)  kinetic_energy (F,) (used as is when present)
     cloth_position (F, P, 3)  cloth_triangles (T, 3)  cloth_rest_position (P, 3)
-    cloth_mass (P,)  cloth_velocity (F, P, 3)  cloth_max_strain (F,)
+    cloth_mass (P,)  cloth_max_strain (F,)  momentum (F, 3) (bodies and cloth, used as is when present)
 
 Everything but `time` is optional: a panel whose inputs are missing says so in its title.
 Figures are drawn with matplotlib's Agg backend (no display needed)::
@@ -23,18 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..shapes import ShapeType
-
-
-def load_record(path) -> dict[str, np.ndarray]:
-    """All arrays of a recording, by name (`tumble.io.record.load_recording`).
-
-    Raises:
-        ValueError: the file is not a readable .npz or has no usable `time` array.
-    """
-    from .record import load_recording
-
-    return load_recording(path)
+from ..npmath import quat_rotate_inverse
+from ..shapes import ShapeType, box_inertia, sphere_inertia
+from .record import load_recording
 
 
 @dataclass
@@ -74,21 +65,10 @@ def _body_inertia(record, mass: np.ndarray) -> np.ndarray | None:
     radius = np.asarray(record.get("radius", np.zeros(n)), dtype=np.float64)
     half = np.asarray(record.get("half_extents", np.zeros((n, 3))), dtype=np.float64)
     inertia = np.zeros((n, 3))
-    # solid sphere: 2/5 m r^2 about every axis
-    sphere = shape == ShapeType.SPHERE
-    inertia[sphere] = (0.4 * mass[sphere] * radius[sphere] ** 2)[:, None]
-    # solid box with half extents (a, b, c): m/3 (b^2 + c^2), m/3 (a^2 + c^2), m/3 (a^2 + b^2)
-    box = shape == ShapeType.BOX
-    h2 = half[box] ** 2
-    inertia[box] = mass[box, None] / 3.0 * (h2.sum(axis=1, keepdims=True) - h2)
+    sphere, box = shape == ShapeType.SPHERE, shape == ShapeType.BOX
+    inertia[sphere] = sphere_inertia(mass[sphere], radius[sphere])
+    inertia[box] = box_inertia(mass[box], half[box])
     return inertia
-
-
-def _rotate_inverse(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v by the inverse of unit quaternions q = (x, y, z, w); shapes (..., 4), (..., 3)."""
-    u, w = -q[..., :3], q[..., 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
 
 
 def compute_series(record: dict) -> Series:
@@ -140,7 +120,7 @@ def compute_series(record: dict) -> Series:
             if q is not None:
                 q = np.nan_to_num(np.asarray(q, dtype=np.float64))
                 q = np.where(np.linalg.norm(q, axis=-1, keepdims=True) > 0, q, [0.0, 0.0, 0.0, 1.0])
-                w = _rotate_inverse(q, w)
+                w = quat_rotate_inverse(q, w)
             kinetic = kinetic + 0.5 * np.einsum("ni,fni->f", inertia, w * w)
         s.kinetic = kinetic
 
@@ -183,15 +163,12 @@ def compute_series(record: dict) -> Series:
             cm = np.broadcast_to(np.asarray(cloth_mass, dtype=np.float64), cloth_pos.shape[1:2])
             if s.potential is not None:
                 s.potential = s.potential - np.einsum("p,fp->f", cm, np.nan_to_num(cloth_pos) @ g)
-            cloth_vel = record.get("cloth_velocity")
-            cv = None if cloth_vel is None else np.nan_to_num(np.asarray(cloth_vel, dtype=np.float64))
-            if s.kinetic is not None and cv is not None and recorded_kinetic is None:
-                s.kinetic = s.kinetic + 0.5 * np.einsum("p,fpi,fpi->f", cm, cv, cv)
-            if s.momentum is not None and recorded_momentum is None:
-                if cv is None:
-                    s.notes["momentum"] = "bodies only: no cloth_velocity recorded"
-                else:
-                    s.momentum = s.momentum + np.einsum("p,fpi->fi", cm, cv)
+        # recordings carry the engine's kinetic energy and momentum with the cloth's share; without
+        # them only the bodies' are summed (cloth velocities are not recorded)
+        if s.kinetic is not None and recorded_kinetic is None:
+            s.notes["kinetic"] = "bodies only: no kinetic_energy recorded"
+        if s.momentum is not None and recorded_momentum is None:
+            s.notes["momentum"] = "bodies only: no momentum recorded"
     if "cloth_max_strain" in record:
         s.strain = np.asarray(record["cloth_max_strain"], dtype=np.float64).reshape(-1)[:f]
     elif s.has_cloth:
@@ -333,7 +310,7 @@ def plot_record(path, out, *, dpi: int = 100) -> Path:
 
     path = Path(path)
     out = check_output(out, suffixes=PLOT_SUFFIXES, option="")
-    record = load_record(path)
+    record = load_recording(path)
     try:
         fig = build_figure(record, name=path.name)
     except ValueError as exc:

@@ -101,7 +101,7 @@ class Recorder:
             "kinetic_energy": np.float64(w.kinetic_energy()),
             "momentum": np.array(w.momentum(), dtype=np.float64),
         }
-        cloth = getattr(w, "_cloth", None)
+        cloth = w.cloth if w.has_cloth else None
         if cloth is not None:
             frame["momentum"] = frame["momentum"] + cloth.momentum()
             frame["cloth_position"] = np.array(cloth.particle_position, dtype=np.float64)
@@ -147,7 +147,7 @@ class Recorder:
         out["dt"] = np.float64(w.dt)
         out["fps"] = np.float64(self.fps)
 
-        cloth = getattr(w, "_cloth", None)
+        cloth = w.cloth if w.has_cloth else None
         if cloth is not None:
             p = np.asarray(cloth.particle_position).shape[0]
             a = np.full((f, p, 3), np.nan)

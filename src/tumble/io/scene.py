@@ -1224,7 +1224,7 @@ def check_world(world, check: dict | None = None) -> list[str]:
     velocity = np.asarray(world.body_velocity)
     dynamic = np.asarray(world.body_inv_mass) > 0
     points = [position[dynamic]]
-    cloth = getattr(world, "_cloth", None)
+    cloth = world.cloth if world.has_cloth else None
     if cloth is not None:
         points.append(np.asarray(cloth.particle_position))
     points = np.concatenate(points) if points else np.zeros((0, 3))

@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import TumbleError
+from ..npmath import quat_mul, quat_rotate
 from ..render.colors import CLOTH_COLOR, body_colors
 from ..render.renderer import vertex_normals
 
@@ -409,18 +410,6 @@ def srgb_to_linear(c) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
-def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product p q of quaternions (x, y, z, w)."""
-    pv, pw, qv, qw = p[:3], p[3], q[:3], q[3]
-    return np.r_[pw * qv + qw * pv + np.cross(pv, qv), pw * qw - pv @ qv]
-
-
-def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) as (x, y, z, w): v + 2 u x (u x v + w v)."""
-    u, w = q[..., :3], q[..., 3:4]
-    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
-
-
 # ---------------------------------------------------------------------------------------------- the take
 
 
@@ -675,7 +664,7 @@ class _Writer:
             if not (np.isfinite(q).all() and np.isfinite(p).all()):
                 continue
             # the quad: centred where the action's centre projects onto the plane, in the plane's frame
-            n = rotate(q, np.array([0.0, 0.0, 1.0]))
+            n = quat_rotate(q, np.array([0.0, 0.0, 1.0]))
             c = centre - float(np.dot(centre - p, n)) * n
             quad = Prototype(
                 "plane",
@@ -874,7 +863,7 @@ class _Writer:
                 if path is None and body >= 0:
                     # a static body: the anchor and frame in world coordinates, attached to the world
                     p, q = rec["position"][frame0, body], rec["orientation"][frame0, body]
-                    pos, rot = np.asarray(p) + rotate(np.asarray(q), pos), _quat_mul(np.asarray(q), rot)
+                    pos, rot = np.asarray(p) + quat_rotate(q, pos), quat_mul(q, rot)
                 rel = joint.CreateBody0Rel() if side == 0 else joint.CreateBody1Rel()
                 if path is not None:
                     rel.SetTargets([path])

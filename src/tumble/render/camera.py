@@ -327,7 +327,7 @@ def scene_box(world) -> tuple[np.ndarray, np.ndarray] | None:
         if ok.any():
             lo.append((pos[ok] - r[ok, None]).min(axis=0))
             hi.append((pos[ok] + r[ok, None]).max(axis=0))
-    if world is not None and getattr(world, "_cloth", None) is not None:
+    if world is not None and world.has_cloth:
         p = np.asarray(world.cloth.particle_position, dtype=np.float64).reshape(-1, 3)
         p = p[np.all(np.isfinite(p), axis=1)]
         if len(p):

@@ -175,7 +175,7 @@ def scene_arrays(world) -> SceneArrays:
         planes[:, 3] = np.einsum("ij,ij->i", normal, pos[plane_body])
 
     cloth_position = cloth_triangles = None
-    if getattr(world, "_cloth", None) is not None:
+    if world.has_cloth:
         cloth = world.cloth
         p = np.asarray(cloth.particle_position, dtype=np.float64).reshape(-1, 3)
         t = np.asarray(cloth.triangles).reshape(-1, 3)

@@ -29,9 +29,9 @@ HELD_BY_BODY = 0.05
 
 def cloth_supports(world, floats: int = 13) -> np.ndarray:
     """Box instances (centre, quaternion, half extents, colour) of the posts and rails, shape (k, 13), float32."""
-    cloth = getattr(world, "_cloth", None)
-    if cloth is None or not getattr(cloth, "particle_count", 0):
+    if not world.has_cloth:
         return np.zeros((0, floats), dtype=np.float32)
+    cloth = world.cloth
     inv_mass = getattr(cloth, "particle_inv_mass", None)
     if inv_mass is None:
         return np.zeros((0, floats), dtype=np.float32)

@@ -51,6 +51,7 @@ import warp as wp
 from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, host_view, quat, vec3
+from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
 
 #: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
 #: contacts with static bodies, which carry whole piles, are twice as stiff, as in Box2D),
@@ -157,27 +158,6 @@ class Contacts:
     jt1: wp.array(dtype=float_t)
     jt2: wp.array(dtype=float_t)
     jn_max: wp.array(dtype=float_t)
-
-
-@wp.func
-def inv_inertia_times(q: quat, inv_i: vec3, x: vec3):
-    """World-frame I^-1 x = R diag(inv_i) R^T x."""
-    local = wp.quat_rotate_inv(q, x)
-    return wp.quat_rotate(q, vec3(local[0] * inv_i[0], local[1] * inv_i[1], local[2] * inv_i[2]))
-
-
-@wp.func
-def _inv_inertia_world(q: quat, inv_i: vec3):
-    """World-frame inverse inertia tensor R diag(inv_i) R^T."""
-    R = wp.quat_to_matrix(q)
-    return R * wp.diag(inv_i) * wp.transpose(R)
-
-
-@wp.func
-def _inverse(k: float_t):
-    if k > float_t(0.0):
-        return float_t(1.0) / k
-    return float_t(0.0)
 
 
 @wp.func
@@ -341,24 +321,24 @@ def _prepare(
     c.t2[k] = t2
     # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
     # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
-    Ia = _inv_inertia_world(b.q[ia], b.inv_inertia[ia])
-    Ib = _inv_inertia_world(b.q[ib], b.inv_inertia[ib])
+    Ia = inv_inertia_world(b.q[ia], b.inv_inertia[ia])
+    Ib = inv_inertia_world(b.q[ib], b.inv_inertia[ib])
     im = b.inv_mass[ia] + b.inv_mass[ib]
     ca = wp.cross(ra, n)
     cb = wp.cross(rb, n)
     c.ang_a_n[k] = Ia * ca
     c.ang_b_n[k] = Ib * cb
-    c.mass_n[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    c.mass_n[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     ca = wp.cross(ra, t1)
     cb = wp.cross(rb, t1)
     c.ang_a_t1[k] = Ia * ca
     c.ang_b_t1[k] = Ib * cb
-    c.mass_t1[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    c.mass_t1[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     ca = wp.cross(ra, t2)
     cb = wp.cross(rb, t2)
     c.ang_a_t2[k] = Ia * ca
     c.ang_b_t2[k] = Ib * cb
-    c.mass_t2[k] = _inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    c.mass_t2[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])

@@ -24,7 +24,7 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..state import float_t, quat, vec3
-from .contacts import inv_inertia_times
+from .rigid import inv_inertia_times
 
 
 @wp.kernel

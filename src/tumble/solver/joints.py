@@ -89,7 +89,7 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, quat, readonly, vec3
-from .contacts import _inv_inertia_world, _inverse
+from .rigid import inv_inertia_world, safe_inverse
 
 # no adjoint code: nothing differentiates through the joints, and it would double the compile time
 wp.set_module_options({"enable_backward": False})
@@ -321,7 +321,7 @@ def _inv_inertia_loaded(q: quat, inv_i: vec3, load: float_t, h: float_t):
     """World inverse inertia with the joints' geometric stiffness: each moment I_k gains h^2 load."""
     e = h * h * load
     one = float_t(1.0)
-    return _inv_inertia_world(
+    return inv_inertia_world(
         q, vec3(inv_i[0] / (one + e * inv_i[0]), inv_i[1] / (one + e * inv_i[1]), inv_i[2] / (one + e * inv_i[2]))
     )
 
@@ -558,7 +558,7 @@ def _make_solve(kind: int):
                 meff = _axial_mass(g)
                 if meff > zero:
                     kc = damping[k] + h * stiffness[k]
-                    a2 = h * kc * _inverse(meff)
+                    a2 = h * kc * safe_inverse(meff)
                     sms = a2 / (float_t(1.0) + a2)
                     sis = float_t(1.0) / (float_t(1.0) + a2)
                     sbias = stiffness[k] / kc * (g.value - length[k])

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..npmath import quat_conj, quat_rotate
 from ..shapes import ShapeType
 
 #: drag spring frequency [Hz] and damping ratio
@@ -49,21 +50,6 @@ def ray_points(origin, direction, points, reach: float) -> tuple[int, float]:
     t = np.where(near, t, np.inf)
     i = int(np.argmin(t))
     return (i, float(t[i])) if math.isfinite(t[i]) else (-1, math.inf)
-
-
-def quat_rotate(q, v) -> np.ndarray:
-    """Rotate vector `v` (3,) by the unit quaternion `q` = (x, y, z, w)."""
-    u = np.asarray(q[:3], dtype=np.float64)
-    w = float(q[3])
-    v = np.asarray(v, dtype=np.float64)
-    # v' = v + 2 w (u x v) + 2 u x (u x v)
-    uv = np.cross(u, v)
-    return v + 2.0 * w * uv + 2.0 * np.cross(u, uv)
-
-
-def quat_conjugate(q) -> np.ndarray:
-    """Inverse of a unit quaternion (x, y, z, w)."""
-    return np.array([-q[0], -q[1], -q[2], q[3]], dtype=np.float64)
 
 
 @dataclass
@@ -103,7 +89,7 @@ def pick(world, origin, direction, view_forward=None) -> Grab | None:
             body, t = _pick_body(world, origin, direction, movable)
             if body >= 0:
                 hit = origin + t * direction
-                local = quat_rotate(quat_conjugate(world.body_orientation[body]), hit - world.body_position[body])
+                local = quat_rotate(quat_conj(world.body_orientation[body]), hit - world.body_position[body])
                 best = Grab("body", body, local, t, hit)
     cloth = cloth_of(world)
     # (a snapshot's cloth answers for the cloth it was copied from)
@@ -175,10 +161,7 @@ def held_point(world, grab: Grab) -> np.ndarray | None:
 
 def cloth_of(world):
     """The world's cloth system if it has one with particles, without creating one."""
-    cloth = getattr(world, "_cloth", None)
-    if cloth is None or not getattr(cloth, "particle_count", 0):
-        return None
-    return cloth
+    return world.cloth if world.has_cloth else None
 
 
 def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
@@ -219,7 +202,7 @@ def _pick_body(world, origin, direction, candidates) -> tuple[int, float]:
 
 def ray_box(origin, direction, centre, orientation, half_extents) -> float:
     """Distance along a ray to an oriented box (slab test in the box frame), or inf if missed."""
-    inv_q = quat_conjugate(orientation)
+    inv_q = quat_conj(orientation)
     o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
     d = quat_rotate(inv_q, direction)
     h = np.asarray(half_extents, dtype=np.float64)
@@ -235,7 +218,7 @@ def ray_box(origin, direction, centre, orientation, half_extents) -> float:
 
 def ray_capsule(origin, direction, centre, orientation, radius: float, half_height: float) -> float:
     """Distance along a ray to a capsule (segment of half length `half_height` on the body's z axis), or inf."""
-    inv_q = quat_conjugate(orientation)
+    inv_q = quat_conj(orientation)
     o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
     d = quat_rotate(inv_q, direction)
     hits = []
@@ -260,7 +243,7 @@ def ray_capsule(origin, direction, centre, orientation, radius: float, half_heig
 
 def ray_convex(origin, direction, centre, orientation, normal, offset) -> float:
     """Distance along a ray to a convex polyhedron {x : n_i . x <= d_i} in its body frame (Cyrus-Beck), or inf."""
-    inv_q = quat_conjugate(orientation)
+    inv_q = quat_conj(orientation)
     o = quat_rotate(inv_q, np.asarray(origin, dtype=np.float64) - centre)
     d = quat_rotate(inv_q, direction)
     n = np.asarray(normal, dtype=np.float64)

@@ -233,8 +233,12 @@ class WorldSnapshot:
         from ..render.solids import joint_segments
 
         self.joint_lines = joint_segments(world)
-        cloth = getattr(world, "_cloth", None)
-        self._cloth = ClothSnapshot(cloth) if cloth is not None and cloth.particle_count else None
+        self._cloth = ClothSnapshot(world.cloth) if world.has_cloth else None
+
+    @property
+    def has_cloth(self) -> bool:
+        """Whether the world had cloth particles."""
+        return self._cloth is not None
 
     @property
     def cloth(self):
