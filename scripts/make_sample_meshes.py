@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "samples" / "meshes"
+OUT = ROOT / "src" / "tumble" / "samples" / "meshes"
 sys.path.insert(0, str(ROOT / "src"))
 
 

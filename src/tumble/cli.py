@@ -79,12 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, module_name in COMMANDS.items():
-        try:
-            module = importlib.import_module(f"tumble.commands.{module_name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"tumble.commands.{module_name}":
-                raise
-            continue  # command not built yet in this checkout
+        module = importlib.import_module(f"tumble.commands.{module_name}")
         p = sub.add_parser(name, help=module.HELP, description=module.HELP[0].upper() + module.HELP[1:] + ".")
         module.add_arguments(p)
         p.add_argument(

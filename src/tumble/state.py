@@ -22,7 +22,6 @@ float_t = wp.float64
 vec3 = wp.vec3d
 quat = wp.quatd
 mat33 = wp.mat33d
-np_float = np.float64
 
 _NUMPY_DTYPE = {float_t: np.float64, wp.int32: np.int32, wp.uint32: np.uint32, wp.int64: np.int64}
 _WIDTH = {vec3: 3, quat: 4, mat33: 9}

@@ -777,6 +777,10 @@ def warp_cache_dir() -> str:
 
 
 @contextlib.contextmanager
+#: seconds to wait for a local cluster's workers to shut down after a wedge
+CLOSE_TIMEOUT = 60.0
+
+
 def cluster(address=None, *, workers: int | None = None, timeout: float = CONNECT_TIMEOUT):
     """A Dask client: on an existing scheduler (`address`, or a scheduler file .json), the
     `distributed.Client` given as `address` itself (left open), or on a new local cluster of
@@ -821,8 +825,12 @@ def cluster(address=None, *, workers: int | None = None, timeout: float = CONNEC
     try:
         yield client
     finally:
-        client.close()
-        local.close()
+        # the results are in by now: a slow shutdown on a busy machine is waited for, then let go
+        # (Dask's own 5 s would raise TimeoutError after a finished wedge)
+        with contextlib.suppress(TimeoutError):
+            client.close(timeout=CLOSE_TIMEOUT)
+        with contextlib.suppress(TimeoutError):
+            local.close(timeout=CLOSE_TIMEOUT)
 
 
 def check_address(address: str | None) -> None:

@@ -1560,7 +1560,7 @@ class World:
         return np.where((self.body_shape == ShapeType.PLANE)[:, None], normal, 0.0)
 
     @property
-    def bodyinertia_world(self) -> np.ndarray:
+    def body_inertia_world(self) -> np.ndarray:
         """World-frame inertia tensors [kg m^2], shape (n, 3, 3) (zero for static and kinematic bodies)."""
         return inertia_world(self._view("body_inv_inertia"), self.body_orientation)
 

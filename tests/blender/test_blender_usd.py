@@ -26,7 +26,7 @@ import tumble
 from tumble.io import usd
 from tumble.io.record import Recorder
 from tumble.io.scene import SAMPLES_DIR
-from tumble.world import quat_to_matrix
+from tumble.npmath import quat_to_matrix
 
 pytestmark = pytest.mark.blender
 

@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
-from tumble.world import quat_to_matrix
+from tumble.npmath import quat_to_matrix
 
 HALF = np.array([0.3, 0.2, 0.05])  # three distinct moments: x minor, y intermediate, z major
 MASS = 2.0

@@ -181,7 +181,7 @@ def test_a_plank_dropped_across_a_sharp_ridge_is_held_by_it(shape):
     for _ in range(round(1.0 / w.dt)):
         w.step()
         q = w.body_orientation[1]
-        from tumble.world import quat_to_matrix
+        from tumble.npmath import quat_to_matrix
 
         R = quat_to_matrix(q[None])[0]
         local = (ridge - w.body_position[1]) @ R  # R^T (p - x)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.world import quat_to_matrix
+from tumble.npmath import quat_to_matrix
 
 G = 9.81
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-
 import numpy as np
 import pytest
 
@@ -12,11 +10,6 @@ from tumble.io.scene import check_world, list_samples, read_scene
 
 SAMPLES = list_samples()
 
-# cloth samples are only validated (test_sample_validates) until the cloth engine, the package
-# tumble.cloth (World.add_cloth, set_wind), is merged; from then on they run like the others
-CLOTH_READY = importlib.util.find_spec("tumble.cloth") is not None
-CLOTH_SAMPLES = [p for p in SAMPLES if read_scene(p).items("cloth")]
-RUNNABLE = [p for p in SAMPLES if CLOTH_READY or p not in CLOTH_SAMPLES]
 
 # samples whose check run takes more than ~10 s on one core (sphere_pile takes ~4 s for its
 # 0.5 s check, hammock ~6 s for 2.5 s; pebble_bowl (50 hulls, 3 s) and capsule_slope (20
@@ -56,7 +49,7 @@ def test_sample_validates(path):
     assert scene.counts()
 
 
-@pytest.mark.parametrize("path", [_param(p) for p in RUNNABLE])
+@pytest.mark.parametrize("path", [_param(p) for p in SAMPLES])
 def test_sample_runs_and_passes_its_check(path):
     """Run each sample headless for its [check] duration; all values finite and within its limits."""
     world = tumble.load_scene(path)

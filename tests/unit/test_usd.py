@@ -13,7 +13,7 @@ import tumble
 from tumble.cli import main
 from tumble.io import usd
 from tumble.io.record import FORMAT_VERSION, Recorder, load_recording
-from tumble.world import quat_to_matrix
+from tumble.npmath import quat_to_matrix
 
 FPS = 30.0
 FRAMES = 16  # 0.5 s

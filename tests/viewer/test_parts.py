@@ -83,7 +83,7 @@ def test_ray_points_finds_the_nearest_particle_within_reach():
 
 
 def _view_only(monkeypatch):
-    """The CLI with just the view command (other commands live on other branches until merged)."""
+    """The CLI with just the view command (the test needs no other command's imports)."""
     from tumble import cli
 
     monkeypatch.setattr(cli, "COMMANDS", {"view": "view"})

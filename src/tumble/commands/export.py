@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="S",
-        help="seconds to export (default: the scene's duration, else 2; all of a recording)",
+        help="seconds to export (default 2; all of a recording)",
     )
     length.add_argument("--frames", type=int, default=None, metavar="N", help="number of frames, instead of --duration")
     parser.add_argument(

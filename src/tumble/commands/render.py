@@ -34,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="S",
-        help="simulated seconds to render (default: the scene's duration, else 5)",
+        help="simulated seconds to render (default 5)",
     )
     parser.add_argument("--fps", type=float, default=30.0, metavar="F", help="frames per simulated second (default 30)")
     parser.add_argument("--size", default="1280x720", metavar="WxH", help="image size in pixels (default 1280x720)")
@@ -111,7 +111,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         world = tumble.load_scene(args.scene)
         prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
-        duration = args.duration if args.duration is not None else float(world.metadata.get("duration", 5.0))
+        duration = args.duration if args.duration is not None else 5.0
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)
         out = export(

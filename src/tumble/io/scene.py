@@ -26,6 +26,8 @@ Python values (no Warp, no World); `build_world(scene)` passes those values to t
 from __future__ import annotations
 
 import difflib
+import importlib.resources
+import inspect
 import math
 import os
 import tomllib
@@ -36,11 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits
+from ..cloth import system as _cloth
 from ..errors import SceneError
 from ..limits import show_bytes
 
-#: directory of the bundled sample scenes (the repository's `samples/`; override with $TUMBLE_SAMPLES)
-SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES", Path(__file__).resolve().parents[3] / "samples"))
+#: directory of the bundled sample scenes, installed with the package (`tumble/samples`, which the
+#: repository's `samples/` links to); override with $TUMBLE_SAMPLES
+SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES") or os.fspath(importlib.resources.files("tumble") / "samples"))
 
 REQUIRED = object()  # marks a key without a default
 
@@ -389,6 +393,22 @@ class TableSpec:
     rules: Callable[[dict], None] | None = None  # cross-key checks on the converted values
 
 
+def _shown(value) -> str:
+    """A default as the scene reference shows it, in TOML: 0.2, { structural = 12, shear = 1.2 }."""
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_shown(v)}" for k, v in value.items()) + " }"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _api_default(function: Callable, name: str):
+    """The default of keyword `name` of the API `function`: a scene key and the API share one default."""
+    return inspect.signature(function).parameters[name].default
+
+
+def _wind_default(name: str):
+    return _api_default(_cloth.ClothSystem.set_wind, name)
+
+
 def _mass_or_density(values: dict) -> None:
     if values.get("mass") is not None and values.get("density") is not None:
         raise _KeyBad("density", "give mass or density, not both")
@@ -685,32 +705,47 @@ SCHEMA: dict[str, TableSpec] = {
                     "from areal_density",
                 ),
                 "areal_density": Field(
-                    number(low=0, low_open=True), None, "kg/m^2", "mass per area; give mass or areal_density", "0.2"
+                    number(low=0, low_open=True),
+                    None,
+                    "kg/m^2",
+                    "mass per area; give mass or areal_density",
+                    _shown(_cloth.DEFAULT_AREAL_DENSITY),
                 ),
                 "stiffness": Field(
                     per_spring(),
                     None,
                     "N/m",
                     "spring stiffness ks, one value or per kind (a missing kind has no springs)",
-                    "{ structural = 12, shear = 1.2, bend = 0.3 }",
+                    _shown(_cloth.DEFAULT_STIFFNESS),
                 ),
                 "damping": Field(
                     per_spring(),
                     None,
                     "N s/m",
                     "spring damping kd, one value or per kind",
-                    "{ structural = 0.002, shear = 0.0005, bend = 0.0001 }",
+                    _shown(_cloth.DEFAULT_DAMPING),
                 ),
-                "max_stretch": Field(number(low=0), 0.1, "", "largest strain of a structural spring (Provot)"),
+                "max_stretch": Field(
+                    number(low=0),
+                    _api_default(_cloth.ClothSystem.add_cloth, "max_stretch"),
+                    "",
+                    "largest strain of a structural spring (Provot)",
+                ),
                 "pins": Field(pins(), None, "", "pinned grid points", "none"),
                 "thickness": Field(
                     number(low=0, low_open=True),
                     None,
                     "m",
                     "distance kept from bodies and between layers of cloth",
-                    "0.01",
+                    _shown(_api_default(_cloth.ClothSystem.add_cloth, "thickness")),
                 ),
-                "friction": Field(number(low=0), None, "", "Coulomb friction against bodies", "0.3"),
+                "friction": Field(
+                    number(low=0),
+                    None,
+                    "",
+                    "Coulomb friction against bodies",
+                    _shown(_api_default(_cloth.ClothSystem.add_cloth, "friction")),
+                ),
                 "pin_body": Field(body_ref(), None, "", 'body the pins follow and pull on, e.g. "box[0]"', "none"),
             },
             _cloth_rules,
@@ -720,13 +755,17 @@ SCHEMA: dict[str, TableSpec] = {
             False,
             "Wind acting on cloth: a mean velocity plus smooth, seeded, time-varying turbulence.",
             {
-                "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "mean wind velocity"),
-                "turbulence": Field(number(low=0), 0.0, "m/s", "strength of the turbulent part"),
-                "scale": Field(number(low=0, low_open=True), 1.0, "m", "length scale of the turbulence"),
-                "seed": Field(integer(low=0), 0, "", "seed of the turbulence field"),
-                "drag": Field(number(low=0), 1.2, "", "drag coefficient of a cloth face"),
-                "lift": Field(number(low=0), 0.3, "", "lift coefficient of a cloth face"),
-                "air_density": Field(number(low=0), 1.2, "kg/m^3", "density of the air"),
+                "velocity": Field(vector(3), list(_wind_default("velocity")), "m/s", "mean wind velocity"),
+                "turbulence": Field(
+                    number(low=0), _wind_default("turbulence"), "m/s", "strength of the turbulent part"
+                ),
+                "scale": Field(
+                    number(low=0, low_open=True), _wind_default("scale"), "m", "length scale of the turbulence"
+                ),
+                "seed": Field(integer(low=0), _wind_default("seed"), "", "seed of the turbulence field"),
+                "drag": Field(number(low=0), _wind_default("drag"), "", "drag coefficient of a cloth face"),
+                "lift": Field(number(low=0), _wind_default("lift"), "", "lift coefficient of a cloth face"),
+                "air_density": Field(number(low=0), _wind_default("air_density"), "kg/m^3", "density of the air"),
             },
         ),
         TableSpec(

@@ -128,12 +128,12 @@ def simulate(
 ) -> dict[str, np.ndarray]:
     """Step `world` and record it (`tumble.io.record.Recorder`); return the recording's arrays.
 
-    Frame k is the world at its start time + k / fps. `duration` defaults to the scene's
-    `duration`, else 2 s; `advance` is called once per frame recorded (a progress bar).
+    Frame k is the world at its start time + k / fps. `duration` defaults to
+    `DEFAULT_DURATION` (2 s); `advance` is called once per frame recorded (a progress bar).
     """
     from .record import Recorder
 
-    fps, n = _world_frames(world, fps, duration, frames)
+    fps, n = _world_frames(fps, duration, frames)
     if fps > 1.0 / world.dt * (1 + 1e-9):
         raise TumbleError(f"fps {fps:g} is more than the world's {1.0 / world.dt:g} steps per second")
     recorder = Recorder(world, fps=fps)
@@ -147,10 +147,9 @@ def simulate(
     return recorder.arrays()
 
 
-def _world_frames(world, fps, duration, frames) -> tuple[float, int]:
-    """`frame_times` with a world's defaults: 60 fps, the scene's `duration` else 2 s."""
-    default_duration = float(getattr(world, "metadata", {}).get("duration", DEFAULT_DURATION))
-    return frame_times(fps, duration, frames, default_fps=60.0, default_duration=default_duration)
+def _world_frames(fps, duration, frames) -> tuple[float, int]:
+    """`frame_times` with the export's defaults: 60 fps for `DEFAULT_DURATION` s."""
+    return frame_times(fps, duration, frames, default_fps=60.0, default_duration=DEFAULT_DURATION)
 
 
 def select_frames(
@@ -1006,7 +1005,7 @@ def export(
         raise TumbleError(f"bodies must be one of {', '.join(BODY_MODES)}, got {bodies!r}")
 
     if hasattr(source, "step") and hasattr(source, "body_position"):
-        out_fps, n = _world_frames(source, fps, duration, frames)
+        out_fps, n = _world_frames(fps, duration, frames)
         with _progress(n, "simulating", progress) as advance:
             rec = simulate(source, fps=out_fps, frames=n, advance=advance)
         index = np.arange(n)
