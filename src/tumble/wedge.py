@@ -776,11 +776,11 @@ def warp_cache_dir() -> str:
     return str(resolved.parent if resolved.name == wp.config.version else resolved)
 
 
-@contextlib.contextmanager
 #: seconds to wait for a local cluster's workers to shut down after a wedge
 CLOSE_TIMEOUT = 60.0
 
 
+@contextlib.contextmanager
 def cluster(address=None, *, workers: int | None = None, timeout: float = CONNECT_TIMEOUT):
     """A Dask client: on an existing scheduler (`address`, or a scheduler file .json), the
     `distributed.Client` given as `address` itself (left open), or on a new local cluster of
