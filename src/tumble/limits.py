@@ -34,6 +34,8 @@ MAX_STEPS = 10**9
 #: ones placed before it in the same step, so the cost grows as its square (1,000: ~1.5 s, 2,000: ~6 s,
 #: 10,000: ~100 s measured on one loaded core)
 MAX_RELEASE_PER_STEP = 1_000
+#: widest and tallest image in pixels, for the viewer and for headless export
+MAX_IMAGE_SIDE = 8192
 #: most frames one `tumble render` writes (an hour of video at 30 fps is 108,000)
 MAX_FRAMES = 1_000_000
 #: particle, spring and triangle indices are int32: at most this many cloth particles (~6 springs each)

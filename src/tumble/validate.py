@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import math
 import numbers
+import operator
 
 import numpy as np
+
+from .limits import MAX_IMAGE_SIDE
 
 #: longest repr of a bad value quoted in a message
 _SHOWN = 60
@@ -153,3 +156,26 @@ def callable_or_none(value, name: str):
     if value is not None and not callable(value):
         raise TypeError(f"{name} must be a function or None, got {show(value)}")
     return value
+
+
+def image_size(value, name: str = "size", *, low: int = 1) -> tuple[int, int]:
+    """(width, height) in pixels from "1280x720" (x, X, * or the sign ×) or a pair of integers.
+
+    Each side must lie in [low, `limits.MAX_IMAGE_SIDE`]; anything else raises ValueError.
+    """
+    if isinstance(value, str):
+        parts = value.strip().lower().replace("*", "x").replace("\u00d7", "x").split("x")
+        try:
+            w, h = (int(p) for p in parts)
+        except ValueError:
+            raise ValueError(f"{name} must look like 1280x720, got {show(value)}") from None
+    else:
+        try:
+            w, h = (operator.index(v) for v in value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be (width, height) in pixels, got {show(value)}") from None
+    if not (low <= w <= MAX_IMAGE_SIDE and low <= h <= MAX_IMAGE_SIDE):
+        raise ValueError(
+            f"{name} must be between {low}x{low} and {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE} pixels, got {w}x{h}"
+        )
+    return w, h

@@ -16,6 +16,7 @@ says so). Orientations are unit quaternions stored as (x, y, z, w).
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
@@ -795,7 +796,30 @@ class World:
         if friction is not None:
             self.bodies.write("body_friction", slice(0, n), _friction(friction))
 
-    def add_joint(self, kind: str, body_a, body_b, **kwargs):
+    def add_joint(
+        self,
+        kind: str,
+        body_a: BodyId | int | None,
+        body_b: BodyId | int | None,
+        *,
+        anchor: ArrayLike | None = None,
+        anchor_a: ArrayLike | None = None,
+        anchor_b: ArrayLike | None = None,
+        axis: ArrayLike | None = None,
+        frame: str = "world",
+        lower: float | None = None,
+        upper: float | None = None,
+        motor_speed: float | None = None,
+        max_torque: float | None = None,
+        max_force: float | None = None,
+        length: float | None = None,
+        min_length: float | None = None,
+        max_length: float | None = None,
+        stiffness: float = 0.0,
+        damping: float = 0.0,
+        break_force: float = math.inf,
+        collide: bool = False,
+    ) -> joint_solver.JointId:
         """Join two bodies (either may be None: the world, a fixed frame); see `tumble.solver.joints`.
 
         Args:
@@ -821,7 +845,27 @@ class World:
             joint_solver.JointBody.world() if body is None else self._joint_body(body, key)
             for key, body in (("body_a", body_a), ("body_b", body_b))
         ]
-        rows = joint_solver.joint_rows(kind, *ends, **kwargs)
+        rows = joint_solver.joint_rows(
+            kind,
+            *ends,
+            anchor=anchor,
+            anchor_a=anchor_a,
+            anchor_b=anchor_b,
+            axis=axis,
+            frame=frame,
+            lower=lower,
+            upper=upper,
+            motor_speed=motor_speed,
+            max_torque=max_torque,
+            max_force=max_force,
+            length=length,
+            min_length=min_length,
+            max_length=max_length,
+            stiffness=stiffness,
+            damping=damping,
+            break_force=break_force,
+            collide=collide,
+        )
         return joint_solver.JointId(self.joints.add(rows)[0])
 
     def _joint_body(self, body, key: str):

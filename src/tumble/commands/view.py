@@ -3,22 +3,20 @@
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
+
+from .. import validate
 
 HELP = "open a scene in the interactive viewer (orbit, play, tune parameters live, record)"
 
 
 def parse_size(text: str) -> tuple[int, int]:
-    """Parse "WxH" (e.g. "1280x720") into (width, height) in pixels."""
-    match = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
-    if not match:
-        raise argparse.ArgumentTypeError(f"size must look like 1280x720, got {text!r}")
-    w, h = int(match.group(1)), int(match.group(2))
-    if not (16 <= w <= 16384 and 16 <= h <= 16384):
-        raise argparse.ArgumentTypeError(f"size must be between 16x16 and 16384x16384, got {text!r}")
-    return w, h
+    """Parse "WxH" (e.g. "1280x720") into (width, height) in pixels, at least 16 a side, for argparse."""
+    try:
+        return validate.image_size(text, low=16)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

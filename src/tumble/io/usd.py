@@ -51,7 +51,7 @@ import numpy as np
 from ..errors import TumbleError
 from ..npmath import quat_mul, quat_rotate
 from ..render.colors import CLOTH_COLOR, body_colors
-from ..render.renderer import vertex_normals
+from ..render.solids import vertex_normals
 
 #: file types `export` writes, chosen by the suffix (".usd" is binary crate, like ".usdc")
 EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")

@@ -23,6 +23,8 @@ from typing import Self
 
 import numpy as np
 
+from .. import validate
+
 #: output kinds `export` understands, by suffix (no suffix or an existing folder: PNG frames)
 FORMATS = {".mp4": "mp4", ".gif": "gif"}
 
@@ -55,21 +57,8 @@ def frame_count(duration: float, fps: float) -> int:
 
 
 def parse_size(size) -> tuple[int, int]:
-    """(width, height) from "1280x720" or a pair of positive integers."""
-    if isinstance(size, str):
-        parts = size.lower().replace("*", "x").split("x")
-        try:
-            w, h = (int(p) for p in parts)
-        except ValueError:
-            raise ValueError(f"size must look like 1280x720, got {size!r}") from None
-    else:
-        try:
-            w, h = (int(v) for v in size)
-        except (TypeError, ValueError):
-            raise ValueError(f"size must be (width, height), got {size!r}") from None
-    if not (1 <= w <= 8192 and 1 <= h <= 8192):
-        raise ValueError(f"size must be between 1x1 and 8192x8192 pixels, got {w}x{h}")
-    return w, h
+    """(width, height) from "1280x720" or a pair of positive integers (`tumble.validate.image_size`)."""
+    return validate.image_size(size)
 
 
 def render_frames(

@@ -32,7 +32,7 @@ from ..shapes import ShapeType
 from . import shaders, solids
 from .camera import Camera, scene_bounds, scene_box
 from .colors import CLOTH_COLOR, body_colors
-from .solids import CAPSULE_FLOATS, SOLID_FLOATS
+from .solids import CAPSULE_FLOATS, SOLID_FLOATS, vertex_normals
 from .supports import cloth_supports
 
 #: OpenGL enum of alpha-to-coverage (moderngl has no named flag for it)
@@ -273,22 +273,6 @@ def _container_width(planes: np.ndarray) -> float | None:
     gap = -(upright[:, 3][:, None] + upright[:, 3][None, :])
     gaps = gap[facing & (gap > 0.0)]
     return float(gaps.max()) if len(gaps) else None
-
-
-def vertex_normals(position: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals of a triangle mesh, shape (P, 3), float64.
-
-    Each triangle adds its un-normalised face normal (b - a) x (c - a), whose length is twice
-    its area, to its three corners; sums are then normalised (zero stays zero).
-    """
-    a, b, c = (position[triangles[:, k]] for k in range(3))
-    face = np.cross(b - a, c - a)
-    corners = triangles.reshape(-1)
-    weights = np.repeat(face, 3, axis=0)
-    n = len(position)
-    normal = np.stack([np.bincount(corners, weights=weights[:, k], minlength=n) for k in range(3)], axis=1)
-    length = np.linalg.norm(normal, axis=1, keepdims=True)
-    return np.divide(normal, length, out=np.zeros_like(normal), where=length > 1e-20)
 
 
 def _cube() -> np.ndarray:

@@ -46,14 +46,28 @@ def hull_vertices(proto) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(rows), dtype=np.float32)
 
 
+def vertex_normals(position: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals of a triangle mesh, shape (P, 3), float64.
+
+    Each triangle adds its un-normalised face normal (b - a) x (c - a), whose length is twice
+    its area, to its three corners; sums are then normalised (zero stays zero).
+    """
+    a, b, c = (position[triangles[:, k]] for k in range(3))
+    face = np.cross(b - a, c - a)
+    corners = triangles.reshape(-1)
+    weights = np.repeat(face, 3, axis=0)
+    n = len(position)
+    normal = np.stack([np.bincount(corners, weights=weights[:, k], minlength=n) for k in range(3)], axis=1)
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.divide(normal, length, out=np.zeros_like(normal), where=length > 1e-20)
+
+
 def mesh_vertices(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Triangles of a static mesh: (3 T, 6) float32 rows (position, normal) in the mesh's frame.
 
     A corner takes the area-weighted vertex normal where it is within `CREASE_DEGREES` of its
     triangle's own normal, else the triangle's normal.
     """
-    from .renderer import vertex_normals
-
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     smooth = vertex_normals(v, t)
