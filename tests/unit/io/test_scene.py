@@ -266,5 +266,5 @@ def test_bare_sample_name_resolves_to_the_samples_dir():
 
 def test_docs_reference_matches_the_schema():
     """Keep docs/scenes.md's key reference identical to the schema the validator uses."""
-    docs = (Path(__file__).resolve().parents[2] / "docs" / "scenes.md").read_text(encoding="utf-8")
+    docs = (Path(__file__).resolve().parents[3] / "docs" / "scenes.md").read_text(encoding="utf-8")
     assert scene_io.reference_markdown() in docs

@@ -1,0 +1,133 @@
+"""cloth/system.py: add_cloth (layout, mass, pins, bad arguments), read-only views, forces, pins, energies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tumble
+
+
+def make_world(**kwargs):
+    return tumble.World(dt=1.0 / 240.0, substeps=4, **kwargs)
+
+
+def test_add_cloth_layout_and_mass():
+    """add_cloth fills the particle arrays in creation order with the given total mass."""
+    world = make_world()
+    first = world.add_cloth(size=(1.0, 1.0), resolution=(4, 3), mass=0.6)
+    second = world.add_cloth(size=(2.0, 1.0), resolution=(3, 3), areal_density=0.5, position=(0, 0, 1))
+    cloth = world.cloth
+    assert (first, second) == (0, 1)
+    assert cloth.particle_count == 12 + 9
+    assert cloth.triangle_count == 2 * 3 * 2 + 2 * 2 * 2
+    assert cloth.particle_mass[:12].sum() == pytest.approx(0.6)
+    assert cloth.particle_mass[12:].sum() == pytest.approx(0.5 * 2.0)
+    # the second cloth's triangles index its own particles
+    assert cloth.triangles[12:].min() >= 12
+    assert cloth.triangles.dtype == np.int32
+    assert cloth.particle_position[12:, 2] == pytest.approx(np.ones(9))
+
+
+def test_pinned_particles_have_zero_inverse_mass():
+    """Pins are particles of inverse mass 0."""
+    world = make_world()
+    world.add_cloth(resolution=(3, 3), pins="top-corners")
+    inv = world.cloth.particle_inv_mass
+    assert list(np.nonzero(inv == 0.0)[0]) == [6, 8]
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"size": (-1.0, 1.0)},
+        {"size": (1.0,)},
+        {"resolution": (1, 1)},
+        {"resolution": (2.5, 3)},
+        {"mass": 1.0, "areal_density": 1.0},
+        {"mass": -1.0},
+        {"stiffness": {"stretch": 1.0}},
+        {"stiffness": -1.0},
+        {"damping": float("nan")},
+        {"thickness": 0.0},
+        {"friction": -0.1},
+        {"max_stretch": -0.1},
+        {"orientation": (0, 0, 0, 0)},
+        {"position": (0, 0)},
+        {"pins": "everywhere"},
+    ],
+)
+def test_bad_cloth_arguments_raise_value_error(kwargs):
+    """Bad add_cloth arguments raise ValueError naming the problem, before any kernel runs."""
+    world = make_world()
+    with pytest.raises(ValueError):
+        world.add_cloth(**kwargs)
+
+
+def test_views_are_read_only():
+    """Particle views cannot be written by users."""
+    world = make_world()
+    world.add_cloth(resolution=(3, 3))
+    with pytest.raises(ValueError):
+        world.cloth.particle_position[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        world.cloth.triangles[0, 0] = 1
+
+
+def test_cloth_substeps_follow_stiffness():
+    """Stiffer springs on the same particles need more cloth substeps per world step."""
+    soft, stiff = make_world(), make_world()
+    soft.add_cloth(resolution=(16, 16), stiffness=1.0)
+    stiff.add_cloth(resolution=(16, 16), stiffness=1000.0)
+    assert soft.cloth.substeps_for(soft.dt) == 1
+    assert stiff.cloth.substeps_for(stiff.dt) > 4
+
+
+def test_apply_force_lasts_one_step():
+    """A force given with apply_force acts during the next step only: dv = F dt / m, then none."""
+    world = make_world(gravity=(0, 0, 0))
+    world.add_cloth(size=(0.1, 0.1), resolution=(2, 1), mass=2.0, stiffness=0.0, damping=0.0)
+    world.cloth.apply_force(1, (4.0, 0.0, 0.0))
+    world.step()
+    v1 = world.cloth.particle_velocity[1, 0]
+    world.step()
+    assert v1 == pytest.approx(4.0 * world.dt / 1.0)
+    assert world.cloth.particle_velocity[1, 0] == pytest.approx(v1)
+    assert world.cloth.particle_velocity[0, 0] == 0.0
+
+
+def test_moving_pin_reaches_target_in_one_step():
+    """set_pin_target moves a pin to its target by the end of the next step, and pins free particles."""
+    world = make_world(gravity=(0, 0, 0))
+    world.add_cloth(size=(1.0, 1.0), resolution=(3, 3), pins="corners")
+    cloth = world.cloth
+    target = cloth.particle_position[0] + [0.0, 0.0, 0.1]
+    cloth.set_pin_target(0, target)
+    cloth.set_pin_target(4, cloth.particle_position[4])
+    world.step()
+    assert cloth.particle_position[0] == pytest.approx(target)
+    assert cloth.particle_inv_mass[4] == 0.0
+    cloth.unpin(4)
+    assert cloth.particle_inv_mass[4] > 0.0
+
+
+def test_energies_and_strain():
+    """kinetic = sum 1/2 m v^2, potential = -sum m g . x, strain = |d| / l0 - 1."""
+    world = make_world()
+    world.add_cloth(size=(1.0, 1.0), resolution=(2, 1), mass=2.0, position=(0.0, 0.0, 3.0), max_stretch=None)
+    cloth = world.cloth
+    cloth.set_state(position=np.array([[0.0, 0.0, 3.0], [1.2, 0.0, 3.0]]), velocity=np.array([[0, 0, 0], [3, 4, 0]]))
+    assert cloth.kinetic_energy() == pytest.approx(0.5 * 1.0 * 25.0)
+    assert cloth.potential_energy() == pytest.approx(2.0 * 9.81 * 3.0)
+    assert cloth.max_strain() == pytest.approx(0.2)
+    assert world.kinetic_energy() == pytest.approx(12.5)
+
+
+def test_diverging_cloth_raises_simulation_error():
+    """Springs far too stiff for forced substeps blow up: a SimulationError names the particle."""
+    world = make_world()
+    world.add_cloth(resolution=(8, 8), stiffness=1.0e7, max_stretch=None, pins="top-edge")
+    world.cloth.substeps = 1
+    world.cloth.self_collision = False
+    with pytest.raises(tumble.SimulationError, match="cloth 0 particle"):
+        world.run(2.0)
