@@ -1,0 +1,222 @@
+"""solver/contacts.py, one contact row at a time, against closed-form impulses.
+
+Each test builds a world through the public API, finds its contacts with `World.collide`,
+and runs the solver's stages (`prepare`, `solve`, `impacts`) directly on the world's body
+and contact arrays, without gravity unless said, so that every impulse has a closed form:
+- effective mass along d: m_d = 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + (r_b x d) . I_b^-1 (r_b x d));
+- normal: jn = max(0, m_n (-v_n - s / h)) (speculative gap s >= 0), never negative;
+- friction: the disc |jt| <= mu jn, applied against the slip; a sphere that sticks keeps
+  5/7 of its speed (m_t = 2 m / 7);
+- push-out of an overlap beyond the slop with the soft-step coefficients (Catto 2024):
+  omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1; bias = omega / a1, mass scale a2 / (1 + a2);
+- impacts: v_n -> -e v_n, the 1D two-body collision v_1' = ((m_1 - e m_2) v_1 + (1 + e) m_2 v_2) / (m_1 + m_2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble import shapes
+from tumble.solver import contacts as solver
+from tumble.solver import integrate
+
+DT = 2.0**-6  # one substep: h = dt
+ZERO_G = np.zeros(3)
+
+
+def quat_matrix(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def prepared(world: tumble.World):
+    """The world's contacts found and prepared for one step of DT: (bodies, contacts)."""
+    assert world.collide(DT) > 0
+    bodies, contacts = world.bodies, world.contacts
+    contacts.begin_solve(bodies)
+    integrate.begin_step(bodies)
+    solver.prepare(bodies, contacts, world.gravity)
+    return bodies, contacts
+
+
+def ball_on_plane(*, z=0.5, velocity=(0.0, 0.0, 0.0), friction=0.5, restitution=0.0, mass=2.0):
+    world = tumble.World(dt=DT, substeps=1, gravity=(0.0, 0.0, 0.0))
+    world.add_plane(friction=friction, restitution=restitution)
+    ball = world.add_sphere(
+        position=(0.0, 0.0, z), radius=0.5, mass=mass, velocity=velocity, friction=friction, restitution=restitution
+    )
+    return world, ball
+
+
+def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
+    """m_n, m_t1, m_t2 of every contact of a tilted box on a plane equal the formula with I_world = R I R^T."""
+    world = tumble.World(dt=DT, substeps=1, gravity=(0.0, 0.0, 0.0))
+    world.add_plane(friction=0.8, restitution=0.1)
+    half, mass = np.array([0.4, 0.25, 0.1]), 3.0
+    q = np.array([math.sin(0.2), 0.0, 0.0, math.cos(0.2)])  # 0.4 rad about x
+    q = q / np.linalg.norm(q)
+    R = quat_matrix(q)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    lowest = (corners @ R.T)[:, 2].min()
+    world.add_box(
+        position=(0.0, 0.0, -lowest), half_extents=half, mass=mass, orientation=q, friction=0.2, restitution=0.6
+    )
+    bodies, contacts = prepared(world)
+    k = contacts.count
+    assert k >= 2  # the lowest edge of the box
+    inv_i_world = R @ np.diag(1.0 / shapes.box_inertia(mass, half)) @ R.T
+    n = contacts.numpy("contact_normal")
+    r_b = contacts.numpy("contact_r_b")
+    np.testing.assert_allclose(r_b, contacts.numpy("contact_local_b") @ R.T, atol=1e-12)  # anchors in the world frame
+    for name, d in (("n", n), ("t1", contacts.numpy("contact_tangent1")), ("t2", contacts.numpy("contact_tangent2"))):
+        c = np.cross(r_b, d)
+        expected = 1.0 / (1.0 / mass + np.einsum("ki,ij,kj->k", c, inv_i_world, c))
+        np.testing.assert_allclose(contacts.numpy(f"contact_mass_{name}"), expected, rtol=1e-12)
+        np.testing.assert_allclose(contacts.numpy(f"contact_angular_b_{name}"), c @ inv_i_world.T, atol=1e-12)
+    # the tangents complete the normal to a right-handed orthonormal basis
+    t1, t2 = contacts.numpy("contact_tangent1"), contacts.numpy("contact_tangent2")
+    np.testing.assert_allclose(np.einsum("ki,ki->k", t1, n), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(n, t1), t2, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(t1, axis=1), 1.0, atol=1e-12)
+    # materials: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
+    np.testing.assert_allclose(contacts.numpy("contact_friction"), math.sqrt(0.8 * 0.2), rtol=1e-12)
+    np.testing.assert_allclose(contacts.numpy("contact_restitution"), 0.6)
+
+
+def test_normal_impulse_stops_the_approach():
+    """A ball touching the plane at 0.7 m/s: jn = m v, the ball stops along n; slip untouched (no jn yet)."""
+    world, ball = ball_on_plane(velocity=(0.3, 0.0, -0.7))
+    bodies, contacts = prepared(world)
+    assert contacts.count == 1
+    solver.solve(bodies, contacts, DT, use_bias=False)
+    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(2.0 * 0.7, rel=1e-12)
+    np.testing.assert_allclose(ball.velocity, [0.3, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(ball.angular_velocity, 0.0, atol=1e-12)
+
+
+def test_normal_impulse_never_pulls():
+    """A ball leaving the plane: jn clamps at 0 and the velocity stays."""
+    world, ball = ball_on_plane(velocity=(0.0, 0.0, 0.4))
+    bodies, contacts = prepared(world)
+    for use_bias in (True, False):
+        solver.solve(bodies, contacts, DT, use_bias=use_bias)
+    assert contacts.numpy("contact_impulse_n")[0] == 0.0
+    np.testing.assert_allclose(ball.velocity, [0.0, 0.0, 0.4], atol=0)
+
+
+@pytest.mark.parametrize("speed", [3.0, 0.8])
+def test_speculative_contact_lets_the_gap_close_in_one_substep(speed):
+    """Gap s = 1 cm, approach v > s / h: jn = m (v - s / h), so the ball arrives exactly at the plane."""
+    gap = 0.01
+    world, ball = ball_on_plane(z=0.5 + gap, velocity=(0.0, 0.0, -speed))
+    bodies, contacts = prepared(world)
+    assert contacts.numpy("contact_separation")[0] == pytest.approx(gap, rel=1e-12)
+    solver.solve(bodies, contacts, DT, use_bias=False)
+    jn = 2.0 * (speed - gap / DT)
+    assert jn > 0.0 and contacts.numpy("contact_impulse_n")[0] == pytest.approx(jn, rel=1e-12)
+    assert ball.velocity[2] == pytest.approx(-gap / DT, rel=1e-12)
+
+
+def test_friction_is_clamped_to_the_disc_against_the_slip():
+    """Sliding fast: |jt| = mu jn along -slip (not clamped per tangent), dv = -mu jn / m, dw = I^-1 (r x jt)."""
+    mu, mass, radius = 0.4, 2.0, 0.5
+    slip = np.array([3.0, -4.0, 0.0])
+    world, ball = ball_on_plane(velocity=(slip[0], slip[1], -1.0), friction=mu, mass=mass)
+    bodies, contacts = prepared(world)
+    solver.solve(bodies, contacts, DT, use_bias=False)  # normal only: friction saw jn = 0
+    jn = contacts.numpy("contact_impulse_n")[0]
+    assert jn == pytest.approx(mass * 1.0, rel=1e-12)
+    solver.solve(bodies, contacts, DT, use_bias=False)  # friction with jn, at the cone
+    jt = contacts.numpy("contact_impulse_t1")[0] * contacts.numpy("contact_tangent1")[0]
+    jt = jt + contacts.numpy("contact_impulse_t2")[0] * contacts.numpy("contact_tangent2")[0]
+    direction = slip / np.linalg.norm(slip)
+    np.testing.assert_allclose(jt, -mu * jn * direction, atol=1e-12)
+    np.testing.assert_allclose(ball.velocity, slip - mu * jn / mass * direction, atol=1e-12)
+    r = np.array([0.0, 0.0, -radius])
+    inertia = 0.4 * mass * radius**2
+    np.testing.assert_allclose(ball.angular_velocity, np.cross(r, jt) / inertia, atol=1e-12)
+    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(jn, rel=1e-12)  # the normal row is done
+
+
+def test_a_sticking_ball_rolls_on_at_five_sevenths_of_its_speed():
+    """Friction within the cone removes the slip at the contact: v' = 5/7 v, w' = v' / r (m_t = 2 m / 7)."""
+    mass, radius = 2.0, 0.5
+    world, ball = ball_on_plane(velocity=(0.05, 0.0, -2.0), friction=1.0, mass=mass)
+    bodies, contacts = prepared(world)
+    np.testing.assert_allclose(contacts.numpy("contact_mass_t1"), 2.0 * mass / 7.0, rtol=1e-12)
+    for _ in range(2):
+        solver.solve(bodies, contacts, DT, use_bias=False)
+    v, w = ball.velocity, ball.angular_velocity
+    assert v[0] == pytest.approx(5.0 / 7.0 * 0.05, rel=1e-12)
+    assert w[1] == pytest.approx(v[0] / radius, rel=1e-12)  # rolling: v + w x r = 0 at the contact
+    np.testing.assert_allclose(v + np.cross(w, [0.0, 0.0, -radius]), 0.0, atol=1e-12)
+
+
+def test_overlap_is_pushed_out_softly_and_the_relax_pass_removes_the_push():
+    """Overlap d > slop against a static plane: v_n = -ms bias (soft step, twice as stiff); relax takes it back."""
+    depth = 2.0e-3
+    world, ball = ball_on_plane(z=0.5 - depth)
+    bodies, contacts = prepared(world)
+    solver.solve(bodies, contacts, DT, use_bias=True)
+    # the soft step at stiffness 2 f (a static body), f = CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+    h = DT
+    omega = 2.0 * math.pi * 2.0 * solver.CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+    a1 = 2.0 * solver.CONTACT_DAMPING_RATIO + h * omega
+    a2 = h * omega * a1
+    bias = max(omega / a1 * (-depth + solver.LINEAR_SLOP), -solver.MAX_PUSH_VELOCITY)
+    push = -a2 / (1.0 + a2) * bias
+    assert push > 0.0
+    assert ball.velocity[2] == pytest.approx(push, rel=1e-9)
+    solver.solve(bodies, contacts, DT, use_bias=False)
+    assert ball.velocity[2] == pytest.approx(0.0, abs=1e-12)
+    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_overlap_within_the_slop_is_held_without_push():
+    """Overlap under LINEAR_SLOP: the biased pass adds no velocity."""
+    world, ball = ball_on_plane(z=0.5 - 0.5 * solver.LINEAR_SLOP)
+    bodies, contacts = prepared(world)
+    solver.solve(bodies, contacts, DT, use_bias=True)
+    np.testing.assert_allclose(ball.velocity, 0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+def test_impact_of_two_spheres_is_the_one_dimensional_collision(e):
+    """Head-on, masses 1 and 3: the velocities after `impacts` are the textbook ones for restitution e."""
+    world = tumble.World(dt=DT, substeps=1, gravity=(0.0, 0.0, 0.0))
+    m1, m2, v1, v2 = 1.0, 3.0, 2.0, -1.0
+    a = world.add_sphere(position=(0.0, 0.0, 0.0), radius=0.5, mass=m1, velocity=(v1, 0, 0), restitution=e)
+    b = world.add_sphere(position=(1.0, 0.0, 0.0), radius=0.5, mass=m2, velocity=(v2, 0, 0), restitution=e)
+    bodies, contacts = prepared(world)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.5, ahead=False)
+    if e == 0.0:  # no restitution: impacts leave the contact to the inelastic solve
+        assert a.velocity[0] == v1 and b.velocity[0] == v2
+        return
+    u1 = ((m1 - e * m2) * v1 + (1 + e) * m2 * v2) / (m1 + m2)
+    u2 = ((m2 - e * m1) * v2 + (1 + e) * m1 * v1) / (m1 + m2)
+    assert a.velocity[0] == pytest.approx(u1, rel=1e-12)
+    assert b.velocity[0] == pytest.approx(u2, rel=1e-12)
+    assert m1 * a.velocity[0] + m2 * b.velocity[0] == pytest.approx(m1 * v1 + m2 * v2, rel=1e-12)
+    assert contacts.numpy("contact_relative_velocity")[0] == pytest.approx(v2 - v1, rel=1e-12)
+
+
+def test_impact_slower_than_the_threshold_of_a_loaded_contact_does_not_bounce():
+    """A contact that already carries load (jn > 0) and closes below the threshold is left to the solve."""
+    world, ball = ball_on_plane(velocity=(0.0, 0.0, -0.3), restitution=0.8)
+    bodies, contacts = prepared(world)
+    solver.solve(bodies, contacts, DT, use_bias=False)  # carries load now, at rest
+    ball.velocity = (0.0, 0.0, -0.3)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=1.0, ahead=False)
+    assert ball.velocity[2] == pytest.approx(-0.3)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.1, ahead=False)
+    assert ball.velocity[2] == pytest.approx(0.8 * 0.3, rel=1e-12)
