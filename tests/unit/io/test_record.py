@@ -1,0 +1,155 @@
+"""io/record.py: a recording holds, frame by frame, the state the world had at each sample time,
+and save + load_recording round-trips every field (dtype, shape and value)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.errors import TumbleError
+from tumble.io.atomic import OutputError
+from tumble.io.record import FORMAT_VERSION, Recorder, RecordingError, load_recording
+
+DT = 1.0 / 64.0
+FPS = 16.0  # a frame every 4 steps
+
+
+def small_world() -> tumble.World:
+    world = tumble.World(dt=DT, substeps=2)
+    world.add_plane(friction=0.3)
+    world.add_sphere(position=(0.0, 0.0, 1.0), radius=0.1, mass=1.0, velocity=(0.5, 0.0, 0.0), restitution=0.2)
+    world.add_box(
+        position=(1.0, 0.0, 0.3), half_extents=(0.1, 0.2, 0.3), mass=2.0, angular_velocity=(0.0, 0.0, 3.0), friction=0.9
+    )
+    return world
+
+
+def test_frames_hold_the_state_at_each_sample_time():
+    """Frame k is the world at t = k / fps: positions, velocities, orientations, energy, momentum, contacts."""
+    world = small_world()
+    seen = [(world.time, world.body_position.copy(), world.kinetic_energy(), world.contact_count)]
+    recorder = Recorder(world, fps=FPS)
+
+    def watch(w):
+        recorder(w)
+        if len(recorder.frames) > len(seen):  # a frame was just taken: keep our own copy
+            seen.append((w.time, w.body_position.copy(), w.kinetic_energy(), w.contact_count))
+
+    world.run(1.0, callback=watch)
+    rec = recorder.arrays()
+    f = round(1.0 * FPS) + 1
+    assert recorder.frame_count == f == len(seen)
+    np.testing.assert_allclose(rec["time"], np.arange(f) / FPS, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rec["position"], np.array([s[1] for s in seen]))
+    np.testing.assert_array_equal(rec["kinetic_energy"], [s[2] for s in seen])
+    np.testing.assert_array_equal(rec["contact_count"], [s[3] for s in seen])
+    # the last frame is the world now
+    np.testing.assert_array_equal(rec["velocity"][-1], world.body_velocity)
+    np.testing.assert_array_equal(rec["orientation"][-1], world.body_orientation)
+    np.testing.assert_array_equal(rec["angular_velocity"][-1], world.body_angular_velocity)
+    np.testing.assert_allclose(rec["momentum"][-1], world.momentum(), rtol=0, atol=1e-12)
+    assert rec["momentum"].shape == (f, 3)
+
+
+def test_bodies_and_world_settings_are_recorded_once():
+    """Shapes, sizes, masses, materials, gravity, dt and fps, as the world has them."""
+    world = small_world()
+    rec = Recorder(world, fps=FPS).arrays()
+    assert int(rec["format_version"]) == FORMAT_VERSION
+    assert [str(rec["shape_names"][s]) for s in rec["shape"]] == ["plane", "sphere", "box"]
+    np.testing.assert_array_equal(rec["radius"], world.body_radius)
+    np.testing.assert_array_equal(rec["half_extents"][2], [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(rec["mass"], world.body_mass)
+    np.testing.assert_array_equal(rec["restitution"], world.body_restitution)
+    np.testing.assert_array_equal(rec["friction"], world.body_friction)
+    np.testing.assert_array_equal(rec["gravity"], world.gravity)
+    assert float(rec["dt"]) == DT and float(rec["fps"]) == FPS
+    assert "cloth_position" not in rec and "joint_force" not in rec and "geometry" not in rec
+
+
+def test_bodies_added_later_are_nan_before_they_exist():
+    """Rows of a body created after a frame are NaN in that frame; later frames have its state."""
+    world = small_world()
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.25, callback=recorder)
+    late = world.add_sphere(position=(3.0, 0.0, 0.5), radius=0.1, mass=1.0)
+    world.run(0.25, callback=recorder)
+    rec = recorder.arrays()
+    born = int(np.argmax(~np.isnan(rec["position"][:, late.index, 0])))
+    assert born == 5  # frames 0..4 cover the first 0.25 s
+    assert np.isnan(rec["position"][:born, late.index]).all()
+    assert np.isnan(rec["orientation"][:born, late.index]).all()
+    assert not np.isnan(rec["position"][:, : late.index]).any()
+    np.testing.assert_array_equal(rec["position"][-1, late.index], late.position)
+
+
+def test_save_and_load_round_trip_every_field(tmp_path):
+    """load_recording(save(path)) gives back each array with its dtype, shape and values (NaN too)."""
+    world = small_world()
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.25, callback=recorder)
+    world.add_sphere(position=(3.0, 0.0, 0.5), radius=0.1, mass=1.0)
+    world.run(0.25, callback=recorder)
+    path = recorder.save(tmp_path / "run.npz")
+    assert path == tmp_path / "run.npz" and [p.name for p in tmp_path.iterdir()] == ["run.npz"]
+    loaded, written = load_recording(path), recorder.arrays()
+    assert set(loaded) == set(written)
+    for name, value in written.items():
+        assert loaded[name].dtype == np.asarray(value).dtype, name
+        np.testing.assert_array_equal(loaded[name], value, err_msg=name)
+
+
+def test_cloth_and_hulls_are_recorded(tmp_path):
+    """With a cloth: its particles per frame, triangles, masses, strain; with a hull: its points and triangles."""
+    world = tumble.World(dt=DT, substeps=2)
+    world.add_plane()
+    world.add_cloth(size=(0.5, 0.5), resolution=(4, 3), position=(0.0, 0.0, 1.0), mass=0.3, pins="top-corners")
+    cube = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.1, 0.1) for z in (-0.1, 0.1)])
+    world.add_convex(points=cube, position=(1.0, 0.0, 0.5), mass=1.0)
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.25, callback=recorder)
+    rec = load_recording(recorder.save(tmp_path / "cloth.npz"))
+    f, p = recorder.frame_count, 12
+    assert rec["cloth_position"].shape == (f, p, 3)
+    np.testing.assert_array_equal(rec["cloth_position"][-1], world.cloth.particle_position)
+    np.testing.assert_array_equal(rec["cloth_triangles"], world.cloth.triangles)
+    assert rec["cloth_mass"].sum() == pytest.approx(0.3)
+    assert rec["cloth_max_strain"].shape == (f,) and rec["cloth_max_strain"][0] == 0.0
+    # the cube's hull row: 8 points about its centre, 12 triangles (6 faces fanned), rows [start[g], start[g + 1])
+    g = int(rec["geometry"][-1])
+    start, tri_start = rec["hull_point_start"], rec["hull_triangle_start"]
+    assert len(start) == len(tri_start) == len(world.hulls.prototypes) + 1
+    points = rec["hull_points"][start[g] : start[g + 1]]
+    triangles = rec["hull_triangles"][tri_start[g] : tri_start[g + 1]]
+    assert points.shape == (8, 3) and triangles.shape == (12, 3)
+    np.testing.assert_allclose(np.abs(points), 0.1, atol=1e-12)
+    assert triangles.min() == 0 and triangles.max() == 7  # indices within the hull's own points
+
+
+def test_bad_fps_and_bad_output_paths_are_refused(tmp_path):
+    """fps <= 0 or NaN raises ValueError; a path that is not .npz or has no folder raises OutputError."""
+    world = small_world()
+    for fps in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="fps"):
+            Recorder(world, fps=fps)
+    recorder = Recorder(world, fps=FPS)
+    with pytest.raises(OutputError):
+        recorder.save(tmp_path / "run.txt")
+    with pytest.raises(OutputError):
+        recorder.save(tmp_path / "missing" / "run.npz")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_load_refuses_files_without_time_and_newer_versions(tmp_path):
+    """No 'time' array: RecordingError; a format version above FORMAT_VERSION: TumbleError naming both."""
+    no_time = tmp_path / "no_time.npz"
+    np.savez(no_time, position=np.zeros((2, 1, 3)))
+    with pytest.raises(RecordingError, match="'time'"):
+        load_recording(no_time)
+    newer = tmp_path / "newer.npz"
+    np.savez(newer, time=np.zeros(1), format_version=np.int32(FORMAT_VERSION + 1))
+    with pytest.raises(TumbleError, match=f"version {FORMAT_VERSION + 1} is newer"):
+        load_recording(newer)
+    with pytest.raises(RecordingError, match="no such recording"):
+        load_recording(tmp_path / "absent.npz")
