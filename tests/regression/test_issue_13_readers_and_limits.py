@@ -15,7 +15,7 @@ import tumble.cli
 from tumble import limits
 from tumble.cli import main
 from tumble.io.record import RecordingError, load_recording
-from tumble.io.scene import SAMPLES_DIR, parse_scene
+from tumble.io.scene import SAMPLES_DIR, build_world, parse_scene
 
 BALL = "[[plane]]\n[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nmass = 1.0\n"
 
@@ -300,5 +300,11 @@ def test_sizes_whose_mass_is_not_representable_are_refused(body, key):
 
 
 def test_thin_but_representable_boxes_are_accepted():
-    """A box 1e-120 m thin still has a finite, positive mass and inertia: accepted."""
-    parse_scene("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-120, 1, 1]\n")
+    """A box 1e-120 m thin still has a finite, positive mass and inertia: accepted, built, and it steps."""
+    world = build_world(parse_scene("[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-120, 1, 1]\n"))
+    mass = 1000.0 * 8.0 * 1e-120  # the default density times the volume 8 a b c
+    assert world.body_mass[0] == pytest.approx(mass, rel=1e-12)
+    inertia = np.diag(world.body_inertia_world[0])
+    assert inertia == pytest.approx([2.0 * mass / 3.0, mass / 3.0, mass / 3.0], rel=1e-12)  # m / 3 (b^2 + c^2), ...
+    world.step()
+    assert np.isfinite(world.body_position).all() and world.body_position[0, 2] < 1.0
