@@ -1,0 +1,113 @@
+"""The test tree mirrors src/ (tests/README.md): every module has its test file, every unit test file its module.
+
+- `src/tumble/<package>/<module>.py` is tested in `tests/unit/<package>/test_<module>.py`, and a
+  module with several test files adds `test_<module>_<topic>.py` beside it;
+- the modules of the GUI, the renderer and the commands are tested by the cross-module suites
+  (tests/render, tests/viewer, tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
+- test files in folders without `__init__.py` are imported by their basename, so those basenames
+  must be unique (pytest's default "prepend" import mode).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "tumble"
+TESTS = ROOT / "tests"
+UNIT = TESTS / "unit"
+
+#: modules tested by a cross-module suite rather than a unit test file of their own
+COVERED_ELSEWHERE = {
+    "commands/check": "unit/test_cli.py",
+    "commands/run": "unit/test_cli.py",
+    "commands/export": "unit/io/test_usd.py",
+    "commands/plot": "render/test_render_plot.py",
+    "commands/render": "render/test_render_cli.py",
+    "commands/view": "viewer/test_parts.py",
+    "commands/wedge": "wedge/test_wedge_cli.py",
+    "io/plot": "render/test_render_plot.py",
+    "io/video": "render/test_render_video.py",
+    "render/camera": "render/test_render_camera.py",
+    "render/colors": "render/test_render_renderer.py",
+    "render/renderer": "render/test_render_renderer.py",
+    "render/shaders": "render/test_render_renderer.py",  # compiled and drawn by every render
+    "render/solids": "render/test_render_solids.py",
+    "render/supports": "render/test_issue_14_pictures.py",
+    "viewer/controls": "viewer/test_cloth_controls.py",
+    "viewer/picking": "viewer/test_parts.py",
+    "viewer/recorder": "regression/test_issue_13_outputs.py",
+    "viewer/sim": "viewer/test_parts.py",
+    "viewer/views": "viewer/test_gl_window.py",
+    "viewer/window": "viewer/test_window.py",
+}
+#: unit test files that check the whole package rather than one module
+PACKAGE_WIDE = {"test_cuda_codegen.py"}  # every Warp kernel compiles for CUDA
+
+
+def modules() -> list[str]:
+    """Every module of the package as "package/module" (or "module"), package __init__ and __main__ aside."""
+    return sorted(
+        p.relative_to(SRC).with_suffix("").as_posix()
+        for p in SRC.rglob("*.py")
+        if p.name not in ("__init__.py", "__main__.py")
+    )
+
+
+def test_every_module_has_its_test_file():
+    """tests/unit/<package>/test_<module>.py exists, or the suite named in COVERED_ELSEWHERE does."""
+    missing = []
+    for module in modules():
+        folder, name = UNIT.joinpath(module).parent, Path(module).name
+        if module in COVERED_ELSEWHERE:
+            if not (TESTS / COVERED_ELSEWHERE[module]).is_file():
+                missing.append(f"{module}: {COVERED_ELSEWHERE[module]} (listed in COVERED_ELSEWHERE) is gone")
+        elif not (folder / f"test_{name}.py").is_file():
+            missing.append(f"{module}: no {(folder / f'test_{name}.py').relative_to(ROOT)}")
+    assert not missing, "\n".join(missing)
+
+
+def test_covered_elsewhere_lists_only_modules_without_a_unit_file():
+    """A module that gained its own unit test file leaves COVERED_ELSEWHERE; a removed module too."""
+    stale = [
+        m
+        for m in COVERED_ELSEWHERE
+        if m not in modules() or (UNIT / f"{Path(m).parent}/test_{Path(m).name}.py").is_file()
+    ]
+    assert not stale, f"remove from COVERED_ELSEWHERE: {stale}"
+
+
+def test_every_unit_test_file_names_its_module():
+    """tests/unit/<package>/test_<module>[_<topic>].py: <module> is a module of src/tumble/<package>."""
+    known = set(modules())
+    orphans = []
+    for path in sorted(UNIT.rglob("test_*.py")):
+        if path.name in PACKAGE_WIDE:
+            continue
+        package = path.parent.relative_to(UNIT).as_posix()
+        stem = path.stem.removeprefix("test_")
+        parts = stem.split("_")
+        candidates = ["_".join(parts[:k]) for k in range(len(parts), 0, -1)]
+        if not any((f"{package}/{c}" if package != "." else c) in known for c in candidates):
+            orphans.append(path.relative_to(ROOT).as_posix())
+    assert not orphans, f"unit test files without a module of that name: {orphans}"
+
+
+def test_unit_test_packages_have_init_files():
+    """Each folder under tests/unit is a package, so that basenames may repeat across folders."""
+    missing = [
+        p.relative_to(ROOT).as_posix()
+        for p in [UNIT, *UNIT.rglob("*")]
+        if p.is_dir() and p.name != "__pycache__" and not (p / "__init__.py").is_file()
+    ]
+    assert not missing, f"add __init__.py to {missing}"
+
+
+def test_basenames_are_unique_where_they_are_imported_by_basename():
+    """Test files in folders without __init__.py import as their basename: two of one name would clash."""
+    seen: dict[str, list[str]] = {}
+    for path in TESTS.rglob("test_*.py"):
+        if not (path.parent / "__init__.py").is_file():
+            seen.setdefault(path.name, []).append(path.relative_to(ROOT).as_posix())
+    clashes = {name: paths for name, paths in seen.items() if len(paths) > 1}
+    assert not clashes, f"rename one of each: {clashes}"
