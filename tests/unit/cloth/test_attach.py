@@ -14,6 +14,8 @@ import warp as wp
 from tumble.cloth.attach import BodyPins, sum_pin_load
 from tumble.state import ArraySet, float_t, quat, vec3
 
+from ..reference import quat_matrix
+
 BODY_FIELDS = {
     "body_position": vec3,
     "body_orientation": quat,
@@ -23,17 +25,6 @@ BODY_FIELDS = {
     "body_inv_inertia": vec3,
 }
 G = np.array([0.0, 0.0, -9.81])
-
-
-def quat_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def two_bodies() -> ArraySet:

@@ -14,7 +14,7 @@ from tumble import shapes
 from tumble.collision.hulls import hull_from_points
 from tumble.collision.narrowphase import SPECULATIVE_MARGIN
 
-from .test_narrowphase import quat_axis_angle, rotate
+from ..reference import quat_axis_angle, rotate
 
 CUBE = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 

@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 import tumble
 
+from ..reference import quat_axis_angle, rotate
+
 DT = 1.0 / 240.0
 # contacts are reported up to the speculative margin when bodies are at rest
 MARGIN = 0.002
@@ -18,17 +20,6 @@ def contacts(world):
     """Run broad + narrow phase and return (pairs, normals, depths, points)."""
     world.collide()
     return world.contact_pair, world.contact_normal, world.contact_depth, world.contact_point
-
-
-def quat_axis_angle(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
-
-
-def rotate(q, v):
-    x, y, z, w = q
-    u = np.array([x, y, z])
-    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
 
 
 # ------------------------------------------------------------------ sphere-sphere

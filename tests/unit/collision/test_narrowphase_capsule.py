@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import tumble
 from tumble import shapes
 
-from .test_narrowphase import quat_axis_angle, rotate
+from ..reference import quat_axis_angle, rotate
 
 MARGIN = 0.002
 

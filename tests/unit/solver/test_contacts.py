@@ -24,19 +24,10 @@ from tumble import shapes
 from tumble.solver import contacts as solver
 from tumble.solver import integrate
 
+from ..reference import quat_matrix
+
 DT = 2.0**-6  # one substep: h = dt
 ZERO_G = np.zeros(3)
-
-
-def quat_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def prepared(world: tumble.World):

@@ -15,6 +15,8 @@ import warp as wp
 from tumble.solver import integrate
 from tumble.state import ArraySet, float_t, quat, vec3
 
+from ..reference import quat_axis_angle, quat_matrix
+
 #: the body arrays the integrator reads and writes
 FIELDS = {
     "body_position": vec3,
@@ -47,23 +49,6 @@ def bodies(**rows) -> ArraySet:
 def substep(b: ArraySet, h: float = H, gravity=G, *, warm: bool = False) -> None:
     integrate.integrate_velocities(b, gravity, h, warm=warm)
     integrate.integrate_positions(b, h)
-
-
-def quat_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def axis_angle(axis, angle: float) -> np.ndarray:
-    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    return np.append(axis * np.sin(angle / 2), np.cos(angle / 2))
 
 
 def test_free_flight_follows_the_semi_implicit_euler_sums():
@@ -103,7 +88,7 @@ def test_force_accelerates_by_f_over_m_and_clear_forces_forgets_it():
 
 def test_torque_turns_through_the_world_inverse_inertia():
     """w += R diag(1 / I) R^T tau h for a rotated body with unequal moments."""
-    q = axis_angle([1.0, 2.0, -0.5], 0.8)
+    q = quat_axis_angle([1.0, 2.0, -0.5], 0.8)
     inv_i = np.array([1.0, 0.5, 0.25])
     tau = np.array([0.3, -1.0, 2.0])
     b = bodies(
@@ -136,7 +121,7 @@ def test_static_bodies_stay_and_kinematic_bodies_move_only_with_their_velocity()
     np.testing.assert_array_equal(b.numpy("body_position")[0], x0[0])
     np.testing.assert_allclose(b.numpy("body_position")[1], x0[1] + 8 * H * v0[1], rtol=0, atol=1e-15)
     # the kinematic body turned by |w| t about z
-    expected = axis_angle([0.0, 0.0, 1.0], 2.0 * 8 * H)
+    expected = quat_axis_angle([0.0, 0.0, 1.0], 2.0 * 8 * H)
     np.testing.assert_allclose(b.numpy("body_orientation")[1], expected, atol=1e-14)
 
 
@@ -162,7 +147,7 @@ def test_warm_start_adds_the_stored_impulse_once_and_clears_it():
 def test_sphere_rotation_is_exact():
     """Equal moments: q(t) = exp(w t / 2) q0, the exact rotation by |w| t about w, at any step count."""
     w = np.array([1.0, -2.0, 0.5])
-    q0 = axis_angle([0.0, 1.0, 1.0], 0.3)
+    q0 = quat_axis_angle([0.0, 1.0, 1.0], 0.3)
     b = bodies(
         body_position=np.zeros((1, 3)),
         body_orientation=q0[None],
@@ -174,7 +159,7 @@ def test_sphere_rotation_is_exact():
     n, h = 200, 2.0**-7
     for _ in range(n):
         substep(b, h, gravity=np.zeros(3))
-    turn = axis_angle(w, np.linalg.norm(w) * n * h)
+    turn = quat_axis_angle(w, np.linalg.norm(w) * n * h)
     expected = quat_matrix(turn) @ quat_matrix(q0)
     np.testing.assert_allclose(quat_matrix(b.numpy("body_orientation")[0]), expected, atol=1e-12)
     np.testing.assert_allclose(b.numpy("body_angular_velocity")[0], w, atol=0)
