@@ -45,6 +45,28 @@ class GridCloth:
         self.particle_count = nx * ny
 
 
+class WorldWithCloth(tumble.World):
+    """A World whose cloth is a stand-in (`GridCloth`): the renderer reads only `has_cloth` and `cloth`."""
+
+    def __init__(self, cloth, **settings):
+        super().__init__(**settings)
+        self.stand_in = cloth
+
+    @property
+    def has_cloth(self) -> bool:
+        return True
+
+    @property
+    def cloth(self):
+        return self.stand_in
+
+
+@pytest.fixture
+def cloth_world():
+    """Factory of `WorldWithCloth`: cloth_world(make_cloth(...)) is an empty World showing that cloth."""
+    return WorldWithCloth
+
+
 def falling_world(n: int = 3) -> tumble.World:
     """A ground plane and `n` spheres side by side, dropped from different heights."""
     world = tumble.World(dt=1.0 / 120.0)

@@ -159,7 +159,7 @@ def test_the_sky_is_dithered_not_banded(small_renderer):
     assert np.abs(np.diff(rows)).max() < 1.5
 
 
-def test_a_crumpled_cloth_is_shaded_without_dark_blotches(small_renderer, make_cloth):
+def test_a_crumpled_cloth_is_shaded_without_dark_blotches(cloth_world, small_renderer, make_cloth):
     """An upright, rippled banner (sun shadows on): its darkest parts are a shade of its lit parts.
 
     Hard self-shadows and a hard terminator made the flag's wrinkles into dark patches: the 95th
@@ -167,14 +167,13 @@ def test_a_crumpled_cloth_is_shaded_without_dark_blotches(small_renderer, make_c
     """
     renderer = small_renderer
     renderer.resize(160, 120)
-    world = tumble.World()
     cloth = make_cloth(48, 48, centre=(0.0, 0.0, 1.0), size=1.2)
     grid = cloth.particle_position.copy()
     cloth.particle_position[:, 1] = 0.12 * np.sin(9 * grid[:, 0] + 2 * grid[:, 1]) + 0.05 * np.sin(
         17 * grid[:, 1] - 5 * grid[:, 0]
     )
     cloth.particle_position[:, 2] = 1.0 + grid[:, 1]
-    world._cloth = cloth
+    world = cloth_world(cloth)
     image = renderer.render(world, Camera(position=(0.8, -3.5, 1.3), target=(0.0, 0.0, 1.0), fov_deg=30)).astype(float)
     red = (image[..., 0] > image[..., 1] + 30) & (image[..., 0] > image[..., 2] + 30)
     assert red.sum() > 3000  # the banner fills much of the picture

@@ -120,10 +120,9 @@ def test_scene_camera_with_position_only_looks_at_the_scene():
     assert cam.fov_deg == 50
 
 
-def test_frame_includes_cloth_and_emitters(make_cloth):
+def test_frame_includes_cloth_and_emitters(cloth_world, make_cloth):
     """Cloth particles and emitter regions count when framing a scene."""
-    world = tumble.World()
-    world._cloth = make_cloth(centre=(10.0, 0.0, 1.0))
+    world = cloth_world(make_cloth(centre=(10.0, 0.0, 1.0)))
     world.add_emitter(shape="sphere", rate=10, count=5, position=(-10.0, 0.0, 2.0), radius=0.1)
     cam = Camera()
     cam.frame(world, aspect=1.0)

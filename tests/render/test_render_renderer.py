@@ -12,8 +12,8 @@ from tumble.render import Camera, body_colors, scene_arrays, vertex_normals
 W, H = 160, 120
 
 
-def _scene_one_sphere():
-    world = tumble.World()
+def _scene_one_sphere(world=None):
+    world = tumble.World() if world is None else world
     world.add_plane()
     world.add_sphere(position=(0.0, 0.0, 0.5), radius=0.3)  # body 1
     return world
@@ -112,10 +112,9 @@ def test_plane_not_drawn_from_behind(small_renderer):
     assert np.array_equal(image, sky_only)
 
 
-def test_cloth_is_drawn_two_sided(small_renderer, make_cloth, chromaticity):
+def test_cloth_is_drawn_two_sided(cloth_world, small_renderer, make_cloth, chromaticity):
     """Cloth shows its colour seen from above and from below (two-sided)."""
-    world = tumble.World()
-    world._cloth = make_cloth(centre=(0.0, 0.0, 1.0))
+    world = cloth_world(make_cloth(centre=(0.0, 0.0, 1.0)))
     small_renderer.shadows = False
     front = small_renderer.cloth_color
     back = np.clip(front * 0.6 + 0.4, 0.0, 1.0)  # the back side's lighter tint
@@ -126,11 +125,10 @@ def test_cloth_is_drawn_two_sided(small_renderer, make_cloth, chromaticity):
         assert _like(pixel, colour, chromaticity), f"no cloth colour seen from z = {z}: {pixel}"
 
 
-def test_same_scene_renders_identically(small_renderer, make_cloth):
+def test_same_scene_renders_identically(cloth_world, small_renderer, make_cloth):
     """Two renders of one scene give the same bytes."""
-    world = _scene_one_sphere()
+    world = _scene_one_sphere(cloth_world(make_cloth(centre=(-0.5, 0.5, 1.2), size=0.8)))
     world.add_box(position=(0.6, 0.3, 0.3), half_extents=(0.2, 0.2, 0.2), orientation=(0.1, 0.2, 0.3, 0.9))
-    world._cloth = make_cloth(centre=(-0.5, 0.5, 1.2), size=0.8)
     a = small_renderer.render(world, _camera())
     b = small_renderer.render(world, _camera())
     assert np.array_equal(a, b)
@@ -195,13 +193,12 @@ def test_vertex_normals_of_a_flat_grid(make_cloth):
     assert np.allclose(n, [0.0, 0.0, 1.0])
 
 
-def test_cloth_triangles_out_of_range_are_refused(small_renderer, make_cloth):
+def test_cloth_triangles_out_of_range_are_refused(cloth_world, small_renderer, make_cloth):
     """Cloth triangles naming missing particles raise a clear error, not a GL crash."""
-    world = tumble.World()
     cloth = make_cloth(3, 3)
     cloth.triangles = cloth.triangles.copy()
     cloth.triangles[0, 0] = 99
-    world._cloth = cloth
+    world = cloth_world(cloth)
     with pytest.raises(TumbleError, match="cloth triangles"):
         small_renderer.render(world, _camera())
 
