@@ -1,8 +1,9 @@
 """Joints against analytic results: pendulum periods, energy, hanging chains, motors, limits, drift.
 
 Time step dt = 1/240 s with 8 substeps (h = dt / 8) unless a test says otherwise. Semi-implicit
-Euler is first order in h, and the soft joints settle at errors ~ load / (m_eff omega^2) with
-omega = 2 pi f, f = 0.25 / h, so the tolerances below are a few times those.
+Euler is first order in h, and the soft joints (all but the ball joints' point rows, which are
+solved exactly chain by chain) settle at errors ~ load / (m_eff omega^2) with omega = 2 pi f,
+f = 0.25 / h, so the tolerances below are a few times those.
 """
 
 from __future__ import annotations
@@ -378,19 +379,22 @@ def _sphere_chain(world, n: int, start, step) -> list:
     return links
 
 
-@pytest.mark.parametrize("n", [50, pytest.param(300, marks=pytest.mark.slow)])
-def test_long_chain_at_rest_sags_as_its_soft_joints_predict(n):
-    """Hang n 10 g links: joint 1 (its two links' m_eff = m / 2, load n m g) stretches 2 n g / omega^2, under 1 mm."""
+@pytest.mark.parametrize("n", [200, pytest.param(1000, marks=pytest.mark.slow)])
+def test_long_chain_at_rest_holds_together(n):
+    """Hang n 10 g links: every joint holds to 1 um (the issue asks 1 mm).
+
+    Soft rows alone would be springs of stiffness m_eff omega^2 (m_eff = m / 2, omega = 2 pi 0.25 / h):
+    joint 1, carrying n m g, stretched 2 n g / omega^2 (0.43 mm at 200 links, 2.2 mm at 1,000). The
+    ball joints' chain is solved exactly (rigid rows), so at rest only rounding is left.
+    """
     world = tumble.World(gravity=(0, 0, -G), dt=DT)
     _sphere_chain(world, n, (0, 0, 0), (0, 0, -0.02))
     _settle(world, 1.5)
     world.run(duration=0.25)
-    # the soft rows are springs of stiffness m_eff omega^2 under a steady load (omega = 2 pi 0.25 / h)
-    omega = 2 * math.pi * 0.25 / (DT / 8)
-    error = world.joint_error
-    assert error.max() == pytest.approx(2 * n * G / omega**2, rel=0.05)
-    assert error.argmax() == 1
-    assert error.max() < 1e-3
+    assert world.joint_error.max() < 1e-6
+    # and it hangs still, its top joint carrying the whole chain
+    assert world.kinetic_energy() < 1e-9
+    assert world.joint_force[0][2] == pytest.approx(n * 0.01 * G, rel=1e-6)
 
 
 @pytest.mark.slow
@@ -409,9 +413,12 @@ def test_long_chain_falling_from_level_stays_together():
         worst = max(worst, world.joint_error.max())
         energy.append(world.kinetic_energy() + world.potential_energy())
     assert worst < 1e-2
+    assert worst < 1e-3  # the issue's bound at rest holds in the fall too (soft rows alone: 2.0 mm)
     # the chain fell (about 20 m of it hangs), and no step made energy: E stays at or below its start, 0
     assert world.kinetic_energy() > 100.0
     assert max(energy) < 0.1
+    # nor lost much: rigid rows whose push-back velocity is relaxed away do no work (soft rows: -33 J of 371)
+    assert energy[-1] > -0.01 * world.kinetic_energy()
 
 
 def test_jointed_pair_does_not_collide_unless_asked():

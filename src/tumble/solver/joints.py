@@ -768,6 +768,219 @@ def _solve_ball(
         sum_linear[k] = sum_linear[k] + T
 
 
+# ---------------------------------------------------------------------------- ball-joint chains, solved exactly
+
+
+@wp.struct
+class _Ball:
+    """One ball joint's point row at the current poses: bodies, world arms, inverse masses, C and Cdot."""
+
+    ia: int
+    ib: int
+    ra: vec3
+    rb: vec3
+    ma: float_t
+    mb: float_t
+    Ia: wp.mat33d
+    Ib: wp.mat33d
+    C: vec3  # p_b - p_a
+    cdot: vec3  # its rate
+    on: int  # 0 = broken: the row does nothing
+
+
+@wp.func
+def _ball(
+    k: int,
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    enabled: wp.array(dtype=wp.int32),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
+    h: float_t,
+):
+    g = _Ball()
+    g.ia = body_a[k]
+    g.ib = body_b[k]
+    g.on = enabled[k]
+    A = _load(g.ia, x, q, v, w, inv_mass, inv_inertia, load, h)
+    B = _load(g.ib, x, q, v, w, inv_mass, inv_inertia, load, h)
+    ra = wp.quat_rotate(A.q, local_a[k])  # the world (identity pose): its anchor is the world point
+    rb = wp.quat_rotate(B.q, local_b[k])
+    pa = A.x + ra
+    pb = B.x + rb
+    if g.ia < 0:
+        ra = vec3()
+    if g.ib < 0:
+        rb = vec3()
+    g.ra = ra
+    g.rb = rb
+    g.ma = A.m
+    g.mb = B.m
+    g.Ia = A.I
+    g.Ib = B.I
+    g.C = pb - pa
+    g.cdot = B.v + wp.cross(B.w, rb) - A.v - wp.cross(A.w, ra)
+    return g
+
+
+@wp.func
+def _ball_mass(g: _Ball):
+    """K = (1/m_a + 1/m_b) 1 - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x: Cdot's change per impulse."""
+    Sa = wp.skew(g.ra)
+    Sb = wp.skew(g.rb)
+    return wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
+
+
+@wp.func
+def _side(g: _Ball, body: int):
+    """+1 if `body` is the joint's b, -1 if its a, 0 if neither (or the world)."""
+    s = float_t(0.0)
+    if body >= 0:
+        if g.ib == body:
+            s = s + float_t(1.0)
+        if g.ia == body:
+            s = s - float_t(1.0)
+    return s
+
+
+@wp.func
+def _coupling(g: _Ball, f: _Ball):
+    """Change of g's Cdot per impulse of f through the bodies they share:
+    sum over shared c of s_g s_f (1/m_c - [r_g]x I_c^-1 [r_f]x) (s = +1 on the joint's b, -1 on its a)."""
+    out = wp.mat33d()
+    if g.on == 0 or f.on == 0:
+        return out
+    for side in range(2):
+        c = g.ia
+        rg = g.ra
+        m = g.ma
+        I = g.Ia
+        sg = float_t(-1.0)
+        if side == 1:
+            c = g.ib
+            rg = g.rb
+            m = g.mb
+            I = g.Ib
+            sg = float_t(1.0)
+        if c >= 0:
+            if f.ia == c:
+                out = out - sg * (wp.identity(n=3, dtype=float_t) * m - wp.skew(rg) * I * wp.skew(f.ra))
+            if f.ib == c:
+                out = out + sg * (wp.identity(n=3, dtype=float_t) * m - wp.skew(rg) * I * wp.skew(f.rb))
+    return out
+
+
+@wp.kernel
+def _solve_ball_chains(
+    chain_joints: wp.array(dtype=wp.int32),
+    chain_start: wp.array(dtype=wp.int32),
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    scale: wp.array(dtype=float_t),
+    enabled: wp.array(dtype=wp.int32),
+    imp_linear: wp.array(dtype=vec3),
+    sum_linear: wp.array(dtype=vec3),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    warm_v: wp.array(dtype=vec3),
+    warm_w: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
+    inv_d: wp.array(dtype=wp.mat33d),  # scratch per path slot: the eliminated diagonal block, inverted
+    lower: wp.array(dtype=wp.mat33d),  # its coupling to the previous slot, A[t, t - 1]
+    rhs: wp.array(dtype=vec3),  # the eliminated right-hand side, then the slot's impulse
+    mode: int,  # 1 solve with bias, 2 relax (no bias; sums the next warm start)
+    h: float_t,
+    bias_rate: float_t,
+    serial: int,
+    count: int,
+):
+    """The point rows of one chain of ball joints (consecutive joints share a body), solved exactly.
+
+    A lambda = -(Cdot + bias) with A = J M^-1 J^T block tridiagonal (3 x 3 blocks: K on the diagonal,
+    `_coupling` beside it), by block Gaussian elimination down the chain and back substitution up it.
+    """
+    p = wp.tid()
+    if p >= count:
+        return
+    s = chain_start[p]
+    e = chain_start[p + 1]
+    one = wp.identity(n=3, dtype=float_t)
+    # eliminate down the chain: D_t = A_tt - A_t,t-1 D_t-1^-1 A_t-1,t, y_t = r_t - A_t,t-1 D_t-1^-1 y_t-1
+    for t in range(s, e):
+        k = chain_joints[t]
+        g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
+        r = -g.cdot
+        if mode == 1:
+            r = r - g.C * bias_rate
+        D = _ball_mass(g)
+        B = wp.mat33d()
+        if t > s:
+            f = _ball(
+                chain_joints[t - 1],
+                body_a,
+                body_b,
+                local_a,
+                local_b,
+                enabled,
+                x,
+                q,
+                v,
+                w,
+                inv_mass,
+                inv_inertia,
+                load,
+                h,
+            )
+            B = _coupling(g, f)
+            L = B * inv_d[t - 1]
+            D = D - L * wp.transpose(B)
+            r = r - L * rhs[t - 1]
+        if g.on == 0:
+            D = one
+            r = vec3()
+        Dinv = wp.mat33d()
+        if wp.determinant(D) != float_t(0.0):
+            Dinv = wp.inverse(D)
+        inv_d[t] = Dinv
+        lower[t] = B
+        rhs[t] = r
+    # back substitution up the chain: lambda_t = D_t^-1 (y_t - A_t,t+1 lambda_t+1), A_t,t+1 = A_t+1,t^T
+    lam = inv_d[e - 1] * rhs[e - 1]
+    rhs[e - 1] = lam
+    for i in range(e - 1 - s):
+        t = e - 2 - i
+        lam = inv_d[t] * (rhs[t] - wp.transpose(lower[t + 1]) * lam)
+        rhs[t] = lam
+    # apply the impulses
+    for t in range(s, e):
+        k = chain_joints[t]
+        g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
+        if g.on != 0:
+            P = rhs[t] * scale[k]
+            T = imp_linear[k] + P
+            imp_linear[k] = T
+            add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), v, w, inv_mass, serial)
+            add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), v, w, inv_mass, serial)
+            if mode == 2:
+                # relax: the impulse is final for the substep and starts the next one (warm start)
+                add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), warm_v, warm_w, inv_mass, serial)
+                add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), warm_v, warm_w, inv_mass, serial)
+                sum_linear[k] = sum_linear[k] + T
+
+
 #: one solve kernel per joint kind (the ball joint's written out on its own)
 _SOLVE = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKind.BALL}
 _SOLVE[JointKind.BALL] = _solve_ball
@@ -890,6 +1103,51 @@ def softness(h: float) -> tuple[float, float, float]:
     return omega / a1, a2 * a3, a3
 
 
+def ball_chains(body_a: np.ndarray, body_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ball joints (rows given by their bodies, -1 the world) cut into chains: (order, starts).
+
+    Consecutive joints of a chain share a body that has exactly these two ball joints (and not
+    both bodies), so its J M^-1 J^T is block tridiagonal and positive definite; a chain ends at the
+    world, at a body with one ball joint or with three or more (a branch: the chains meeting there
+    are coupled by the sweep, in order).
+    A closed loop is cut open: its last joint makes a chain of its own. `order` lists positions
+    in the given rows, chain after chain; chain c is order[starts[c]:starts[c + 1]].
+    """
+    m = len(body_a)
+    ends = np.concatenate([body_a, body_b]).astype(np.int64)
+    joint = np.concatenate([np.arange(m), np.arange(m)])
+    real = ends >= 0
+    degree = np.bincount(ends[real], minlength=1)
+    link = real & (degree[np.maximum(ends, 0)] == 2)
+    # the two joints of each body with exactly two are neighbours
+    by_body = np.argsort(ends[link], kind="stable")
+    pairs = joint[link][by_body].reshape(-1, 2)
+    # two joints on the same two bodies are not a chain: their rows are redundant (A singular)
+    lo, hi = np.minimum(body_a, body_b), np.maximum(body_a, body_b)
+    pairs = pairs[(lo[pairs[:, 0]] != lo[pairs[:, 1]]) | (hi[pairs[:, 0]] != hi[pairs[:, 1]])]
+    neighbour = np.full((m, 2), -1, dtype=np.int64)
+    for i, j in pairs:  # setup only: a few microseconds a joint
+        neighbour[i, int(neighbour[i, 0] >= 0)] = j
+        neighbour[j, int(neighbour[j, 0] >= 0)] = i
+    seen = np.zeros(m, dtype=bool)
+    order, starts = [], [0]
+    open_ends = np.flatnonzero(neighbour[:, 1] < 0)
+    for first in [*open_ends, *range(m)]:  # chains from their ends, then what is left: loops
+        if seen[first]:
+            continue
+        loop = neighbour[first, 1] >= 0
+        previous, current = -1, int(first)
+        while current >= 0 and not seen[current]:
+            seen[current] = True
+            order.append(current)
+            a, b = neighbour[current]
+            previous, current = current, int(b if a == previous else a)
+        if loop and len(order) - starts[-1] > 1:
+            starts.append(len(order) - 1)  # the loop's last joint on its own
+        starts.append(len(order))
+    return np.array(order, dtype=np.int32), np.array(starts, dtype=np.int32)
+
+
 #: the arrays the solve kernels take, in their argument order (ball joints: the first list is `_BALL_JOINT_ARRAYS`)
 _SOLVE_JOINT_ARRAYS = (
     "joint_body_a",
@@ -966,6 +1224,8 @@ class JointSet(ArraySet):
         self._key_joint = None
         self._key_count = 0
         self._rows = {}  # joint rows of each kind present, in creation order
+        # the ball joints' chains (`ball_chains`), solved exactly, and those in none, soft (set by `refresh`)
+        self._chain_count = self._lone_count = 0
         self._dirty = True
         self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
 
@@ -995,6 +1255,23 @@ class JointSet(ArraySet):
         }
         a = self.numpy("joint_body_a").astype(np.int64)
         b = self.numpy("joint_body_b").astype(np.int64)
+        # the ball joints cut into chains, each solved exactly, and the scratch of the elimination; a lone
+        # joint (one whose bodies have no other ball joint, or three or more) stays a soft row: rigid rows
+        # coupled by the sweep alone, warm started, went unstable (100 links; the rope bridge's paired ties)
+        ball = np.flatnonzero(kinds == JointKind.BALL)
+        order, starts = ball_chains(a[ball], b[ball])
+        size = np.diff(starts)
+        chained = np.repeat(size > 1, size)
+        chain = ball[order[chained]]
+        lone = np.sort(ball[order[~chained]])
+        self._chain_count = int((size > 1).sum())
+        self._chain_start = self._ints(np.concatenate([[0], np.cumsum(size[size > 1])]))
+        self._chain_joints = self._ints(chain)
+        self._chain_inv_d = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
+        self._chain_lower = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
+        self._chain_rhs = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
+        self._lone_count = len(lone)
+        self._lone_joints = self._ints(lone)
         no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
         lo, hi = np.minimum(a, b)[no_collide], np.maximum(a, b)[no_collide]
         keys = lo * 2147483648 + hi
@@ -1009,6 +1286,10 @@ class JointSet(ArraySet):
             ca = np.where(a >= 0, per_body[np.maximum(a, 0)], 1)
             cb = np.where(b >= 0, per_body[np.maximum(b, 0)], 1)
             self.write("joint_scale", slice(0, n), 1.0 / np.maximum(np.maximum(ca, cb), 1))
+
+    def _ints(self, values: np.ndarray) -> wp.array:
+        """An int32 array on the device (one spare entry: never empty)."""
+        return wp.array(np.append(values, 0).astype(np.int32), dtype=wp.int32, device=self.device)
 
     def remap_bodies(self, slot: np.ndarray) -> None:
         """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them."""
@@ -1086,14 +1367,26 @@ class JointSet(ArraySet):
             1 if self.device == "cpu" else 0,
         ]
         for kind, rows in self._rows.items():
+            count = rows.shape[0]
+            if kind == JointKind.BALL and mode != 0:
+                # chains of ball joints, each solved exactly (rigid rows, their error fed back at the soft rate)
+                if self._chain_count:
+                    chains = (self._chain_joints, self._chain_start)
+                    scratch = (self._chain_inv_d, self._chain_lower, self._chain_rhs)
+                    ball = (j[name] for name in _BALL_JOINT_ARRAYS)
+                    bias = softness(h)[0]
+                    launch(
+                        _solve_ball_chains,
+                        self._chain_count,
+                        [*chains, *ball, *shared[:9], *scratch, mode, h, bias, shared[-1], self._chain_count],
+                        self.device,
+                        cache,
+                    )
+                rows, count = self._lone_joints, self._lone_count  # then the lone ones, soft
+                if count == 0:
+                    continue
             names = _BALL_JOINT_ARRAYS if kind == JointKind.BALL else _SOLVE_JOINT_ARRAYS
-            launch(
-                _SOLVE[kind],
-                rows.shape[0],
-                [rows, *(j[name] for name in names), *shared, rows.shape[0]],
-                self.device,
-                cache,
-            )
+            launch(_SOLVE[kind], count, [rows, *(j[name] for name in names), *shared, count], self.device, cache)
 
     def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
         """Apply last step's impulses (first substep only; later ones warm start through the relax pass)."""
