@@ -53,16 +53,32 @@ it vanishes as h^2, leaves slow motion alone (a pendulum bob of 0.1 m radius: 7e
 moment) and damps only the modes near the substep rate. Measured on that chain: drift 2.0 mm,
 no energy gained (the scale 1 is needed: at 0.5 it still spun up, 5.6 mm).
 
-Sag: under a steady load F a soft row is a spring of stiffness m_eff omega^2, so a joint carrying
-F stretches F / (m_eff omega^2) = F h^2 / (m_eff (pi / 2)^2) (measured exactly: a hanging chain of
-n 10 g links, joint 1 stretches 2 n g / omega^2; 0.65 mm at 300 links, 2.2 mm at 1,000).
-Stiffer rows (a larger fraction of the substep rate) went unstable on the chain; more substeps
-shrink it as h^2.
+Sag, and chains solved exactly: under a steady load F a soft row is a spring of stiffness
+m_eff omega^2 (its leak term, impulse scale x accumulated, cancels the warm start), so a joint
+carrying F stretches F / (m_eff omega^2) = F h^2 / (m_eff (pi / 2)^2), m_eff the row's own two
+bodies': a hanging chain of n 10 g links stretched 2 n g / omega^2 at joint 1 (0.65 mm at 300
+links, 2.2 mm at 1,000), and no local stiffness fixes that for every length. Stiffer soft rows
+(0.4 of the substep rate) and soft rows without the leak (a per-joint integrator: it
+destabilises the chain's slowest modes, whose damping falls as 1 / n^2) blew up; rigid rows
+swept by Gauss-Seidel, warm started, blew up on 100 links. So the ball joints are cut into
+chains (`ball_chains`: consecutive joints share a body with exactly those two ball joints) and
+each chain's point rows are solved exactly, `_solve_ball_chains`: A lambda = -(Cdot + b C), A =
+J M^-1 J^T block tridiagonal (3 x 3 blocks), by block elimination down the chain and back
+substitution up it (Thomas' algorithm), O(joints), one thread per chain. The rows are rigid (no
+leak, mass scale 1), their error fed back at the soft rows' bias rate b (a fraction h b = 0.28
+of it per substep) and relaxed away after the position update, so fixing drift adds no energy.
+Measured: the hanging 1,000-link chain holds to rounding (0 drift), and falling from level it
+drifts 0.45 um (soft rows: 2.0 mm) and keeps its energy (-0.2 J of 396 J kinetic; soft rows lost
+33 J). Chains meet at branch bodies (a ragdoll's torso) through the sweep, in order. A lone ball
+joint (its bodies have no other ball joint, or three or more, or it doubles another on the same
+pair, like the rope bridge's paired ties) stays a soft row, as do the other kinds' rows: rigid
+rows coupled only by the sweep went unstable there too.
 
 Kernels: one solve kernel per joint kind, each launched over the rows of its kind in creation
 order (so a pass sweeps the ball joints, then the hinges, ...); the ball joint's is written out
-on plain values (`_solve_ball`), the others come from `_make_solve(kind)`, whose branches on the
-kind are resolved when Warp compiles it (`wp.static`). No adjoint code is generated.
+on plain values (`_solve_ball`; it warm starts every ball joint and solves the lone ones), the
+others come from `_make_solve(kind)`, whose branches on the kind are resolved when Warp compiles
+it (`wp.static`); the ball joints' chains have `_solve_ball_chains`. No adjoint code is generated.
 
 Joint force: the accumulated impulses are per substep (each substep applies them again as its
 warm start), so the step's mean force is the sum of the substeps' final impulses over dt (the
@@ -71,7 +87,8 @@ the step (it stops acting and its bodies collide again).
 
 On the CPU, Warp runs threads in order, so each pass is a Gauss-Seidel sweep in joint order and
 the result is deterministic. On CUDA the passes are Jacobi: deltas are added with atomics and
-each joint's impulse is scaled by 1 / (largest joint count of its two bodies).
+each joint's impulse is scaled by 1 / (largest joint count of its two bodies); a chain is one
+thread there too (never run on a GPU).
 
 Jointed pairs do not collide unless the joint says `collide=True`: `JointSet.filter_pairs` drops
 them from the broad phase's pair list before the narrow phase (a binary search of each pair in
@@ -901,6 +918,10 @@ def _solve_ball_chains(
     inv_d: wp.array(dtype=wp.mat33d),  # scratch per path slot: the eliminated diagonal block, inverted
     lower: wp.array(dtype=wp.mat33d),  # its coupling to the previous slot, A[t, t - 1]
     rhs: wp.array(dtype=vec3),  # the eliminated right-hand side, then the slot's impulse
+    arm_a: wp.array(dtype=vec3),  # and the joint's world arms and (loaded) inverse inertias
+    arm_b: wp.array(dtype=vec3),
+    inertia_a: wp.array(dtype=wp.mat33d),
+    inertia_b: wp.array(dtype=wp.mat33d),
     mode: int,  # 1 solve with bias, 2 relax (no bias; sums the next warm start)
     h: float_t,
     bias_rate: float_t,
@@ -928,22 +949,13 @@ def _solve_ball_chains(
         D = _ball_mass(g)
         B = wp.mat33d()
         if t > s:
-            f = _ball(
-                chain_joints[t - 1],
-                body_a,
-                body_b,
-                local_a,
-                local_b,
-                enabled,
-                x,
-                q,
-                v,
-                w,
-                inv_mass,
-                inv_inertia,
-                load,
-                h,
-            )
+            # the previous joint as stored: its bodies and arms (the coupling takes the shared bodies' masses from g)
+            f = _Ball()
+            f.ia = body_a[chain_joints[t - 1]]
+            f.ib = body_b[chain_joints[t - 1]]
+            f.on = enabled[chain_joints[t - 1]]
+            f.ra = arm_a[t - 1]
+            f.rb = arm_b[t - 1]
             B = _coupling(g, f)
             L = B * inv_d[t - 1]
             D = D - L * wp.transpose(B)
@@ -957,6 +969,10 @@ def _solve_ball_chains(
         inv_d[t] = Dinv
         lower[t] = B
         rhs[t] = r
+        arm_a[t] = g.ra
+        arm_b[t] = g.rb
+        inertia_a[t] = g.Ia
+        inertia_b[t] = g.Ib
     # back substitution up the chain: lambda_t = D_t^-1 (y_t - A_t,t+1 lambda_t+1), A_t,t+1 = A_t+1,t^T
     lam = inv_d[e - 1] * rhs[e - 1]
     rhs[e - 1] = lam
@@ -967,17 +983,28 @@ def _solve_ball_chains(
     # apply the impulses
     for t in range(s, e):
         k = chain_joints[t]
-        g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
-        if g.on != 0:
+        if enabled[k] != 0:
+            ia = body_a[k]
+            ib = body_b[k]
+            ma = float_t(0.0)
+            mb = float_t(0.0)
+            if ia >= 0:
+                ma = inv_mass[ia]
+            if ib >= 0:
+                mb = inv_mass[ib]
+            ra = arm_a[t]
+            rb = arm_b[t]
+            Ia = inertia_a[t]
+            Ib = inertia_b[t]
             P = rhs[t] * scale[k]
             T = imp_linear[k] + P
             imp_linear[k] = T
-            add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), v, w, inv_mass, serial)
-            add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), v, w, inv_mass, serial)
+            add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), v, w, inv_mass, serial)
+            add_velocity(ib, P * mb, Ib * wp.cross(rb, P), v, w, inv_mass, serial)
             if mode == 2:
                 # relax: the impulse is final for the substep and starts the next one (warm start)
-                add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), warm_v, warm_w, inv_mass, serial)
-                add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), warm_v, warm_w, inv_mass, serial)
+                add_velocity(ia, -T * ma, -(Ia * wp.cross(ra, T)), warm_v, warm_w, inv_mass, serial)
+                add_velocity(ib, T * mb, Ib * wp.cross(rb, T), warm_v, warm_w, inv_mass, serial)
                 sum_linear[k] = sum_linear[k] + T
 
 
@@ -1270,6 +1297,10 @@ class JointSet(ArraySet):
         self._chain_inv_d = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
         self._chain_lower = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
         self._chain_rhs = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
+        self._chain_arm_a = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
+        self._chain_arm_b = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
+        self._chain_inertia_a = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
+        self._chain_inertia_b = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
         self._lone_count = len(lone)
         self._lone_joints = self._ints(lone)
         no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
@@ -1372,7 +1403,8 @@ class JointSet(ArraySet):
                 # chains of ball joints, each solved exactly (rigid rows, their error fed back at the soft rate)
                 if self._chain_count:
                     chains = (self._chain_joints, self._chain_start)
-                    scratch = (self._chain_inv_d, self._chain_lower, self._chain_rhs)
+                    scratch = (self._chain_inv_d, self._chain_lower, self._chain_rhs, self._chain_arm_a)
+                    scratch += (self._chain_arm_b, self._chain_inertia_a, self._chain_inertia_b)
                     ball = (j[name] for name in _BALL_JOINT_ARRAYS)
                     bias = softness(h)[0]
                     launch(

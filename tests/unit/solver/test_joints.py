@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -9,7 +10,7 @@ import pytest
 
 import tumble
 from tumble.io.scene import build_world, parse_scene
-from tumble.solver.joints import JointArgumentError, JointKind
+from tumble.solver.joints import JointArgumentError, JointKind, ball_chains
 
 
 def _world():
@@ -185,3 +186,51 @@ def test_removing_another_body_keeps_joints_on_their_bodies():
     assert world.body_position[a.index] == pytest.approx([0, 0, 1], abs=1e-4)
     assert world.body_position[b.index] == pytest.approx([0, 0, 0.5], abs=1e-4)
     assert world.joint_error.max() < 1e-4
+
+
+def _chains(body_a, body_b) -> list[list[int]]:
+    order, starts = ball_chains(np.array(body_a), np.array(body_b))
+    return [order[s:e].tolist() for s, e in itertools.pairwise(starts)]
+
+
+def test_ball_chains_follow_shared_bodies_and_cut_at_branches_loops_and_paired_ties():
+    # a hanging chain, given in any order, is one chain walked end to end
+    assert _chains([-1, 0, 1, 2], [0, 1, 2, 3]) == [[0, 1, 2, 3]]
+    assert _chains([2, 1, 0, -1], [3, 2, 1, 0]) == [[0, 1, 2, 3]]
+    # a bridge: the world at both ends
+    assert _chains([-1, 0, 1], [0, 1, -1]) == [[0, 1, 2]]
+    # a torso (body 0) with three two-joint limbs: the limbs, cut at the branch
+    assert _chains([0, 1, 0, 3, 0, 5], [1, 2, 3, 4, 5, 6]) == [[0, 1], [2, 3], [4, 5]]
+    # a ring of four bodies: cut open, its last joint on its own
+    assert sorted(map(len, _chains([0, 1, 2, 3], [1, 2, 3, 0]))) == [1, 3]
+    # two joints on the same two bodies (paired ties): redundant rows, never one chain
+    assert _chains([0, 0], [1, 1]) == [[0], [1]]
+
+
+def test_ball_chain_relax_pass_leaves_no_joint_velocity():
+    """One relax pass solves a chain's point rows exactly: every anchor pair moves together after it.
+
+    Six boxes of masses 0.1 to 10 kg (1:100) hang in a chain from the world, with random velocities;
+    a Gauss-Seidel sweep would leave the rows coupled through their shared bodies unsolved.
+    """
+    world = tumble.World(gravity=(0, 0, 0))
+    rng = np.random.default_rng(7)
+    n = 6
+    links = [
+        world.add_box(position=(0.3 * i, 0, 0), half_extents=(0.1, 0.05, 0.05), mass=m)
+        for i, m in enumerate([0.1, 10.0, 1.0, 0.1, 5.0, 0.3][:n])
+    ]
+    world.add_joint("ball", None, links[0], anchor=(-0.15, 0, 0))
+    for i in range(1, n):
+        world.add_joint("ball", links[i - 1], links[i], anchor=(0.3 * i - 0.15, 0.02 * i, 0))
+    world.bodies.write("body_velocity", slice(0, n), rng.normal(size=(n, 3)))
+    world.bodies.write("body_angular_velocity", slice(0, n), rng.normal(size=(n, 3)) * 5)
+    world.joints.refresh(world.bodies.count)
+    world.joints.solve(world.bodies, world.dt / world.substeps, use_bias=False)
+    v, w = world.body_velocity, world.body_angular_velocity
+    la, lb = world.joints.numpy("joint_local_a"), world.joints.numpy("joint_local_b")  # unrotated bodies: world arms
+    ia, ib = world.joints.numpy("joint_body_a"), world.joints.numpy("joint_body_b")
+    for k in range(n):
+        va = np.zeros(3) if ia[k] < 0 else v[ia[k]] + np.cross(w[ia[k]], la[k])
+        vb = v[ib[k]] + np.cross(w[ib[k]], lb[k])
+        assert np.abs(vb - va).max() < 1e-9 * max(1.0, np.abs(v).max())  # rounding, amplified by the 1:100 masses
