@@ -62,14 +62,16 @@ links, 2.2 mm at 1,000), and no local stiffness fixes that for every length. Sti
 destabilises the chain's slowest modes, whose damping falls as 1 / n^2) blew up; rigid rows
 swept by Gauss-Seidel, warm started, blew up on 100 links. So the ball joints are cut into
 chains (`ball_chains`: consecutive joints share a body with exactly those two ball joints) and
-each chain's point rows are solved exactly, `_solve_ball_chains`: A lambda = -(Cdot + b C), A =
-J M^-1 J^T block tridiagonal (3 x 3 blocks), by block elimination down the chain and back
-substitution up it (Thomas' algorithm), O(joints), one thread per chain. The rows are rigid (no
-leak, mass scale 1), their error fed back at the soft rows' bias rate b (a fraction h b = 0.28
-of it per substep) and relaxed away after the position update, so fixing drift adds no energy.
-Measured: the hanging 1,000-link chain holds to rounding (0 drift), and falling from level it
-drifts 0.45 um (soft rows: 2.0 mm) and keeps its energy (-0.2 J of 396 J kinetic; soft rows lost
-33 J). Chains meet at branch bodies (a ragdoll's torso) through the sweep, in order. A lone ball
+each chain's point rows are solved exactly in the pass with bias, `_solve_ball_chains`:
+A lambda = -(Cdot + b C), A = J M^-1 J^T block tridiagonal (3 x 3 blocks), by block elimination
+down the chain and back substitution up it (Thomas' algorithm), O(joints), one thread per chain.
+The rows are rigid (no leak, mass scale 1), their error fed back at the soft rows' bias rate b (a
+fraction h b = 0.28 of it per substep); the relax pass after the position update is the plain
+rigid sweep, which removes the push-back velocity, so fixing drift adds no energy (an exact relax
+pass too cost twice as much and let a ragdoll's shoulders drift 0.8 mm at impacts, 0.03 mm
+with the sweep). Measured: the hanging 1,000-link chain holds to rounding (0 drift), and falling
+from level it drifts 0.45 um (soft rows: 2.0 mm) and keeps its energy (-0.2 J of 396 J kinetic;
+soft rows lost 33 J). Chains meet at branch bodies (a ragdoll's torso) through the sweep. A lone ball
 joint (its bodies have no other ball joint, or three or more, or it doubles another on the same
 pair, like the rope bridge's paired ties) stays a soft row, as do the other kinds' rows: rigid
 rows coupled only by the sweep went unstable there too.
@@ -905,15 +907,12 @@ def _solve_ball_chains(
     scale: wp.array(dtype=float_t),
     enabled: wp.array(dtype=wp.int32),
     imp_linear: wp.array(dtype=vec3),
-    sum_linear: wp.array(dtype=vec3),
     x: wp.array(dtype=vec3),
     q: wp.array(dtype=quat),
     v: wp.array(dtype=vec3),
     w: wp.array(dtype=vec3),
     inv_mass: wp.array(dtype=float_t),
     inv_inertia: wp.array(dtype=vec3),
-    warm_v: wp.array(dtype=vec3),
-    warm_w: wp.array(dtype=vec3),
     load: wp.array(dtype=float_t),
     inv_d: wp.array(dtype=wp.mat33d),  # scratch per path slot: the eliminated diagonal block, inverted
     lower: wp.array(dtype=wp.mat33d),  # its coupling to the previous slot, A[t, t - 1]
@@ -922,16 +921,15 @@ def _solve_ball_chains(
     arm_b: wp.array(dtype=vec3),
     inertia_a: wp.array(dtype=wp.mat33d),
     inertia_b: wp.array(dtype=wp.mat33d),
-    mode: int,  # 1 solve with bias, 2 relax (no bias; sums the next warm start)
     h: float_t,
     bias_rate: float_t,
     serial: int,
     count: int,
 ):
-    """The point rows of one chain of ball joints (consecutive joints share a body), solved exactly.
-
-    A lambda = -(Cdot + bias) with A = J M^-1 J^T block tridiagonal (3 x 3 blocks: K on the diagonal,
-    `_coupling` beside it), by block Gaussian elimination down the chain and back substitution up it.
+    """The point rows of one chain of ball joints (consecutive joints share a body), solved exactly
+    with bias: A lambda = -(Cdot + b C), A = J M^-1 J^T block tridiagonal (3 x 3 blocks: K on the
+    diagonal, `_coupling` beside it), by block elimination down the chain and back substitution up it.
+    (The relax pass is the plain sweep, `_solve_ball`: the chain is solved again next substep.)
     """
     p = wp.tid()
     if p >= count:
@@ -943,9 +941,7 @@ def _solve_ball_chains(
     for t in range(s, e):
         k = chain_joints[t]
         g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
-        r = -g.cdot
-        if mode == 1:
-            r = r - g.C * bias_rate
+        r = -(g.cdot + g.C * bias_rate)
         D = _ball_mass(g)
         B = wp.mat33d()
         if t > s:
@@ -997,15 +993,9 @@ def _solve_ball_chains(
             Ia = inertia_a[t]
             Ib = inertia_b[t]
             P = rhs[t] * scale[k]
-            T = imp_linear[k] + P
-            imp_linear[k] = T
+            imp_linear[k] = imp_linear[k] + P
             add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), v, w, inv_mass, serial)
             add_velocity(ib, P * mb, Ib * wp.cross(rb, P), v, w, inv_mass, serial)
-            if mode == 2:
-                # relax: the impulse is final for the substep and starts the next one (warm start)
-                add_velocity(ia, -T * ma, -(Ia * wp.cross(ra, T)), warm_v, warm_w, inv_mass, serial)
-                add_velocity(ib, T * mb, Ib * wp.cross(rb, T), warm_v, warm_w, inv_mass, serial)
-                sum_linear[k] = sum_linear[k] + T
 
 
 #: one solve kernel per joint kind (the ball joint's written out on its own)
@@ -1212,6 +1202,15 @@ _BALL_JOINT_ARRAYS = (
     "joint_impulse_linear",
     "joint_sum_linear",
 )
+_CHAIN_JOINT_ARRAYS = _BALL_JOINT_ARRAYS[:-1]  # no force sums: the chains' pass is not the relax pass
+_CHAIN_BODY_ARRAYS = (
+    "body_position",
+    "body_orientation",
+    "body_velocity",
+    "body_angular_velocity",
+    "body_inv_mass",
+    "body_inv_inertia",
+)
 _SOLVE_BODY_ARRAYS = (
     "body_position",
     "body_orientation",
@@ -1399,22 +1398,34 @@ class JointSet(ArraySet):
         ]
         for kind, rows in self._rows.items():
             count = rows.shape[0]
-            if kind == JointKind.BALL and mode != 0:
-                # chains of ball joints, each solved exactly (rigid rows, their error fed back at the soft rate)
+            if kind == JointKind.BALL and mode == 1:
+                # chains of ball joints, each solved exactly (rigid rows, their error fed back at the soft rate),
+                # then the lone ones as soft rows; the relax pass sweeps every ball joint
                 if self._chain_count:
                     chains = (self._chain_joints, self._chain_start)
                     scratch = (self._chain_inv_d, self._chain_lower, self._chain_rhs, self._chain_arm_a)
                     scratch += (self._chain_arm_b, self._chain_inertia_a, self._chain_inertia_b)
-                    ball = (j[name] for name in _BALL_JOINT_ARRAYS)
+                    ball = (j[name] for name in _CHAIN_JOINT_ARRAYS)
+                    body = (b[name] for name in _CHAIN_BODY_ARRAYS)
                     bias = softness(h)[0]
                     launch(
                         _solve_ball_chains,
                         self._chain_count,
-                        [*chains, *ball, *shared[:9], *scratch, mode, h, bias, shared[-1], self._chain_count],
+                        [
+                            *chains,
+                            *ball,
+                            *body,
+                            self._body_load(bodies),
+                            *scratch,
+                            h,
+                            bias,
+                            shared[-1],
+                            self._chain_count,
+                        ],
                         self.device,
                         cache,
                     )
-                rows, count = self._lone_joints, self._lone_count  # then the lone ones, soft
+                rows, count = self._lone_joints, self._lone_count
                 if count == 0:
                     continue
             names = _BALL_JOINT_ARRAYS if kind == JointKind.BALL else _SOLVE_JOINT_ARRAYS
