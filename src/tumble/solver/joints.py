@@ -78,7 +78,7 @@ rows coupled only by the sweep went unstable there too.
 
 Kernels: one solve kernel per joint kind, each launched over the rows of its kind in creation
 order (so a pass sweeps the ball joints, then the hinges, ...); the ball joint's is written out
-on plain values (`_solve_ball`; it warm starts every ball joint and solves the lone ones), the
+on its own (`_solve_ball`; it warm starts and relaxes every ball joint and solves the lone ones), the
 others come from `_make_solve(kind)`, whose branches on the kind are resolved when Warp compiles
 it (`wp.static`); the ball joints' chains have `_solve_ball_chains`. No adjoint code is generated.
 
@@ -691,103 +691,7 @@ def _make_solve(kind: int):
     return solve
 
 
-@wp.kernel
-def _solve_ball(
-    rows: wp.array(dtype=wp.int32),
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    scale: wp.array(dtype=float_t),
-    enabled: wp.array(dtype=wp.int32),
-    imp_linear: wp.array(dtype=vec3),
-    sum_linear: wp.array(dtype=vec3),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    warm_v: wp.array(dtype=vec3),
-    warm_w: wp.array(dtype=vec3),
-    load: wp.array(dtype=float_t),
-    mode: int,
-    h: float_t,
-    bias_rate: float_t,
-    mass_scale: float_t,
-    impulse_scale: float_t,
-    serial: int,
-    count: int,
-):
-    """Ball joints alone (the chains' and ragdolls' kind): the point row, on plain values, no structs."""
-    thread = wp.tid()
-    if thread >= count:
-        return
-    k = rows[thread]
-    if enabled[k] == 0:
-        return
-    ia = body_a[k]
-    ib = body_b[k]
-    zero = float_t(0.0)
-    xa = vec3()
-    va = vec3()
-    wa = vec3()
-    ra = local_a[k]  # the world: its anchor is a world point
-    ma = zero
-    Ia = wp.mat33d()
-    if ia >= 0:
-        xa = x[ia]
-        va = v[ia]
-        wa = w[ia]
-        ma = inv_mass[ia]
-        ra = wp.quat_rotate(q[ia], ra)
-        Ia = _inv_inertia_loaded(q[ia], inv_inertia[ia], load[ia], h)
-    xb = vec3()
-    vb = vec3()
-    wb = vec3()
-    rb = local_b[k]
-    mb = zero
-    Ib = wp.mat33d()
-    if ib >= 0:
-        xb = x[ib]
-        vb = v[ib]
-        wb = w[ib]
-        mb = inv_mass[ib]
-        rb = wp.quat_rotate(q[ib], rb)
-        Ib = _inv_inertia_loaded(q[ib], inv_inertia[ib], load[ib], h)
-    if ia < 0:
-        xa = ra  # the world's anchor, and no arm
-        ra = vec3()
-    if ib < 0:
-        xb = rb
-        rb = vec3()
-    P0 = imp_linear[k]
-    P = P0  # warm start: last step's impulse
-    if mode != 0:
-        # C = p_b - p_a; K = (1/m_a + 1/m_b) 1 - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x
-        cdot = vb + wp.cross(wb, rb) - va - wp.cross(wa, ra)
-        ms = float_t(1.0)
-        isc = zero
-        if mode == 1:
-            cdot = cdot + ((xb + rb) - (xa + ra)) * bias_rate
-            ms = mass_scale
-            isc = impulse_scale
-        Sa = wp.skew(ra)
-        Sb = wp.skew(rb)
-        K = wp.identity(n=3, dtype=float_t) * (ma + mb) - Sa * Ia * Sa - Sb * Ib * Sb
-        P = (-ms * _solve33(K, cdot) - isc * P0) * scale[k]
-        imp_linear[k] = P0 + P
-    add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), v, w, inv_mass, serial)
-    add_velocity(ib, P * mb, Ib * wp.cross(rb, P), v, w, inv_mass, serial)
-    if mode == 2:
-        # relax: the impulse is final for the substep and starts the next one (warm start)
-        T = P0 + P
-        add_velocity(ia, -T * ma, -(Ia * wp.cross(ra, T)), warm_v, warm_w, inv_mass, serial)
-        add_velocity(ib, T * mb, Ib * wp.cross(rb, T), warm_v, warm_w, inv_mass, serial)
-        sum_linear[k] = sum_linear[k] + T
-
-
-# ---------------------------------------------------------------------------- ball-joint chains, solved exactly
+# ---------------------------------------------------------------------------- ball joints
 
 
 @wp.struct
@@ -857,16 +761,62 @@ def _ball_mass(g: _Ball):
     return wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
 
 
-@wp.func
-def _side(g: _Ball, body: int):
-    """+1 if `body` is the joint's b, -1 if its a, 0 if neither (or the world)."""
-    s = float_t(0.0)
-    if body >= 0:
-        if g.ib == body:
-            s = s + float_t(1.0)
-        if g.ia == body:
-            s = s - float_t(1.0)
-    return s
+@wp.kernel
+def _solve_ball(
+    rows: wp.array(dtype=wp.int32),
+    body_a: wp.array(dtype=wp.int32),
+    body_b: wp.array(dtype=wp.int32),
+    local_a: wp.array(dtype=vec3),
+    local_b: wp.array(dtype=vec3),
+    scale: wp.array(dtype=float_t),
+    enabled: wp.array(dtype=wp.int32),
+    imp_linear: wp.array(dtype=vec3),
+    sum_linear: wp.array(dtype=vec3),
+    x: wp.array(dtype=vec3),
+    q: wp.array(dtype=quat),
+    v: wp.array(dtype=vec3),
+    w: wp.array(dtype=vec3),
+    inv_mass: wp.array(dtype=float_t),
+    inv_inertia: wp.array(dtype=vec3),
+    warm_v: wp.array(dtype=vec3),
+    warm_w: wp.array(dtype=vec3),
+    load: wp.array(dtype=float_t),
+    mode: int,
+    h: float_t,
+    bias_rate: float_t,
+    mass_scale: float_t,
+    impulse_scale: float_t,
+    serial: int,
+    count: int,
+):
+    """Ball joints alone (the chains' and ragdolls' kind): the point row as one soft (or, relaxing, rigid) row."""
+    thread = wp.tid()
+    if thread >= count:
+        return
+    k = rows[thread]
+    if enabled[k] == 0:
+        return
+    g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
+    P0 = imp_linear[k]
+    P = P0  # warm start: last step's impulse
+    if mode != 0:
+        cdot = g.cdot
+        ms = float_t(1.0)
+        isc = float_t(0.0)
+        if mode == 1:
+            cdot = cdot + g.C * bias_rate
+            ms = mass_scale
+            isc = impulse_scale
+        P = (-ms * _solve33(_ball_mass(g), cdot) - isc * P0) * scale[k]
+        imp_linear[k] = P0 + P
+    add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), v, w, inv_mass, serial)
+    add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), v, w, inv_mass, serial)
+    if mode == 2:
+        # relax: the impulse is final for the substep and starts the next one (warm start)
+        T = P0 + P
+        add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), warm_v, warm_w, inv_mass, serial)
+        add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), warm_v, warm_w, inv_mass, serial)
+        sum_linear[k] = sum_linear[k] + T
 
 
 @wp.func
