@@ -9,6 +9,8 @@ collide in any engine; every other pair does.
 Scenes (z up, SI units):
 * `chain_1k`: 1,000 spheres (r 8 mm, 10 g) 2 cm apart in a horizontal line, joined by ball
   joints midway, the first one to the world: released, the 20 m chain swings down (violent).
+* `chain_1k_rest`: the same chain hanging straight down, released at rest: its drift is the
+  joints' stretch under the chain's weight (10 g x 1,000 on the top joint).
 * `ragdoll_100`: 100 ragdolls of 10 bodies (a torso box, a head sphere, two-part arms and legs
   of boxes) joined by 9 ball joints each, on a 10 x 10 grid 1 m apart, dropped from 0.5 m onto
   a ground plane (friction 0.5).
@@ -79,6 +81,17 @@ def chain_scene(n: int = 1000) -> JointScene:
     return s
 
 
+def hanging_chain_scene(n: int = 1000) -> JointScene:
+    """The chain of `chain_scene` hanging straight down from its world joint, released at rest."""
+    s = JointScene("chain_1k_rest")
+    for i in range(n):
+        s.add("sphere", 0.008, (0.0, 0.0, -0.02 * i), 0.01)
+    s.joints.append((-1, 0, np.array([0.0, 0.0, 0.01])))
+    for i in range(1, n):
+        s.joints.append((i - 1, i, np.array([0.0, 0.0, 0.01 - 0.02 * i])))
+    return s
+
+
 def ragdoll_scene(n: int = 100) -> JointScene:
     s = JointScene("ragdoll_100", ground=True)
     side = math.ceil(math.sqrt(n))
@@ -103,7 +116,7 @@ def ragdoll_scene(n: int = 100) -> JointScene:
     return s
 
 
-SCENES = {"chain_1k": chain_scene, "ragdoll_100": ragdoll_scene}
+SCENES = {"chain_1k": chain_scene, "chain_1k_rest": hanging_chain_scene, "ragdoll_100": ragdoll_scene}
 
 
 def drift(scene: JointScene, x: np.ndarray, q: np.ndarray) -> float:
@@ -130,7 +143,7 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 class Tumble:
     name = "tumble"
-    settings = "dt 1/240, 8 substeps (soft step)"
+    settings = "dt 1/240, 8 substeps (soft step, ball-joint chains exact)"
 
     def __init__(self, scene: JointScene):
         import tumble
@@ -355,7 +368,7 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", default="chain_1k,ragdoll_100")
+    parser.add_argument("--scenes", default=",".join(SCENES))
     parser.add_argument("--engines", default="tumble,pybullet,mujoco,rapier")
     parser.add_argument("--duration", type=float, default=DURATION, help="simulated seconds per scene (default 1)")
     args = parser.parse_args(argv)
