@@ -864,7 +864,7 @@ def _solve_ball_chains(
     inv_mass: wp.array(dtype=float_t),
     inv_inertia: wp.array(dtype=vec3),
     load: wp.array(dtype=float_t),
-    inv_d: wp.array(dtype=wp.mat33d),  # scratch per path slot: the eliminated diagonal block, inverted
+    inv_d: wp.array(dtype=wp.mat33d),  # scratch per chain slot: the eliminated diagonal block, inverted
     lower: wp.array(dtype=wp.mat33d),  # its coupling to the previous slot, A[t, t - 1]
     rhs: wp.array(dtype=vec3),  # the eliminated right-hand side, then the slot's impulse
     arm_a: wp.array(dtype=vec3),  # and the joint's world arms and (loaded) inverse inertias
