@@ -763,8 +763,15 @@ class World:
     def cloth(self) -> ClothSystem:
         """The world's `ClothSystem` (created on first use)."""
         if self._cloth is None:
-            self._cloth = ClothSystem(self)
+            self._cloth = ClothSystem(self.device, world_key=self._key, gravity=self.gravity)
         return self._cloth
+
+    def pin_cloth_to_body(self, particles, body: BodyId | int) -> None:
+        """Pin cloth particles (indices into `world.cloth`'s arrays) to a body where they are now: they
+        follow it and pull on it (two-way). Same as `world.cloth.pin_to_body(particles, body)`."""
+        row = self._row(body)
+        b = self.bodies
+        self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
 
     def set_wind(
         self,
@@ -1346,6 +1353,14 @@ class World:
             contact_solver.prepare(bodies, contacts, self.gravity)
             integrate.begin_step(bodies)
 
+        # cloth, step start: its substeps, user forces, wind, the bodies that can reach it
+        if cloth is not None:
+            hulls, meshes = self.hulls.struct(), self.meshes.ids()
+            with self._timer("cloth"):
+                cloth.begin_step(
+                    h, self.substeps, bodies=bodies, gravity=self.gravity, time=self.time, step=self.step_count
+                )
+
         # substeps: integrate velocities (+ warm start) -> impacts (restitution) -> solve -> integrate positions
         # -> relax -> cloth
         for substep in range(self.substeps):
@@ -1370,7 +1385,12 @@ class World:
                 contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             if cloth is not None:
                 with self._timer("cloth"):
-                    cloth.substep(h)
+                    cloth.substep(h, bodies=bodies, hulls=hulls, meshes=meshes)
+
+        # cloth, step end: a cloth substep left over by rounding
+        if cloth is not None:
+            with self._timer("cloth"):
+                cloth.end_step(bodies=bodies, hulls=hulls, meshes=meshes)
 
         # keep this step's impulses for the next step's warm start
         with self._timer("solver"):
@@ -1650,7 +1670,7 @@ class World:
         m = self.bodies.numpy("body_mass")
         energy = -float(np.sum(m * (self.bodies.numpy("body_position") @ self.gravity)))
         if self._cloth is not None:
-            energy += self._cloth.potential_energy()
+            energy += self._cloth.potential_energy(self.gravity)
         return energy
 
     def momentum(self) -> np.ndarray:

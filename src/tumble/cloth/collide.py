@@ -73,17 +73,17 @@ class BodyArrays:
     delta_rotation: wp.array(dtype=vec3)
 
 
-def body_arrays(bodies) -> BodyArrays:
-    """The struct over a body `ArraySet`'s arrays, kept on the set until its arrays are replaced
-    (so that a recorded launch sees the same struct and re-packs nothing)."""
+def body_arrays(bodies, cached: tuple | None = None) -> tuple:
+    """The struct over a body `ArraySet`'s arrays, as (struct, arrays): `cached` (a previous return)
+    again while the set's arrays are the same ones, so that a recorded launch re-packs nothing.
+    The caller keeps it (`ClothSystem` does, per world step); it is a cache, rebuilt on demand."""
     arrays = [bodies.arrays["body_" + name] for name in BodyArrays.vars]
-    cached = bodies.__dict__.get("_cloth_struct")
-    if cached is None or any(x is not y for x, y in zip(cached[1], arrays)):
-        s = BodyArrays()
-        for name, array in zip(BodyArrays.vars, arrays):
-            setattr(s, name, array)
-        cached = bodies.__dict__["_cloth_struct"] = (s, arrays)
-    return cached[0]
+    if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
+        return cached
+    s = BodyArrays()
+    for name, array in zip(BodyArrays.vars, arrays):
+        setattr(s, name, array)
+    return s, arrays
 
 
 @wp.func
@@ -665,7 +665,8 @@ def collide_bodies(
         tethers: each particle's tethers and their pins and largest lengths (`springs.tether_arrays`).
         limits: each particle's limited springs (`springs.Limits`).
         candidates: body indices to test, shape (k,) int32.
-        bodies: the world's body `ArraySet`; positions and velocities of dynamic bodies are updated.
+        bodies: the world's body arrays (`BodyArrays`, from `body_arrays`); positions and velocities of
+            dynamic bodies are updated.
         hulls: the world's `Hulls` struct (convex bodies); mesh_ids: its mesh ids by row (`MeshSet.ids`).
         contact_count_prev: particles touching each body in the previous pass, shape (n,) int32.
         contact_count_next: zeroed; receives this pass's counts, shape (n,) int32.
@@ -693,7 +694,7 @@ def collide_bodies(
             limits,
             candidates,
             k,
-            body_arrays(bodies),
+            bodies,
             hulls,
             mesh_ids,
             contact_count_prev,
@@ -752,7 +753,7 @@ def catch_small_spheres(
             triangles,
             candidates,
             k,
-            body_arrays(bodies),
+            bodies,
             contact_count_prev,
             contact_count_next,
             float(h),

@@ -1,8 +1,11 @@
 """ClothSystem: every cloth of a world, as flat particle, spring and triangle arrays.
 
-`World.step` calls `ClothSystem.substep(h)` once per substep, after the rigid bodies' positions
-were integrated and relaxed. One cloth substep runs these stages, each a plain function over
-arrays (see `springs`, `wind` and `collide`):
+`World.step` calls the cloth's three stages by name, handing each what it reads: `begin_step`
+once at the start of the step's substeps (the step's length and substeps, gravity, clock and the
+body arrays), `substep` once per world substep after the rigid bodies' positions were integrated
+and relaxed (the body arrays, hulls and meshes it collides with), and `end_step` once after the
+last substep. The cloth keeps no reference to the world. One cloth substep runs these stages,
+each a plain function over arrays (see `springs`, `wind` and `collide`):
 
 1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
 2. integrate: semi-implicit Euler; pinned particles move towards their targets;
@@ -35,7 +38,7 @@ import warp as wp
 from .. import validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
-from ..state import ClothId, Handle, float_t, readonly, vec3
+from ..state import BodyId, ClothId, Handle, float_t, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
 from .wind import Wind, accumulate_air_forces, sample_wind
@@ -127,12 +130,17 @@ class ClothSystem:
             bodies", for what it holds and what it costs: bodies resting on it jitter more).
 
     Args:
-        world: the owning `World` (reads `gravity`, `dt`, `substeps`, `step_count`, `time`, `bodies`).
+        device: Warp device of the particle arrays.
+        world_key: `World.key` of the owning world, to refuse another world's cloth handles (None: any).
+        gravity: [m/s^2], shape (3,): what `potential_energy` measures against until a step passes its own.
     """
 
-    def __init__(self, world):
-        self.world = world
-        self.device = world.device
+    def __init__(
+        self, device: str = "cpu", *, world_key: int | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81)
+    ):
+        self.device = device
+        self.world_key = world_key
+        self._gravity = np.array(gravity, dtype=np.float64)
         self.cloths: list[Cloth] = []
         self.wind: Wind | None = None
         self.stretch_iterations = (1, 128)
@@ -148,7 +156,6 @@ class ClothSystem:
         self._arrays: dict[str, wp.array] = {}
         self._particle_count = 0
         self._stable_h = math.inf
-        self._step_seen = None
         self._substep_index = 0
         self._cloth_total = 0
         self._cloth_done = 0
@@ -165,6 +172,9 @@ class ClothSystem:
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._wind_modes = None
         self._grid: collide.SelfCollisionGrid | None = None
+        self._bodies = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
+        self._step_dt = 0.0
+        self._pin_dt = 0.0
         self._cache = LaunchCache()
         self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
         self._violated = wp.zeros(1, dtype=wp.int32, device=self.device)
@@ -340,7 +350,6 @@ class ClothSystem:
             wp.array(omega, dtype=float_t, device=self.device),
             wp.array(phase, dtype=float_t, device=self.device),
         )
-        self._step_seen = None  # resample the wind at the next substep
 
     def _append(self, rows: dict[str, np.ndarray]) -> None:
         """Concatenate a new cloth's rows onto the host description and the device state; re-upload."""
@@ -463,29 +472,40 @@ class ClothSystem:
         n = 1 if not math.isfinite(self._stable_h) else math.ceil(dt / self._stable_h - 1e-9)
         return max(1, int(self.min_substeps), n)
 
-    def substep(self, h: float) -> None:
-        """Advance the cloth through one world substep of `h` seconds, coupled to the world's bodies.
+    def substep(self, h: float, *, bodies, hulls, meshes) -> None:
+        """Stage, once per world substep of `h` seconds: the cloth substeps that end in it, coupled to the bodies.
 
         The cloth keeps its own clock: it takes `substeps_for(dt)` equal substeps per world step
-        (dt = h * world.substeps), each one run in the world substep during which it ends. With
-        the world at 8 substeps and a cloth stable at 4, every other world substep runs one
-        cloth substep twice as long; a cloth that needs more runs several per world substep.
+        (from `begin_step`), each one run in the world substep during which it ends. With the
+        world at 8 substeps and a cloth stable at 4, every other world substep runs one cloth
+        substep twice as long; a cloth that needs more runs several per world substep.
+
+        Args:
+            h: the world's substep [s].
+            bodies: the world's body `ArraySet` (read; dynamic bodies receive the cloth's pushes and pulls).
+            hulls: the world's `Hulls` struct; meshes: its static meshes' Warp ids by row (`MeshSet.ids()`).
         """
         if self._particle_count == 0:
             return
-        world = self.world
-        if self._step_seen != world.step_count or self._cloth_done >= self._cloth_total:
-            self._begin_step(h * max(1, int(world.substeps)))
         self._clock += h
         hc = self._cloth_h
         # run the cloth substeps that end within this world substep (rounding: 1e-9 of a substep)
         while self._cloth_done < self._cloth_total and self._clock >= (self._cloth_done + 1 - 1e-9) * hc:
-            self._cloth_substep(hc)
+            self._cloth_substep(hc, bodies, hulls, meshes)
             self._cloth_done += 1
 
-    def _cloth_substep(self, hi: float) -> None:
+    def end_step(self, *, bodies, hulls, meshes) -> None:
+        """Stage, once after the world step's last substep: any cloth substep that rounding left is run,
+        so that every step runs exactly `substeps_for(dt)` of them (arguments as `substep`)."""
+        if self._particle_count == 0:
+            return
+        while self._cloth_done < self._cloth_total:
+            self._cloth_substep(self._cloth_h, bodies, hulls, meshes)
+            self._cloth_done += 1
+
+    def _cloth_substep(self, hi: float, bodies, hulls, meshes) -> None:
         """One cloth substep of `hi` seconds: forces, integration, constraints, collisions, velocities."""
-        world = self.world
+        gravity = self._gravity
         a = self._arrays
         total = self._cloth_total
         cache = self._cache
@@ -514,9 +534,9 @@ class ClothSystem:
                 cache=cache,
             )
 
-        self.body_pins.react(a, world.bodies, world.gravity, hi)  # the pull on body pins moves their bodies
+        self.body_pins.react(a, bodies, gravity, hi)  # the pull on body pins moves their bodies
         attach.sum_pin_load(
-            a["pin_index"], a["particle_force"], a["particle_mass"], world.gravity, self._pin_impulse, hi, cache=cache
+            a["pin_index"], a["particle_force"], a["particle_mass"], gravity, self._pin_impulse, hi, cache=cache
         )
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
@@ -529,13 +549,13 @@ class ClothSystem:
             a["particle_external_force"],
             a["particle_inv_mass"],
             a["particle_pin_target"],
-            world.gravity,
+            gravity,
             hi,
             1.0 / remaining,
             cache=cache,
         )
         self._substep_index += 1
-        self.body_pins.follow(a, world.bodies)  # body pins sit on their body points
+        self.body_pins.follow(a, bodies)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over the
@@ -584,17 +604,17 @@ class ClothSystem:
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
             if touching:
-                self._collide_bodies(hi)
+                self._collide_bodies(hi, hulls, meshes)
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
                 if self.self_collision and self._grid.count:
                     self._grid.separate(
                         a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
                     )
-                    self._collide_bodies(hi)
+                    self._collide_bodies(hi, hulls, meshes)
 
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
-        self.body_pins.react_constraints(a, world.bodies, hi)
+        self.body_pins.react_constraints(a, bodies, hi)
         attach.sum_pin_load(
             a["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
         )
@@ -604,11 +624,10 @@ class ClothSystem:
             a["particle_position"], a["particle_position_prev"], a["particle_velocity"], hi, cache=cache
         )
 
-    def _collide_bodies(self, hi: float) -> None:
+    def _collide_bodies(self, hi: float, hulls, meshes) -> None:
         """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
         a = self._arrays
-        world = self.world
-        bodies = world.bodies
+        bodies = self._bodies[0]
         self._contacts_next.zero_()
         collide.collide_bodies(
             a["particle_position"],
@@ -620,8 +639,8 @@ class ClothSystem:
             self._limits,
             self._candidates,
             bodies,
-            world.hulls.struct(),
-            world.meshes.ids(),
+            hulls,
+            meshes,
             self._contacts_prev,
             self._contacts_next,
             hi,
@@ -646,11 +665,23 @@ class ClothSystem:
         )
         self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
-    def _begin_step(self, dt: float) -> None:
-        """Once per world step of `dt` seconds: cloth substeps, user forces, wind, candidate bodies."""
-        world = self.world
+    def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
+        """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
+
+        Args:
+            h: the world's substep [s]; the step is `substeps` of them.
+            substeps: the world's substeps in this step.
+            bodies: the world's body `ArraySet` (read: which bodies can reach the cloth this step).
+            gravity: [m/s^2], shape (3,), for this step.
+            time: the world's clock at the start of the step [s] (the wind's time).
+            step: the world's step count (named in errors).
+        """
+        if self._particle_count == 0:
+            return
+        dt = h * max(1, int(substeps))
         a = self._arrays
-        self._step_seen = world.step_count
+        self._gravity = np.array(gravity, dtype=np.float64)
+        self._bodies = collide.body_arrays(bodies, self._bodies)
         self._substep_index = 0
         self._pin_impulse.zero_()
         self._pin_dt = dt
@@ -679,7 +710,7 @@ class ClothSystem:
                 amplitude,
                 omega,
                 phase,
-                world.time,
+                time,
                 a["particle_wind"],
                 cache=self._cache,
             )
@@ -695,7 +726,7 @@ class ClothSystem:
             j, i = divmod(bad - cloth.particle_start, cloth.nx)
             raise SimulationError(
                 f"velocity of cloth {cloth.index} particle {bad} (grid point i = {i}, j = {j}) is not finite at "
-                f"t = {world.time:.6g} s (step {world.step_count}); the cloth diverged: lower its stiffness "
+                f"t = {time:.6g} s (step {step}); the cloth diverged: lower its stiffness "
                 f"or set world.cloth.substeps higher"
             )
 
@@ -723,17 +754,16 @@ class ClothSystem:
             self._pair_travel = math.inf
 
         # bodies that can reach the cloth during this step
-        n_bodies = world.bodies.count
+        n_bodies = bodies.count
         candidates = self._candidates_host[:0]
         if n_bodies:
             x = a["particle_position"].numpy()[:p]
             lo, hi = x.min(axis=0), x.max(axis=0)
             reach = self._reach + dt * (speed + 1.0)
-            candidates = collide.candidate_bodies(world.bodies, lo, hi, reach, dt)
+            candidates = collide.candidate_bodies(bodies, lo, hi, reach, dt)
         if not np.array_equal(candidates, self._candidates_host):
             self._candidates_host = candidates
             self._candidates = wp.array(candidates, dtype=wp.int32, device=self.device)
-        n_bodies = world.bodies.count
         if self._contacts_prev.shape[0] < n_bodies:
             size = max(16, 2 * n_bodies)
             prev = np.zeros(size, dtype=np.int32)
@@ -782,12 +812,22 @@ class ClothSystem:
         self.set_pin_target(i, self._arrays["particle_position"].numpy()[i])
         self._write("particle_velocity", i, np.zeros(3))
 
-    def pin_to_body(self, particles, body) -> None:
-        """Pin particles (indices) to a body where they are now: they follow it and pull on it (two-way)."""
+    def pin_to_body(self, particles, body: BodyId) -> None:
+        """Pin particles (indices) to a body where they are now: they follow it and pull on it (two-way).
+
+        `body` is the `BodyId` its world gave out; the world finds its row (`World.pin_cloth_to_body`).
+        """
+        if not isinstance(body, BodyId) or body.world_key is None:
+            raise TypeError(f"body must be the BodyId its World gave out, got {validate.show(body)}")
+        if self.world_key is not None and body.world_key != self.world_key:
+            raise HandleError(f"body {int(body)} belongs to another World")
+        body.world.pin_cloth_to_body(particles, body)
+
+    def attach_to_body(self, particles, row: int, position: Sequence[float], orientation: Sequence[float]) -> None:
+        """Pin particles (indices) to the body in row `row` of the body arrays, now at `position` [m] and
+        `orientation` (x, y, z, w), where they are now (the world's side of `pin_to_body`)."""
         idx = np.unique(np.asarray([self._particle(p) for p in np.atleast_1d(particles)], dtype=np.int64))
-        row = self.world._slot(body)
-        b = self.world.bodies
-        x, q = b.numpy("body_position")[row], b.numpy("body_orientation")[row]
+        x, q = np.asarray(position, dtype=np.float64), np.asarray(orientation, dtype=np.float64)
         offset = self._arrays["particle_position"].numpy()[idx] - x
         # into the body frame: rotate by the conjugate quaternion (x, y, z, w)
         u, w = -q[:3], q[3]
@@ -852,7 +892,7 @@ class ClothSystem:
         if isinstance(handle, Handle):
             if not isinstance(handle, ClothId):
                 raise TypeError(f"cloth must be a ClothId, got the {type(handle).__name__} {handle!r}")
-            if handle.world_key is not None and handle.world_key != self.world.key:
+            if handle.world_key is not None and self.world_key is not None and handle.world_key != self.world_key:
                 raise HandleError(f"cloth {int(handle)} belongs to another World")
         if not 0 <= int(handle) < len(self.cloths):
             raise IndexError(f"cloth {int(handle)} does not exist (the world has {len(self.cloths)} cloths)")
@@ -942,12 +982,17 @@ class ClothSystem:
             return np.zeros(3)
         return self._host["particle_mass"] @ self._view("particle_velocity")
 
-    def potential_energy(self) -> float:
-        """Gravitational potential energy relative to the origin [J]: -sum m g . x."""
+    def potential_energy(self, gravity: Sequence[float] | None = None) -> float:
+        """Gravitational potential energy relative to the origin [J]: -sum m g . x.
+
+        Args:
+            gravity: [m/s^2], shape (3,); default the last step's (or the world's when the cloth was made).
+        """
         if self._particle_count == 0:
             return 0.0
+        g = self._gravity if gravity is None else np.asarray(gravity, dtype=np.float64)
         x = self._view("particle_position")
-        return -float(np.sum(self._host["particle_mass"] * (x @ np.asarray(self.world.gravity, dtype=np.float64))))
+        return -float(np.sum(self._host["particle_mass"] * (x @ g)))
 
     def center_of_mass(self) -> np.ndarray:
         """Centre of mass of all cloth [m], shape (3,)."""

@@ -131,3 +131,24 @@ def test_diverging_cloth_raises_simulation_error():
     world.cloth.self_collision = False
     with pytest.raises(tumble.SimulationError, match="cloth 0 particle"):
         world.run(2.0)
+
+
+def test_cloth_stages_run_without_a_world():
+    """The cloth keeps no reference to its world: driven through its stages by hand, it moves as in World.step."""
+    kwargs = {"size": (1.0, 1.0), "resolution": (6, 6), "position": (0.0, 0.0, 1.0), "pins": "top-edge"}
+    world = make_world()
+    world.add_cloth(**kwargs)
+    assert not any(isinstance(v, tumble.World) for v in vars(world.cloth).values())
+    free = tumble.cloth.ClothSystem("cpu", gravity=world.gravity)
+    free.add_cloth(**kwargs)
+    bodies = make_world().bodies  # an empty world's body arrays
+    stages = {"bodies": bodies, "hulls": world.hulls.struct(), "meshes": world.meshes.ids()}
+    h = world.dt / world.substeps
+    for step in range(10):
+        free.begin_step(h, world.substeps, bodies=bodies, gravity=world.gravity, time=world.time, step=step)
+        for _ in range(world.substeps):
+            free.substep(h, **stages)
+        free.end_step(**stages)
+        world.step()
+    assert np.array_equal(free.particle_position, world.cloth.particle_position)
+    assert free.particle_position[:, 2].min() < 1.0 - 1e-3  # it fell
