@@ -134,6 +134,36 @@ def test_strict_limit_holds_the_hammock_while_balls_land_and_rest():
     assert world.body_position[1:, 2].min() > 0.5  # all three still in the hammock
 
 
+def _box_in_hammock(world):
+    """A 0.3 kg box dropped into a 1 m cloth of 16 x 16 held at its corners (the settling test's scene)."""
+    world.add_plane()
+    world.add_cloth(
+        size=(1.0, 1.0), resolution=(16, 16), position=(0, 0, 1.0), pins="corners", thickness=0.03, friction=0.5
+    )
+    return world.add_box(
+        position=(0.05, 0.02, 1.3), half_extents=(0.1, 0.1, 0.1), mass=0.3, friction=0.5, restitution=0.0
+    )
+
+
+def test_pins_carry_a_resting_box_and_the_cloth():
+    """A box at rest in a hammock: the corner pins carry the box's and the cloth's weight, within 2 %.
+
+    Statics: nothing else touches them, so the pins' mean force over 0.5 s balances (m_box + m_cloth) g.
+    Before, the part of the box's push that the taut cloth took without moving (tethers at their
+    limit) ended nowhere, and the pins carried 0.56 of it.
+    """
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    box = _box_in_hammock(world)
+    world.run(3.5)
+    loads = []
+    world.run(0.5, callback=lambda w: loads.append(w.cloth.pin_force()))
+    load = np.mean(loads, axis=0)
+    weight = (0.3 + world.cloth.particle_mass.sum()) * G
+    assert np.linalg.norm(world.body_velocity[box.index]) < G * DT  # at rest
+    assert -load[2] == pytest.approx(weight, rel=0.02)
+    assert np.hypot(load[0], load[1]) < 0.02 * weight
+
+
 @pytest.mark.parametrize("kind", ["box", "sphere"])
 def test_bodies_of_the_documented_minimum_size_do_not_pass_through(kind):
     """A box with half extents of one grid spacing, or a sphere of radius one thickness, dropped onto

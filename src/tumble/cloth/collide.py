@@ -107,6 +107,68 @@ def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), 
 
 
 @wp.func
+def _route_to_pins(
+    p: int,
+    xp: vec3,
+    held: vec3,
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    tethers: Tethers,
+    taut: float_t,
+    pin_load: wp.array(dtype=vec3),
+):
+    """A push `held` [kg m] on particle p that the cloth took without moving p (its tethers or limited
+    springs held it) goes on to the pins that hold it: shared among p's tethers that the push
+    lengthens, each in proportion to its tautness (as `_give_way` ramps it) and to how straight the
+    push pulls on it; equally among the lengthened ones when none is near its limit. The pins'
+    loads then sum to `held`, so the body's push ends on the pins and momentum is kept.
+    """
+    size = wp.length(held)
+    if size <= float_t(0.0):
+        return
+    u = held / size
+    zero = float_t(0.0)
+    total = zero
+    along = zero
+    t0 = tethers.first[p]
+    t_end = t0 + tethers.count[p]
+    t = t0
+    while t < t_end:
+        pin = tethers.pin[t]
+        if inv_m[pin] <= zero:
+            arm = xp - x[pin]
+            length = wp.length(arm)
+            if length > float_t(1.0e-12):
+                pull = wp.dot(arm, u) / length
+                if pull > zero:
+                    lim = tethers.limit[t]
+                    tight = float_t(1.0) - wp.clamp((lim - length) / (lim * (float_t(1.0) - taut)), zero, float_t(1.0))
+                    total += pull * tight
+                    along += pull
+        t += 1
+    if along <= zero:
+        return
+    t = t0
+    while t < t_end:
+        pin = tethers.pin[t]
+        if inv_m[pin] <= zero:
+            arm = xp - x[pin]
+            length = wp.length(arm)
+            if length > float_t(1.0e-12):
+                pull = wp.dot(arm, u) / length
+                if pull > zero:
+                    share = pull / along
+                    if total > zero:
+                        lim = tethers.limit[t]
+                        tight = float_t(1.0) - wp.clamp(
+                            (lim - length) / (lim * (float_t(1.0) - taut)), zero, float_t(1.0)
+                        )
+                        share = pull * tight / total
+                    wp.atomic_add(pin_load, pin, held * share)
+        t += 1
+
+
+@wp.func
 def _coulomb(
     dx: vec3,
     n: vec3,
@@ -284,6 +346,7 @@ def _collide_bodies(
     mesh_ids: wp.array(dtype=wp.uint64),
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
+    pin_load: wp.array(dtype=vec3),
     h: float_t,
     taut: float_t,
     strict: int,
@@ -357,6 +420,14 @@ def _collide_bodies(
             move_t = wp.min(move_t, _slack(p, xp, -tdir, x, inv_m, limits, tethers))
         xp = xp - tdir * move_t
         _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, h, bodies)
+        # what the body gave the particle beyond the particle's own momentum change, m_p times its
+        # move, the cloth held (taut tethers, the strict slack): it goes on to the pins; a particle
+        # pressed against a static body passes it to that body instead
+        if w_b > zero and wp.dot(support, n) >= zero:
+            m_p = float_t(1.0) / w_p
+            _route_to_pins(
+                p, xp, n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p), x, inv_m, tethers, taut, pin_load
+            )
 
     x[p] = xp
 
@@ -648,6 +719,7 @@ def collide_bodies(
     mesh_ids,
     contact_count_prev,
     contact_count_next,
+    pin_load,
     h,
     *,
     taut: float = 0.97,
@@ -670,6 +742,8 @@ def collide_bodies(
         hulls: the world's `Hulls` struct (convex bodies); mesh_ids: its mesh ids by row (`MeshSet.ids`).
         contact_count_prev: particles touching each body in the previous pass, shape (n,) int32.
         contact_count_next: zeroed; receives this pass's counts, shape (n,) int32.
+        pin_load: the pins' load [kg m], shape (P,) vec3 (added to: the part of the bodies' pushes that
+            the cloth held without its particles moving, passed on to the pins holding them).
         h: substep [s].
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
@@ -699,6 +773,7 @@ def collide_bodies(
             mesh_ids,
             contact_count_prev,
             contact_count_next,
+            pin_load,
             float(h),
             float(taut),
             int(strict),

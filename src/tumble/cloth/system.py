@@ -643,6 +643,7 @@ class ClothSystem:
             meshes,
             self._contacts_prev,
             self._contacts_next,
+            a["particle_pin_load"],
             hi,
             strict=self.strict_limit,
             cache=self._cache,
