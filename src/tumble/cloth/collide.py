@@ -30,6 +30,12 @@ moves by lambda w_p n with lambda = d / (w_p + c w_b) and the body receives the 
 With `strict` (`ClothSystem.strict_limit`) a particle moves at most its slack along n, the
 distance before one of its limited springs or tethers reaches its limit, and the body takes the
 rest: lambda_b = (d - slack) / (c w_b).
+
+Where the particle gives way less than its own mass asks (its tethers near their limit, or the
+strict slack), the body's push lambda_b n exceeds the particle's momentum change m_p dx: the
+difference is held by the taut cloth and goes on to the pins of the particle's tethers that the
+push lengthens (`particle_pin_load`, as the stretch limit's pull does), so that a body resting on
+pinned cloth hangs its weight on the pins and momentum is kept.
 """
 
 from __future__ import annotations

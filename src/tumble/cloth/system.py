@@ -15,14 +15,17 @@ each a plain function over arrays (see `springs`, `wind` and `collide`):
    list comes from a spatial hash and is rebuilt at a step start when particles may have
    moved past its margin), then the stretch limit is checked again;
 5. bodies: particles are pushed out of planes, spheres and boxes, with friction, and the bodies
-   receive the opposite impulse; spheres small enough to pass between particles are kept off
-   the triangles;
+   receive the opposite impulse; what the taut cloth takes without moving goes on to the pins;
+   spheres small enough to pass between particles are kept off the triangles; steps 3-5 repeat
+   `contact_iterations` times while bodies are near, and with a dynamic body near the stretch
+   limit runs once more at the end, so the cloth ends each substep within its limit;
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
 
 The cloth keeps its own substep: explicit springs are stable only for h^2 k / m small, so each
 world step is split into the fewest equal cloth substeps that keep the stiffest spring on its
 lightest particle stable (see `springs.stable_substep` and `ClothSystem.substeps_for`); each
-runs during the world substep in which it ends, so bodies and cloth stay in step. Soft springs
+runs during the world substep in which it ends, so bodies and cloth stay in step. While a dynamic
+body can reach the cloth, it takes at least one substep per world substep. Soft springs
 with the stretch limit look like stiff cloth at a fraction of the cost: that is Provot's point.
 """
 
@@ -121,13 +124,15 @@ class ClothSystem:
             spatial hash, rebuilt when particles may have moved past its margin; separated at
             every substep).
         substeps: cloth substeps per world step; None (default) picks the fewest that keep the
-            springs stable, at least `min_substeps` (see `substeps_for`).
+            springs stable, at least `min_substeps` (see `substeps_for`), and at least the
+            world's substeps in steps where a dynamic body can reach the cloth.
         contact_iterations: passes over stretch limit and body contacts per substep while some
             body is near the cloth (1 pass otherwise).
         strict_limit: contacts never stretch the cloth past its limit: a particle gives way to a
             body only within the slack its limited springs and tethers leave it, and the body is
-            pushed out the rest of the way (default False; see docs/design.md, "Cloth with
-            bodies", for what it holds and what it costs: bodies resting on it jitter more).
+            pushed out the rest of the way (default False: the default already keeps the limit
+            under bodies; strict cloth is rigid where taut, and a box rocks on it for seconds;
+            see docs/design.md, "Cloth with bodies").
 
     Args:
         device: Warp device of the particle arrays.
@@ -172,8 +177,8 @@ class ClothSystem:
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._wind_modes = None
         self._grid: collide.SelfCollisionGrid | None = None
+        self._bodies_near = False  # a dynamic body can reach the cloth this step
         self._bodies = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
-        self._step_dt = 0.0
         self._pin_dt = 0.0
         self._cache = LaunchCache()
         self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
@@ -613,6 +618,26 @@ class ClothSystem:
                     )
                     self._collide_bodies(hi, hulls, meshes)
 
+        # with a dynamic body near, the stretch limit has the last word: the cloth ends every substep
+        # within its limit; what it takes back from the contacts stays inside the particles'
+        # thickness and is pushed out again next substep (the body's push that the taut cloth
+        # held went on to the pins in `collide`)
+        if self._bodies_near:
+            springs.limit_tethers(
+                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache
+            )
+            springs.limit_stretch(
+                a["particle_position"],
+                a["particle_inv_mass"],
+                a["stretch_ids"],
+                a["stretch_limit"],
+                self._violated,
+                pin_load=pin_load,
+                min_iterations=self.stretch_iterations[0],
+                max_iterations=self.stretch_iterations[1],
+                cache=cache,
+            )
+
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
         self.body_pins.react_constraints(a, bodies, hi)
         attach.sum_pin_load(
@@ -686,8 +711,6 @@ class ClothSystem:
         self._substep_index = 0
         self._pin_impulse.zero_()
         self._pin_dt = dt
-        self._cloth_total = self.substeps_for(dt)
-        self._cloth_h = dt / self._cloth_total
         self._cloth_done = 0
         self._clock = 0.0
         p = self._particle_count
@@ -771,6 +794,16 @@ class ClothSystem:
             prev[: self._contacts_prev.shape[0]] = self._contacts_prev.numpy()
             self._contacts_prev = wp.array(prev, dtype=wp.int32, device=self.device)
             self._contacts_next = wp.zeros(size, dtype=wp.int32, device=self.device)
+
+        # cloth substeps: the springs' stable count; while a dynamic body can reach the cloth, at
+        # least the world's, so that a body's push and the stretch limit meet every world substep
+        # (the limit's overshoot under a landing body grows with the cloth substep)
+        self._bodies_near = bool(len(candidates)) and bool(np.any(bodies.numpy("body_inv_mass")[candidates] > 0.0))
+        total = self.substeps_for(dt)
+        if self._bodies_near and self.substeps is None:
+            total = max(total, int(substeps))
+        self._cloth_total = total
+        self._cloth_h = dt / total
 
     def remap_bodies(self, slot: np.ndarray) -> None:
         """The world renumbered its body rows (row i is now `slot[i]`, -1 for a removed body): move
