@@ -797,8 +797,13 @@ class ClothSystem:
 
         # cloth substeps: the springs' stable count; while a dynamic body can reach the cloth, at
         # least the world's, so that a body's push and the stretch limit meet every world substep
-        # (the limit's overshoot under a landing body grows with the cloth substep)
-        self._bodies_near = bool(len(candidates)) and bool(np.any(bodies.numpy("body_inv_mass")[candidates] > 0.0))
+        # (the limit's overshoot under a landing body grows with the cloth substep). A body that
+        # only holds pins of the cloth (a flag's pole) counts while it touches it.
+        near = candidates[bodies.numpy("body_inv_mass")[candidates] > 0.0] if len(candidates) else candidates
+        if len(near) and self.body_pins.count:
+            holder = np.isin(near, self.body_pins.body.numpy()[: self.body_pins.count])
+            near = near[~holder | (self._contacts_prev.numpy()[near] > 0)]
+        self._bodies_near = bool(len(near))
         total = self.substeps_for(dt)
         if self._bodies_near and self.substeps is None:
             total = max(total, int(substeps))
