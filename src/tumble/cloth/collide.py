@@ -113,6 +113,27 @@ def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), 
 
 
 @wp.func
+def _tether_hold(
+    t: int, xp: vec3, u: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers, taut: float_t
+):
+    """How tether t of a particle at xp resists a push along u: (pull, tight), pull = cos of the angle
+    between u and the tether (0 when the push does not lengthen it or its pin is free) and tight its
+    tautness, 0 below taut x its limit, 1 at the limit (the `_give_way` ramp)."""
+    zero = float_t(0.0)
+    pull = zero
+    tight = zero
+    pin = tethers.pin[t]
+    if inv_m[pin] <= zero:
+        arm = xp - x[pin]
+        length = wp.length(arm)
+        if length > float_t(1.0e-12):
+            pull = wp.max(wp.dot(arm, u) / length, zero)
+            lim = tethers.limit[t]
+            tight = float_t(1.0) - wp.clamp((lim - length) / (lim * (float_t(1.0) - taut)), zero, float_t(1.0))
+    return pull, tight
+
+
+@wp.func
 def _route_to_pins(
     p: int,
     xp: vec3,
@@ -126,8 +147,8 @@ def _route_to_pins(
     """A push `held` [kg m] on particle p that the cloth took without moving p (its tethers or limited
     springs held it) goes on to the pins that hold it: shared among p's tethers that the push
     lengthens, each in proportion to its tautness (as `_give_way` ramps it) and to how straight the
-    push pulls on it; equally among the lengthened ones when none is near its limit. The pins'
-    loads then sum to `held`, so the body's push ends on the pins and momentum is kept.
+    push pulls on it; by pull alone when none is near its limit. The pins' loads then sum to
+    `held`, so the body's push ends on the pins and momentum is kept.
     """
     size = wp.length(held)
     if size <= float_t(0.0):
@@ -138,40 +159,19 @@ def _route_to_pins(
     along = zero
     t0 = tethers.first[p]
     t_end = t0 + tethers.count[p]
-    t = t0
-    while t < t_end:
-        pin = tethers.pin[t]
-        if inv_m[pin] <= zero:
-            arm = xp - x[pin]
-            length = wp.length(arm)
-            if length > float_t(1.0e-12):
-                pull = wp.dot(arm, u) / length
-                if pull > zero:
-                    lim = tethers.limit[t]
-                    tight = float_t(1.0) - wp.clamp((lim - length) / (lim * (float_t(1.0) - taut)), zero, float_t(1.0))
-                    total += pull * tight
-                    along += pull
-        t += 1
+    for t in range(t0, t_end):
+        pull, tight = _tether_hold(t, xp, u, x, inv_m, tethers, taut)
+        total += pull * tight
+        along += pull
     if along <= zero:
         return
-    t = t0
-    while t < t_end:
-        pin = tethers.pin[t]
-        if inv_m[pin] <= zero:
-            arm = xp - x[pin]
-            length = wp.length(arm)
-            if length > float_t(1.0e-12):
-                pull = wp.dot(arm, u) / length
-                if pull > zero:
-                    share = pull / along
-                    if total > zero:
-                        lim = tethers.limit[t]
-                        tight = float_t(1.0) - wp.clamp(
-                            (lim - length) / (lim * (float_t(1.0) - taut)), zero, float_t(1.0)
-                        )
-                        share = pull * tight / total
-                    wp.atomic_add(pin_load, pin, held * share)
-        t += 1
+    for t in range(t0, t_end):
+        pull, tight = _tether_hold(t, xp, u, x, inv_m, tethers, taut)
+        share = pull / along
+        if total > zero:
+            share = pull * tight / total
+        if share > zero:
+            wp.atomic_add(pin_load, tethers.pin[t], held * share)
 
 
 @wp.func

@@ -571,22 +571,7 @@ class ClothSystem:
         pin_load.zero_()
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            springs.limit_tethers(
-                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache
-            )
-            lo_it, hi_it = self.stretch_iterations
-            self.last_stretch_sweeps = springs.limit_stretch(
-                a["particle_position"],
-                a["particle_inv_mass"],
-                a["stretch_ids"],
-                a["stretch_limit"],
-                self._violated,
-                pin_load=pin_load,
-                min_iterations=lo_it,
-                max_iterations=hi_it,
-                relax=1.0 if touching else self.stretch_relaxation,
-                cache=cache,
-            )
+            self.last_stretch_sweeps = self._limit(pin_load, 1.0 if touching else self.stretch_relaxation)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
@@ -594,17 +579,7 @@ class ClothSystem:
                 self._grid.separate(
                     a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
                 )
-                springs.limit_stretch(
-                    a["particle_position"],
-                    a["particle_inv_mass"],
-                    a["stretch_ids"],
-                    a["stretch_limit"],
-                    self._violated,
-                    pin_load=pin_load,
-                    min_iterations=0,
-                    max_iterations=hi_it,
-                    cache=cache,
-                )
+                self._limit(pin_load, 1.0, tethers=False, min_iterations=0)
 
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
@@ -623,20 +598,7 @@ class ClothSystem:
         # thickness and is pushed out again next substep (the body's push that the taut cloth
         # held went on to the pins in `collide`)
         if self._bodies_near:
-            springs.limit_tethers(
-                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=cache
-            )
-            springs.limit_stretch(
-                a["particle_position"],
-                a["particle_inv_mass"],
-                a["stretch_ids"],
-                a["stretch_limit"],
-                self._violated,
-                pin_load=pin_load,
-                min_iterations=self.stretch_iterations[0],
-                max_iterations=self.stretch_iterations[1],
-                cache=cache,
-            )
+            self._limit(pin_load, 1.0)
 
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
         self.body_pins.react_constraints(a, bodies, hi)
@@ -647,6 +609,29 @@ class ClothSystem:
         # velocities from the corrected positions
         springs.update_velocities(
             a["particle_position"], a["particle_position_prev"], a["particle_velocity"], hi, cache=cache
+        )
+
+    def _limit(self, pin_load, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
+        """The stretch limit: tethers to the pins (unless `tethers` is False), then Provot's sweeps
+        (`stretch_iterations`, the minimum replaced by `min_iterations` if given; over-relaxed by
+        `relax`); the pins' share goes into `pin_load`. Returns the number of sweeps."""
+        a = self._arrays
+        if tethers:
+            springs.limit_tethers(
+                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=self._cache
+            )
+        lo_it, hi_it = self.stretch_iterations
+        return springs.limit_stretch(
+            a["particle_position"],
+            a["particle_inv_mass"],
+            a["stretch_ids"],
+            a["stretch_limit"],
+            self._violated,
+            pin_load=pin_load,
+            min_iterations=lo_it if min_iterations is None else min_iterations,
+            max_iterations=hi_it,
+            relax=relax,
+            cache=self._cache,
         )
 
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
