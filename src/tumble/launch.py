@@ -14,6 +14,7 @@ pass the live count as a scalar, so a changing count does not record a new launc
 from __future__ import annotations
 
 import operator
+from collections.abc import Callable
 
 import warp as wp
 
@@ -68,6 +69,7 @@ class LaunchCache:
         if layout is None:
             arrays = [i for i, a in enumerate(inputs) if isinstance(a, wp.array)]
             scalars = tuple(i for i, a in enumerate(inputs) if not isinstance(a, wp.array))
+            getter: Callable[[list], tuple]
             if len(arrays) > 1:
                 getter = operator.itemgetter(*arrays)
             else:  # one array, or none (arrays in structs: a new struct is a changed scalar)

@@ -90,6 +90,7 @@ def kernels_to_compile(device="cpu") -> list[str]:
     missing = []
     for module in kernel_modules():
         try:
+            assert wp.config.kernel_cache_dir is not None  # set by init_warp (if not: as any other failure here)
             block_dim = _launch_block_dim(module, device)
             directory = os.path.join(wp.config.kernel_cache_dir, module.get_module_identifier(block_dim))
             binary = module._get_compile_output_name(device, block_dim=block_dim)

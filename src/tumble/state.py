@@ -23,22 +23,23 @@ vec3 = wp.vec3d
 quat = wp.quatd
 mat33 = wp.mat33d
 
-_NUMPY_DTYPE = {float_t: np.float64, wp.int32: np.int32, wp.uint32: np.uint32, wp.int64: np.int64}
+_NUMPY_DTYPE: dict[type, type] = {float_t: np.float64, wp.int32: np.int32, wp.uint32: np.uint32, wp.int64: np.int64}
 _WIDTH = {vec3: 3, quat: 4, mat33: 9}
 
 
 def host_view(arr: wp.array) -> np.ndarray:
     """NumPy view of a Warp array: on the CPU the array's own memory, made once per array (a
     `wp.array.numpy()` costs ~5 us, much of a small world's step); on other devices a copy."""
+    assert arr.device is not None  # Warp's stubs allow None; an allocated array always has a device
     if not arr.device.is_cpu:
         return arr.numpy()
     view = arr.__dict__.get("_tumble_host_view")
     if view is None:
-        view = arr._tumble_host_view = arr.numpy()
+        view = arr._tumble_host_view = arr.numpy()  # type: ignore[attr-defined]  # cached on the array itself
     return view
 
 
-def numpy_dtype(dtype) -> tuple[type, tuple[int, ...]]:
+def numpy_dtype(dtype: type) -> tuple[type, tuple[int, ...]]:
     """NumPy scalar type and trailing shape of one element of a Warp `dtype`."""
     if dtype in _WIDTH:
         return np.float64, ((3, 3) if dtype is mat33 else (_WIDTH[dtype],))
@@ -54,7 +55,7 @@ class ArraySet:
         capacity: initial number of rows allocated.
     """
 
-    def __init__(self, fields: dict[str, object], *, device: str, capacity: int = 16):
+    def __init__(self, fields: dict[str, type], *, device: str, capacity: int = 16):
         self.fields = dict(fields)
         self.device = device
         self.count = 0
@@ -93,12 +94,12 @@ class ArraySet:
         for name, values in rows.items():
             dtype = self.fields[name]
             np_type, tail = numpy_dtype(dtype)
-            src = np.asarray(values, dtype=np_type).reshape((k,) + tail)
+            src: np.ndarray = np.asarray(values, dtype=np_type).reshape((k,) + tail)
             if self.device == "cpu":
                 self.arrays[name].numpy()[start : start + k] = src  # the host view is the array
             else:
-                src = wp.array(np.ascontiguousarray(src), dtype=dtype, device=self.device)
-                wp.copy(self.arrays[name], src, dest_offset=start, count=k)
+                staged: wp.array = wp.array(np.ascontiguousarray(src), dtype=dtype, device=self.device)
+                wp.copy(self.arrays[name], staged, dest_offset=start, count=k)
         self.count = start + k
         return range(start, start + k)
 

@@ -49,9 +49,13 @@ import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, TypeGuard
 
 from .errors import TumbleError
 from .io.atomic import atomic_path
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
 
 #: most variants a wedge runs without `yes=True` / `--yes`
 MAX_VARIANTS = 1000
@@ -161,6 +165,7 @@ def parse_key(text: str, doc: Mapping) -> KeyPath:
                 f"key path {text!r}: [[{table}]] is an array of tables; write {table}[0].{key} "
                 f"(or {table}[*].{key} for every one; the scene has {entries})"
             )
+        assert entries is not None  # counted for an array of tables
         if index != "*" and int(index) >= entries:
             raise WedgeError(
                 f"key path {text!r}: the scene has {entries} [[{table}]] "
@@ -430,7 +435,8 @@ def plan_wedge(
     items = list(vary.items()) if isinstance(vary, Mapping) else list(vary)
     if not items:
         raise WedgeError("nothing to vary: give at least one --vary KEY=VALUES")
-    keys, values = [], []
+    keys: list[KeyPath] = []
+    values: list[list] = []
     for key_text, vals in items:
         key = parse_key(key_text, doc)
         if key.label in [k.label for k in keys]:
@@ -648,7 +654,7 @@ def run_variant(task: dict) -> dict:
             recorder = Recorder(world, fps=s["fps"])
         else:
             recorder = None
-        frames = [] if "video" in keep and renderer is not None else None
+        frames: list[np.ndarray] | None = [] if "video" in keep and renderer is not None else None
         if frames is not None:
             frames.append(renderer.render(world, camera))
 
@@ -708,7 +714,7 @@ def run_variant(task: dict) -> dict:
 
 def _write_kept(world, folder: Path, keep: set, recorder, frames, fps: float) -> list[str]:
     """Write the recording, video, USD stage and figures a variant keeps; returns their names."""
-    written = []
+    written: list[str] = []
     if not keep:
         return written
     folder.mkdir(parents=True, exist_ok=True)
@@ -895,7 +901,7 @@ def _read_result(folder: Path) -> dict | None:
         return None
 
 
-def _is_done(result: dict | None, variant: Variant, settings: Settings, retry_failed: bool) -> bool:
+def _is_done(result: dict | None, variant: Variant, settings: Settings, retry_failed: bool) -> TypeGuard[dict]:
     """Whether a variant's earlier result stands: same scene text and settings, and ok, or failed
     in the simulation itself (Tumble is deterministic, so it would fail the same way again)
     unless `retry_failed`; a variant that never finished on a worker (`lost`) is run again."""
@@ -969,7 +975,7 @@ def wedge(
             duration=float(duration),
             fps=float(fps),
             keep=tuple(sorted(set(keep))),
-            image_size=tuple(int(v) for v in image_size),
+            image_size=tuple(int(v) for v in image_size),  # type: ignore[arg-type]  # check_settings checks the length
             device=device,
         )
     )
@@ -1139,7 +1145,7 @@ class _Progress:
         self.total, self.done, self.failed = total, done, 0
         self.live = self.console.is_terminal if enabled is None else enabled
         self.lines = enabled is True and not self.console.is_terminal
-        self.bar = None
+        self.bar: Progress | None = None
 
     def start(self, engine: str) -> None:
         from rich.progress import (
@@ -1253,7 +1259,7 @@ def write_contact_sheet(plan: Plan, rows: list[dict], out: Path, *, max_width: i
             draw.text((x + 6, y + 6 + line_h), str(row.get("error", ""))[:60], fill=(255, 200, 200), font=font)
         texts = [f"{n} = {format_value(row.get(k), digits=4)}" for n, k in zip(names, plan.labels)]
         texts.append(
-            row.get("status")
+            str(row.get("status"))
             if row.get("status") != "ok"
             else f"KE {_num(row.get('kinetic_energy_J'))} J  {_num(row.get('steps_per_s'))} steps/s"
         )

@@ -134,9 +134,9 @@ class BodyPins:
     def _upload(self) -> None:
         self.count = len(self._particle)
         n = max(1, self.count)
-        self.particle = wp.array(np.resize(self._particle, n), dtype=wp.int32, device=self.device)
-        self.body = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
-        self.local = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
+        self.particle: wp.array = wp.array(np.resize(self._particle, n), dtype=wp.int32, device=self.device)
+        self.body: wp.array = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
+        self.local: wp.array = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
 
     def react(self, arrays: dict, bodies, gravity, h: float) -> None:
         """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""

@@ -83,11 +83,13 @@ def body_arrays(bodies, cached: tuple | None = None) -> tuple:
     """The struct over a body `ArraySet`'s arrays, as (struct, arrays): `cached` (a previous return)
     again while the set's arrays are the same ones, so that a recorded launch re-packs nothing.
     The caller keeps it (`ClothSystem` does, per world step); it is a cache, rebuilt on demand."""
-    arrays = [bodies.arrays["body_" + name] for name in BodyArrays.vars]
+    # wp.struct turns the class into a Struct, whose fields are `vars`; mypy does not apply class decorators
+    # (python/mypy#3135), so to it BodyArrays is still the class
+    arrays = [bodies.arrays["body_" + name] for name in BodyArrays.vars]  # type: ignore[attr-defined]
     if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
         return cached
     s = BodyArrays()
-    for name, array in zip(BodyArrays.vars, arrays):
+    for name, array in zip(BodyArrays.vars, arrays):  # type: ignore[attr-defined]
         setattr(s, name, array)
     return s, arrays
 

@@ -129,9 +129,9 @@ def _merge_faces(points: np.ndarray, simplices: np.ndarray, equations: np.ndarra
             groups.append([t])
             planes.append(eq)
     faces, normals, offsets = [], [], []
-    for g, plane in zip(groups, planes):
+    for group, plane in zip(groups, planes):
         n = plane[:3] / np.linalg.norm(plane[:3])
-        ids = np.unique(simplices[g].reshape(-1))
+        ids = np.unique(simplices[group].reshape(-1))
         p = points[ids]
         centre = p.mean(axis=0)
         u = p[0] - centre if np.linalg.norm(p[0] - centre) > 0 else np.cross(n, [1.0, 0.0, 0.0])

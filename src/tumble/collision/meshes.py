@@ -21,12 +21,14 @@ class MeshSet:
         self.meshes: list[wp.Mesh] = []
         self.vertices: list[np.ndarray] = []
         self.triangles: list[np.ndarray] = []
-        self._ids = None
+        self._ids: wp.array | None = None
 
     def add(self, vertices: np.ndarray, triangles: np.ndarray) -> int:
         """Build the BVH of a cleaned mesh (vertices (V, 3) in its frame, triangles (T, 3)); returns its row."""
-        points = wp.array(np.ascontiguousarray(vertices, dtype=np.float32), dtype=wp.vec3f, device=self.device)
-        indices = wp.array(
+        points: wp.array = wp.array(
+            np.ascontiguousarray(vertices, dtype=np.float32), dtype=wp.vec3f, device=self.device
+        )
+        indices: wp.array = wp.array(
             np.ascontiguousarray(triangles, dtype=np.int32).reshape(-1), dtype=wp.int32, device=self.device
         )
         self.meshes.append(wp.Mesh(points=points, indices=indices))

@@ -88,7 +88,7 @@ def clean_triangles(vertices, triangles, *, name: str) -> tuple[np.ndarray, np.n
         notice(f"{name}: dropped {int(bad_index.sum())} triangles with vertex indices out of range")
         t = t[~bad_index]
     finite = np.isfinite(v).all(axis=1)
-    nan_tri = ~finite[t].all(axis=1)
+    nan_tri = ~finite[t].all(axis=1)  # type: ignore[index]  # finite is an array; numpy's stub: maybe a scalar
     if nan_tri.any():
         notice(
             f"{name}: dropped {int(nan_tri.sum())} triangles with non-finite vertices ({int((~finite).sum())} vertices)"

@@ -178,6 +178,7 @@ def compute_series(record: dict) -> Series:
                 k for k, v in (("cloth_triangles", tri), ("cloth_rest_position", rest)) if v is None
             )
         else:
+            assert cloth_pos is not None  # has_cloth without cloth_max_strain
             s.strain = max_strain(cloth_pos, np.asarray(tri), np.asarray(rest, dtype=np.float64))
             s.notes["strain"] = "over triangle edges, diagonals included"
     return s
@@ -269,6 +270,7 @@ def build_figure(record: dict, *, name: str | None = None):
             colour = {"kinetic": "#d1495b", "potential": "#2e86ab", "strain": "#edae49"}[key]
             ax.plot(t, data, color=colour, lw=1.4)
         if key == "potential" and emitting is not None:
+            assert s.bodies is not None  # an emission span needs the body counts
             first, last = int(s.bodies[0]), int(s.bodies.max())
             notes = [s.notes[key]] if key in s.notes else []
             notes.append(

@@ -37,6 +37,7 @@ from __future__ import annotations
 import zipfile
 import zlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -72,7 +73,7 @@ class Recorder:
             from ..render.camera import Camera
 
             self.camera = Camera.for_world(world)
-        self.frames: list[dict[str, np.ndarray]] = []
+        self.frames: list[dict[str, Any]] = []  # per frame: name -> array or NumPy scalar
         self.capture()
 
     @property
@@ -112,12 +113,12 @@ class Recorder:
             frame["joint_broken"] = np.array(w.joint_broken, dtype=bool)
         self.frames.append(frame)
 
-    def arrays(self) -> dict[str, np.ndarray]:
+    def arrays(self) -> dict[str, np.ndarray | np.generic]:
         """The recording as named arrays (what `save` writes)."""
         w = self.world
         n = w.body_count
         f = len(self.frames)
-        out: dict[str, np.ndarray] = {
+        out: dict[str, np.ndarray | np.generic] = {
             "format_version": np.int32(FORMAT_VERSION),
             "time": np.array([fr["time"] for fr in self.frames], dtype=np.float64),
             "contact_count": np.array([fr["contact_count"] for fr in self.frames], dtype=np.int32),
@@ -197,7 +198,7 @@ class Recorder:
         path = check_output(path, suffixes=(".npz",), option="")
         arrays = self.arrays()
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle
         return path
 
 
@@ -236,6 +237,7 @@ def _geometry(w) -> dict[str, np.ndarray]:
             )
         out.update(_flat("hull", [p.vertex for p in w.hulls.prototypes], tris))
     if has_mesh:
+        assert meshes is not None
         out.update(_flat("mesh", meshes.vertices, meshes.triangles))
     return out
 

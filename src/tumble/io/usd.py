@@ -125,7 +125,7 @@ def simulate(
     duration: float | None = None,
     frames: int | None = None,
     advance: Callable[[], None] = lambda: None,
-) -> dict[str, np.ndarray]:
+) -> dict[str, np.ndarray | np.generic]:
     """Step `world` and record it (`tumble.io.record.Recorder`); return the recording's arrays.
 
     Frame k is the world at its start time + k / fps. `duration` defaults to
@@ -564,10 +564,10 @@ class _Writer:
             self._joints()
         if take.cloth:
             parts.append(self._cloth())
-        parts = [frame for frame in parts if frame is not None]
+        animate = [frame for frame in parts if frame is not None]
         for k in range(take.frame_count):
             t = self.Usd.TimeCode(k)
-            for frame in parts:
+            for frame in animate:
                 frame(k, t)
             self.advance()
 
@@ -670,7 +670,7 @@ class _Writer:
                 np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], np.float32),
                 np.array([4], np.int32),
                 np.arange(4, dtype=np.int32),
-                np.tile(np.float32([0, 0, 1]), (4, 1)),
+                np.tile(np.float32([0, 0, 1]), (4, 1)),  # type: ignore[arg-type]  # an array; numpy's stub: scalars only
                 collision="none",
             )
             mesh = self._mesh(f"/Root/Static/plane_{b}", quad, color=srgb_to_linear(PLANE_COLOR))
@@ -688,7 +688,7 @@ class _Writer:
         """The PointInstancer of `bodies` (moving body indices, in `take.moving` order)."""
         UsdGeom, Vt, take = self.UsdGeom, self.Vt, self.take
         if not len(bodies):
-            return
+            return None
         columns = np.searchsorted(take.moving, bodies)  # their columns in take.position / visible
         inst = UsdGeom.PointInstancer.Define(self.stage, "/Root/Bodies")
         self.UsdGeom.Scope.Define(self.stage, "/Root/Bodies/Prototypes")
@@ -782,7 +782,7 @@ class _Writer:
         (centre of mass, principal axes), the scale sits on its `geom` child."""
         UsdGeom, take, rec = self.UsdGeom, self.take, self.take.rec
         if not len(bodies):
-            return
+            return None
         UsdGeom.Xform.Define(self.stage, root)
         Gf = self.Gf
         slot = {int(b): k for k, b in enumerate(take.moving)}
@@ -1026,6 +1026,7 @@ def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance
     _Writer(stage, take, bodies=bodies, physics=physics, advance=advance).write()
     suffix = path.suffix.lower()
     # pxr picks the file format from the extension, so the temporary names keep it
+    tmp: str | None
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
     os.close(fd)
     layer_tmp = None

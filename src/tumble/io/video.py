@@ -326,6 +326,7 @@ class FfmpegWriter:
         w, h = self.size
         if image.shape != (h, w, 3):
             raise ValueError(f"frame of shape {image.shape}, expected {(h, w, 3)}")
+        assert self._process.stdin is not None  # opened with stdin=PIPE
         try:
             self._process.stdin.write(np.ascontiguousarray(image, dtype=np.uint8).tobytes())
         except (BrokenPipeError, OSError):
@@ -334,6 +335,7 @@ class FfmpegWriter:
 
     def close(self) -> None:
         """Finish the file; raises OSError if ffmpeg failed."""
+        assert self._process.stdin is not None  # opened with stdin=PIPE
         try:
             self._process.stdin.close()
         except OSError:

@@ -744,9 +744,9 @@ class ContactSet(ArraySet):
         self.counts = wp.zeros(2, dtype=wp.int32, device=device)
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
-        self._sized = ()
-        self._structs = None
-        self._writer = None
+        self._sized: tuple = ()
+        self._structs: tuple[Contacts, Bodies] | None = None
+        self._writer: ContactWriter | None = None
 
     def grow(self, count: int) -> None:
         self.count = 0
@@ -840,6 +840,7 @@ class ContactSet(ArraySet):
         """Carry last step's impulses over to the contacts that persist (warm starting)."""
         if self.count == 0:
             return
+        assert self._structs is not None  # built by begin_solve, which runs before every solver stage
         p, b = self.previous, bodies.arrays
         dev = self.device
         self.owner_count.zero_()
@@ -911,6 +912,7 @@ class ContactSet(ArraySet):
         sets their count)."""
         if self.count == 0:
             return
+        assert self._structs is not None  # built by begin_solve, which runs before every solver stage
         p = self.previous
         wp.launch(
             _store,
@@ -966,6 +968,7 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
     """Anchors, tangents, effective masses and combined materials, once per step."""
     if contacts.count == 0:
         return
+    assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     jacobi = 0 if contacts.device == "cpu" else 1
     c, b = contacts._structs
     if jacobi:
@@ -999,6 +1002,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
     """Apply last step's impulses of the matched contacts to the velocities (first substep only;
     later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
+        assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
         wp.launch(
             _warm_start,
             dim=contacts.capacity,
@@ -1092,6 +1096,7 @@ def impacts(
     """
     if contacts.count == 0:
         return
+    assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     floor = 2.0 * float(np.linalg.norm(gravity)) * h
     args = [
         *contacts._structs,

@@ -949,7 +949,7 @@ def _solve_ball_chains(
 
 
 #: one solve kernel per joint kind (the ball joint's written out on its own)
-_SOLVE = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKind.BALL}
+_SOLVE: dict[JointKind, wp.Kernel] = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKind.BALL}
 _SOLVE[JointKind.BALL] = _solve_ball
 
 
@@ -1196,10 +1196,10 @@ class JointSet(ArraySet):
     def __init__(self, device: str):
         super().__init__(JOINT_FIELDS, device=device, capacity=16)
         self._pairs = _Pairs(device)
-        self._keys = None  # sorted keys of the non-colliding jointed pairs, and their joints
-        self._key_joint = None
+        self._keys: wp.array | None = None  # sorted keys of the non-colliding jointed pairs, and their joints
+        self._key_joint: wp.array | None = None
         self._key_count = 0
-        self._rows = {}  # joint rows of each kind present, in creation order
+        self._rows: dict[JointKind, wp.array] = {}  # joint rows of each kind present, in creation order
         # the ball joints' chains (`ball_chains`), solved exactly, and those in none, soft (set by `refresh`)
         self._chain_count = self._lone_count = 0
         self._dirty = True
@@ -1531,8 +1531,9 @@ def joint_rows(
     if frame == "body" and anchor is not None:
         raise JointArgumentError("anchor", "is a world point; with frame='body' give anchor_a and anchor_b")
     shared = None if anchor is None else _point(anchor, "anchor")
-    local = []
+    local: list[np.ndarray | None] = []
     for key, body, given in (("anchor_a", a, anchor_a), ("anchor_b", b, anchor_b)):
+        p: np.ndarray | None
         if given is not None:
             p = _point(given, key)
             if frame == "world":
@@ -1547,11 +1548,13 @@ def joint_rows(
     if local[0] is None and local[1] is None:
         local = [np.zeros(3), _rotate(_quat_conj(b.orientation), a.position - b.position)]  # at a's centre
     elif local[0] is None:
+        assert local[1] is not None  # not both None
         world_b = b.position + _rotate(b.orientation, local[1])
         local[0] = _rotate(_quat_conj(a.orientation), world_b - a.position)
     elif local[1] is None:
         world_a = a.position + _rotate(a.orientation, local[0])
         local[1] = _rotate(_quat_conj(b.orientation), world_a - b.position)
+    assert local[0] is not None and local[1] is not None
     pa = a.position + _rotate(a.orientation, local[0])
     pb = b.position + _rotate(b.orientation, local[1])
 
