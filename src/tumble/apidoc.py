@@ -110,7 +110,8 @@ def _signature(name: str, func) -> str:
         if p.kind == p.KEYWORD_ONLY and not star:
             params.append("*")
             star = True
-        prefix = {p.VAR_POSITIONAL: "*", p.VAR_KEYWORD: "**"}.get(p.kind, "")
+        prefixes: dict[object, str] = {p.VAR_POSITIONAL: "*", p.VAR_KEYWORD: "**"}
+        prefix = prefixes.get(p.kind, "")
         text = prefix + p.name
         if p.kind == p.VAR_POSITIONAL:
             star = True
@@ -195,9 +196,9 @@ def _class_section(cls) -> list[str]:
         parts += [f"| `{name}.{m.name}` | {m.value} |" for m in cls]
         parts.append("")
         return parts
-    fields = ()
+    fields: tuple[str, ...] = ()
     if issubclass(cls, tuple) and hasattr(cls, "_fields"):
-        fields = cls._fields  # type: ignore[attr-defined]  (a NamedTuple)
+        fields = cls._fields  # a NamedTuple
     elif dataclasses.is_dataclass(cls):
         parts += ["```python", _signature(name, cls), "```", ""]
         fields = tuple(f.name for f in dataclasses.fields(cls))

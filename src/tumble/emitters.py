@@ -152,6 +152,7 @@ class Emitter:
         self.count = validate.integer(count, "count", low=1)
         self.position = validate.vector(position, "position")
         self.region = validate.text(region, "region", ("point", "box", "disc"))
+        ext: np.ndarray | None  # None: a box extent of the wrong shape
         ext = validate.array(extent, "extent", "a number or [x, y, z] half sizes")
         if region == "box":
             ext = np.broadcast_to(ext, (3,)).copy() if ext.shape in ((), (3,)) else None
@@ -400,7 +401,8 @@ class Emitter:
         plane_n = quat_to_matrix(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
         plane_x = x_all[planes]
         accepted = []
-        placed_x, placed_r = [], []
+        placed_x: list[np.ndarray] = []
+        placed_r: list[float] = []
         for i in range(k):
             ri = cand["bound"][i] + CLEARANCE
             for attempt in range(TRIES):
@@ -437,6 +439,7 @@ class Emitter:
         convex = shape == ShapeType.CONVEX
         geometry = np.zeros(len(idx), dtype=np.int32)  # a convex body's row in the world's hulls
         if convex.any():
+            assert self.hull_rows is not None  # made with the convex shapes (add_hulls)
             geometry[convex] = self.hull_rows[cand["hull_level"][idx][convex]]
         self.emitted += len(idx)
         self._owed -= len(idx)

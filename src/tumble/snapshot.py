@@ -27,6 +27,7 @@ import math
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -67,7 +68,7 @@ class Snapshot:
     """
 
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    values: dict[str, object] = field(default_factory=dict)
+    values: dict[str, Any] = field(default_factory=dict)  # what each value is depends on its path
     step_count: int = 0
     time: float = 0.0
     scene: str | None = None
@@ -414,7 +415,7 @@ def save(snap: Snapshot, path) -> Path:
     from .io.atomic import atomic_path
 
     path = Path(path)
-    manifest = {
+    manifest: dict[str, Any] = {
         "format": FORMAT,
         "values": snap.values,
         "step_count": snap.step_count,
@@ -428,7 +429,7 @@ def save(snap: Snapshot, path) -> Path:
     payload["manifest"] = np.frombuffer(json.dumps(manifest).encode(), dtype=np.uint8)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez_compressed(f, **payload)
+            np.savez_compressed(f, **payload)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle
     return path
 
 

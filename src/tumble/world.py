@@ -182,7 +182,7 @@ class World:
         self.meshes = MeshSet(self.device)  # static triangle meshes and their BVHs
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
-        self._launch_sizes = None
+        self._launch_sizes: tuple[int, int] | None = None
         # body ids: `body_count` of them; rows hold only live bodies, so after a reorder or a
         # removal `_slot_of_id` maps each id to its row (-1 for a removed body)
         self._slot_of_id: np.ndarray | None = None  # None while row i holds id i
@@ -635,14 +635,15 @@ class World:
     def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(validate.text(shape, "shape"))
-        return {
+        adders: dict[ShapeType, Callable[..., BodyId]] = {
             ShapeType.PLANE: self.add_plane,
             ShapeType.SPHERE: self.add_sphere,
             ShapeType.BOX: self.add_box,
             ShapeType.CAPSULE: self.add_capsule,
             ShapeType.CONVEX: self.add_convex,
             ShapeType.MESH: self.add_mesh,
-        }[kind](**kwargs)
+        }
+        return adders[kind](**kwargs)
 
     def add_emitter(
         self,
@@ -913,7 +914,9 @@ class World:
         i = self._row(body)
         b = self.bodies
         return BodyState(
-            *(np.array(b.numpy(name)[i]) for name in _STATE_NAMES.values()), kind=BodyKind(int(b.numpy("body_kind")[i]))
+            # the four state arrays, then the kind (mypy cannot count a starred generator)
+            *(np.array(b.numpy(name)[i]) for name in _STATE_NAMES.values()),  # type: ignore[misc, arg-type]
+            kind=BodyKind(int(b.numpy("body_kind")[i])),
         )
 
     def set_body_state(
@@ -1458,9 +1461,9 @@ class World:
         return self._launches.graph(
             "collision",
             key,
-            lambda: (
-                bp.launch(bodies, dt),
-                narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),
+            lambda: (  # a tuple only to run both launches in one lambda; its value is unused
+                bp.launch(bodies, dt),  # type: ignore[func-returns-value]
+                narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),  # type: ignore[func-returns-value]
             ),
             lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls],
             self.device,

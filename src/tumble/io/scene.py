@@ -34,6 +34,7 @@ import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +42,9 @@ from .. import limits
 from ..cloth import system as _cloth
 from ..errors import SceneError
 from ..limits import show_bytes
+
+if TYPE_CHECKING:
+    from ..state import BodyId
 
 #: directory of the bundled sample scenes, installed with the package (`tumble/samples`, which the
 #: repository's `samples/` links to); override with $TUMBLE_SAMPLES
@@ -855,7 +859,7 @@ class Scene:
     """
 
     path: str | None
-    tables: dict[str, object] = field(default_factory=dict)
+    tables: dict[str, Any] = field(default_factory=dict)  # a dict, or a list of dicts for an array table
     text: str | None = None  # the TOML it was parsed from (kept so that snapshots can rebuild the world)
 
     def items(self, name: str) -> list[dict]:
@@ -1013,7 +1017,7 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
             raise SceneError(str(exc), path=path, table="check") from None
 
     # memory: every body (listed and emitted) and every cloth particle, blamed on the largest request
-    requests = []  # (bytes, table, key, count, what, bytes each)
+    requests: list[tuple[int, str, str | None, int, str, int]] = []  # (bytes, table, key, count, what, bytes each)
     for name in BODY_TABLES:
         n = len(scene.items(name))
         if n:
@@ -1129,11 +1133,11 @@ def build_world(scene: Scene, **overrides):
     world.metadata["overrides"] = {k: v for k, v in overrides.items() if v is not None}
     world.metadata["scene"] = scene
     world.metadata["check"] = scene.table("check") or _parse_table(SCHEMA["check"], {}, path, None)
-    if scene.table("camera") is not None:
-        world.metadata["camera"] = dict(scene.table("camera"))
+    if (camera := scene.table("camera")) is not None:
+        world.metadata["camera"] = dict(camera)
 
     # bodies: planes, spheres, boxes, capsules, convex bodies, meshes, each in file order
-    made = {}
+    made: dict[str, list[BodyId]] = {}
     for name, add in (
         ("plane", world.add_plane),
         ("sphere", world.add_sphere),
@@ -1171,9 +1175,9 @@ def build_world(scene: Scene, **overrides):
             pinned = start + np.nonzero(world.cloth.particle_inv_mass[start : start + cloth.nx * cloth.ny] == 0.0)[0]
             with _api_errors(path, label):
                 world.cloth.pin_to_body(pinned, body)
-    if scene.table("wind") is not None:
+    if (wind := scene.table("wind")) is not None:
         with _api_errors(path, "wind"):
-            world.set_wind(**scene.table("wind"))
+            world.set_wind(**wind)
     for i, values in enumerate(scene.items("joint")):
         _add_joint(world, made, values, path, _table_label("joint", i))
     return world
@@ -1193,7 +1197,7 @@ def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
     from ..solver.joints import JointArgumentError
 
     args = _given(values)
-    ends = []
+    ends: list[BodyId | None] = []
     for key in ("body_a", "body_b"):
         ref = args.pop(key)
         if ref == "world":
@@ -1262,11 +1266,11 @@ def check_world(world, check: dict | None = None) -> list[str]:
     position = np.asarray(world.body_position)
     velocity = np.asarray(world.body_velocity)
     dynamic = np.asarray(world.body_inv_mass) > 0
-    points = [position[dynamic]]
+    parts = [position[dynamic]]
     cloth = world.cloth if world.has_cloth else None
     if cloth is not None:
-        points.append(np.asarray(cloth.particle_position))
-    points = np.concatenate(points) if points else np.zeros((0, 3))
+        parts.append(np.asarray(cloth.particle_position))
+    points = np.concatenate(parts) if parts else np.zeros((0, 3))
 
     for name, values in (
         ("body_position", position),

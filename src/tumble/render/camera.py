@@ -46,9 +46,9 @@ class Camera:
 
     def __init__(
         self,
-        position: Sequence[float] = (2.2, -4.0, 2.0),
-        target: Sequence[float] = (0.0, 0.0, 0.3),
-        up: Sequence[float] = (0.0, 0.0, 1.0),
+        position: Sequence[float] | np.ndarray = (2.2, -4.0, 2.0),
+        target: Sequence[float] | np.ndarray = (0.0, 0.0, 0.3),
+        up: Sequence[float] | np.ndarray = (0.0, 0.0, 1.0),
         fov_deg: float = DEFAULT_FOV,
         *,
         near: float | None = None,
@@ -282,6 +282,7 @@ class Camera:
 
     def _eye_floor(self, distance: float) -> float:
         """The lowest eye height allowed: the floor plus 1 cm or 2 % of the target distance."""
+        assert self.floor is not None  # called only where a floor is set
         return float(self.floor) + max(0.01, 0.02 * distance)
 
     def frame(self, world, *, aspect: float = 16 / 9, margin: float = 1.15, direction=None) -> None:

@@ -23,6 +23,7 @@ bodies (hulls loop over their distinct prototypes). Passes, in order:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,7 +63,7 @@ def create_context(*, require: tuple[int, int] = (3, 3)):
     errors = []
     for kwargs in ({"backend": "egl"}, {}):
         try:
-            ctx = moderngl.create_standalone_context(require=version, **kwargs)
+            ctx = moderngl.create_standalone_context(require=version, **kwargs)  # type: ignore[arg-type]  # backend only
         except Exception as exc:  # moderngl raises plain Exceptions from its loaders
             errors.append(
                 f"{kwargs.get('backend', 'default')}: {str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__}"
@@ -123,7 +124,7 @@ class SolidBatch:
 
     key: tuple
     source: object
-    build: object
+    build: Callable[..., np.ndarray]  # called with no arguments
     instances: np.ndarray
     body: np.ndarray
 
@@ -353,11 +354,11 @@ class Renderer:
         self.dither = True
         self.show_joints = False
         self._fbo = self._resolve = None
-        self._fbo_size = None
+        self._fbo_size: tuple[int, int, int] | None = None
         # box that walls are cut to: the union of the scene's bounds over the frames drawn of
         # one world, so walls keep their size while bodies fall or fly out
         self._wall_world = None
-        self._wall_box = None
+        self._wall_box: tuple[np.ndarray, np.ndarray] | None = None
         with ctx:  # create the GL objects in this context, whichever is current now
             self._create_gl_objects(int(shadow_size))
 
@@ -391,7 +392,7 @@ class Renderer:
         self._box_buf = ctx.buffer(reserve=64 * BOX_FLOATS * 4, dynamic=True)
         self._cloth_vbo = ctx.buffer(reserve=1024 * 24, dynamic=True)
         self._cloth_ibo = ctx.buffer(reserve=1024 * 12, dynamic=True)
-        self._cloth_tris = None
+        self._cloth_tris: np.ndarray | None = None
         self._capsule_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         self._joint_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         # hull and mesh vertex buffers by SolidBatch.key: (source, vbo, instance buffer, vao, shadow vao, count)
@@ -717,6 +718,7 @@ class Renderer:
         if arrays.cloth_position is None:
             return 0
         p, tri = arrays.cloth_position, arrays.cloth_triangles
+        assert tri is not None  # given with the positions
         if tri.min() < 0 or tri.max() >= len(p):
             raise TumbleError(f"cloth triangles index particles outside 0..{len(p) - 1}")
         vertices = np.empty((len(p), 6), dtype=np.float32)

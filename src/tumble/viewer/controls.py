@@ -10,11 +10,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6 import QtCore, QtWidgets
 
 from .picking import cloth_of
+
+if TYPE_CHECKING:
+    from ..world import World
 
 _SLIDER_STEPS = 1000
 
@@ -40,8 +44,8 @@ class Param:
     minimum: float
     maximum: float
     decimals: int
-    read: Callable[[object], float | None]
-    write: Callable[[object, float], None]
+    read: Callable[[World], float | None]
+    write: Callable[[World, float], None]
     note: str = ""
     tooltip: str = ""
 

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..io.video import FfmpegWriter
 
 
 def output_path(directory, stem: str, suffix: str) -> Path:
@@ -45,7 +49,7 @@ class VideoRecorder:
         self.path = Path(path)
         self.fps = float(fps)
         self.frame_count = 0
-        self._writer = None
+        self._writer: FfmpegWriter | None = None
         self._shape: tuple[int, int] | None = None
 
     def add(self, pixels: np.ndarray) -> None:
@@ -65,6 +69,7 @@ class VideoRecorder:
             except BaseException:
                 self._file.discard()
                 raise
+        assert self._shape is not None  # set with the writer
         h, w = self._shape
         frame = np.zeros((h, w, 3), dtype=np.uint8)
         ph, pw = min(h, pixels.shape[0]), min(w, pixels.shape[1])
@@ -91,5 +96,6 @@ class VideoRecorder:
     def _abandon(self) -> None:
         """Stop ffmpeg and remove the partial file (an existing `path` stays as it was)."""
         writer, self._writer = self._writer, None
+        assert writer is not None  # abandoned only while writing
         writer.__exit__(RuntimeError, RuntimeError("abandoned"), None)
         self._file.discard()

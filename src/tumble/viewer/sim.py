@@ -219,6 +219,23 @@ class WorldSnapshot:
     `source` is the world it was taken from.
     """
 
+    # set by __init__ from SNAPSHOT_ARRAYS (copies) and SNAPSHOT_VALUES
+    body_shape: np.ndarray
+    body_position: np.ndarray
+    body_orientation: np.ndarray
+    body_radius: np.ndarray
+    body_half_extents: np.ndarray
+    body_plane_normal: np.ndarray
+    body_inv_mass: np.ndarray
+    body_mass: np.ndarray
+    body_geometry: np.ndarray
+    body_count: int
+    time: float
+    step_count: int
+    contact_count: int
+    dt: float
+    substeps: int
+
     def __init__(self, world):
         self.source = world
         for name in SNAPSHOT_ARRAYS:

@@ -15,10 +15,20 @@ the window through an event filter, the same for both.
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6 import QtCore, QtGui, QtWidgets
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
+
+if TYPE_CHECKING:
+    import moderngl
+
+    from ..render import Renderer
+
+    _ViewBase = QtWidgets.QWidget  # the views mix this into a widget
+else:
+    _ViewBase = object
 
 #: Qt platforms on which a QOpenGLWidget cannot work (it aborts on "offscreen")
 NO_GL_WINDOW_PLATFORMS = ("offscreen", "minimal", "vnc")
@@ -96,14 +106,14 @@ def array_to_qimage(pixels: np.ndarray) -> QtGui.QImage:
     return QtGui.QImage(pixels.data, w, h, 3 * w, QtGui.QImage.Format.Format_RGB888).copy()
 
 
-class _SceneViewMixin:
+class _SceneViewMixin(_ViewBase):
     """What both views share: the world and camera to draw, frame counting, a size hint."""
 
     def _init_view(self, size: tuple[int, int]) -> None:
         self.world = None
         self.camera = None
         self.frame_count = 0
-        self.renderer = None
+        self.renderer: Renderer | None = None
         self.shadows = True  # sun shadows (a second pass; costly in software rendering)
         self.show_joints = False  # draw the joints (rods and anchor dots)
         self.software = False  # drawing on the CPU (known once the GL context exists)
@@ -148,6 +158,7 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
 
     failed = QtCore.Signal(str)
     backend_name = "offscreen EGL image"
+    renderer: Renderer  # made with the view
 
     def __init__(self, context, *, size: tuple[int, int] = (960, 640), parent=None):
         super().__init__(parent)
@@ -212,6 +223,8 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
     failed = QtCore.Signal(str)
     ready = QtCore.Signal()  # the GL context exists (initializeGL ran)
     backend_name = "OpenGL window"
+    # the moderngl context; it hides QOpenGLWidget.context(), which this class does not call
+    context: moderngl.Context | None  # type: ignore[assignment]
 
     def __init__(self, *, size: tuple[int, int] = (960, 640), parent=None):
         super().__init__(parent)
@@ -239,6 +252,7 @@ class GLSceneView(_SceneViewMixin, QOpenGLWidget):
     def paintGL(self) -> None:  # noqa: N802 (Qt name)
         if self.renderer is None:
             return
+        assert self.context is not None  # made with the renderer
         # Qt binds its own framebuffer object for the widget; draw into exactly that one
         framebuffer = self.context.detect_framebuffer(self.defaultFramebufferObject())
         if self.world is None or self.camera is None:

@@ -256,7 +256,9 @@ class ViewerWindow(QtWidgets.QMainWindow):
         view.failed.connect(self._on_view_failed)
         if hasattr(view, "ready"):
             view.ready.connect(self._view_ready)
-        self.central.layout().insertWidget(0, view, 1)
+        layout = self.central.layout()
+        assert isinstance(layout, QtWidgets.QBoxLayout)  # made with the window
+        layout.insertWidget(0, view, 1)
         view.setFocus()
 
     def _action(self, text: str, key: str | None, slot, tip: str, *, checkable: bool = False) -> QtGui.QAction:
@@ -611,7 +613,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             "box",
         )
 
-    def _drop(self, add: Callable[[], object], what: str) -> None:
+    def _drop(self, add: Callable[[], int], what: str) -> None:
         """Add a body between two steps (at once when no step is running)."""
         added = []
         now = self.sim.submit(lambda: added.append(add()))
@@ -778,7 +780,9 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.show_message(f"{reason}; {exc}", error=True)
             return
         old = self.view
-        self.central.layout().removeWidget(old)
+        layout = self.central.layout()
+        assert layout is not None  # made with the window
+        layout.removeWidget(old)
         old.hide()
         old.deleteLater()
         self.view = view
@@ -790,7 +794,9 @@ class ViewerWindow(QtWidgets.QMainWindow):
 
     def _fit_view(self) -> None:
         """Resize the window so that the 3D view gets exactly the requested size."""
-        self.layout().activate()
+        layout = self.layout()
+        assert layout is not None  # a main window always has one
+        layout.activate()
         w, h = self._view_size
         dw, dh = w - self.view.width(), h - self.view.height()
         if dw or dh:
