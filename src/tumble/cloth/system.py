@@ -175,7 +175,7 @@ class ClothSystem:
         self._pair_travel = math.inf  # how much closer particles may have come since it was built [m]
         self._contacts_prev = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
-        self._wind_modes = None
+        self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
         self._bodies = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
@@ -191,8 +191,8 @@ class ClothSystem:
         *,
         size: Sequence[float] = (1.0, 1.0),
         resolution: Sequence[int] = (32, 32),
-        position: Sequence[float] = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
         mass: float | None = None,
         areal_density: float | None = None,
         stiffness: float | dict[str, float] | None = None,
@@ -367,11 +367,11 @@ class ClothSystem:
         p = len(self._host["particle_mass"])
         self._particle_count = p
         for name, dtype in _PARTICLE_FIELDS.items():
-            values = self._host.get(name)
+            host = self._host.get(name)
             self._arrays[name] = (
                 wp.zeros(p, dtype=dtype, device=self.device)
-                if values is None
-                else wp.array(np.ascontiguousarray(values), dtype=dtype, device=self.device)
+                if host is None
+                else wp.array(np.ascontiguousarray(host), dtype=dtype, device=self.device)
             )
         for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
             self._arrays[name] = wp.array(
@@ -575,6 +575,7 @@ class ClothSystem:
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
+            assert self._grid is not None  # made with the first cloth (_append)
             if self.self_collision and self._grid.count:
                 self._grid.separate(
                     a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
@@ -711,6 +712,7 @@ class ClothSystem:
 
         # wind: sample the field at every particle at the start of the step
         if self.wind is not None:
+            assert self._wind_modes is not None  # set with the wind
             wave, amplitude, omega, phase = self._wind_modes
             sample_wind(
                 a["particle_position"],
@@ -742,6 +744,7 @@ class ClothSystem:
         # self-collision, a Verlet list: the pairs closer than their thickness + margin; two
         # particles close in by at most 2 v_max dt per step, so the list stays valid until that
         # sum reaches the margin, then it is rebuilt (rarely, once the cloth has settled)
+        assert self._grid is not None  # made with the first cloth (_append)
         if self.self_collision:
             self._pair_travel += 2.0 * speed * dt
             if self._pair_travel >= self._pair_margin:
