@@ -10,6 +10,10 @@ Public API::
     world = tumble.load_scene("samples/sphere_pile.toml")
 """
 
+import os as _os
+from pathlib import Path as _Path
+from typing import TYPE_CHECKING as _TYPE_CHECKING
+
 import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels compile
@@ -23,6 +27,11 @@ from .snapshot import Snapshot, SnapshotError
 from .state import BodyId, BodyKind, ClothId
 from .wedge import wedge
 from .world import BodyState, World
+
+if _TYPE_CHECKING:
+    from typing import Unpack
+
+    from .io.scene import WorldOverrides
 
 __all__ = [
     "BodyId",
@@ -49,28 +58,28 @@ __all__ = [
 __version__ = "0.1.0"
 
 
-def load_scene(path, **overrides):
+def load_scene(path: str | _os.PathLike[str], **overrides: "Unpack[WorldOverrides]") -> World:
     """Build a `World` from a TOML scene file; see docs/scenes.md. Raises `SceneError` on bad input."""
     from .io.scene import load_scene as _load
 
     return _load(path, **overrides)
 
 
-def save_snapshot(state: Snapshot, path):
+def save_snapshot(state: Snapshot, path: str | _os.PathLike[str]) -> _Path:
     """Write a `world.snapshot()` to `path` (.npz), atomically; returns the path. See `load_snapshot`."""
     from . import snapshot
 
     return snapshot.save(state, path)
 
 
-def read_snapshot(path) -> Snapshot:
+def read_snapshot(path: str | _os.PathLike[str]) -> Snapshot:
     """Read a snapshot file, for `world.restore` into a world built the same way (raises `SnapshotError`)."""
     from . import snapshot
 
     return snapshot.read(path)
 
 
-def load_snapshot(path, **overrides):
+def load_snapshot(path: str | _os.PathLike[str], **overrides: "Unpack[WorldOverrides]") -> World:
     """Rebuild the world a snapshot file of a scene was taken from, at the saved moment; stepping it
     continues the saved run bit for bit (`tumble run --resume FILE`). Overrides as in `load_scene` (device)."""
     from . import snapshot

@@ -23,9 +23,12 @@ kernels; k is small for any sensible rate.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import validate
 from .limits import MAX_RELEASE_PER_STEP
@@ -40,6 +43,9 @@ from .shapes import (
     sphere_inertia,
     sphere_volume,
 )
+
+if TYPE_CHECKING:
+    from .world import World
 
 #: jittered tries per candidate before it waits for the next step
 TRIES = 8
@@ -125,8 +131,8 @@ class Emitter:
         radius: float | Sequence[float] = 0.05,
         half_extents: float | Sequence = 0.05,
         half_height: float | Sequence[float] = 0.05,
-        points=None,
-        file=None,
+        points: ArrayLike | None = None,
+        file: str | os.PathLike[str] | None = None,
         scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,

@@ -24,15 +24,20 @@ from __future__ import annotations
 import enum
 import json
 import math
+import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 import warp as wp
 
 from .errors import TumbleError
+
+if TYPE_CHECKING:
+    from .io.scene import WorldOverrides
+    from .world import World
 from .launch import LaunchCache
 from .state import ArraySet, Handle
 
@@ -122,7 +127,7 @@ def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
 # segment starting with ":" is a marker of the walk itself (":class", ":dtype", ...), never a name.
 
 
-def take(world, *, arrays: bool = True) -> Snapshot:
+def take(world: World, *, arrays: bool = True) -> Snapshot:
     """Capture `world`'s state (see `World.snapshot`); with `arrays=False` only its layout (no array is copied)."""
     snap = Snapshot(step_count=world.step_count, time=world.time)
     seen: set[int] = {id(world)}
@@ -260,7 +265,7 @@ def _dtype_name(dtype) -> str:
 # --- restoring ---------------------------------------------------------------------------------
 
 
-def restore(world, snap: Snapshot) -> None:
+def restore(world: World, snap: Snapshot) -> None:
     """Put `snap` back into `world` (see `World.restore`, which then forgets what it derived from the old arrays).
 
     Raises `SnapshotError` when they do not match.
@@ -410,7 +415,7 @@ def _assign(owner, name, value) -> None:
 # --- files -------------------------------------------------------------------------------------
 
 
-def save(snap: Snapshot, path) -> Path:
+def save(snap: Snapshot, path: str | os.PathLike[str]) -> Path:
     """Write `snap` to `path` (.npz), atomically."""
     from .io.atomic import atomic_path
 
@@ -433,7 +438,7 @@ def save(snap: Snapshot, path) -> Path:
     return path
 
 
-def read(path) -> Snapshot:
+def read(path: str | os.PathLike[str]) -> Snapshot:
     """Read a snapshot file written by `save`. Raises `SnapshotError` naming the file on any problem."""
     path = Path(path)
     try:
@@ -476,7 +481,7 @@ def read(path) -> Snapshot:
     )
 
 
-def load(path, **overrides):
+def load(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> World:
     """Rebuild the world a snapshot file was taken from (it must come from a scene) and restore it.
 
     Keyword overrides are those of `tumble.load_scene` (e.g. device) and replace the saved ones.

@@ -413,7 +413,11 @@ class Plan:
 
 
 def plan_wedge(
-    scene, vary: Mapping[str, object] | Sequence[tuple[str, object]], *, yes: bool = False, limit: int = MAX_VARIANTS
+    scene: str | os.PathLike[str],
+    vary: Mapping[str, object] | Sequence[tuple[str, object]],
+    *,
+    yes: bool = False,
+    limit: int = MAX_VARIANTS,
 ) -> Plan:
     """Check a wedge request and expand it into variants, each validated as a scene file.
 
@@ -913,10 +917,10 @@ def _is_done(result: dict | None, variant: Variant, settings: Settings, retry_fa
 
 
 def wedge(
-    scene,
-    vary,
+    scene: str | os.PathLike[str],
+    vary: Mapping[str, object] | Sequence[tuple[str, object]],
     *,
-    out,
+    out: str | os.PathLike[str],
     duration: float = 2.0,
     fps: float = 30.0,
     keep: Iterable[str] = (),

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -483,14 +484,14 @@ class World:
     def add_capsules(
         self,
         *,
-        position,
-        radius,
-        half_height,
-        mass=None,
-        density=None,
-        velocity=(0.0, 0.0, 0.0),
-        orientation=(0.0, 0.0, 0.0, 1.0),
-        angular_velocity=(0.0, 0.0, 0.0),
+        position: ArrayLike,
+        radius: float | ArrayLike,
+        half_height: float | ArrayLike,
+        mass: float | ArrayLike | None = None,
+        density: float | ArrayLike | None = None,
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
+        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
         restitution: float = 0.5,
         friction: float = 0.5,
         static: bool = False,
@@ -521,8 +522,8 @@ class World:
     def add_convex(
         self,
         *,
-        points=None,
-        file=None,
+        points: ArrayLike | None = None,
+        file: str | os.PathLike[str] | None = None,
         scale: float | Sequence[float] = 1.0,
         position: Sequence[float] = (0.0, 0.0, 0.0),
         orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
@@ -587,9 +588,9 @@ class World:
     def add_mesh(
         self,
         *,
-        file=None,
-        vertices=None,
-        triangles=None,
+        file: str | os.PathLike[str] | None = None,
+        vertices: ArrayLike | None = None,
+        triangles: ArrayLike | None = None,
         scale: float | Sequence[float] = 1.0,
         position: Sequence[float] = (0.0, 0.0, 0.0),
         orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
@@ -632,7 +633,7 @@ class World:
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
         return ids[0]
 
-    def add_body(self, shape: str | ShapeType, **kwargs) -> BodyId:
+    def add_body(self, shape: str | ShapeType, **kwargs: Any) -> BodyId:
         """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(validate.text(shape, "shape"))
         adders: dict[ShapeType, Callable[..., BodyId]] = {
@@ -660,8 +661,8 @@ class World:
         radius: float | Sequence[float] = 0.05,
         half_extents: float | Sequence = 0.05,
         half_height: float | Sequence[float] = 0.05,
-        points=None,
-        file=None,
+        points: ArrayLike | None = None,
+        file: str | os.PathLike[str] | None = None,
         scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,

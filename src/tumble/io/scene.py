@@ -31,10 +31,10 @@ import inspect
 import math
 import os
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from ..limits import show_bytes
 
 if TYPE_CHECKING:
     from ..state import BodyId
+    from ..world import World
 
 #: directory of the bundled sample scenes, installed with the package (`tumble/samples`, which the
 #: repository's `samples/` links to); override with $TUMBLE_SAMPLES
@@ -1104,10 +1105,22 @@ def list_samples() -> list[Path]:
 
 # ---------------------------------------------------------------------------------------- building
 
-WORLD_OVERRIDES = ("gravity", "dt", "substeps", "seed", "restitution_threshold", "device")
+
+class WorldOverrides(TypedDict, total=False):
+    """World settings that replace a scene file's [world] values (`load_scene`); None keeps the file's."""
+
+    gravity: Sequence[float] | None
+    dt: float | None
+    substeps: int | None
+    seed: int | None
+    restitution_threshold: float | None
+    device: str | None
 
 
-def build_world(scene: Scene, **overrides):
+WORLD_OVERRIDES = tuple(WorldOverrides.__annotations__)
+
+
+def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
     """Make a `World` from a validated `Scene`.
 
     Args:
@@ -1214,7 +1227,7 @@ def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
         raise SceneError(exc.reason, path=path, table=label, key=exc.key) from None
 
 
-def load_scene(path, **overrides):
+def load_scene(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> World:
     """Read, validate and build a scene file into a `World` (see docs/scenes.md).
 
     Args:
