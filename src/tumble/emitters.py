@@ -45,7 +45,8 @@ from .shapes import (
 )
 
 if TYPE_CHECKING:
-    from .world import World
+    from .collision.hulls import HullSet
+    from .state import ArraySet
 
 #: jittered tries per candidate before it waits for the next step
 TRIES = 8
@@ -360,14 +361,14 @@ class Emitter:
         t = (scale - levels[0]) / (levels[-1] - levels[0]) * (len(levels) - 1)
         return np.clip(np.rint(t), 0, len(levels) - 1).astype(np.int64)
 
-    def add_hulls(self, hulls) -> None:
+    def add_hulls(self, hulls: HullSet) -> None:
         """Store the scaled hull copies in the `HullSet` `hulls` (`World.add_emitter` does, before any step)."""
         if self.hull is not None:
             self.hull_rows = np.array([hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales], dtype=np.int32)
 
     # ------------------------------------------------------------------ emission
 
-    def release(self, bodies, dt: float) -> dict[str, np.ndarray] | None:
+    def release(self, bodies: ArraySet, dt: float) -> dict[str, np.ndarray] | None:
         """The bodies owed for this step that find a free spot among `bodies` (the world's body arrays).
 
         Returns the new bodies' rows, as the keywords of the world's body append (the world's emit

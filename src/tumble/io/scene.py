@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 
 #: directory of the bundled sample scenes, installed with the package (`tumble/samples`, which the
 #: repository's `samples/` links to); override with $TUMBLE_SAMPLES
-SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES") or os.fspath(importlib.resources.files("tumble") / "samples"))
+SAMPLES_DIR = Path(os.environ.get("TUMBLE_SAMPLES") or os.fspath(importlib.resources.files("tumble") / "samples"))  # type: ignore[call-overload]  # a Path here; typeshed: a Traversable
 
 REQUIRED = object()  # marks a key without a default
 
