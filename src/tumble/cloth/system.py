@@ -141,7 +141,11 @@ class ClothSystem:
     """
 
     def __init__(
-        self, device: str = "cpu", *, world_key: int | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81)
+        self,
+        device: str = "cpu",
+        *,
+        world_key: int | None = None,
+        gravity: Sequence[float] | np.ndarray = (0.0, 0.0, -9.81),
     ):
         self.device = device
         self.world_key = world_key
@@ -178,7 +182,7 @@ class ClothSystem:
         self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
-        self._bodies = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
+        self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
         self._pin_dt = 0.0
         self._cache = LaunchCache()
         self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
@@ -638,6 +642,7 @@ class ClothSystem:
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
         """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
         a = self._arrays
+        assert self._bodies is not None  # set by begin_step
         bodies = self._bodies[0]
         self._contacts_next.zero_()
         collide.collide_bodies(
@@ -1009,7 +1014,7 @@ class ClothSystem:
             return np.zeros(3)
         return self._host["particle_mass"] @ self._view("particle_velocity")
 
-    def potential_energy(self, gravity: Sequence[float] | None = None) -> float:
+    def potential_energy(self, gravity: Sequence[float] | np.ndarray | None = None) -> float:
         """Gravitational potential energy relative to the origin [J]: -sum m g . x.
 
         Args:

@@ -1353,7 +1353,12 @@ class JointSet(ArraySet):
                 # then the lone ones as soft rows; the relax pass sweeps every ball joint
                 if self._chain_count:
                     chains = (self._chain_joints, self._chain_start)
-                    scratch = (self._chain_inv_d, self._chain_lower, self._chain_rhs, self._chain_arm_a)
+                    scratch: tuple[wp.array, ...] = (
+                        self._chain_inv_d,
+                        self._chain_lower,
+                        self._chain_rhs,
+                        self._chain_arm_a,
+                    )
                     scratch += (self._chain_arm_b, self._chain_inertia_a, self._chain_inertia_b)
                     ball = (j[name] for name in _CHAIN_JOINT_ARRAYS)
                     body = (b[name] for name in _CHAIN_BODY_ARRAYS)
