@@ -759,60 +759,19 @@ def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
 
 @wp.func
 def collide_plane_hull(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, sc: vec3, max_sep: float_t
+    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, bound: float_t, max_sep: float_t
 ):
-    # the deepest vertex, the vertex farthest from it along the plane, then the largest triangles
-    # on either side of that line: up to four of the vertices within the speculative distance
+    # up to four of the vertices within the speculative distance (`_four_vertices`)
     n = _axis(A.q, 2)
-    v0 = H.vertex_start[h]
+    one = vec3(_ONE, _ONE, _ONE)
     nv = H.vertex_count[h]
-    i0 = int(-1)
-    d0 = float_t(1.0e30)
-    for i in range(v0, v0 + nv):
-        d = wp.dot(n, B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc)) - A.x)
-        if d < d0:
-            d0 = d
-            i0 = i
-    if d0 > max_sep:
+    i0, i1, i2, i3, n0, d0 = _four_vertices(B, int(ShapeType.CONVEX), H, h, one, nv, bound, A, wp.uint64(0), n, max_sep)
+    if i0 < 0 or d0 > max_sep:
         return
-    p0 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i0, sc))
-    # the others within half the bounding radius of the deepest: a fast body's far side, though
-    # within the speculative distance, must not displace the near side's vertices
-    limit = wp.min(max_sep, d0 + float_t(0.5) * wp.length(p0 - B.x))
-    i1 = i0
-    far = float_t(1e-12)
-    for i in range(v0, v0 + nv):
-        pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
-        if wp.dot(n, pi - A.x) <= limit:
-            t = (pi - p0) - n * wp.dot(n, pi - p0)
-            if wp.dot(t, t) > far:
-                far = wp.dot(t, t)
-                i1 = i
-    p1 = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i1, sc))
-    i2 = int(-1)
-    i3 = int(-1)
-    amax = float_t(1e-12) * far
-    amin = -amax
-    for i in range(v0, v0 + nv):
-        pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
-        if wp.dot(n, pi - A.x) <= limit:
-            area = wp.dot(n, wp.cross(p1 - p0, pi - p0))
-            if area > amax:
-                amax = area
-                i2 = i
-            if area < amin:
-                amin = area
-                i3 = i
     for k in range(4):
-        i = i0
-        if k == 1:
-            i = i1
-        elif k == 2:
-            i = i2
-        elif k == 3:
-            i = i3
+        i = _pick(k, i0, i1, i2, i3)
         if i >= 0 and (k == 0 or i != i0):
-            pi = B.x + wp.quat_rotate(B.q, _hull_vertex(H, i, sc))
+            pi = B.x + wp.quat_rotate(B.q, _solid_vertex(int(ShapeType.CONVEX), H, h, one, i))
             emit(c, a, b, A, B, n, pi - n * wp.dot(n, pi - A.x), pi, max_sep)
 
 
@@ -1283,6 +1242,95 @@ def _solid_vertex(shape: int, H: Hulls, g: int, h: vec3, i: int):
 
 
 @wp.func
+def _vertex_depth(mesh: wp.uint64, M: Pose, n_plane: vec3, p: vec3, max_sep: float_t):
+    """World point p against the other surface: a mesh (`mesh` not 0) through its BVH, else the plane
+    through M.x with normal `n_plane`. Returns (found, surface point, outward normal, signed distance)."""
+    if mesh != wp.uint64(0):
+        return _mesh_point(mesh, M, p, max_sep)
+    d = wp.dot(n_plane, p - M.x)
+    return True, p - n_plane * d, n_plane, d
+
+
+@wp.func
+def _four_vertices(
+    S: Pose,
+    shape: int,
+    H: Hulls,
+    g: int,
+    h: vec3,
+    nv: int,
+    bound: float_t,
+    M: Pose,
+    mesh: wp.uint64,
+    n_plane: vec3,
+    max_sep: float_t,
+):
+    """Up to four vertices of a box or hull (pose S, `_solid_vertex(shape, H, g, h, i)`, i < nv)
+    to touch a plane or a mesh (`_vertex_depth`): the deepest; the one farthest from it across
+    its normal; the largest triangles either side of that line. Only vertices within half the
+    bound radius of the deepest count: a fast body's far side, though within the speculative
+    distance, must not displace the near side's vertices.
+
+    Returns (i0, i1, i2, i3, normal at the deepest, its depth); i0 < 0 when no vertex is within
+    `max_sep`, i2 or i3 < 0 when no vertex lies on that side; i1 == i0 when all are at one point.
+    """
+    i0 = int(-1)
+    d0 = float_t(1.0e30)
+    n0 = vec3()
+    for i in range(nv):
+        found, q, n, d = _vertex_depth(
+            mesh, M, n_plane, S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i)), max_sep
+        )
+        if found and d < d0:
+            d0 = d
+            i0 = i
+            n0 = n
+    i1 = i0
+    i2 = int(-1)
+    i3 = int(-1)
+    if i0 < 0 or d0 > max_sep:
+        return i0, i1, i2, i3, n0, d0
+    p0 = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i0))
+    limit = wp.min(max_sep, d0 + float_t(0.5) * bound)
+    far = float_t(1e-12) * bound * bound
+    for i in range(nv):
+        pi = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i))
+        found, q, n, d = _vertex_depth(mesh, M, n_plane, pi, max_sep)
+        if found and d <= limit:
+            t = (pi - p0) - n0 * wp.dot(n0, pi - p0)
+            if wp.dot(t, t) > far:
+                far = wp.dot(t, t)
+                i1 = i
+    p1 = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i1))
+    amax = float_t(1e-12) * far
+    amin = -amax
+    for i in range(nv):
+        pi = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i))
+        found, q, n, d = _vertex_depth(mesh, M, n_plane, pi, max_sep)
+        if found and d <= limit:
+            area = wp.dot(n0, wp.cross(p1 - p0, pi - p0))
+            if area > amax:
+                amax = area
+                i2 = i
+            if area < amin:
+                amin = area
+                i3 = i
+    return i0, i1, i2, i3, n0, d0
+
+
+@wp.func
+def _pick(k: int, i0: int, i1: int, i2: int, i3: int):
+    """The k-th of four indices."""
+    if k == 1:
+        return i1
+    if k == 2:
+        return i2
+    if k == 3:
+        return i3
+    return i0
+
+
+@wp.func
 def _mesh_edges_into_solid(
     c: ContactWriter,
     a: int,
@@ -1437,15 +1485,7 @@ def collide_vertices_mesh(
     nv = int(8)
     if shape != int(ShapeType.BOX):
         nv = H.vertex_count[g]
-    i0 = int(-1)
-    d0 = float_t(1.0e30)
-    n0 = vec3()
-    for i in range(nv):
-        found, q, n, d = _mesh_point(mesh, B, A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i)), max_sep)
-        if found and d < d0:
-            d0 = d
-            i0 = i
-            n0 = n
+    i0, i1, i2, i3, n0, d0 = _four_vertices(A, shape, H, g, h, nv, bound, B, mesh, vec3(), max_sep)
     # the box as the unit-cube hull (prototype 0) scaled by its half extents
     hp = g
     sc = vec3(_ONE, _ONE, _ONE)
@@ -1455,42 +1495,8 @@ def collide_vertices_mesh(
     _mesh_edges_into_solid(c, a, b, A, B, H, hp, sc, bound, mesh, max_sep, d0)
     if i0 < 0 or d0 > max_sep:
         return
-    p0 = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i0))
-    limit = wp.min(max_sep, d0 + float_t(0.5) * bound)  # as for planes: the near side only
-    i1 = i0
-    far = float_t(1e-12) * bound * bound
-    for i in range(nv):
-        pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
-        found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
-        if found and d <= limit:
-            t = (pi - p0) - n0 * wp.dot(n0, pi - p0)
-            if wp.dot(t, t) > far:
-                far = wp.dot(t, t)
-                i1 = i
-    p1 = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i1))
-    i2 = int(-1)
-    i3 = int(-1)
-    amax = float_t(1e-12) * far
-    amin = -amax
-    for i in range(nv):
-        pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
-        found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
-        if found and d <= limit:
-            area = wp.dot(n0, wp.cross(p1 - p0, pi - p0))
-            if area > amax:
-                amax = area
-                i2 = i
-            if area < amin:
-                amin = area
-                i3 = i
     for k in range(4):
-        i = i0
-        if k == 1:
-            i = i1
-        elif k == 2:
-            i = i2
-        elif k == 3:
-            i = i3
+        i = _pick(k, i0, i1, i2, i3)
         if i >= 0 and (k == 0 or i != i0):
             pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
             found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
@@ -1554,7 +1560,7 @@ def _collide_pairs(
         elif sb == int(ShapeType.CAPSULE):
             collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
         elif sb == int(ShapeType.CONVEX):
-            collide_plane_hull(c, a, b, A, B, hulls, geometry[b], one, max_sep)
+            collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep)
     elif sa == int(ShapeType.SPHERE):
         if sb == int(ShapeType.SPHERE):
             collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], max_sep)

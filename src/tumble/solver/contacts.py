@@ -15,13 +15,22 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   push-out velocity again, so penetration recovery adds no kinetic energy -- the role split
   impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
+- a manifold (a pair's consecutive contacts, up to `MANIFOLD_ROWS`: a face's corners) is solved
+  as one block: its rows are swept `MANIFOLD_SWEEPS` times, forward and backward in turn (the
+  collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
+  corners, three degrees of freedom) and one sweep leaves each corner a different impulse;
+  a patch (a manifold whose rows share the normal) takes its friction at its centre, on the
+  disc |jt| <= mu sum jn, with a twist row about n, |j_twist| <= mu sum jn_i arm_i, so that no
+  order of its corners enters the friction (a box landing flat or on one edge never turns
+  about the vertical; tests/regression/test_issue_16_flat_landing_spins_a_box.py);
 - contacts with a static body are twice as stiff (they carry whole piles), as in Box2D;
 - overlaps up to `LINEAR_SLOP` are held rigidly (no push-out), so resting stacks do not jitter;
 - restitution is a collision pass at the start of every substep, before the solve (`impacts`,
   as in the collision/contact split of Guendelman, Bridson & Fedkiw, SIGGRAPH 2003): every
   contact that closes within the substep faster than the threshold collides once, as a
   two-body collision with its own impact speed (normal impulse to -e v_impact, then Coulomb
-  friction of at most mu times it). The sweep runs forward then backward, so a collision
+  friction of at most mu times it); a manifold's rows collide together (their normal impulses
+  swept to convergence, a patch's friction at its centre). The sweep runs forward then backward, so a collision
   travels along a chain of touching bodies in either direction within the substep; each
   impulse alone cannot add energy, so no sequence of them can. The contact is then
   separating, and the inelastic solve that follows leaves it alone; resting contacts
@@ -53,6 +62,8 @@ from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, host_view, quat, vec3
 from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
 
+vec4 = wp.types.vector(length=4, dtype=float_t)
+
 #: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;
 #: contacts with static bodies, which carry whole piles, are twice as stiff, as in Box2D),
 #: and the damping ratio of the soft constraint
@@ -66,6 +77,13 @@ MAX_PUSH_VELOCITY = 3.0
 IMPACT_SWEEPS = wp.constant(16)
 #: anchors on the owner closer than this fraction of its bound radius are the same contact
 MATCH_TOLERANCE = 0.5
+#: a manifold: a pair's consecutive contacts (the narrow phase writes a pair's points together),
+#: in runs of up to this many, whose normal rows are solved together (see `_solve`)
+MANIFOLD_ROWS = wp.constant(4)
+#: Gauss-Seidel sweeps over one manifold's rows in each solve and relax pass; in the collision
+#: pass, sweeps until no row changes its velocity by MANIFOLD_TOLERANCE [m/s] (at most IMPACT_SWEEPS)
+MANIFOLD_SWEEPS = wp.constant(4)
+MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
 
 CONTACT_FIELDS = {
     # from the narrow phase
@@ -95,10 +113,22 @@ CONTACT_FIELDS = {
     "contact_restitution": float_t,
     "contact_relative_velocity": float_t,  # normal speed at this step's last impact [m/s] (< 0), else 0
     "contact_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
+    # rows of the manifold that starts here (its pair's next contacts, up to MANIFOLD_ROWS), 0 inside one
+    "contact_manifold": wp.int32,
+    # a patch (a manifold whose rows share the normal) has its friction at its centre: anchors of
+    # the centre (world frame, from the centres [m]), the twist row about n on its first row
+    # (I^-1 n, effective mass [kg m^2]), each point's arm [m] from the centre across n
+    "contact_centre_a": vec3,
+    "contact_centre_b": vec3,
+    "contact_angular_a_twist": vec3,
+    "contact_angular_b_twist": vec3,
+    "contact_mass_twist": float_t,
+    "contact_twist_arm": float_t,
     # accumulated impulses of one substep [N s]
     "contact_impulse_n": float_t,
     "contact_impulse_t1": float_t,
     "contact_impulse_t2": float_t,
+    "contact_impulse_twist": float_t,  # [N m s]
     "contact_max_impulse_n": float_t,
 }
 
@@ -107,7 +137,7 @@ PREVIOUS_FIELDS = {
     "previous_body_b": wp.int32,
     "previous_local_owner": vec3,
     "previous_impulse_n": float_t,
-    "previous_impulse_t": vec3,  # friction impulse as a world vector (tangents change)
+    "previous_impulse_t": vec3,  # friction impulse as a world vector (tangents change), plus the twist along n
 }
 
 
@@ -154,9 +184,17 @@ class Contacts:
     restitution: wp.array(dtype=float_t)
     relative_velocity: wp.array(dtype=float_t)
     scale: wp.array(dtype=float_t)
+    manifold: wp.array(dtype=wp.int32)
+    centre_a: wp.array(dtype=vec3)
+    centre_b: wp.array(dtype=vec3)
+    ang_a_twist: wp.array(dtype=vec3)
+    ang_b_twist: wp.array(dtype=vec3)
+    mass_twist: wp.array(dtype=float_t)
+    twist_arm: wp.array(dtype=float_t)
     jn: wp.array(dtype=float_t)
     jt1: wp.array(dtype=float_t)
     jt2: wp.array(dtype=float_t)
+    jtw: wp.array(dtype=float_t)
     jn_max: wp.array(dtype=float_t)
 
 
@@ -164,6 +202,34 @@ class Contacts:
 def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
     """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
     return wp.dot(b.v[ib] - b.v[ia], d) + wp.dot(b.w[ib], wp.cross(rb, d)) - wp.dot(b.w[ia], wp.cross(ra, d))
+
+
+# ---------------------------------------------------------------------------- manifolds
+
+
+@wp.func
+def _manifold_first(c: Contacts, k: int):
+    """The first row of the manifold contact k belongs to: a pair's consecutive contacts (the
+    narrow phase writes a pair's points together), cut into pieces of MANIFOLD_ROWS."""
+    before = int(0)
+    j = k - 1
+    while j >= 0:
+        if c.body_a[j] != c.body_a[k] or c.body_b[j] != c.body_b[k]:
+            break
+        before += 1
+        j -= 1
+    return k - before % MANIFOLD_ROWS
+
+
+@wp.func
+def _manifold_rows(c: Contacts, first: int, count: int):
+    """Rows of the manifold that starts at `first`."""
+    rows = int(1)
+    while rows < MANIFOLD_ROWS and first + rows < count:
+        if c.body_a[first + rows] != c.body_a[first] or c.body_b[first + rows] != c.body_b[first]:
+            break
+        rows += 1
+    return rows
 
 
 # ---------------------------------------------------------------------------- warm-start matching
@@ -274,7 +340,14 @@ def _store(
     else:
         prev_local[k] = c.local_a[k]
     prev_jn[k] = c.jn[k]
-    prev_jt[k] = c.t1[k] * c.jt1[k] + c.t2[k] * c.jt2[k]
+    # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
+    f = k
+    share = float_t(1.0)
+    first = _manifold_first(c, k)
+    if c.mass_twist[first] > float_t(0.0):
+        f = first
+        share = float_t(1.0) / float_t(c.manifold[first])
+    prev_jt[k] = (c.t1[f] * c.jt1[f] + c.t2[f] * c.jt2[f] + c.normal[f] * c.jtw[f]) * share
 
 
 # ---------------------------------------------------------------------------- prepare / solve
@@ -307,10 +380,45 @@ def _prepare(
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
-    ra = wp.quat_rotate(b.q[ia], c.local_a[k])
-    rb = wp.quat_rotate(b.q[ib], c.local_b[k])
+    qa = b.q[ia]
+    qb = b.q[ib]
+    ra = wp.quat_rotate(qa, c.local_a[k])
+    rb = wp.quat_rotate(qb, c.local_b[k])
     c.r_a[k] = ra
     c.r_b[k] = rb
+    # manifold: the first row holds its row count, the others 0. It is a patch when its rows
+    # share one normal (a face on a plane or a face: up to 4 points, one normal); a patch takes
+    # its friction at its centre (the mean of its anchors), as two tangent rows and a twist row
+    # about n held on its first row, instead of one friction row per point (see `_solve`)
+    first = _manifold_first(c, k)
+    rows = _manifold_rows(c, first, counts[0])
+    c.manifold[k] = int(0)
+    if first == k:
+        c.manifold[k] = rows
+    patch = int(0)
+    fa = ra
+    fb = rb
+    if rows > 1:
+        patch = int(1)
+        fa = vec3()
+        fb = vec3()
+        for i in range(rows):
+            kk = first + i
+            if wp.dot(c.normal[kk], c.normal[first]) < float_t(1.0) - float_t(1.0e-12):
+                patch = int(0)
+            fa = fa + wp.quat_rotate(qa, c.local_a[kk])
+            fb = fb + wp.quat_rotate(qb, c.local_b[kk])
+        fa = fa / float_t(rows)
+        fb = fb / float_t(rows)
+    if patch == 0:
+        fa = ra
+        fb = rb
+    # twist arm: the point's distance from the patch centre across n (the twist row's limit is
+    # mu sum_i jn_i arm_i, the most torque the points' friction can give)
+    arm = ra - fa
+    c.twist_arm[k] = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
+    c.centre_a[k] = fa
+    c.centre_b[k] = fb
     # tangent basis orthogonal to n
     t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
     if wp.length_sq(t1) < float_t(0.01):
@@ -321,32 +429,51 @@ def _prepare(
     c.t2[k] = t2
     # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
     # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
-    Ia = inv_inertia_world(b.q[ia], b.inv_inertia[ia])
-    Ib = inv_inertia_world(b.q[ib], b.inv_inertia[ib])
+    Ia = inv_inertia_world(qa, b.inv_inertia[ia])
+    Ib = inv_inertia_world(qb, b.inv_inertia[ib])
     im = b.inv_mass[ia] + b.inv_mass[ib]
     ca = wp.cross(ra, n)
     cb = wp.cross(rb, n)
     c.ang_a_n[k] = Ia * ca
     c.ang_b_n[k] = Ib * cb
     c.mass_n[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
-    ca = wp.cross(ra, t1)
-    cb = wp.cross(rb, t1)
-    c.ang_a_t1[k] = Ia * ca
-    c.ang_b_t1[k] = Ib * cb
-    c.mass_t1[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
-    ca = wp.cross(ra, t2)
-    cb = wp.cross(rb, t2)
-    c.ang_a_t2[k] = Ia * ca
-    c.ang_b_t2[k] = Ib * cb
-    c.mass_t2[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    # friction rows at the anchors (the patch centre for a patch); a patch's other rows have none
+    on = float_t(1.0)
+    if patch != 0 and first != k:
+        on = float_t(0.0)
+    ca = wp.cross(fa, t1)
+    cb = wp.cross(fb, t1)
+    c.ang_a_t1[k] = Ia * ca * on
+    c.ang_b_t1[k] = Ib * cb * on
+    c.mass_t1[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+    ca = wp.cross(fa, t2)
+    cb = wp.cross(fb, t2)
+    c.ang_a_t2[k] = Ia * ca * on
+    c.ang_b_t2[k] = Ib * cb * on
+    c.mass_t2[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+    # twist about n: angular response I^-1 n, effective mass 1 / (n . I_a^-1 n + n . I_b^-1 n)
+    tw = float_t(0.0)
+    if patch != 0 and first == k:
+        tw = float_t(1.0)
+    c.ang_a_twist[k] = Ia * n * tw
+    c.ang_b_twist[k] = Ib * n * tw
+    c.mass_twist[k] = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
     c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
     c.relative_velocity[k] = float_t(0.0)  # set by _impact when the contact collides
-    # warm start values arrive as a world friction vector; project on the new tangents
+    # warm start values arrive as a world friction vector (tangent) plus the twist impulse along
+    # n; project on the new tangents. A patch's friction was stored spread over its rows (so it
+    # survives a change of which row comes first): its first row sums its rows' shares
     jt = jt_world[k]
+    if patch != 0:
+        jt = vec3()
+        if first == k:
+            for i in range(rows):
+                jt = jt + jt_world[k + i]
     c.jt1[k] = wp.dot(jt, t1)
     c.jt2[k] = wp.dot(jt, t2)
+    c.jtw[k] = wp.dot(jt, n) * tw
     c.jn_max[k] = float_t(0.0)
     c.scale[k] = float_t(1.0)
     if jacobi != 0:
@@ -395,11 +522,164 @@ def _warm_start(c: Contacts, b: Bodies, serial: int, counts: wp.array(dtype=wp.i
     j1 = c.jt1[k]
     j2 = c.jt2[k]
     P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
-    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2
-    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2
+    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2 + c.ang_a_twist[k] * c.jtw[k]
+    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2 + c.ang_b_twist[k] * c.jtw[k]
     ia = c.body_a[k]
     ib = c.body_b[k]
     _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial)
+
+
+@wp.struct
+class Delta:
+    """A contact's velocity changes to its two bodies, accumulated over its rows."""
+
+    va: vec3
+    wa: vec3
+    vb: vec3
+    wb: vec3
+
+
+@wp.func
+def _friction_row(
+    k: int,
+    ra: vec3,
+    rb: vec3,
+    c_t1: wp.array(dtype=vec3),
+    c_t2: wp.array(dtype=vec3),
+    c_ang_a_t1: wp.array(dtype=vec3),
+    c_ang_b_t1: wp.array(dtype=vec3),
+    c_ang_a_t2: wp.array(dtype=vec3),
+    c_ang_b_t2: wp.array(dtype=vec3),
+    c_mass_t1: wp.array(dtype=float_t),
+    c_mass_t2: wp.array(dtype=float_t),
+    limit: float_t,
+    relax: float_t,
+    c_jt1: wp.array(dtype=float_t),
+    c_jt2: wp.array(dtype=float_t),
+    va: vec3,
+    wa: vec3,
+    vb: vec3,
+    wb: vec3,
+    ima: float_t,
+    imb: float_t,
+    dv: Delta,
+):
+    """Coulomb friction of contact k at the anchors ra, rb: |jt| <= limit, clamped on the disc."""
+    t1 = c_t1[k]
+    t2 = c_t2[k]
+    v = vb + dv.vb - va - dv.va
+    j1_old = c_jt1[k]
+    j2_old = c_jt2[k]
+    vt1 = wp.dot(v, t1) + wp.dot(wb + dv.wb, wp.cross(rb, t1)) - wp.dot(wa + dv.wa, wp.cross(ra, t1))
+    vt2 = wp.dot(v, t2) + wp.dot(wb + dv.wb, wp.cross(rb, t2)) - wp.dot(wa + dv.wa, wp.cross(ra, t2))
+    j1 = j1_old - c_mass_t1[k] * vt1 * relax
+    j2 = j2_old - c_mass_t2[k] * vt2 * relax
+    norm = wp.sqrt(j1 * j1 + j2 * j2)
+    if norm > limit:
+        f = limit / norm
+        j1 = j1 * f
+        j2 = j2 * f
+    c_jt1[k] = j1
+    c_jt2[k] = j2
+    d1 = j1 - j1_old
+    d2 = j2 - j2_old
+    P = t1 * d1 + t2 * d2
+    out = Delta()
+    out.va = dv.va - P * ima
+    out.vb = dv.vb + P * imb
+    out.wa = dv.wa - c_ang_a_t1[k] * d1 - c_ang_a_t2[k] * d2
+    out.wb = dv.wb + c_ang_b_t1[k] * d1 + c_ang_b_t2[k] * d2
+    return out
+
+
+@wp.func
+def _normal_target(
+    s0: float_t,
+    n: vec3,
+    ra: vec3,
+    rb: vec3,
+    dxa: vec3,
+    dtha: vec3,
+    dxb: vec3,
+    dthb: vec3,
+    inv_h: float_t,
+    use_bias: int,
+    bias_rate: float_t,
+    mass_scale: float_t,
+    impulse_scale: float_t,
+    static_bias_rate: float_t,
+    static_mass_scale: float_t,
+    static_impulse_scale: float_t,
+    max_push: float_t,
+    slop: float_t,
+    static: bool,
+):
+    """(bias, mass scale, impulse scale) of a normal row for this pass.
+
+    The current separation, linearised in the motion since the step began:
+    s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a)). Speculative (s > 0) lets
+    the gap close in one substep; overlap beyond the slop is pushed out softly (bias) and only in
+    the biased pass; against a static body twice as stiff (it carries the whole pile).
+    """
+    s = s0 + wp.dot(n, dxb + wp.cross(dthb, rb) - dxa - wp.cross(dtha, ra))
+    bias = float_t(0.0)
+    ms = float_t(1.0)
+    isc = float_t(0.0)
+    if s > float_t(0.0):
+        bias = s * inv_h
+    elif use_bias != 0 and s < -slop:
+        bias = wp.max(bias_rate * (s + slop), -max_push)
+        ms = mass_scale
+        isc = impulse_scale
+        if static:
+            bias = wp.max(static_bias_rate * (s + slop), -max_push)
+            ms = static_mass_scale
+            isc = static_impulse_scale
+    return bias, ms, isc
+
+
+@wp.func
+def _normal_row(
+    k: int,
+    c_normal: wp.array(dtype=vec3),
+    c_r_a: wp.array(dtype=vec3),
+    c_r_b: wp.array(dtype=vec3),
+    c_ang_a_n: wp.array(dtype=vec3),
+    c_ang_b_n: wp.array(dtype=vec3),
+    c_mass_n: wp.array(dtype=float_t),
+    bias: float_t,
+    ms: float_t,
+    isc: float_t,
+    relax: float_t,
+    c_jn: wp.array(dtype=float_t),
+    c_jn_max: wp.array(dtype=float_t),
+    va: vec3,
+    wa: vec3,
+    vb: vec3,
+    wb: vec3,
+    ima: float_t,
+    imb: float_t,
+    dv: Delta,
+):
+    """The normal row of contact k, the soft step dj = -m_n ms (v_n + bias) - isc j, clamped to j >= 0.
+
+    Its fixed point is v_n + bias + (isc / ms) j / m_n = 0, so sweeping it again solves the same soft row.
+    """
+    n = c_normal[k]
+    vn = wp.dot(vb + dv.vb - va - dv.va, n) + wp.dot(wb + dv.wb, wp.cross(c_r_b[k], n))
+    vn = vn - wp.dot(wa + dv.wa, wp.cross(c_r_a[k], n))
+    jn_old = c_jn[k]
+    mn = c_mass_n[k]
+    jn = wp.max(jn_old + (-mn * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
+    c_jn[k] = jn
+    c_jn_max[k] = wp.max(c_jn_max[k], jn)
+    dj = jn - jn_old
+    out = Delta()
+    out.va = dv.va - n * (dj * ima)
+    out.vb = dv.vb + n * (dj * imb)
+    out.wa = dv.wa - c_ang_a_n[k] * dj
+    out.wb = dv.wb + c_ang_b_n[k] * dj
+    return out
 
 
 @wp.kernel
@@ -424,9 +704,17 @@ def _solve(
     c_mass_t2: wp.array(dtype=float_t),
     c_friction: wp.array(dtype=float_t),
     c_scale: wp.array(dtype=float_t),
+    c_manifold: wp.array(dtype=wp.int32),
+    c_centre_a: wp.array(dtype=vec3),
+    c_centre_b: wp.array(dtype=vec3),
+    c_ang_a_twist: wp.array(dtype=vec3),
+    c_ang_b_twist: wp.array(dtype=vec3),
+    c_mass_twist: wp.array(dtype=float_t),
+    c_twist_arm: wp.array(dtype=float_t),
     c_jn: wp.array(dtype=float_t),
     c_jt1: wp.array(dtype=float_t),
     c_jt2: wp.array(dtype=float_t),
+    c_jtw: wp.array(dtype=float_t),
     c_jn_max: wp.array(dtype=float_t),
     # bodies
     b_v: wp.array(dtype=vec3),
@@ -453,94 +741,123 @@ def _solve(
     k = wp.tid()
     if k >= counts[0]:
         return  # launched over the capacity, the count on the device: the recorded launch survives a new count
+    rows = c_manifold[k]
+    if rows == 0:
+        return  # solved with the first row of its manifold
     ia = c_body_a[k]
     ib = c_body_b[k]
-    n = c_normal[k]
-    ra = c_r_a[k]
-    rb = c_r_b[k]
-    relax = c_scale[k]
     ima = b_inv_mass[ia]
     imb = b_inv_mass[ib]
-    # the two bodies' velocity changes from this contact, accumulated locally, stored once
-    dva = vec3()
-    dwa = vec3()
-    dvb = vec3()
-    dwb = vec3()
+    # the two bodies' velocities and this manifold's changes to them, accumulated locally, stored once
     va = b_v[ia]
     wa = b_w[ia]
     vb = b_v[ib]
     wb = b_w[ib]
+    dv = Delta()
+    static = ima == float_t(0.0) or imb == float_t(0.0)
 
-    # friction first: Coulomb, |jt| <= mu jn, clamped on the disc
-    t1 = c_t1[k]
-    t2 = c_t2[k]
-    dv = vb - va
-    j1_old = c_jt1[k]
-    j2_old = c_jt2[k]
-    vt1 = wp.dot(dv, t1) + wp.dot(wb, wp.cross(rb, t1)) - wp.dot(wa, wp.cross(ra, t1))
-    vt2 = wp.dot(dv, t2) + wp.dot(wb, wp.cross(rb, t2)) - wp.dot(wa, wp.cross(ra, t2))
-    j1 = j1_old - c_mass_t1[k] * vt1 * relax
-    j2 = j2_old - c_mass_t2[k] * vt2 * relax
-    limit = c_friction[k] * c_jn[k]
-    norm = wp.sqrt(j1 * j1 + j2 * j2)
-    if norm > limit:
-        f = limit / norm
-        j1 = j1 * f
-        j2 = j2 * f
-    c_jt1[k] = j1
-    c_jt2[k] = j2
-    d1 = j1 - j1_old
-    d2 = j2 - j2_old
-    P = t1 * d1 + t2 * d2
-    dva = dva - P * ima
-    dvb = dvb + P * imb
-    dwa = dwa - c_ang_a_t1[k] * d1 - c_ang_a_t2[k] * d2
-    dwb = dwb + c_ang_b_t1[k] * d1 + c_ang_b_t2[k] * d2
-
-    # current separation, linearised in the motion since the step began:
-    # s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a))
-    s = c_separation[k] + wp.dot(n, b_dx[ib] + wp.cross(b_dtheta[ib], rb) - b_dx[ia] - wp.cross(b_dtheta[ia], ra))
-
-    # normal: speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is
-    # pushed out softly (bias) and only in the biased pass
-    bias = float_t(0.0)
-    ms = float_t(1.0)
-    isc = float_t(0.0)
-    if s > float_t(0.0):
-        bias = s * inv_h
-    elif use_bias != 0 and s < -slop:
-        bias = wp.max(bias_rate * (s + slop), -max_push)
-        ms = mass_scale
-        isc = impulse_scale
-        if ima == float_t(0.0) or imb == float_t(0.0):
-            # against a static body: twice as stiff (it carries the whole pile)
-            bias = wp.max(static_bias_rate * (s + slop), -max_push)
-            ms = static_mass_scale
-            isc = static_impulse_scale
-    vn = wp.dot(vb + dvb - va - dva, n) + wp.dot(wb + dwb, wp.cross(rb, n)) - wp.dot(wa + dwa, wp.cross(ra, n))
-    jn_old = c_jn[k]
-    jn = wp.max(jn_old + (-c_mass_n[k] * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
-    c_jn[k] = jn
-    c_jn_max[k] = wp.max(c_jn_max[k], jn)
-    dj = jn - jn_old
-    dva = dva - n * (dj * ima)
-    dvb = dvb + n * (dj * imb)
-    dwa = dwa - c_ang_a_n[k] * dj
-    dwb = dwb + c_ang_b_n[k] * dj
+    if rows == 1:
+        # a lone contact: its friction row, then its normal row (non-penetration matters more)
+        dv = _friction_row(
+            k, c_r_a[k], c_r_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2, c_mass_t1, c_mass_t2,
+            c_friction[k] * c_jn[k], c_scale[k], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+        )  # fmt: skip
+        bias, ms, isc = _normal_target(
+            c_separation[k], c_normal[k], c_r_a[k], c_r_b[k], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
+            inv_h, use_bias, bias_rate, mass_scale, impulse_scale, static_bias_rate, static_mass_scale,
+            static_impulse_scale, max_push, slop, static,
+        )  # fmt: skip
+        dv = _normal_row(
+            k, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias, ms, isc, c_scale[k], c_jn, c_jn_max,
+            va, wa, vb, wb, ima, imb, dv,
+        )  # fmt: skip
+    else:
+        # each normal row's target, fixed for the pass
+        bias4 = vec4()
+        ms4 = vec4()
+        isc4 = vec4()
+        for i in range(rows):
+            kk = k + i
+            bias, ms, isc = _normal_target(
+                c_separation[kk], c_normal[kk], c_r_a[kk], c_r_b[kk], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
+                inv_h, use_bias, bias_rate, mass_scale, impulse_scale, static_bias_rate, static_mass_scale,
+                static_impulse_scale, max_push, slop, static,
+            )  # fmt: skip
+            bias4[i] = bias
+            ms4[i] = ms
+            isc4[i] = isc
+        # The rows of a manifold share the body pair, so they are coupled (a corner's impulse also
+        # moves the others) and the normal rows are rank-deficient (four coplanar corners, three
+        # degrees of freedom): one sweep leaves each corner a different impulse and the body
+        # rocking (after a fast flat landing, a quarter of the impact speed at the corners), and
+        # friction bounded by those impulses, corner after corner, turns it into spin. So the
+        # manifold's rows are swept MANIFOLD_SWEEPS times, forward and backward in turn: projected
+        # Gauss-Seidel on the manifold's own block, whose velocities converge whatever the order
+        # of the corners. Always that many (no early exit): a stop at a tolerance would leave a
+        # resting stack a remainder of that size every substep, after each gravity kick, which
+        # kept it rocking (2.5e-4 rad/s at 1e-5 m/s); a fixed count maps the state smoothly, and
+        # the remainder shrinks from pass to pass. A patch (rows sharing the
+        # normal) has its friction at its centre, on the disc |jt| <= mu sum_i jn_i, and a twist
+        # row about n, |j_twist| <= mu sum_i jn_i arm_i, so no order of corners enters it either.
+        patch = c_mass_twist[k] > float_t(0.0)
+        mu = c_friction[k]
+        for sweep in range(MANIFOLD_SWEEPS):
+            if patch:
+                load = float_t(0.0)
+                torque = float_t(0.0)
+                for i in range(rows):
+                    load += c_jn[k + i]
+                    torque += c_jn[k + i] * c_twist_arm[k + i]
+                dv = _friction_row(
+                    k, c_centre_a[k], c_centre_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
+                    c_mass_t1, c_mass_t2, mu * load, c_scale[k], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+                )  # fmt: skip
+                n = c_normal[k]
+                jw_old = c_jtw[k]
+                wn = wp.dot(wb + dv.wb - wa - dv.wa, n)
+                jw = wp.clamp(jw_old - c_mass_twist[k] * wn * c_scale[k], -mu * torque, mu * torque)
+                c_jtw[k] = jw
+                dw = jw - jw_old
+                dv.wa = dv.wa - c_ang_a_twist[k] * dw
+                dv.wb = dv.wb + c_ang_b_twist[k] * dw
+            for r in range(rows):
+                i = r
+                if sweep % 2 == 1:
+                    i = rows - 1 - r
+                kk = k + i
+                if not patch:
+                    dv = _friction_row(
+                        kk, c_r_a[kk], c_r_b[kk], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
+                        c_mass_t1, c_mass_t2, mu * c_jn[kk], c_scale[kk], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+                    )  # fmt: skip
+                dv = _normal_row(
+                    kk, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias4[i], ms4[i], isc4[i], c_scale[kk],
+                    c_jn, c_jn_max, va, wa, vb, wb, ima, imb, dv,
+                )  # fmt: skip
+    dva = dv.va
+    dwa = dv.wa
+    dvb = dv.vb
+    dwb = dv.wb
     _add_pair(b_v, b_w, b_inv_mass, ia, ib, dva, dwa, dvb, dwb, serial)
     if use_bias == 0:
         # relax: these impulses are final for this substep, and the next substep starts from them
         # (warm start), so sum their velocity changes per body now instead of in another pass
-        j1 = c_jt1[k]
-        j2 = c_jt2[k]
-        P = n * jn + t1 * j1 + t2 * j2
-        wa_ = c_ang_a_n[k] * jn + c_ang_a_t1[k] * j1 + c_ang_a_t2[k] * j2
-        wb_ = c_ang_b_n[k] * jn + c_ang_b_t1[k] * j1 + c_ang_b_t2[k] * j2
+        P = vec3()
+        wa_ = vec3()
+        wb_ = vec3()
+        for i in range(rows):
+            kk = k + i
+            jn = c_jn[kk]
+            j1 = c_jt1[kk]
+            j2 = c_jt2[kk]
+            P = P + c_normal[kk] * jn + c_t1[kk] * j1 + c_t2[kk] * j2
+            wa_ = wa_ + c_ang_a_n[kk] * jn + c_ang_a_t1[kk] * j1 + c_ang_a_t2[kk] * j2 + c_ang_a_twist[kk] * c_jtw[kk]
+            wb_ = wb_ + c_ang_b_n[kk] * jn + c_ang_b_t1[kk] * j1 + c_ang_b_t2[kk] * j2 + c_ang_b_twist[kk] * c_jtw[kk]
         _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
 @wp.func
-def _impact(
+def _rebound(
     k: int,
     c: Contacts,
     b: Bodies,
@@ -549,21 +866,16 @@ def _impact(
     threshold: float_t,
     floor: float_t,
     ahead: int,
-    serial: int,
 ):
-    """Collide contact k now if it closes within the substep faster than `threshold` [m/s].
+    """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
+    substep faster than `threshold` [m/s]; else -1 (no collision).
 
-    One two-body collision: the normal impulse j = m_n (u - v_n) turns the approach speed v_n
-    into the separating speed u, then a Coulomb friction impulse of at most mu j along the
-    sliding direction. Each impulse is applied alone along one direction d with at most the
-    impulse that would stop the motion along d twice (restitution e <= 1), so it cannot add
-    kinetic energy: dKE = j v_d + j^2 / (2 m_d) <= 0 for 0 <= j <= -2 m_d v_d.
     `ahead`: the velocities are those of the next substep but for its gravity kick (the pass
     before the relax, whose speculative clamp would otherwise land the contact inelastically).
     """
     e = c.restitution[k]
     if e == float_t(0.0):
-        return 0
+        return float_t(-1.0)
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
@@ -571,7 +883,7 @@ def _impact(
     rb = c.r_b[k]
     vn = _speed_along(b, ia, ib, ra, rb, n)
     if vn >= float_t(0.0):
-        return 0
+        return float_t(-1.0)
     # relative acceleration along n from gravity on the dynamic bodies (< 0: closing)
     ga = float_t(0.0)
     gb = float_t(0.0)
@@ -594,11 +906,11 @@ def _impact(
     # (resting contacts under load; the factor 2 is far beyond any rounding)
     gap = -(vn + float_t(ahead) * gn * h) * h
     if vp * vp - float_t(2.0) * gn * gap + gn * h * vp < float_t(0.5) * limit * limit:
-        return 0
+        return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
     s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
     if s + (vn + float_t(ahead) * gn * h) * h > float_t(0.0):
-        return 0  # still apart at the end of the substep: a later pass collides it
+        return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
     # acceleration g_n (v' = v + g_n h, then s' = s + v' h) keeps E = v^2 / 2 - g_n s + g_n h v / 2
     # exactly (not v^2 / 2 - g_n s), taken over (s, v) at the end of a substep. A contact at gap
@@ -612,7 +924,7 @@ def _impact(
     eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * h * vp
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
     if vi2 <= limit * limit:
-        return 0
+        return float_t(-1.0)
     rhs = e * e * eb + gn * s
     u = float_t(0.0)
     if rhs > float_t(0.0):
@@ -620,39 +932,133 @@ def _impact(
         u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)) + kick
     u = wp.min(wp.max(u, float_t(0.0)), -vn)
     c.relative_velocity[k] = -wp.sqrt(vi2)
-    relax = c.scale[k]
+    return u
+
+
+@wp.func
+def _impact(
+    k: int,
+    rows: int,
+    c: Contacts,
+    b: Bodies,
+    gravity: vec3,
+    h: float_t,
+    threshold: float_t,
+    floor: float_t,
+    ahead: int,
+    serial: int,
+):
+    """Collide the rows of the manifold at k (`rows` contacts) that close within the substep
+    faster than `threshold` [m/s]; 1 if any did.
+
+    One collision of the two bodies at every such row at once: normal impulses j_i >= 0 that
+    turn each row's approach speed v_i into its separating speed u_i (`_rebound`), then at each
+    row a Coulomb friction impulse of at most mu j_i along its sliding direction. The rows
+    share the body pair, so their normal impulses are found together, by projected
+    Gauss-Seidel sweeps over them (forward and backward in turn) to MANIFOLD_TOLERANCE: a box
+    landing flat bounces flat. Each row is decided before any impulse, so j_i v_i < 0, and at
+    the solution K j = u - v on the rows that push, so the collision's energy change
+    j . v + j . K j / 2 = j . (u + v) / 2 <= 0 (u_i <= -v_i). Each friction impulse acts alone
+    along one direction d with at most the impulse that stops the motion along d, so it cannot
+    add kinetic energy either: dKE = j v_d + j^2 / (2 m_d) <= 0 for 0 <= j <= -2 m_d v_d.
+    """
+    u4 = vec4()
+    hits = int(0)
+    for i in range(rows):
+        u4[i] = _rebound(k + i, c, b, gravity, h, threshold, floor, ahead)
+        if u4[i] >= float_t(0.0):
+            hits += 1
+    if hits == 0:
+        return 0
+    ia = c.body_a[k]
+    ib = c.body_b[k]
     ima = b.inv_mass[ia]
     imb = b.inv_mass[ib]
     # normal: v_n -> u, j = m_n (u - v_n), 1 / m_n = 1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + ...,
     # with the inertia at the current orientations (a fast-spinning box turns far in a step; with
-    # the step start's, the impulse would not keep the energy exactly)
+    # the step start's, the impulse would not keep the energy exactly); a lone row is exact in one sweep
     qa = b.q[ia]
     qb = b.q[ib]
-    ca = wp.cross(ra, n)
-    cb = wp.cross(rb, n)
-    dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
-    dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
-    j = (u - vn) / (ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)) * relax
-    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -n * (j * ima), -dwa * j, n * (j * imb), dwb * j, serial)
+    j4 = vec4()
+    sweep = int(0)
+    moving = int(1)
+    while moving != 0 and sweep < IMPACT_SWEEPS:
+        moving = int(0)
+        for r in range(rows):
+            i = r
+            if sweep % 2 == 1:
+                i = rows - 1 - r
+            if u4[i] >= float_t(0.0):
+                kk = k + i
+                n = c.normal[kk]
+                ra = c.r_a[kk]
+                rb = c.r_b[kk]
+                vn = _speed_along(b, ia, ib, ra, rb, n)
+                ca = wp.cross(ra, n)
+                cb = wp.cross(rb, n)
+                dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
+                dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
+                kn = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
+                j_old = j4[i]
+                j = wp.max(j_old + (u4[i] - vn) / kn * c.scale[kk], float_t(0.0))
+                dj = j - j_old
+                j4[i] = j
+                _add_pair(b.v, b.w, b.inv_mass, ia, ib, -n * (dj * ima), -dwa * dj, n * (dj * imb), dwb * dj, serial)
+                if wp.abs(dj) * kn > MANIFOLD_TOLERANCE:
+                    moving = int(1)
+        sweep += 1
+        if hits == 1:
+            moving = int(0)
     # friction: along the sliding velocity d = -v_t / |v_t|, at most mu j and at most the
-    # impulse m_d |v_t| that stops the sliding, 1 / m_d = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...
-    t1 = c.t1[k]
-    t2 = c.t2[k]
-    v1 = _speed_along(b, ia, ib, ra, rb, t1)
-    v2 = _speed_along(b, ia, ib, ra, rb, t2)
-    vt = wp.sqrt(v1 * v1 + v2 * v2)
-    if vt == float_t(0.0) or c.friction[k] == float_t(0.0):
-        return 1
-    a1 = -v1 / vt
-    a2 = -v2 / vt
-    d = t1 * a1 + t2 * a2
-    ca = wp.cross(ra, d)
-    cb = wp.cross(rb, d)
-    dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
-    dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
-    k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
-    jt = wp.min(vt / k_d, c.friction[k] * j / relax) * relax
-    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -d * (jt * ima), -dwa * jt, d * (jt * imb), dwb * jt, serial)
+    # impulse m_d |v_t| that stops the sliding, 1 / m_d = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...;
+    # a patch's at its centre (j = sum_i j_i), then its twist about n, at most mu sum_i j_i arm_i
+    # and at most the impulse that stops the relative spin about n
+    patch = c.mass_twist[k] > float_t(0.0)
+    load = float_t(0.0)
+    torque = float_t(0.0)
+    for i in range(rows):
+        load += j4[i]
+        torque += j4[i] * c.twist_arm[k + i]
+    for i in range(rows):
+        kk = k + i
+        j = j4[i]
+        ra = c.r_a[kk]
+        rb = c.r_b[kk]
+        if patch:
+            j = float_t(0.0)
+            if i == 0:
+                j = load
+                ra = c.centre_a[k]
+                rb = c.centre_b[k]
+        if j > float_t(0.0) and c.friction[kk] > float_t(0.0):
+            relax = c.scale[kk]
+            t1 = c.t1[kk]
+            t2 = c.t2[kk]
+            v1 = _speed_along(b, ia, ib, ra, rb, t1)
+            v2 = _speed_along(b, ia, ib, ra, rb, t2)
+            vt = wp.sqrt(v1 * v1 + v2 * v2)
+            if vt > float_t(0.0):
+                a1 = -v1 / vt
+                a2 = -v2 / vt
+                d = t1 * a1 + t2 * a2
+                ca = wp.cross(ra, d)
+                cb = wp.cross(rb, d)
+                dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
+                dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
+                k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
+                jt = wp.min(vt / k_d, c.friction[kk] * j / relax) * relax
+                _add_pair(b.v, b.w, b.inv_mass, ia, ib, -d * (jt * ima), -dwa * jt, d * (jt * imb), dwb * jt, serial)
+    if patch and torque > float_t(0.0) and c.friction[k] > float_t(0.0):
+        n = c.normal[k]
+        wn = wp.dot(b.w[ib] - b.w[ia], n)
+        if wn != float_t(0.0):
+            d = -n * wp.sign(wn)
+            dwa = inv_inertia_times(qa, b.inv_inertia[ia], d)
+            dwb = inv_inertia_times(qb, b.inv_inertia[ib], d)
+            k_w = wp.dot(d, dwa) + wp.dot(d, dwb)
+            relax = c.scale[k]
+            jw = wp.min(wp.abs(wn) / k_w, c.friction[k] * torque / relax) * relax
+            _add_pair(b.v, b.w, b.inv_mass, ia, ib, vec3(), -dwa * jw, vec3(), dwb * jw, serial)
     return 1
 
 
@@ -689,6 +1095,9 @@ def _impacts_serial(
             k = i
             if sweep % 2 == 1:
                 k = count - 1 - i
+            rows = c.manifold[k]
+            if rows == 0:
+                continue  # collided with the first row of its manifold
             ia = c.body_a[k]
             ib = c.body_b[k]
             if sweep > 0:
@@ -697,7 +1106,7 @@ def _impacts_serial(
                     continue
             t = t + one
             tested[k] = t
-            hit = _impact(k, c, b, gravity, h, threshold, floor, ahead, 1)
+            hit = _impact(k, rows, c, b, gravity, h, threshold, floor, ahead, 1)
             if hit > 0:
                 t = t + one
                 if b.inv_mass[ia] > float_t(0.0):
@@ -725,7 +1134,8 @@ def _impacts_parallel(
 ):
     k = wp.tid()
     if k < counts[0]:
-        _impact(k, c, b, gravity, h, threshold, floor, ahead, 0)
+        if c.manifold[k] > 0:
+            _impact(k, c.manifold[k], c, b, gravity, h, threshold, floor, ahead, 0)
 
 
 # ---------------------------------------------------------------------------- host side
@@ -791,6 +1201,10 @@ class ContactSet(ArraySet):
         c.mass_n, c.mass_t1, c.mass_t2 = a["contact_mass_n"], a["contact_mass_t1"], a["contact_mass_t2"]
         c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
         c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
+        c.manifold = a["contact_manifold"]
+        c.centre_a, c.centre_b = a["contact_centre_a"], a["contact_centre_b"]
+        c.ang_a_twist, c.ang_b_twist = a["contact_angular_a_twist"], a["contact_angular_b_twist"]
+        c.mass_twist, c.twist_arm, c.jtw = a["contact_mass_twist"], a["contact_twist_arm"], a["contact_impulse_twist"]
         c.jn, c.jt1, c.jt2, c.jn_max = (
             a["contact_impulse_n"],
             a["contact_impulse_t1"],
@@ -1059,9 +1473,17 @@ _SOLVE_CONTACT_ARRAYS = (
     "contact_mass_t2",
     "contact_friction",
     "contact_scale",
+    "contact_manifold",
+    "contact_centre_a",
+    "contact_centre_b",
+    "contact_angular_a_twist",
+    "contact_angular_b_twist",
+    "contact_mass_twist",
+    "contact_twist_arm",
     "contact_impulse_n",
     "contact_impulse_t1",
     "contact_impulse_t2",
+    "contact_impulse_twist",
     "contact_max_impulse_n",
 )
 _SOLVE_BODY_ARRAYS = (
