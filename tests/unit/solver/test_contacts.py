@@ -69,11 +69,26 @@ def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
     n = contacts.numpy("contact_normal")
     r_b = contacts.numpy("contact_r_b")
     np.testing.assert_allclose(r_b, contacts.numpy("contact_local_b") @ R.T, atol=1e-12)  # anchors in the world frame
-    for name, d in (("n", n), ("t1", contacts.numpy("contact_tangent1")), ("t2", contacts.numpy("contact_tangent2"))):
-        c = np.cross(r_b, d)
-        expected = 1.0 / (1.0 / mass + np.einsum("ki,ij,kj->k", c, inv_i_world, c))
+    # the contacts share the normal, so they are one patch: its friction rows sit on its first row,
+    # anchored at the patch centre (the mean anchor), the other rows have none (solver/contacts.py)
+    centre = np.zeros_like(r_b)
+    centre[0] = r_b.mean(axis=0)
+    np.testing.assert_allclose(contacts.numpy("contact_centre_b")[0], centre[0], atol=1e-12)
+    first = (np.arange(k) == 0).astype(float)
+    for name, d, at, on in (
+        ("n", n, r_b, np.ones(k)),
+        ("t1", contacts.numpy("contact_tangent1"), centre, first),
+        ("t2", contacts.numpy("contact_tangent2"), centre, first),
+    ):
+        c = np.cross(at, d)
+        expected = 1.0 / (1.0 / mass + np.einsum("ki,ij,kj->k", c, inv_i_world, c)) * on
         np.testing.assert_allclose(contacts.numpy(f"contact_mass_{name}"), expected, rtol=1e-12)
-        np.testing.assert_allclose(contacts.numpy(f"contact_angular_b_{name}"), c @ inv_i_world.T, atol=1e-12)
+        np.testing.assert_allclose(
+            contacts.numpy(f"contact_angular_b_{name}"), (c @ inv_i_world.T) * on[:, None], atol=1e-12
+        )
+    # and its twist row about n: effective mass 1 / (n . I^-1 n)
+    twist = 1.0 / np.einsum("i,ij,j->", n[0], inv_i_world, n[0])
+    np.testing.assert_allclose(contacts.numpy("contact_mass_twist"), twist * first, rtol=1e-12)
     # the tangents complete the normal to a right-handed orthonormal basis
     t1, t2 = contacts.numpy("contact_tangent1"), contacts.numpy("contact_tangent2")
     np.testing.assert_allclose(np.einsum("ki,ki->k", t1, n), 0.0, atol=1e-12)
