@@ -24,7 +24,7 @@ result does not depend on the order of the corners. Normal rows cannot turn a bo
 the total load, so what is left of the order of the corners is rounding (1e-16 relative): the
 bounds are ROUNDING, a billionth of the speeds and rates in play (10 m/s, and 10 m/s over the
 half extent), far above double rounding, far below anything seen. One figure is not rounding:
-the 4 sweeps a pass leave a remainder of the corners' normal rows, which rocks the box a little
+the 4 sweeps a pass after an impact leave a remainder of the corners' normal rows, which rocks the box a little
 about x and y while it slaps down: two such rocks compose into a turn about z (their product),
 and while it rocks on an edge the box walks along it. A tilted landing at 10 m/s ends turned up
 to 1.3e-5 rad (TURN bounds it) and shifted up to 2.9 mm along the edge (SHIFT, H / 4); five

@@ -16,8 +16,8 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
 - a manifold (a pair's consecutive contacts, up to `MANIFOLD_ROWS`: a face's corners) is solved
-  as one block: its rows are swept `MANIFOLD_SWEEPS` times, forward and backward in turn (the
-  collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
+  as one block: after an impact (`MANIFOLD_IMPACT`) its rows are swept `MANIFOLD_SWEEPS` times,
+  forward and backward in turn (the collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
   corners, three degrees of freedom) and one sweep leaves each corner a different impulse;
   a patch (a manifold whose rows share the normal) takes its friction at its centre, on the
   disc |jt| <= mu sum jn, with a twist row about n, |j_twist| <= mu sum jn_i arm_i, so that no
@@ -414,8 +414,11 @@ def _prepare(
         fa = fa / float_t(rows)
         fb = fb / float_t(rows)
     if patch == 0:
+        # rows with differing normals (a box or hull on a mesh, a capsule) are not coupled by a
+        # shared face: each is its own manifold of one row, as a lone contact
         fa = ra
         fb = rb
+        c.manifold[k] = int(1)
     # twist arm: the point's distance from the patch centre across n (the twist row's limit is
     # mu sum_i jn_i arm_i, the most torque the points' friction can give)
     arm = ra - fa
