@@ -15,7 +15,7 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   push-out velocity again, so penetration recovery adds no kinetic energy -- the role split
   impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
-- a manifold (a pair's consecutive contacts, up to `MANIFOLD_ROWS`: a face's corners) is solved
+- a manifold (a pair's consecutive contacts sharing one normal, up to `MANIFOLD_ROWS`: a face's corners) is solved
   as one block: after an impact (`MANIFOLD_IMPACT`) its rows are swept `MANIFOLD_SWEEPS` times,
   forward and backward in turn (the collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
   corners, three degrees of freedom) and one sweep leaves each corner a different impulse;
