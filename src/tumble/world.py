@@ -1306,7 +1306,7 @@ class World:
 
         # emit: emitters release bodies where they overlap nothing
         with self._timer("emit"):
-            self.emit(dt)
+            self._emit(dt)
 
         # layout: now and then, renumber body rows so that neighbours in space share cache lines
         with self._timer("layout"):
@@ -1476,7 +1476,10 @@ class World:
         Returns:
             The number of bodies released.
         """
-        dt = self.dt if dt is None else validate.positive(dt, "dt")
+        return self._emit(self.dt if dt is None else validate.positive(dt, "dt"))
+
+    def _emit(self, dt: float) -> int:
+        """The emit stage for a `dt` already checked (`step` has; `emit` checks it)."""
         count = 0
         for emitter in self.emitters:
             released = emitter.release(self.bodies, dt)
