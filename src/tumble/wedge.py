@@ -348,7 +348,7 @@ def scene_text(doc: Mapping, header: str = "") -> str:
 
 def apply_value(doc: dict, key: KeyPath, value) -> None:
     """Set `value` at `key` in the scene document `doc` (in place; a missing single table is added)."""
-    from .io.scene import SCHEMA, _copy
+    from .io.scene import SCHEMA, copy_default
 
     spec = SCHEMA[key.table]
     if spec.array:
@@ -360,7 +360,7 @@ def apply_value(doc: dict, key: KeyPath, value) -> None:
         if key.component is None:
             row[key.key] = value
             continue
-        current = row.get(key.key, _copy(spec.fields[key.key].default))
+        current = row.get(key.key, copy_default(spec.fields[key.key].default))
         if not isinstance(current, list) or key.component >= len(current):
             size = len(current) if isinstance(current, list) else 0
             raise WedgeError(f"key path {key.label!r}: {key.key} has {size} component{'' if size == 1 else 's'}")

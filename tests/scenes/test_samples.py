@@ -60,30 +60,6 @@ def test_sample_runs_and_passes_its_check(path):
     assert np.isfinite(world.kinetic_energy())
 
 
-def test_check_world_reports_a_body_behind_a_plane(write_scene):
-    """Fail the generic check when a body centre is behind a plane or too far away."""
-    world = tumble.load_scene(
-        write_scene(
-            "[[plane]]\n[[sphere]]\nposition = [0, 0, -0.5]\nradius = 0.1\n"
-            "[[sphere]]\nposition = [500, 0, 1]\nradius = 0.1\n"
-        )
-    )
-    failures = check_world(world)
-    assert any("behind plane 0" in f for f in failures)
-    assert any("max_extent" in f for f in failures)
-
-
-def test_check_world_applies_the_sample_limits(write_scene):
-    """Fail min_z and max_speed limits given in [check]."""
-    world = tumble.load_scene(
-        write_scene(
-            "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\nvelocity = [3, 0, 0]\n[check]\nmin_z = 2\nmax_speed = 1\n"
-        )
-    )
-    failures = check_world(world)
-    assert any("min_z" in f for f in failures) and any("max_speed" in f for f in failures)
-
-
 def test_cloth_statue_drapes_over_the_knoll():
     """The cloth lands on the mesh knoll (top at z = 0.461 m) and stays on it: its highest particle rests
     on the top, one thickness (1 cm) above it at most, rather than falling through to the ground or being

@@ -1,0 +1,182 @@
+"""Building a `World` from a checked `Scene`: every table's values passed to the World API.
+
+Bodies are made in `schema.BODY_TABLES` order, each table in file order; then emitters, cloths
+(with the bodies their pins follow), the wind and the joints. An error of the World API becomes
+a `SceneError` naming the file and the table.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, TypedDict, Unpack
+
+import numpy as np
+
+from ...errors import SceneError
+from .checks import is_number
+from .parse import Scene, parse_table, read_scene, table_label
+from .schema import SCHEMA
+
+if TYPE_CHECKING:
+    from ...state import BodyId
+    from ...world import World
+
+# ---------------------------------------------------------------------------------------- building
+
+
+class WorldOverrides(TypedDict, total=False):
+    """World settings that replace a scene file's [world] values (`load_scene`); None keeps the file's."""
+
+    gravity: Sequence[float] | None
+    dt: float | None
+    substeps: int | None
+    seed: int | None
+    restitution_threshold: float | None
+    device: str | None
+
+
+WORLD_OVERRIDES = tuple(WorldOverrides.__annotations__)
+
+
+def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
+    """Make a `World` from a validated `Scene`.
+
+    Args:
+        scene: from `parse_scene` / `read_scene`.
+        **overrides: World settings replacing the file's [world] values
+            (gravity, dt, substeps, seed, restitution_threshold, device).
+
+    Raises:
+        SceneError: when the World API rejects a value (named by table).
+    """
+    from ...world import World
+
+    unknown = set(overrides) - set(WORLD_OVERRIDES)
+    if unknown:
+        raise TypeError(f"unknown override(s) {', '.join(sorted(unknown))}; expected {', '.join(WORLD_OVERRIDES)}")
+    path = scene.path
+    settings = dict(scene.table("world") or parse_table(SCHEMA["world"], {}, path, None))
+    settings.update({k: v for k, v in overrides.items() if v is not None})
+
+    with _api_errors(path, "world"):
+        world = World(**settings)
+    world.metadata["path"] = path
+    world.metadata["overrides"] = {k: v for k, v in overrides.items() if v is not None}
+    world.metadata["scene"] = scene
+    world.metadata["check"] = scene.table("check") or parse_table(SCHEMA["check"], {}, path, None)
+    if (camera := scene.table("camera")) is not None:
+        world.metadata["camera"] = dict(camera)
+
+    # bodies: planes, spheres, boxes, capsules, convex bodies, meshes, each in file order
+    made: dict[str, list[BodyId]] = {}
+    for name, add in (
+        ("plane", world.add_plane),
+        ("sphere", world.add_sphere),
+        ("box", world.add_box),
+        ("capsule", world.add_capsule),
+        ("convex", world.add_convex),
+        ("mesh", world.add_mesh),
+    ):
+        made[name] = []
+        for i, values in enumerate(scene.items(name)):
+            values = dict(values)
+            if values.get("file") is not None and path is not None:
+                values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+            if values.get("points") is not None:
+                values["points"] = np.asarray(values["points"], dtype=np.float64)
+            with _api_errors(path, table_label(name, i)):
+                made[name].append(add(**_given(values)))
+    for i, values in enumerate(scene.items("emitter")):
+        values = dict(values)
+        if values.get("file") is not None and path is not None:
+            values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+        if values.get("points") is not None:
+            values["points"] = np.asarray(values["points"], dtype=np.float64)
+        with _api_errors(path, table_label("emitter", i)):
+            world.add_emitter(**_given(values))
+    for i, values in enumerate(scene.items("cloth")):
+        label = table_label("cloth", i)
+        args = _given(values)
+        pin_body = args.pop("pin_body", None)
+        with _api_errors(path, label):
+            cloth = world.cloth.cloths[world.add_cloth(**args)]
+        if pin_body is not None:
+            body = _named_body(made, pin_body, path, label, "pin_body")
+            start = cloth.particle_start
+            pinned = start + np.nonzero(world.cloth.particle_inv_mass[start : start + cloth.nx * cloth.ny] == 0.0)[0]
+            with _api_errors(path, label):
+                world.cloth.pin_to_body(pinned, body)
+    if (wind := scene.table("wind")) is not None:
+        with _api_errors(path, "wind"):
+            world.set_wind(**wind)
+    for i, values in enumerate(scene.items("joint")):
+        _add_joint(world, made, values, path, table_label("joint", i))
+    return world
+
+
+def _named_body(made: dict, ref: str, path, label: str, key: str):
+    """The BodyId of "box[2]" among the bodies the file made, or a SceneError at `key`."""
+    name, index = ref[:-1].split("[")
+    if ref == "world" or int(index) >= len(made[name]):
+        have = "no world here" if ref == "world" else f"the file has {len(made[name])} [[{name}]]"
+        raise SceneError(f"no body {ref!r}: {have}", path=path, table=label, key=key)
+    return made[name][int(index)]
+
+
+def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
+    """One [[joint]]: body names to ids (checked against the file's bodies), hinge degrees to radians."""
+    from ...solver.joints import JointArgumentError
+
+    args = _given(values)
+    ends: list[BodyId | None] = []
+    for key in ("body_a", "body_b"):
+        ref = args.pop(key)
+        if ref == "world":
+            ends.append(None)
+            continue
+        ends.append(_named_body(made, ref, path, label, key))
+    if args["kind"] == "hinge":
+        for key in ("lower", "upper", "motor_speed"):
+            if key in args:
+                args[key] = math.radians(args[key])
+    try:
+        world.add_joint(args.pop("kind"), *ends, **args)
+    except JointArgumentError as exc:
+        raise SceneError(exc.reason, path=path, table=label, key=exc.key) from None
+
+
+def load_scene(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> World:
+    """Read, validate and build a scene file into a `World` (see docs/scenes.md).
+
+    Args:
+        path: the .toml file, or the name of a bundled sample ("sphere_pile").
+        **overrides: World settings replacing the file's [world] values, e.g. seed=3, device="cuda".
+    """
+    return build_world(read_scene(path), **overrides)
+
+
+def _given(values: dict) -> dict:
+    """Keyword arguments for the World API: keys left to the engine (None) are not passed."""
+    return {
+        k: (tuple(v) if isinstance(v, list) and all(is_number(x) for x in v) else v)
+        for k, v in values.items()
+        if v is not None
+    }
+
+
+class _api_errors:
+    """Turn a ValueError/TypeError from the World API into a SceneError naming file and table."""
+
+    def __init__(self, path, table: str):
+        self.path, self.table = path, table
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if exc is not None and isinstance(exc, (ValueError, TypeError)) and not isinstance(exc, SceneError):
+            raise SceneError(str(exc), path=self.path, table=self.table) from exc
+        return False
