@@ -56,37 +56,6 @@ CLEARANCE = 1e-3
 HULL_SCALES = 16
 
 
-def _range(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) from a value or a [min, max] pair; vectors have `width` components."""
-    a = validate.array(
-        value,
-        name,
-        "a number or a [min, max] pair" if width is None else f"a {width}-vector or a pair of them [min, max]",
-    )
-    if width is None:
-        if a.shape == ():
-            lo = hi = a
-        elif a.shape == (2,):
-            lo, hi = a
-        else:
-            raise ValueError(f"{name} must be a number or a [min, max] pair, got {value!r}")
-    else:
-        if a.shape == (width,):
-            lo = hi = a
-        elif a.shape == (2, width):
-            lo, hi = a
-        elif a.shape == ():
-            lo = hi = np.full(width, float(a))
-        else:
-            raise ValueError(f"{name} must be a {width}-vector or a pair of them [min, max], got {value!r}")
-    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    if np.any(lo > hi):
-        raise ValueError(f"{name}: min must not exceed max, got {value!r}")
-    return lo, hi
-
-
 class Emitter:
     """Releases spheres, boxes, capsules and convex bodies at a rate, from a region, in a cone.
 
@@ -170,22 +139,19 @@ class Emitter:
         if ext is not None and (not np.all(np.isfinite(ext)) or np.any(ext < 0)):
             raise ValueError(f"extent must be finite and >= 0, got {extent!r}")
         self.extent = ext
-        d = validate.vector(direction, "direction")
-        if np.linalg.norm(d) < 1e-12:
-            raise ValueError(f"direction must be a non-zero finite 3-vector, got {direction!r}")
-        self.direction = d / np.linalg.norm(d)
+        self.direction = validate.direction(direction, "direction")
         self.cone_angle = validate.number(cone_angle, "cone_angle", low=0.0, high=180.0)
-        self.speed = _range(speed, "speed")
-        self.radius = _range(radius, "radius")
+        self.speed = validate.bounds(speed, "speed")
+        self.radius = validate.bounds(radius, "radius")
         h = validate.array(half_extents, "half_extents", "a number, a 3-vector or a [min, max] pair")
         if h.shape == (2,):  # random cubes: [min, max] of one half extent
             self.half_extents = (np.full(3, h[0]), np.full(3, h[1]))
             self._cubes = True
         else:
-            self.half_extents = _range(half_extents, "half_extents", 3)
+            self.half_extents = validate.bounds(half_extents, "half_extents", 3)
             self._cubes = h.shape == ()
-        self.half_height = _range(half_height, "half_height")
-        self.scale = _range(scale, "scale")
+        self.half_height = validate.bounds(half_height, "half_height")
+        self.scale = validate.bounds(scale, "scale")
         self.hull = None  # the convex prototype, at scale 1
         if ShapeType.CONVEX in self.shapes:
             self.hull = _emitted_hull(points, file)
@@ -194,8 +160,8 @@ class Emitter:
         self.hull_rows: np.ndarray | None = None  # rows in world.hulls of the scaled hulls (`add_hulls`)
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
-        self.mass = None if mass is None else _range(mass, "mass")
-        self.density = _range(1000.0 if density is None else density, "density")
+        self.mass = None if mass is None else validate.bounds(mass, "mass")
+        self.density = validate.bounds(1000.0 if density is None else density, "density")
         for name, (lo, _hi) in (
             ("speed", self.speed),
             ("radius", self.radius),
@@ -206,10 +172,10 @@ class Emitter:
         ) + ((("mass", self.mass),) if self.mass else ()):
             if np.any(lo < 0) or (name != "speed" and np.any(lo <= 0)):
                 raise ValueError(f"{name} must be > 0, got {lo!r}")
-        self.restitution = validate.number(restitution, "restitution", low=0.0, high=1.0)
-        self.friction = validate.number(friction, "friction", low=0.0)
+        self.restitution = validate.restitution(restitution)
+        self.friction = validate.friction(friction)
         self.random_orientation = validate.flag(random_orientation, "random_orientation")
-        self.angular_speed = _range(angular_speed, "angular_speed")
+        self.angular_speed = validate.bounds(angular_speed, "angular_speed")
         self.seed = None if seed is None else validate.integer(seed, "seed", low=0)
         self.world_key: int | None = None  # the World it was added to (`World.add_emitter`)
         self.emitted = 0

@@ -31,18 +31,52 @@ def show(value) -> str:
     return text if len(text) <= _SHOWN else text[: _SHOWN - 3] + "..."
 
 
+#: shortest vector taken as non-zero (a direction, an axis, a quaternion to normalise)
+ZERO_LENGTH = 1e-12
+
+
+def is_real(value) -> bool:
+    """True for a real number (int, float, a NumPy scalar or 0-d array); False for bools, strings and the rest."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    return isinstance(value, numbers.Real) or (
+        isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf"
+    )
+
+
+def within(
+    v: float, *, low: float | None = None, high: float | None = None, above: bool = False, below: bool = False
+) -> bool:
+    """True if v is finite and in [low, high]: (low, ... with `above`, ..., high) with `below`; None is no bound."""
+    return (
+        math.isfinite(v)
+        and (low is None or (v > low if above else v >= low))
+        and (high is None or (v < high if below else v <= high))
+    )
+
+
+def is_zero(v) -> bool:
+    """True if the vector `v` is shorter than `ZERO_LENGTH`: it has no direction."""
+    return bool(np.linalg.norm(v) < ZERO_LENGTH)
+
+
 def _real(value, name: str, what: str) -> float:
     """`value` as a float if it is a real number (not a bool, not a string), else TypeError."""
-    if isinstance(value, (bool, np.bool_)) or not (
-        isinstance(value, numbers.Real)
-        or (isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf")
-    ):
+    if not is_real(value):
         raise TypeError(f"{name} must be {what}, got {show(value)}")
     return float(value)
 
 
-def number(value, name: str, *, low: float | None = None, high: float | None = None, above: bool = False) -> float:
-    """A finite real number in [low, high] (or (low, high] with `above`)."""
+def number(
+    value,
+    name: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    above: bool = False,
+    below: bool = False,
+) -> float:
+    """A finite real number in [low, high]; (low, ... with `above`, ..., high) with `below`."""
     if low is None:
         what = "finite"
     elif above:
@@ -50,13 +84,9 @@ def number(value, name: str, *, low: float | None = None, high: float | None = N
     else:
         what = f"a number >= {low:g}"
     if high is not None:
-        what = f"in {'(' if above else '['}{low:g}, {high:g}]"
+        what = f"in {'(' if above else '['}{low:g}, {high:g}{')' if below else ']'}"
     v = _real(value, name, "a number")
-    if (
-        not math.isfinite(v)
-        or (low is not None and (v <= low if above else v < low))
-        or (high is not None and v > high)
-    ):
+    if not within(v, low=low, high=high, above=above, below=below):
         raise ValueError(f"{name} must be {what}, got {show(value)}")
     return v
 
@@ -64,6 +94,16 @@ def number(value, name: str, *, low: float | None = None, high: float | None = N
 def positive(value, name: str) -> float:
     """A finite number > 0."""
     return number(value, name, low=0.0, above=True)
+
+
+def restitution(value, name: str = "restitution") -> float:
+    """A coefficient of restitution, in [0, 1]."""
+    return number(value, name, low=0.0, high=1.0)
+
+
+def friction(value, name: str = "friction") -> float:
+    """A Coulomb friction coefficient, >= 0."""
+    return number(value, name, low=0.0)
 
 
 def integer(value, name: str, *, low: int | None = None) -> int:
@@ -76,6 +116,16 @@ def integer(value, name: str, *, low: int | None = None) -> int:
     if low is not None and i < low:
         raise ValueError(f"{name} must be {what}, got {show(value)}")
     return i
+
+
+def integers(value, name: str, n: int, *, low: int | None = None) -> tuple[int, ...]:
+    """n integers, each as `integer` takes it (>= low), e.g. a grid's resolution (nx, ny)."""
+    what = f"{n} integers"
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
+        raise TypeError(f"{name} must be {what}, got {show(value)}")
+    if len(value) != n:
+        raise ValueError(f"{name} must be {what}, got {show(value)}")
+    return tuple(integer(v, name, low=low) for v in value)
 
 
 def flag(value, name: str) -> bool:
@@ -115,6 +165,62 @@ def vector(value, name: str, n: int = 3) -> np.ndarray:
     return a
 
 
+def positive_vector(value, name: str, n: int = 3) -> np.ndarray:
+    """n finite numbers, each > 0 (sizes: half extents, a cloth's width and height), shape (n,)."""
+    a = vector(value, name, n)
+    if np.any(a <= 0.0):
+        raise ValueError(f"{name} must all be > 0, got {show(value)}")
+    return a
+
+
+def direction(value, name: str) -> np.ndarray:
+    """A non-zero 3-vector (a plane normal, a launch direction, an up axis), returned unit length."""
+    d = vector(value, name)
+    if is_zero(d):
+        raise ValueError(f"{name} must not be zero, got {show(value)}")
+    return d / np.linalg.norm(d)
+
+
+def scale(value, name: str = "scale") -> np.ndarray:
+    """One positive factor for every axis, or three (x, y, z), shape (3,)."""
+    what = "one positive number or three"
+    a = array(value, name, what)
+    if a.shape not in ((), (3,)) or not np.all(np.isfinite(a)) or np.any(a <= 0.0):
+        raise ValueError(f"{name} must be {what}, got {show(value)}")
+    return np.full(3, float(a)) if a.ndim == 0 else a
+
+
+def bounds(value, name: str, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) from a value or a [min, max] pair, low <= high; with `width`, of vectors of that many components.
+
+    A number gives low = high; with `width`, a number is repeated in every component.
+    """
+    what = "a number or a [min, max] pair" if width is None else f"a {width}-vector or a pair of them [min, max]"
+    a = array(value, name, what)
+    if width is None:
+        if a.shape == ():
+            lo = hi = a
+        elif a.shape == (2,):
+            lo, hi = a
+        else:
+            raise ValueError(f"{name} must be {what}, got {show(value)}")
+    else:
+        if a.shape == (width,):
+            lo = hi = a
+        elif a.shape == (2, width):
+            lo, hi = a
+        elif a.shape == ():
+            lo = hi = np.full(width, float(a))
+        else:
+            raise ValueError(f"{name} must be {what}, got {show(value)}")
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ValueError(f"{name} must be finite, got {show(value)}")
+    if np.any(lo > hi):
+        raise ValueError(f"{name}: min must not exceed max, got {show(value)}")
+    return lo, hi
+
+
 def rows(value, name: str, width: int, n: int | None = None) -> np.ndarray:
     """n rows of `width` finite numbers: one row is repeated n times; n rows are taken as they are."""
     a = array(value, name, f"{width} finite numbers per row")
@@ -145,7 +251,7 @@ def quaternion(value, name: str = "orientation", n: int | None = None) -> np.nda
     """Unit quaternions (x, y, z, w): shape (4,) when n is None, else (n, 4) (one row repeated)."""
     q = vector(value, name, 4)[None] if n is None else rows(value, name, 4, n)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
-    if np.any(norm < 1e-12):
+    if np.any(norm < ZERO_LENGTH):
         raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {show(value)}")
     q = q / norm
     return q[0] if n is None else q

@@ -112,14 +112,6 @@ _STATE_NAMES = {
 }
 
 
-def _restitution(value) -> float:
-    return validate.number(value, "restitution", low=0.0, high=1.0)
-
-
-def _friction(value) -> float:
-    return validate.number(value, "friction", low=0.0)
-
-
 class World:
     """A simulated world of planes, spheres, boxes, emitters and cloth.
 
@@ -261,11 +253,7 @@ class World:
             restitution: coefficient of restitution in [0, 1].
             friction: Coulomb friction coefficient (>= 0).
         """
-        n = validate.vector(normal, "normal")
-        length = np.linalg.norm(n)
-        if length < 1e-12:
-            raise ValueError(f"normal must not be zero, got {normal!r}")
-        n = n / length
+        n = validate.direction(normal, "normal")
         offset = validate.number(offset, "offset")
         return self._add_bodies(
             shape=ShapeType.PLANE,
@@ -275,8 +263,8 @@ class World:
             half_extents=np.zeros((1, 3)),
             mass=np.zeros(1),
             inertia=np.zeros((1, 3)),
-            restitution=_restitution(restitution),
-            friction=_friction(friction),
+            restitution=validate.restitution(restitution),
+            friction=validate.friction(friction),
         )[0]
 
     def add_sphere(
@@ -557,9 +545,7 @@ class World:
         if (points is None) == (file is None):
             raise ValueError("add_convex takes points or file, not both")
         points, name = hull_points(points, file)
-        factor = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,))
-        if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
-            raise ValueError(f"scale must be one positive number or three, got {scale!r}")
+        factor = validate.scale(scale)
         proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
         q_user = validate.quaternion(orientation)
         x = validate.vector(position, "position") + quat_rotate(q_user, proto.offset_com)
@@ -613,9 +599,7 @@ class World:
         from .io.meshfile import load_mesh
 
         v, t, _watertight = load_mesh(file=file, vertices=vertices, triangles=triangles)
-        factor = np.broadcast_to(np.asarray(scale, dtype=np.float64), (3,))
-        if not np.all(np.isfinite(factor)) or np.any(factor <= 0.0):
-            raise ValueError(f"scale must be one positive number or three, got {scale!r}")
+        factor = validate.scale(scale)
         v = v * factor
         index = self.meshes.add(v, t)
         ids = self._add_bodies(
@@ -626,8 +610,8 @@ class World:
             half_extents=np.abs(v).max(axis=0)[None],
             mass=np.zeros(1),
             inertia=np.zeros((1, 3)),
-            restitution=_restitution(restitution),
-            friction=_friction(friction),
+            restitution=validate.restitution(restitution),
+            friction=validate.friction(friction),
             bound=np.array([float(np.linalg.norm(v, axis=1).max())]),
         )
         self.bodies.write("body_geometry", self._slot(ids[0]), index)
@@ -801,9 +785,9 @@ class World:
         """Set restitution and/or friction of every body (planes included), effective at once."""
         n = self.bodies.count
         if restitution is not None:
-            self.bodies.write("body_restitution", slice(0, n), _restitution(restitution))
+            self.bodies.write("body_restitution", slice(0, n), validate.restitution(restitution))
         if friction is not None:
-            self.bodies.write("body_friction", slice(0, n), _friction(friction))
+            self.bodies.write("body_friction", slice(0, n), validate.friction(friction))
 
     def add_joint(
         self,
@@ -1155,7 +1139,7 @@ class World:
         q = validate.quaternion(orientation, "orientation", n)
         v = validate.rows(velocity, "velocity", 3, n)
         w = validate.rows(angular_velocity, "angular_velocity", 3, n)
-        restitution, friction = _restitution(restitution), _friction(friction)
+        restitution, friction = validate.restitution(restitution), validate.friction(friction)
         static, kinematic = validate.flag(static, "static"), validate.flag(kinematic, "kinematic")
         if static and kinematic:
             raise ValueError("a body is static or kinematic, not both")

@@ -90,3 +90,72 @@ def test_show_keeps_messages_to_one_short_line():
     assert validate.show(np.zeros((1000, 3))) == "an array of shape (1000, 3)"
     long = validate.show("x" * 500)
     assert len(long) == 60 and long.endswith("...")
+
+
+def test_the_rules_the_scene_checks_share():
+    """is_real refuses bools and strings; within is finite and bounded (open with above/below); is_zero."""
+    assert validate.is_real(3) and validate.is_real(np.float32(1.0)) and validate.is_real(np.array(2.0))
+    assert not any(validate.is_real(v) for v in (True, np.bool_(False), "1", None, [1.0]))
+    assert validate.within(0.0, low=0.0) and not validate.within(0.0, low=0.0, above=True)
+    assert validate.within(180.0, high=180.0) and not validate.within(180.0, high=180.0, below=True)
+    assert not validate.within(float("nan")) and not validate.within(float("inf"), low=0.0)
+    assert validate.is_zero([0.0, 1e-13, 0.0]) and not validate.is_zero([0.0, 0.0, 1e-11])
+    with pytest.raises(ValueError, match=r"^fov must be in \(0, 180\), got 180$"):
+        validate.number(180, "fov", low=0.0, high=180.0, above=True, below=True)
+
+
+def test_material_coefficients():
+    """restitution lies in [0, 1], friction is >= 0, each named as the API calls it."""
+    assert validate.restitution(1) == 1.0 and validate.friction(0) == 0.0
+    with pytest.raises(ValueError, match=r"^restitution must be in \[0, 1\], got 1.5$"):
+        validate.restitution(1.5)
+    with pytest.raises(ValueError, match=r"^friction must be a number >= 0, got -1$"):
+        validate.friction(-1)
+
+
+def test_integers_and_positive_vectors():
+    """A resolution is n integers >= low; a size is n numbers each > 0."""
+    assert validate.integers((4, 3.0), "resolution", 2, low=1) == (4, 3)
+    with pytest.raises(ValueError, match=r"^resolution must be 2 integers, got \(4,\)$"):
+        validate.integers((4,), "resolution", 2)
+    with pytest.raises(ValueError, match=r"^resolution must be an integer >= 1, got 0$"):
+        validate.integers((4, 0), "resolution", 2, low=1)
+    with pytest.raises(TypeError, match="resolution must be 2 integers"):
+        validate.integers("44", "resolution", 2)
+    assert validate.positive_vector((1, 2), "size", 2).tolist() == [1.0, 2.0]
+    with pytest.raises(ValueError, match=r"^size must all be > 0, got \(1, 0\)$"):
+        validate.positive_vector((1, 0), "size", 2)
+
+
+def test_direction_is_unit_and_zero_is_refused():
+    """A direction comes back unit length; the zero vector raises ValueError naming it."""
+    np.testing.assert_array_equal(validate.direction((0, 0, 2), "normal"), [0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match=r"^normal must not be zero, got \(0, 0, 0\)$"):
+        validate.direction((0, 0, 0), "normal")
+
+
+def test_scale_is_one_factor_or_three():
+    """One positive factor is repeated on every axis; three are taken; others raise ValueError."""
+    np.testing.assert_array_equal(validate.scale(2), [2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(validate.scale((1, 2, 3)), [1.0, 2.0, 3.0])
+    for bad in (0.0, (1, 2), (1, -1, 1), float("nan")):
+        with pytest.raises(ValueError, match="scale must be one positive number or three"):
+            validate.scale(bad)
+
+
+def test_bounds_of_values_and_ranges():
+    """A number is its own range; [min, max] is taken; vectors have `width` components; min > max is refused."""
+    lo, hi = validate.bounds(2, "speed")
+    assert lo == hi == 2.0
+    lo, hi = validate.bounds([1, 3], "speed")
+    assert (lo, hi) == (1.0, 3.0)
+    lo, hi = validate.bounds(0.5, "half_extents", 3)
+    assert lo.tolist() == hi.tolist() == [0.5, 0.5, 0.5]
+    lo, hi = validate.bounds([[1, 1, 1], [2, 2, 2]], "half_extents", 3)
+    assert lo.tolist() == [1.0] * 3 and hi.tolist() == [2.0] * 3
+    with pytest.raises(ValueError, match=r"^speed: min must not exceed max, got \[3, 1\]$"):
+        validate.bounds([3, 1], "speed")
+    with pytest.raises(ValueError, match=r"^speed must be a number or a \[min, max\] pair"):
+        validate.bounds([1, 2, 3], "speed")
+    with pytest.raises(ValueError, match="speed must be finite"):
+        validate.bounds([1, float("inf")], "speed")

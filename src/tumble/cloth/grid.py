@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .. import validate
 from ..npmath import quat_rotate
 
 SPRING_KINDS = ("structural", "shear", "bend")
@@ -68,6 +69,7 @@ def per_kind(value, name: str) -> dict[str, float]:
 
     Raises:
         ValueError: on unknown kinds, negative or non-finite values.
+        TypeError: on a value that is not a number.
     """
     if isinstance(value, dict):
         unknown = set(value) - set(SPRING_KINDS)
@@ -76,15 +78,7 @@ def per_kind(value, name: str) -> dict[str, float]:
         out = {kind: value.get(kind, 0.0) for kind in SPRING_KINDS}
     else:
         out = {kind: value for kind in SPRING_KINDS}
-    for kind, v in out.items():
-        try:
-            f = float(v)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} ({kind}) must be a number, got {v!r}") from None
-        if not np.isfinite(f) or f < 0.0:
-            raise ValueError(f"{name} ({kind}) must be a finite number >= 0, got {v!r}")
-        out[kind] = f
-    return out
+    return {kind: validate.number(v, f"{name} ({kind})", low=0.0) for kind, v in out.items()}
 
 
 def pin_indices(pins, nx: int, ny: int) -> np.ndarray:

@@ -231,30 +231,27 @@ class ClothSystem:
         Raises:
             ValueError: naming the bad argument.
         """
-        size = _pair(size, "size", float)
-        if min(size) <= 0.0:
-            raise ValueError(f"cloth size must be two lengths > 0 in m, got {size!r}")
-        nx, ny = _pair(resolution, "resolution", int)
-        if nx < 1 or ny < 1 or nx * ny < 2:
+        size = tuple(float(v) for v in validate.positive_vector(size, "cloth size", 2))
+        nx, ny = validate.integers(resolution, "cloth resolution", 2, low=1)
+        if nx * ny < 2:
             raise ValueError(f"cloth resolution must be at least 2 particles, e.g. 2 x 1, got {(nx, ny)!r}")
-        position = _vector(position, "position", 3)
-        q = _vector(orientation, "orientation", 4)
-        if np.linalg.norm(q) < 1e-12:
-            raise ValueError(f"cloth orientation must be a non-zero quaternion (x, y, z, w), got {orientation!r}")
-        q = q / np.linalg.norm(q)
+        position = validate.vector(position, "position")
+        q = validate.quaternion(orientation, "cloth orientation")
         if mass is not None and areal_density is not None:
             raise ValueError("give the cloth's mass or areal_density, not both")
         if mass is not None:
-            total = _positive(mass, "mass")
+            total = validate.positive(mass, "mass")
         else:
-            density = DEFAULT_AREAL_DENSITY if areal_density is None else _positive(areal_density, "areal_density")
+            density = (
+                DEFAULT_AREAL_DENSITY if areal_density is None else validate.positive(areal_density, "areal_density")
+            )
             total = density * size[0] * size[1]
         ks = grid.per_kind(DEFAULT_STIFFNESS if stiffness is None else stiffness, "stiffness")
         kd = grid.per_kind(DEFAULT_DAMPING if damping is None else damping, "damping")
         if max_stretch is not None:
             max_stretch = validate.number(max_stretch, "max_stretch", low=0.0)
-        thickness = _positive(thickness, "thickness")
-        friction = validate.number(friction, "friction", low=0.0)
+        thickness = validate.positive(thickness, "thickness")
+        friction = validate.friction(friction)
         pinned = grid.pin_indices(pins, nx, ny)
 
         # particles
@@ -826,13 +823,13 @@ class ClothSystem:
     def apply_force(self, particle: int, force: Sequence[float]) -> None:
         """Apply a force [N] to one particle during the next world step only (e.g. a viewer drag)."""
         i = self._particle(particle)
-        f = _vector(force, "force", 3)
+        f = validate.vector(force, "force")
         self._pending_force[i] = self._pending_force.get(i, np.zeros(3)) + f
 
     def set_pin_target(self, particle: int, position: Sequence[float]) -> None:
         """Move a pinned particle to `position` [m] by the end of the next world step (pins it if free)."""
         i = self._particle(particle)
-        target = _vector(position, "position", 3)
+        target = validate.vector(position, "position")
         self._write("particle_pin_target", i, target)
         if self._arrays["particle_inv_mass"].numpy()[i] != 0.0:
             self._write("particle_inv_mass", i, 0.0)
@@ -1030,41 +1027,3 @@ class ClothSystem:
         """Centre of mass of all cloth [m], shape (3,)."""
         m = self._host["particle_mass"]
         return (m[:, None] * self._view("particle_position")).sum(axis=0) / m.sum()
-
-
-def _pair(value, name: str, kind) -> tuple:
-    try:
-        items = list(value)
-    except TypeError:
-        raise ValueError(f"cloth {name} must be two numbers, got {value!r}") from None
-    if len(items) != 2:
-        raise ValueError(f"cloth {name} must be two numbers, got {value!r}")
-    try:
-        out = tuple(kind(v) for v in items)
-    except (TypeError, ValueError):
-        raise ValueError(f"cloth {name} must be two numbers, got {value!r}") from None
-    if kind is int and any(float(v) != int(v) for v in items):
-        raise ValueError(f"cloth {name} must be two integers, got {value!r}")
-    if kind is float and not all(math.isfinite(v) for v in out):
-        raise ValueError(f"cloth {name} must be finite, got {value!r}")
-    return out
-
-
-def _vector(value, name: str, n: int) -> np.ndarray:
-    try:
-        a = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {n} numbers, got {value!r}") from None
-    if a.shape != (n,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
-    return a
-
-
-def _positive(value, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return v

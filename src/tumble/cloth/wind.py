@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from .. import validate
 from ..launch import LaunchCache, launch
 from ..state import float_t, vec3
 
@@ -61,22 +62,12 @@ class Wind:
     modes: int = 8
 
     def __post_init__(self):
-        u = np.asarray(self.velocity, dtype=np.float64).reshape(-1)
-        if u.shape != (3,) or not np.all(np.isfinite(u)):
-            raise ValueError(f"wind velocity must be 3 finite numbers, got {self.velocity!r}")
-        self.velocity = u
+        self.velocity = validate.vector(self.velocity, "wind velocity")
         for name in ("turbulence", "drag", "lift", "air_density"):
-            v = float(getattr(self, name))
-            if not np.isfinite(v) or v < 0.0:
-                raise ValueError(f"wind {name} must be a finite number >= 0, got {getattr(self, name)!r}")
-            setattr(self, name, v)
-        self.scale = float(self.scale)
-        if not np.isfinite(self.scale) or self.scale <= 0.0:
-            raise ValueError(f"wind scale must be a positive length in m, got {self.scale!r}")
-        if int(self.modes) < 1:
-            raise ValueError(f"wind modes must be >= 1, got {self.modes!r}")
-        self.modes = int(self.modes)
-        self.seed = int(self.seed)
+            setattr(self, name, validate.number(getattr(self, name), f"wind {name}", low=0.0))
+        self.scale = validate.positive(self.scale, "wind scale")
+        self.modes = validate.integer(self.modes, "wind modes", low=1)
+        self.seed = validate.integer(self.seed, "wind seed", low=0)
 
     def mode_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The seeded modes: wave vectors (K, 3) [1/m], amplitude vectors (K, 3) [m/s],

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .. import validate
 from ..shapes import ShapeType
 
 #: default vertical field of view [degrees]: about a 50 mm lens. Perspective stretches a sphere
@@ -19,13 +20,6 @@ from ..shapes import ShapeType
 DEFAULT_FOV = 25.0
 #: direction from the target to the camera used when there is no better one (front, right, above)
 DEFAULT_DIRECTION = np.array([0.55, -1.0, 0.5])
-
-
-def _vec3(value, name: str) -> np.ndarray:
-    a = np.asarray(value, dtype=np.float64).reshape(-1)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"camera {name} must be 3 finite numbers, got {value!r}")
-    return a
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
@@ -54,15 +48,10 @@ class Camera:
         near: float | None = None,
         far: float | None = None,
     ):
-        self.position = _vec3(position, "position")
-        self.target = _vec3(target, "target")
-        self.up = _normalize(_vec3(up, "up"))
-        if np.linalg.norm(self.up) < 1e-12:
-            raise ValueError("camera up must not be zero")
-        fov = float(fov_deg)
-        if not (0.0 < fov < 180.0):
-            raise ValueError(f"camera field of view must be in (0, 180) degrees, got {fov_deg!r}")
-        self.fov_deg = fov
+        self.position = validate.vector(position, "camera position")
+        self.target = validate.vector(target, "camera target")
+        self.up = validate.direction(up, "camera up")
+        self.fov_deg = validate.number(fov_deg, "camera field of view", low=0.0, high=180.0, above=True, below=True)
         self.near = near
         self.far = far
         #: height along `up` [m] the eye never goes below in `orbit`, `pan` and `zoom` (the
@@ -263,9 +252,7 @@ class Camera:
 
     def zoom(self, factor: float) -> None:
         """Move the eye towards the target: the distance is divided by `factor` (> 1 zooms in)."""
-        factor = float(factor)
-        if not math.isfinite(factor) or factor <= 0.0:
-            raise ValueError(f"zoom factor must be a positive number, got {factor!r}")
+        factor = validate.positive(factor, "zoom factor")
         offset = (self.position - self.target) / factor
         d = float(np.linalg.norm(offset))
         if d < 1e-4:
@@ -292,7 +279,7 @@ class Camera:
         nothing to frame, looks at the origin from a few metres away.
         """
         centre, radius = scene_bounds(world)
-        d = self.position - self.target if direction is None else _vec3(direction, "direction")
+        d = self.position - self.target if direction is None else validate.vector(direction, "camera direction")
         if np.linalg.norm(d) < 1e-9:
             d = DEFAULT_DIRECTION
         d = _normalize(d)

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
+from ... import validate
 from ...errors import SceneError
-from .checks import is_number
 from .parse import Scene, parse_table, read_scene, table_label
 from .schema import SCHEMA
 
@@ -161,7 +161,7 @@ def load_scene(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]
 def _given(values: dict) -> dict:
     """Keyword arguments for the World API: keys left to the engine (None) are not passed."""
     return {
-        k: (tuple(v) if isinstance(v, list) and all(is_number(x) for x in v) else v)
+        k: (tuple(v) if isinstance(v, list) and all(validate.is_real(x) for x in v) else v)
         for k, v in values.items()
         if v is not None
     }

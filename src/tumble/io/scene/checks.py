@@ -8,11 +8,12 @@ naming the key it blames. `Check.kind` is the type as the scene reference writes
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+from ... import validate
 
 
 class Bad(Exception):
@@ -21,7 +22,8 @@ class Bad(Exception):
 
 # ---------------------------------------------------------------------------------------- value checks
 # Each check takes the TOML value and returns the Python value passed to the World API, or raises
-# Bad. `Check.kind` is the type as written in the docs.
+# Bad. `Check.kind` is the type as written in the docs. The rules (what is a number, in range, a
+# zero vector) are `tumble.validate`'s, which the World API applies; the words are TOML's.
 
 
 @dataclass(frozen=True)
@@ -33,15 +35,11 @@ class Check:
         return self.convert(value)
 
 
-def is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _number(value) -> float:
-    if not is_number(value):
+    if not validate.is_real(value):
         raise Bad(f"must be a number, got {show(value)}")
     v = float(value)
-    if not math.isfinite(v):
+    if not validate.within(v):
         raise Bad(f"must be finite, got {show(value)}")
     return v
 
@@ -65,9 +63,9 @@ def number(
 
     def convert(value):
         v = _number(value)
-        if low is not None and (v <= low if low_open else v < low):
+        if not validate.within(v, low=low, above=low_open):
             raise Bad(f"must be {'>' if low_open else '>='} {low:g}, got {show(value)}")
-        if high is not None and v > high:
+        if not validate.within(v, high=high):
             raise Bad(
                 f"{show(value)} is too large: must be <= {high:g}"
                 + (f" ({limit}, docs/scenes.md#limits)" if limit else "")
@@ -130,10 +128,10 @@ def _vector(value, n: int) -> list[float]:
         raise Bad(f"must be a list of {n} numbers, got {show(value)}")
     if len(value) != n:
         raise Bad(f"must have {n} components, got {len(value)}")
-    if not all(is_number(v) for v in value):
+    if not all(validate.is_real(v) for v in value):
         raise Bad(f"must be a list of {n} numbers, got {show(value)}")
     out = [float(v) for v in value]
-    if not all(math.isfinite(v) for v in out):
+    if not all(validate.within(v) for v in out):
         raise Bad(f"must be finite, got {show(value)}")
     return out
 
@@ -143,7 +141,7 @@ def vector(n: int, *, nonzero: bool = False, positive: bool = False, nonneg: boo
 
     def convert(value):
         v = _vector(value, n)
-        if nonzero and math.sqrt(sum(x * x for x in v)) < 1e-12:
+        if nonzero and validate.is_zero(v):
             raise Bad("must not be the zero vector")
         if positive and any(x <= 0 for x in v):
             raise Bad(f"components must all be > 0, got {show(value)}")
@@ -161,7 +159,7 @@ def quaternion() -> Check:
 
     def convert(value):
         v = _vector(value, 4)
-        if math.sqrt(sum(x * x for x in v)) < 1e-12:
+        if validate.is_zero(v):
             raise Bad("must be a non-zero quaternion [x, y, z, w]")
         return v
 
@@ -174,7 +172,7 @@ def value_or_range(*, positive: bool) -> Check:
 
     def one(v, value):
         x = _number(v)
-        if x < 0 or (positive and x == 0):
+        if not validate.within(x, low=0.0, above=positive):
             raise Bad(f"must be {op} 0, got {show(value)}")
         return x
 
@@ -265,9 +263,9 @@ def scale_factor() -> Check:
     """One positive factor, or three (per axis)."""
 
     def convert(value):
-        if is_number(value):
+        if validate.is_real(value):
             v = _number(value)
-            if not (math.isfinite(v) and v > 0):
+            if not validate.within(v, low=0.0, above=True):
                 raise Bad(f"must be > 0, got {show(value)}")
             return v
         return vector(3, positive=True).convert(value)
