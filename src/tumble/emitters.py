@@ -34,6 +34,7 @@ from . import validate
 from .limits import MAX_RELEASE_PER_STEP
 from .npmath import quat_mul, quat_to_matrix
 from .shapes import (
+    DEFAULT_DENSITY,
     ShapeType,
     box_inertia,
     box_volume,
@@ -161,7 +162,7 @@ class Emitter:
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
         self.mass = None if mass is None else validate.bounds(mass, "mass")
-        self.density = validate.bounds(1000.0 if density is None else density, "density")
+        self.density = validate.bounds(DEFAULT_DENSITY if density is None else density, "density")
         for name, (lo, _hi) in (
             ("speed", self.speed),
             ("radius", self.radius),

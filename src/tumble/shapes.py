@@ -11,6 +11,9 @@ import enum
 
 import numpy as np
 
+#: density [kg/m^3] of a body given neither mass nor density (water)
+DEFAULT_DENSITY = 1000.0
+
 
 class ShapeType(enum.IntEnum):
     """Closed set of collision shapes, in pair-table order (see `collision.narrowphase`)."""

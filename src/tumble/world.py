@@ -1115,7 +1115,10 @@ class World:
             raise ValueError("give mass or density, not both")
         if mass is not None:
             return validate.positive_rows(mass, "mass", len(volume))
-        return validate.positive_rows(1000.0 if density is None else density, "density", len(volume)) * volume
+        return (
+            validate.positive_rows(_shapes.DEFAULT_DENSITY if density is None else density, "density", len(volume))
+            * volume
+        )
 
     def _add_solids(
         self,

@@ -17,12 +17,12 @@ import numpy as np
 
 from ... import validate
 from ...errors import SceneError
+from ...world import World
 from .parse import Scene, parse_table, read_scene, table_label
 from .schema import SCHEMA
 
 if TYPE_CHECKING:
     from ...state import BodyId
-    from ...world import World
 
 # ---------------------------------------------------------------------------------------- building
 
@@ -52,8 +52,6 @@ def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
     Raises:
         SceneError: when the World API rejects a value (named by table).
     """
-    from ...world import World
-
     unknown = set(overrides) - set(WORLD_OVERRIDES)
     if unknown:
         raise TypeError(f"unknown override(s) {', '.join(sorted(unknown))}; expected {', '.join(WORLD_OVERRIDES)}")

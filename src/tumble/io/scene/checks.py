@@ -353,7 +353,7 @@ def _mass_representable(values: dict) -> None:
     divides by both. A box is checked with its half extents; an emitter's ranges by their
     extremes (as spheres or cubes).
     """
-    from ...shapes import box_inertia, box_volume, sphere_inertia, sphere_volume
+    from ...shapes import DEFAULT_DENSITY, box_inertia, box_volume, sphere_inertia, sphere_volume
 
     mass, density = values.get("mass"), values.get("density")
     for key in ("radius", "half_extents"):
@@ -365,7 +365,9 @@ def _mass_representable(values: dict) -> None:
         with np.errstate(all="ignore"):
             for h in shapes:
                 volume = float(box_volume(h) if key == "half_extents" else sphere_volume(h))
-                masses = _extremes(mass) if mass is not None else [d * volume for d in _extremes(density or 1000.0)]
+                masses = (
+                    _extremes(mass) if mass is not None else [d * volume for d in _extremes(density or DEFAULT_DENSITY)]
+                )
                 for m in masses:
                     inertia = box_inertia(m, h) if key == "half_extents" else sphere_inertia(m, h)
                     numbers = np.concatenate([[m], np.ravel(inertia)])

@@ -7,12 +7,17 @@ its default is read from that keyword's signature, so that the file and the API 
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from ... import limits
 from ...cloth import system as _cloth
+from ...render.camera import DEFAULT_FOV
+from ...shapes import DEFAULT_DENSITY
+from ...world import World
 from .checks import (
     Bad,
     Check,
@@ -69,19 +74,29 @@ class TableSpec:
 
 
 def _shown(value) -> str:
-    """A default as the scene reference shows it, in TOML: 0.2, { structural = 12, shear = 1.2 }."""
+    """A default as the scene reference shows it, in TOML: 0.2, false, { structural = 12, shear = 1.2 }."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, dict):
         return "{ " + ", ".join(f"{k} = {_shown(v)}" for k, v in value.items()) + " }"
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _api_default(function: Callable, name: str):
-    """The default of keyword `name` of the API `function`: a scene key and the API share one default."""
-    return inspect.signature(function).parameters[name].default
+    """The default of keyword `name` of the API `function`: a scene key and the API share one default.
+
+    A tuple (a vector) comes back as the list of floats a scene file holds.
+    """
+    default = inspect.signature(function).parameters[name].default
+    return [float(v) for v in default] if isinstance(default, tuple) else default
 
 
-def _wind_default(name: str):
-    return _api_default(_cloth.ClothSystem.set_wind, name)
+def _defaults(function: Callable) -> Callable[[str], Any]:
+    """`_api_default` of one API function, for the keys of one table."""
+    return functools.partial(_api_default, function)
+
+
+_wind_default = _defaults(_cloth.ClothSystem.set_wind)
 
 
 JOINT_KINDS = ("ball", "hinge", "slider", "fixed", "distance", "rope")
@@ -103,19 +118,32 @@ def body_ref() -> Check:
     return Check('"plane[i]", "sphere[i]", "box[i]" or "world"', convert)
 
 
-def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
+def _body_fields(size_key: str, size: Field, add: Callable) -> dict[str, Field]:
+    """The keys of a solid body's table; the defaults are those of `add` (World.add_sphere, ...)."""
+    d = _defaults(add)
     return {
         "position": Field(vector(3), REQUIRED, "m", "centre of mass"),
         size_key: size,
-        "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "initial linear velocity"),
+        "velocity": Field(vector(3), d("velocity"), "m/s", "initial linear velocity"),
         "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
-        "density": Field(number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", "1000"),
-        "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
-        "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
-        "static": Field(boolean(), False, "", "immovable (inverse mass 0)"),
-        "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "initial orientation quaternion (x, y, z, w)"),
-        "angular_velocity": Field(vector(3), [0.0, 0.0, 0.0], "rad/s", "initial angular velocity, world frame"),
+        "density": Field(
+            number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", _shown(DEFAULT_DENSITY)
+        ),
+        "restitution": Field(number(low=0, high=1), d("restitution"), "", "coefficient of restitution"),
+        "friction": Field(number(low=0), d("friction"), "", "Coulomb friction coefficient"),
+        "static": Field(boolean(), d("static"), "", "immovable (inverse mass 0)"),
+        "orientation": Field(quaternion(), d("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
+        "angular_velocity": Field(vector(3), d("angular_velocity"), "rad/s", "initial angular velocity, world frame"),
     }
+
+
+_world = _defaults(World.__init__)
+_plane = _defaults(World.add_plane)
+_convex = _defaults(World.add_convex)
+_mesh = _defaults(World.add_mesh)
+_emitter = _defaults(World.add_emitter)
+_cloth_default = _defaults(_cloth.ClothSystem.add_cloth)
+_joint = _defaults(World.add_joint)
 
 
 SCHEMA: dict[str, TableSpec] = {
@@ -126,24 +154,26 @@ SCHEMA: dict[str, TableSpec] = {
             False,
             "Global settings.",
             {
-                "gravity": Field(vector(3), [0.0, 0.0, -9.81], "m/s^2", "gravitational acceleration"),
+                "gravity": Field(vector(3), _world("gravity"), "m/s^2", "gravitational acceleration"),
                 "dt": Field(
                     number(low=0, low_open=True, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
-                    1.0 / 240.0,
+                    _world("dt"),
                     "s",
                     "fixed time step",
                     "1/240",
                 ),
                 "substeps": Field(
                     integer(low=1, high=limits.MAX_SUBSTEPS, limit="the most Tumble supports"),
-                    8,
+                    _world("substeps"),
                     "",
                     "solver substeps per step",
                 ),
-                "seed": Field(integer(low=0), 0, "", "seed of the world's random generator (emitters without a seed)"),
+                "seed": Field(
+                    integer(low=0), _world("seed"), "", "seed of the world's random generator (emitters without a seed)"
+                ),
                 "restitution_threshold": Field(
                     number(low=0),
-                    0.5,
+                    _world("restitution_threshold"),
                     "m/s",
                     "impact speed below which contacts that carry load do not bounce (others bounce down to 2 g h)",
                 ),
@@ -154,17 +184,19 @@ SCHEMA: dict[str, TableSpec] = {
             True,
             "Static infinite planes {x : dot(normal, x) = offset}; bodies stay on the +normal side.",
             {
-                "normal": Field(vector(3, nonzero=True), [0.0, 0.0, 1.0], "", "plane normal (normalised on load)"),
-                "offset": Field(number(), 0.0, "m", "distance of the plane from the origin along the normal"),
-                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
-                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+                "normal": Field(vector(3, nonzero=True), _plane("normal"), "", "plane normal (normalised on load)"),
+                "offset": Field(
+                    number(), _plane("offset"), "m", "distance of the plane from the origin along the normal"
+                ),
+                "restitution": Field(number(low=0, high=1), _plane("restitution"), "", "coefficient of restitution"),
+                "friction": Field(number(low=0), _plane("friction"), "", "Coulomb friction coefficient"),
             },
         ),
         TableSpec(
             "sphere",
             True,
             "Solid spheres.",
-            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius")),
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"), World.add_sphere),
             mass_or_density,
         ),
         TableSpec(
@@ -172,7 +204,9 @@ SCHEMA: dict[str, TableSpec] = {
             True,
             "Solid boxes.",
             _body_fields(
-                "half_extents", Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes")
+                "half_extents",
+                Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes"),
+                World.add_box,
             ),
             mass_or_density,
         ),
@@ -180,7 +214,7 @@ SCHEMA: dict[str, TableSpec] = {
             "capsule",
             True,
             "Solid capsules: the points within radius of a segment of length 2 half_height along the body z axis.",
-            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"))
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"), World.add_capsule)
             | {"half_height": Field(number(low=0, low_open=True), REQUIRED, "m", "half length of the segment")},
             mass_or_density,
         ),
@@ -194,16 +228,24 @@ SCHEMA: dict[str, TableSpec] = {
                 "file": Field(
                     file_name(), None, "", "mesh file (OBJ, STL, PLY, OFF, glTF/GLB) whose hull is the body", "none"
                 ),
-                "scale": Field(scale_factor(), 1.0, "", "factor(s) applied to the points or the file"),
+                "scale": Field(scale_factor(), _convex("scale"), "", "factor(s) applied to the points or the file"),
                 "position": Field(vector(3), REQUIRED, "m", "origin of the points' frame"),
-                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation of the points' frame"),
-                "velocity": Field(vector(3), [0.0, 0.0, 0.0], "m/s", "initial linear velocity"),
-                "angular_velocity": Field(vector(3), [0.0, 0.0, 0.0], "rad/s", "initial angular velocity, world frame"),
+                "orientation": Field(quaternion(), _convex("orientation"), "", "orientation of the points' frame"),
+                "velocity": Field(vector(3), _convex("velocity"), "m/s", "initial linear velocity"),
+                "angular_velocity": Field(
+                    vector(3), _convex("angular_velocity"), "rad/s", "initial angular velocity, world frame"
+                ),
                 "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
-                "density": Field(number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", "1000"),
-                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
-                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
-                "static": Field(boolean(), False, "", "immovable (inverse mass 0)"),
+                "density": Field(
+                    number(low=0, low_open=True),
+                    None,
+                    "kg/m^3",
+                    "density; give mass or density",
+                    _shown(DEFAULT_DENSITY),
+                ),
+                "restitution": Field(number(low=0, high=1), _convex("restitution"), "", "coefficient of restitution"),
+                "friction": Field(number(low=0), _convex("friction"), "", "Coulomb friction coefficient"),
+                "static": Field(boolean(), _convex("static"), "", "immovable (inverse mass 0)"),
             },
             convex_rules,
         ),
@@ -214,11 +256,11 @@ SCHEMA: dict[str, TableSpec] = {
             "where bodies stay (outward on a closed mesh).",
             {
                 "file": Field(file_name(), REQUIRED, "", "mesh file: OBJ, STL, PLY, OFF, glTF/GLB"),
-                "scale": Field(scale_factor(), 1.0, "", "factor(s) applied in the mesh's frame"),
-                "position": Field(vector(3), [0.0, 0.0, 0.0], "m", "origin of the mesh's frame"),
-                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation of the mesh's frame"),
-                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
-                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+                "scale": Field(scale_factor(), _mesh("scale"), "", "factor(s) applied in the mesh's frame"),
+                "position": Field(vector(3), _mesh("position"), "m", "origin of the mesh's frame"),
+                "orientation": Field(quaternion(), _mesh("orientation"), "", "orientation of the mesh's frame"),
+                "restitution": Field(number(low=0, high=1), _mesh("restitution"), "", "coefficient of restitution"),
+                "friction": Field(number(low=0), _mesh("friction"), "", "Coulomb friction coefficient"),
             },
         ),
         TableSpec(
@@ -226,15 +268,21 @@ SCHEMA: dict[str, TableSpec] = {
             True,
             "Sources releasing bodies over time; a new body never overlaps an existing one.",
             {
-                "shape": Field(shape_list(), "sphere", "", "shape of the bodies; with a list, chosen at random"),
+                "shape": Field(
+                    shape_list(), _emitter("shape"), "", "shape of the bodies; with a list, chosen at random"
+                ),
                 "rate": Field(number(low=0, low_open=True), REQUIRED, "1/s", "bodies released per second"),
                 "count": Field(integer(low=1), REQUIRED, "", "total number of bodies released"),
                 "position": Field(vector(3), REQUIRED, "m", "centre of the region"),
-                "region": Field(choice("point", "box", "disc"), "point", "", "where bodies appear"),
+                "region": Field(choice("point", "box", "disc"), _emitter("region"), "", "where bodies appear"),
                 "extent": Field(extent(), None, "m", "half-sizes [x, y, z] for box, radius for disc", "none"),
-                "direction": Field(vector(3, nonzero=True), [0.0, 0.0, -1.0], "", "mean release direction"),
-                "cone_angle": Field(number(low=0, high=180), 0.0, "deg", "half-angle of the spread cone"),
-                "speed": Field(value_or_range(positive=False), 0.0, "m/s", "release speed, value or [min, max]"),
+                "direction": Field(vector(3, nonzero=True), _emitter("direction"), "", "mean release direction"),
+                "cone_angle": Field(
+                    number(low=0, high=180), _emitter("cone_angle"), "deg", "half-angle of the spread cone"
+                ),
+                "speed": Field(
+                    value_or_range(positive=False), _emitter("speed"), "m/s", "release speed, value or [min, max]"
+                ),
                 "radius": Field(value_or_range(positive=True), None, "m", "sphere radius, value or [min, max]", "none"),
                 "half_extents": Field(size_or_range(), None, "m", "box half sizes, value or [min, max]", "none"),
                 "half_height": Field(
@@ -251,16 +299,28 @@ SCHEMA: dict[str, TableSpec] = {
                     None,
                     "",
                     "factor on each body's size (all shapes), value or [min, max]",
-                    "1",
+                    _shown(_emitter("scale")),
                 ),
                 "mass": Field(value_or_range(positive=True), None, "kg", "mass, value or [min, max]", "from density"),
-                "density": Field(value_or_range(positive=True), None, "kg/m^3", "density, value or [min, max]", "1000"),
-                "restitution": Field(number(low=0, high=1), 0.5, "", "coefficient of restitution"),
-                "friction": Field(number(low=0), 0.5, "", "Coulomb friction coefficient"),
+                "density": Field(
+                    value_or_range(positive=True),
+                    None,
+                    "kg/m^3",
+                    "density, value or [min, max]",
+                    _shown(DEFAULT_DENSITY),
+                ),
+                "restitution": Field(number(low=0, high=1), _emitter("restitution"), "", "coefficient of restitution"),
+                "friction": Field(number(low=0), _emitter("friction"), "", "Coulomb friction coefficient"),
                 "seed": Field(integer(low=0), None, "", "seed of this emitter's generator", "from [world] seed"),
-                "random_orientation": Field(boolean(), None, "", "uniformly random initial orientations", "false"),
+                "random_orientation": Field(
+                    boolean(), None, "", "uniformly random initial orientations", _shown(_emitter("random_orientation"))
+                ),
                 "angular_speed": Field(
-                    value_or_range(positive=False), None, "rad/s", "spin about a random axis, value or [min, max]", "0"
+                    value_or_range(positive=False),
+                    None,
+                    "rad/s",
+                    "spin about a random axis, value or [min, max]",
+                    _shown(_emitter("angular_speed")),
                 ),
             },
             emitter_rules,
@@ -274,7 +334,9 @@ SCHEMA: dict[str, TableSpec] = {
                 "size": Field(vector(2, positive=True), REQUIRED, "m", "[width, height]"),
                 "resolution": Field(resolution(), REQUIRED, "", "particles [nx, ny]"),
                 "position": Field(vector(3), REQUIRED, "m", "centre of the cloth"),
-                "orientation": Field(quaternion(), [0.0, 0.0, 0.0, 1.0], "", "orientation quaternion (x, y, z, w)"),
+                "orientation": Field(
+                    quaternion(), _cloth_default("orientation"), "", "orientation quaternion (x, y, z, w)"
+                ),
                 "mass": Field(
                     number(low=0, low_open=True),
                     None,
@@ -305,7 +367,7 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 "max_stretch": Field(
                     number(low=0),
-                    _api_default(_cloth.ClothSystem.add_cloth, "max_stretch"),
+                    _cloth_default("max_stretch"),
                     "",
                     "largest strain of a structural spring (Provot)",
                 ),
@@ -315,14 +377,14 @@ SCHEMA: dict[str, TableSpec] = {
                     None,
                     "m",
                     "distance kept from bodies and between layers of cloth",
-                    _shown(_api_default(_cloth.ClothSystem.add_cloth, "thickness")),
+                    _shown(_cloth_default("thickness")),
                 ),
                 "friction": Field(
                     number(low=0),
                     None,
                     "",
                     "Coulomb friction against bodies",
-                    _shown(_api_default(_cloth.ClothSystem.add_cloth, "friction")),
+                    _shown(_cloth_default("friction")),
                 ),
                 "pin_body": Field(body_ref(), None, "", 'body the pins follow and pull on, e.g. "box[0]"', "none"),
             },
@@ -333,7 +395,7 @@ SCHEMA: dict[str, TableSpec] = {
             False,
             "Wind acting on cloth: a mean velocity plus smooth, seeded, time-varying turbulence.",
             {
-                "velocity": Field(vector(3), list(_wind_default("velocity")), "m/s", "mean wind velocity"),
+                "velocity": Field(vector(3), _wind_default("velocity"), "m/s", "mean wind velocity"),
                 "turbulence": Field(
                     number(low=0), _wind_default("turbulence"), "m/s", "strength of the turbulent part"
                 ),
@@ -360,7 +422,10 @@ SCHEMA: dict[str, TableSpec] = {
                 "anchor_a": Field(vector(3), None, "m", "anchor on a (instead of anchor)", "anchor"),
                 "anchor_b": Field(vector(3), None, "m", "anchor on b (instead of anchor)", "anchor"),
                 "frame": Field(
-                    choice("world", "body"), "world", "", "frame of anchor_a/anchor_b (each body's) and axis (a's)"
+                    choice("world", "body"),
+                    _joint("frame"),
+                    "",
+                    "frame of anchor_a/anchor_b (each body's) and axis (a's)",
                 ),
                 "axis": Field(vector(3, nonzero=True), None, "", "hinge / slider axis", "[0, 0, 1]"),
                 "lower": Field(number(), None, "deg or m", "lower limit: hinge angle (deg), slider offset (m)", "none"),
@@ -373,10 +438,12 @@ SCHEMA: dict[str, TableSpec] = {
                 "length": Field(number(low=0), None, "m", "distance joint rest length", "current distance"),
                 "min_length": Field(number(low=0), None, "m", "distance joint shortest length", "rod: length; rope: 0"),
                 "max_length": Field(number(low=0), None, "m", "distance joint longest length", "length"),
-                "stiffness": Field(number(low=0), 0.0, "N/m", "distance joint spring stiffness (0 = none)"),
-                "damping": Field(number(low=0), 0.0, "N s/m", "distance joint spring damping"),
+                "stiffness": Field(
+                    number(low=0), _joint("stiffness"), "N/m", "distance joint spring stiffness (0 = none)"
+                ),
+                "damping": Field(number(low=0), _joint("damping"), "N s/m", "distance joint spring damping"),
                 "break_force": Field(number(low=0, low_open=True), None, "N", "force that breaks the joint", "never"),
-                "collide": Field(boolean(), False, "", "whether the two bodies still collide"),
+                "collide": Field(boolean(), _joint("collide"), "", "whether the two bodies still collide"),
             },
             joint_rules,
         ),
@@ -387,7 +454,7 @@ SCHEMA: dict[str, TableSpec] = {
             {
                 "position": Field(vector(3), [3.0, -3.0, 2.0], "m", "eye position"),
                 "target": Field(vector(3), [0.0, 0.0, 0.5], "m", "point looked at"),
-                "fov": Field(number(low=0, high=179, low_open=True), 25.0, "deg", "vertical field of view"),
+                "fov": Field(number(low=0, high=179, low_open=True), DEFAULT_FOV, "deg", "vertical field of view"),
             },
         ),
         TableSpec(

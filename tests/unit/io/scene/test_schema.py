@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import math
 
 import pytest
 
@@ -20,23 +21,53 @@ def test_every_default_passes_its_own_check(name):
         assert f.check(f.default) == f.default, f"{name}.{key}"
 
 
-def test_cloth_and_wind_defaults_are_the_api_defaults():
-    """Read the cloth's and the wind's defaults from the World API, so that the two cannot drift apart."""
-    cloth, wind = schema.SCHEMA["cloth"].fields, schema.SCHEMA["wind"].fields
-    add = inspect.signature(ClothSystem.add_cloth).parameters
-    assert cloth["max_stretch"].default == add["max_stretch"].default
-    assert cloth["thickness"].shown_default == f"{add['thickness'].default:g}"
-    for key, parameter in inspect.signature(ClothSystem.set_wind).parameters.items():
-        if key in wind:
-            default = parameter.default
-            assert wind[key].default == (list(default) if isinstance(default, tuple) else default), key
+#: the World API call each table's keys are passed to
+API = {
+    "world": tumble.World.__init__,
+    "plane": tumble.World.add_plane,
+    "sphere": tumble.World.add_sphere,
+    "box": tumble.World.add_box,
+    "capsule": tumble.World.add_capsule,
+    "convex": tumble.World.add_convex,
+    "mesh": tumble.World.add_mesh,
+    "emitter": tumble.World.add_emitter,
+    "cloth": ClothSystem.add_cloth,
+    "wind": ClothSystem.set_wind,
+    "joint": tumble.World.add_joint,
+}
 
 
-def test_world_defaults_are_the_world_defaults():
-    """Give [world] the defaults a World made without arguments has."""
-    world, fields = tumble.World(), schema.SCHEMA["world"].fields
-    assert list(world.gravity) == fields["gravity"].default
-    assert world.dt == fields["dt"].default and world.substeps == fields["substeps"].default
+@pytest.mark.parametrize("name", list(API))
+def test_defaults_are_the_api_defaults(name):
+    """Give each key the default of the API keyword it is passed to, so that the file and the API cannot drift.
+
+    A key the file requires, or leaves to the engine (None), shows the API's default in the reference instead.
+    """
+    parameters = inspect.signature(API[name]).parameters
+    shared = 0
+    for key, f in schema.SCHEMA[name].fields.items():
+        api = parameters[key].default if key in parameters else inspect.Parameter.empty
+        if api is inspect.Parameter.empty or f.default is schema.REQUIRED:
+            continue
+        api = [float(v) for v in api] if isinstance(api, tuple) else api
+        if f.default is None:
+            if isinstance(api, (int, float)) and math.isfinite(api) and f.shown_default not in (None, "none"):
+                assert f.shown_default == (str(api).lower() if isinstance(api, bool) else f"{api:g}"), key
+            continue
+        assert f.default == api and type(f.default) is type(api), key
+        shared += 1
+    assert shared >= 1
+
+
+def test_reference_shows_the_api_defaults_of_keys_left_to_the_engine():
+    """Show the API's defaults for the cloth's springs, the density and the camera's field of view."""
+    from tumble.render.camera import DEFAULT_FOV
+    from tumble.shapes import DEFAULT_DENSITY
+
+    assert schema.SCHEMA["sphere"].fields["density"].shown_default == f"{DEFAULT_DENSITY:g}"
+    assert schema.SCHEMA["emitter"].fields["density"].shown_default == f"{DEFAULT_DENSITY:g}"
+    assert schema.SCHEMA["camera"].fields["fov"].default == DEFAULT_FOV
+    assert schema.SCHEMA["cloth"].fields["stiffness"].shown_default.startswith("{ structural = ")
 
 
 def test_body_tables_are_tables_and_body_ref_names_them():
