@@ -13,15 +13,7 @@ import tumble
 from tumble.cli import main
 from tumble.io.scene import SAMPLES_DIR
 
-BALL = """
-[[plane]]
-normal = [0, 0, 1]
-
-[[sphere]]
-position = [0, 0, 1]
-radius = 0.1
-mass = 1.0
-"""
+from .io.scene import BALL
 
 # a ground plane, one sphere and an emitter releasing 4 spheres at 40 per second from t = 0
 EMITTING = (

@@ -118,6 +118,23 @@ def body_ref() -> Check:
     return Check('"plane[i]", "sphere[i]", "box[i]" or "world"', convert)
 
 
+def _material(d: Callable[[str], Any]) -> dict[str, Field]:
+    """restitution and friction, with the defaults `d` reads from an API call."""
+    return {
+        "restitution": Field(number(low=0, high=1), d("restitution"), "", "coefficient of restitution"),
+        "friction": Field(number(low=0), d("friction"), "", "Coulomb friction coefficient"),
+    }
+
+
+#: a solid body's mass, or its density
+_MASS = {
+    "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
+    "density": Field(
+        number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", _shown(DEFAULT_DENSITY)
+    ),
+}
+
+
 def _body_fields(size_key: str, size: Field, add: Callable) -> dict[str, Field]:
     """The keys of a solid body's table; the defaults are those of `add` (World.add_sphere, ...)."""
     d = _defaults(add)
@@ -125,12 +142,8 @@ def _body_fields(size_key: str, size: Field, add: Callable) -> dict[str, Field]:
         "position": Field(vector(3), REQUIRED, "m", "centre of mass"),
         size_key: size,
         "velocity": Field(vector(3), d("velocity"), "m/s", "initial linear velocity"),
-        "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
-        "density": Field(
-            number(low=0, low_open=True), None, "kg/m^3", "density; give mass or density", _shown(DEFAULT_DENSITY)
-        ),
-        "restitution": Field(number(low=0, high=1), d("restitution"), "", "coefficient of restitution"),
-        "friction": Field(number(low=0), d("friction"), "", "Coulomb friction coefficient"),
+        **_MASS,
+        **_material(d),
         "static": Field(boolean(), d("static"), "", "immovable (inverse mass 0)"),
         "orientation": Field(quaternion(), d("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
         "angular_velocity": Field(vector(3), d("angular_velocity"), "rad/s", "initial angular velocity, world frame"),
@@ -188,8 +201,7 @@ SCHEMA: dict[str, TableSpec] = {
                 "offset": Field(
                     number(), _plane("offset"), "m", "distance of the plane from the origin along the normal"
                 ),
-                "restitution": Field(number(low=0, high=1), _plane("restitution"), "", "coefficient of restitution"),
-                "friction": Field(number(low=0), _plane("friction"), "", "Coulomb friction coefficient"),
+                **_material(_plane),
             },
         ),
         TableSpec(
@@ -235,16 +247,8 @@ SCHEMA: dict[str, TableSpec] = {
                 "angular_velocity": Field(
                     vector(3), _convex("angular_velocity"), "rad/s", "initial angular velocity, world frame"
                 ),
-                "mass": Field(number(low=0, low_open=True), None, "kg", "mass; give mass or density", "from density"),
-                "density": Field(
-                    number(low=0, low_open=True),
-                    None,
-                    "kg/m^3",
-                    "density; give mass or density",
-                    _shown(DEFAULT_DENSITY),
-                ),
-                "restitution": Field(number(low=0, high=1), _convex("restitution"), "", "coefficient of restitution"),
-                "friction": Field(number(low=0), _convex("friction"), "", "Coulomb friction coefficient"),
+                **_MASS,
+                **_material(_convex),
                 "static": Field(boolean(), _convex("static"), "", "immovable (inverse mass 0)"),
             },
             convex_rules,
@@ -259,8 +263,7 @@ SCHEMA: dict[str, TableSpec] = {
                 "scale": Field(scale_factor(), _mesh("scale"), "", "factor(s) applied in the mesh's frame"),
                 "position": Field(vector(3), _mesh("position"), "m", "origin of the mesh's frame"),
                 "orientation": Field(quaternion(), _mesh("orientation"), "", "orientation of the mesh's frame"),
-                "restitution": Field(number(low=0, high=1), _mesh("restitution"), "", "coefficient of restitution"),
-                "friction": Field(number(low=0), _mesh("friction"), "", "Coulomb friction coefficient"),
+                **_material(_mesh),
             },
         ),
         TableSpec(
@@ -309,8 +312,7 @@ SCHEMA: dict[str, TableSpec] = {
                     "density, value or [min, max]",
                     _shown(DEFAULT_DENSITY),
                 ),
-                "restitution": Field(number(low=0, high=1), _emitter("restitution"), "", "coefficient of restitution"),
-                "friction": Field(number(low=0), _emitter("friction"), "", "Coulomb friction coefficient"),
+                **_material(_emitter),
                 "seed": Field(integer(low=0), None, "", "seed of this emitter's generator", "from [world] seed"),
                 "random_orientation": Field(
                     boolean(), None, "", "uniformly random initial orientations", _shown(_emitter("random_orientation"))

@@ -9,15 +9,7 @@ import pytest
 
 import tumble
 
-BALL = """
-[[plane]]
-normal = [0, 0, 1]
-
-[[sphere]]
-position = [0, 0, 1]
-radius = 0.1
-mass = 1.0
-"""
+from . import BALL
 
 
 def test_load_scene_builds_the_world(write_scene):

@@ -8,15 +8,7 @@ import tumble
 from tumble.errors import SceneError
 from tumble.io import scene as scene_io
 
-BALL = """
-[[plane]]
-normal = [0, 0, 1]
-
-[[sphere]]
-position = [0, 0, 1]
-radius = 0.1
-mass = 1.0
-"""
+from . import BALL
 
 # (id, TOML text, table named in the error, key named in the error or None, fragment of the message)
 BAD_SCENES = [
