@@ -231,7 +231,8 @@ class ClothSystem:
         Raises:
             ValueError: naming the bad argument.
         """
-        size = tuple(float(v) for v in validate.positive_vector(size, "cloth size", 2))
+        width, height = (float(v) for v in validate.positive_vector(size, "cloth size", 2))
+        size = (width, height)
         nx, ny = validate.integers(resolution, "cloth resolution", 2, low=1)
         if nx * ny < 2:
             raise ValueError(f"cloth resolution must be at least 2 particles, e.g. 2 x 1, got {(nx, ny)!r}")
