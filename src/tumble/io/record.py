@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import validate
 from ..errors import TumbleError
 from ..shapes import SHAPE_NAMES
 
@@ -61,9 +62,7 @@ class Recorder:
     """
 
     def __init__(self, world, fps: float = 60.0):
-        fps = float(fps)
-        if not np.isfinite(fps) or fps <= 0:
-            raise ValueError(f"fps must be a positive number, got {fps!r}")
+        fps = validate.positive(fps, "fps")
         self.world = world
         self.fps = fps
         self.start_time = float(world.time)

@@ -15,7 +15,6 @@ starts); between frames the world steps at its own `dt`. `duration * fps` frames
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -48,11 +47,7 @@ def output_kind(out) -> str:
 
 def frame_count(duration: float, fps: float) -> int:
     """Number of frames for `duration` seconds at `fps` (at least 1)."""
-    duration, fps = float(duration), float(fps)
-    if not math.isfinite(duration) or duration <= 0.0:
-        raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
-    if not math.isfinite(fps) or fps <= 0.0:
-        raise ValueError(f"fps must be a positive number, got {fps!r}")
+    duration, fps = validate.positive(duration, "duration"), validate.positive(fps, "fps")
     return max(1, int(round(duration * fps)))
 
 
