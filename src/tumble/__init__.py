@@ -22,9 +22,10 @@ _wp.config.log_level = _wp.LOG_WARNING  # no banner; the CLI says when kernels c
 from .cloth import ClothSystem, Wind
 from .emitters import Emitter
 from .errors import HandleError, SceneError, SimulationError, TumbleError
+from .model import Control, Model, State
 from .shapes import ShapeType
 from .snapshot import Snapshot, SnapshotError
-from .state import BodyId, BodyKind, ClothId
+from .state import BodyId, BodyKind, ClothId, JointId
 from .wedge import wedge
 from .world import BodyState, World
 
@@ -39,13 +40,17 @@ __all__ = [
     "BodyState",
     "ClothId",
     "ClothSystem",
+    "Control",
     "Emitter",
     "HandleError",
+    "JointId",
+    "Model",
     "SceneError",
     "ShapeType",
     "SimulationError",
     "Snapshot",
     "SnapshotError",
+    "State",
     "TumbleError",
     "Wind",
     "World",

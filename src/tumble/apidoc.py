@@ -25,6 +25,10 @@ CLASSES = (
     tumble.World,
     tumble.BodyId,
     tumble.ClothId,
+    tumble.JointId,
+    tumble.Model,
+    tumble.State,
+    tumble.Control,
     tumble.BodyKind,
     tumble.BodyState,
     tumble.Emitter,
@@ -42,19 +46,22 @@ CLASSES = (
 FUNCTIONS = (tumble.load_scene, tumble.wedge, tumble.save_snapshot, tumble.read_snapshot, tumble.load_snapshot)
 #: attributes every World instance has (set in __init__, so not found on the class)
 WORLD_ATTRIBUTES = {
-    "step_count": "Steps taken so far (int).",
     "seed": "Seed of the world's random generator (int, as given).",
     "rng": "The world's `numpy.random.Generator` (emitters without a seed draw theirs from it).",
     "device": 'Warp device the arrays live on ("cpu", "cuda:0").',
     "profile": "Stage name -> cumulative seconds spent in it (validate, emit, layout, broad_phase, ...).",
     "metadata": 'Scene-file extras, e.g. `metadata["camera"]`, `metadata["path"]`.',
     "emitters": "The world's `Emitter`s, in the order added.",
-    "bodies": "Engine internals: the body arrays (`ArraySet`, rows in storage order, not id order). Not a stable API.",
+    "model": "The `Model`: what does not change while stepping (body shapes, masses, materials; hulls, meshes).",
+    "state": "The `State`: what changes (body poses and velocities, the warm-start contacts, `step_count`).",
+    "control": "The `Control`: this step's inputs (user forces and torques).",
+    "bodies": (
+        "Engine internals: every body array as one table (`RowGroup` over the model's, state's, control's and "
+        "the solver's sets; rows in storage order, `body_rows` maps ids to them). Not a stable API."
+    ),
     "contacts": "Engine internals: the contact arrays (`ContactSet`). Not a stable API; read `contact_*` views.",
     "broadphase": "Engine internals: the broad phase's grid and pair buffers. Not a stable API.",
     "joints": "The joint arrays (`tumble.solver.joints.JointSet`); add joints with `add_joint`.",
-    "hulls": "Convex prototypes (`HullSet`): `hulls.prototypes[body_geometry[i]]` keeps a convex body's user frame.",
-    "meshes": "Static triangle meshes (`MeshSet`) and their Warp BVHs; add them with `add_mesh`.",
 }
 INTRO = """\
 # Python API reference

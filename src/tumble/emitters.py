@@ -47,7 +47,7 @@ from .shapes import (
 
 if TYPE_CHECKING:
     from .collision.hulls import HullSet
-    from .state import ArraySet
+    from .state import RowGroup
 
 #: jittered tries per candidate before it waits for the next step
 TRIES = 8
@@ -335,7 +335,7 @@ class Emitter:
 
     # ------------------------------------------------------------------ emission
 
-    def release(self, bodies: ArraySet, dt: float) -> dict[str, np.ndarray] | None:
+    def release(self, bodies: RowGroup, dt: float) -> dict[str, np.ndarray] | None:
         """The bodies owed for this step that find a free spot among `bodies` (the world's body arrays).
 
         Returns the new bodies' rows, as the keywords of the world's body append (the world's emit

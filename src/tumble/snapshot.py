@@ -41,11 +41,13 @@ if TYPE_CHECKING:
 from .launch import LaunchCache
 from .state import ArraySet, Handle
 
-FORMAT = 1
+FORMAT = 2  # 2: the body rows saved by part (model, state, control)
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
-# diagnostics, the Warp device (a snapshot can be restored on another device of the same world)
-_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "device", "_launch_sizes"})
+# diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
+# and the stages' table of the body rows, whose sets the model, state and control parts hold
+# (the solver's scratch rows are reset every step)
+_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "device", "_launch_sizes", "bodies"})
 
 
 # what `ArraySet` itself keeps beside its arrays (captured through its markers)
@@ -148,17 +150,19 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
     elif _is_derived(value):
         snap.values[path + "/:derived"] = True  # kept by name only: a restore leaves it to be rebuilt
     elif isinstance(value, ArraySet):
+        if id(value) in seen:  # held twice (the state's warm-start contacts are the contact solver's): saved once
+            snap.values[path + "/:same"] = True
+            return
+        seen.add(id(value))
         snap.values[path + "/:fields"] = list(value.fields)
         snap.values[path + "/:count"] = value.count
         snap.values[path + "/:capacity"] = value.capacity
-        for name, arr in value.arrays.items():
+        for name in value.fields:
             if arrays:
-                snap.arrays[f"{path}/{name}"] = arr.numpy().copy()
-        if id(value) not in seen:  # a subclass's own attributes (ContactSet's matching data, ...)
-            seen.add(id(value))
-            for name, item in sorted(vars(value).items()):
-                if name not in _ARRAYSET_OWN:
-                    _capture(item, f"{path}/{name}", snap, seen, arrays)
+                snap.arrays[f"{path}/{name}"] = value.arrays[name].numpy().copy()
+        for name, item in sorted(vars(value).items()):  # a subclass's own attributes (ContactSet's matching data)
+            if name not in _ARRAYSET_OWN:
+                _capture(item, f"{path}/{name}", snap, seen, arrays)
     elif isinstance(value, wp.array):
         if arrays:
             snap.arrays[path] = value.numpy().copy()
@@ -348,6 +352,8 @@ class _Restore:
         array now (or the other way round) comes back as it was.
         """
         snap = self.snap
+        if path + "/:same" in snap.values:
+            return  # an ArraySet restored where the walk met it first
         if path + "/:derived" in snap.values or _is_derived(value):
             self.derived.append((owner, name, value))
         elif path in snap.values:
@@ -375,9 +381,8 @@ class _Restore:
                 capacity=snap.values[path + "/:capacity"],
             )
             self.replaced.update((id(a), a) for n, a in before.items() if value.arrays[n] is not a)
-            if id(value) not in self.seen:
-                self.seen.add(id(value))
-                self.members(value, path, skip=_ARRAYSET_OWN | set(value.fields))
+            self.seen.add(id(value))
+            self.members(value, path, skip=_ARRAYSET_OWN | set(value.fields))
         elif isinstance(value, np.random.Generator):
             value.bit_generator.state = snap.values[path + "/:rng"]
         elif isinstance(value, (list, tuple)):
@@ -496,5 +501,5 @@ def load(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> W
         )
     scene = parse_scene(snap.scene, snap.scene_path)
     world = build_world(scene, **{**snap.overrides, **overrides})
-    restore(world, snap)
+    world.restore(snap)
     return world

@@ -53,20 +53,23 @@ class ArraySet:
         fields: name -> Warp dtype of one row.
         device: Warp device the arrays live on.
         capacity: initial number of rows allocated.
+        arrays: a dict to keep the arrays in, shared with the other sets of a `RowGroup` (default: its own).
     """
 
-    def __init__(self, fields: dict[str, type], *, device: str, capacity: int = 16):
+    def __init__(
+        self, fields: dict[str, type], *, device: str, capacity: int = 16, arrays: dict[str, wp.array] | None = None
+    ):
         self.fields = dict(fields)
         self.device = device
         self.count = 0
         self.capacity = 0
-        self.arrays: dict[str, wp.array] = {}
+        self.arrays: dict[str, wp.array] = {} if arrays is None else arrays
         self.reserve(max(1, capacity))
 
     def __getattr__(self, name: str) -> wp.array:
-        arrays = self.__dict__.get("arrays")
-        if arrays is not None and name in arrays:
-            return arrays[name]
+        fields = self.__dict__.get("fields")
+        if fields is not None and name in fields:
+            return self.__dict__["arrays"][name]
         raise AttributeError(name)
 
     def reserve(self, capacity: int) -> bool:
@@ -83,15 +86,22 @@ class ArraySet:
         self.capacity = new_capacity
         return True
 
-    def append(self, rows: dict[str, np.ndarray]) -> range:
+    def append(self, rows: dict[str, np.ndarray], *, count: int | None = None) -> range:
         """Append rows given as NumPy arrays (first axis = rows). Returns the new row range.
 
-        Fields missing from `rows` are zero.
+        Fields missing from `rows` are zero; `count` gives the number of rows when `rows` has none
+        of this set's fields.
         """
-        k = len(next(iter(rows.values())))
+        k = len(next(iter(rows.values()))) if count is None else count
         start = self.count
         self.reserve(start + k)
-        for name, values in rows.items():
+        # rows that `take` dropped may hold old values: zero the fields not given
+        zeros: dict[str, np.ndarray] = {
+            name: np.zeros((k,) + numpy_dtype(dtype)[1], numpy_dtype(dtype)[0])
+            for name, dtype in self.fields.items()
+            if name not in rows
+        }
+        for name, values in {**rows, **zeros}.items():
             dtype = self.fields[name]
             np_type, tail = numpy_dtype(dtype)
             src: np.ndarray = np.asarray(values, dtype=np_type).reshape((k,) + tail)
@@ -124,7 +134,8 @@ class ArraySet:
         A permutation of all rows reorders them; a shorter list also drops the rows it leaves out.
         """
         k = len(rows)
-        for arr in self.arrays.values():
+        for name in self.fields:
+            arr = self.arrays[name]
             host = arr.numpy()
             host[:k] = host[rows]
             if self.device != "cpu":
@@ -145,13 +156,87 @@ class ArraySet:
         valid); otherwise they are reallocated at exactly `capacity`, as after a `reserve`.
         """
         if capacity != self.capacity:
-            self.arrays = {
-                name: wp.zeros(capacity, dtype=dtype, device=self.device) for name, dtype in self.fields.items()
-            }
+            for name, dtype in self.fields.items():  # in place: a RowGroup's sets share one dict
+                self.arrays[name] = wp.zeros(capacity, dtype=dtype, device=self.device)
             self.capacity = capacity
-        for name, arr in self.arrays.items():
-            arr.assign(arrays[name])
+        for name in self.fields:
+            self.arrays[name].assign(arrays[name])
         self.count = count
+
+
+class RowGroup:
+    """Several `ArraySet`s over one row space, used as one: rows are added, reordered, dropped and
+    grown in all of them together, and `arrays` holds every set's arrays by name.
+
+    The world's body rows are one: the model's, the state's, the control's and the solver's
+    scratch sets (`tumble.model`), which kernels see as one table.
+
+    Args:
+        parts: the sets, made with one shared `arrays` dict, each with its own fields.
+    """
+
+    def __init__(self, *parts: ArraySet):
+        self.parts = parts
+        self.arrays = parts[0].arrays
+        if any(p.arrays is not self.arrays for p in parts):
+            raise ValueError("the sets of a RowGroup must share one arrays dict")
+        self.fields = {name: dtype for p in parts for name, dtype in p.fields.items()}
+        self._part = {name: p for p in parts for name in p.fields}
+        self.device = parts[0].device
+        self.sync()
+
+    def __getattr__(self, name: str) -> wp.array:
+        fields = self.__dict__.get("fields")
+        if fields is not None and name in fields:
+            return self.__dict__["arrays"][name]
+        raise AttributeError(name)
+
+    @property
+    def count(self) -> int:
+        """Rows in use."""
+        return self.parts[0].count
+
+    @property
+    def capacity(self) -> int:
+        """Rows allocated (in every part at least this many)."""
+        return self.parts[0].capacity
+
+    def sync(self) -> None:
+        """Give every part the first part's row count, and a capacity at least the first part's
+        (after a part was loaded alone, as a snapshot restore does)."""
+        first = self.parts[0]
+        for p in self.parts[1:]:
+            p.reserve(first.capacity)
+            p.count = first.count
+
+    def reserve(self, capacity: int) -> bool:
+        """Make room for `capacity` rows in every part. Returns True if any was reallocated."""
+        grown = [p.reserve(capacity) for p in self.parts]
+        return any(grown)
+
+    def append(self, rows: dict[str, np.ndarray]) -> range:
+        """Append rows given as NumPy arrays (first axis = rows) to every part; missing fields are zero."""
+        k = len(next(iter(rows.values())))
+        self.reserve(self.count + k)
+        added = [p.append({name: v for name, v in rows.items() if name in p.fields}, count=k) for p in self.parts]
+        return added[0]
+
+    def numpy(self, name: str, *, count: int | None = None) -> np.ndarray:
+        """Host view of the first `count` rows of one array (zero-copy on the CPU)."""
+        return self._part[name].numpy(name, count=count)
+
+    def write(self, name: str, rows, values) -> None:
+        """Overwrite the rows `rows` of one array from host values."""
+        self._part[name].write(name, rows, values)
+
+    def permute(self, order: np.ndarray) -> None:
+        """Reorder the rows of every part: new row k is old row `order[k]`."""
+        self.take(order)
+
+    def take(self, rows: np.ndarray) -> None:
+        """Keep only the rows `rows`, in that order, in every part."""
+        for p in self.parts:
+            p.take(rows)
 
 
 def readonly(a: np.ndarray) -> np.ndarray:
@@ -295,6 +380,15 @@ class BodyId(Handle):
     def kind(self) -> BodyKind:
         """DYNAMIC, STATIC or KINEMATIC."""
         return self.world.body_state(self).kind
+
+
+class JointId(Handle):
+    """Handle to one joint: its index in creation order (`world.joint_force[joint.index]` is its force).
+
+    Joints are never removed (a broken joint keeps its index), so the generation stays 0.
+    """
+
+    _noun = "joint"
 
 
 class ClothId(Handle):

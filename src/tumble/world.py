@@ -20,7 +20,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, overload
 
 import numpy as np
 import warp as wp
@@ -37,6 +37,7 @@ from .collision.meshes import MeshSet
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
 from .launch import LaunchCache
+from .model import BODY_FIELD, Control, Model, State, body_rows
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
 from .runtime import init_warp
 from .shapes import ShapeType
@@ -45,52 +46,19 @@ from .solver import contacts as contact_solver
 from .solver import integrate
 from .solver import joints as joint_solver
 from .state import (
-    ArraySet,
     BodyId,
     BodyKind,
     ClothId,
     Handle,
-    float_t,
-    quat,
+    JointId,
     readonly,
     register_world,
-    vec3,
 )
 
 #: worlds with fewer bodies keep their rows in id order (their state fits in cache anyway)
 SORT_MIN_BODIES = 8192
 #: steps between two renumberings of the body rows along a space-filling curve
 SORT_INTERVAL = 60
-
-#: per-body arrays, static description first, then per-step state
-BODY_FIELDS = {
-    # model
-    "body_id": wp.int32,  # the BodyId given at creation; rows are reordered in space (see _sort_bodies)
-    "body_shape": wp.int32,  # ShapeType
-    "body_kind": wp.int32,  # BodyKind: dynamic, static or kinematic (the solver reads only inverse masses)
-    "body_radius": float_t,  # sphere and capsule radius [m] (0 for other shapes)
-    "body_half_extents": vec3,  # box half extents [m]; for capsules, of the bounding box (r, r, a + r)
-    "body_bound_radius": float_t,  # radius of a bounding sphere [m] (inf for planes)
-    "body_geometry": wp.int32,  # row of a convex body's hull in world.hulls, of a mesh in world.meshes (else 0)
-    "body_mass": float_t,  # [kg] (0 for static bodies)
-    "body_inv_mass": float_t,  # [1/kg] (0 for static bodies)
-    "body_inv_inertia": vec3,  # principal inverse moments in the body frame [1/(kg m^2)]
-    "body_restitution": float_t,
-    "body_friction": float_t,
-    # state
-    "body_position": vec3,  # centre of mass [m]
-    "body_orientation": quat,  # body-to-world rotation (x, y, z, w)
-    "body_velocity": vec3,  # [m/s]
-    "body_angular_velocity": vec3,  # world frame [rad/s]
-    "body_force": vec3,  # user force for the next step [N]
-    "body_torque": vec3,  # user torque for the next step [N m]
-    # motion since the start of the step, for the solver's separation update
-    "body_delta_position": vec3,  # [m]
-    "body_delta_rotation": vec3,  # rotation vector [rad]
-    # warm start of the next substep, summed per body by the relax pass
-    "body_warm_velocity": vec3,  # [m/s]
-    "body_warm_angular_velocity": vec3,  # [rad/s]
-}
 
 
 class BodyState(NamedTuple):
@@ -110,6 +78,23 @@ _STATE_NAMES = {
     "velocity": "body_velocity",
     "angular_velocity": "body_angular_velocity",
 }
+
+
+class BodyView(property):
+    """A read-only view of one body array (`World.body_position`, ...), documented from its declaration
+    in `tumble.model.BODY_FIELDS`: a copy of that moment's values, one row per body id."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(lambda world: world._view(name))
+        self.name = name
+        self.__doc__ = BODY_FIELD[name].describe()
+
+    @overload
+    def __get__(self, world: None, owner: type | None = None) -> BodyView: ...
+    @overload
+    def __get__(self, world: World, owner: type | None = None) -> np.ndarray: ...
+    def __get__(self, world, owner=None):
+        return super().__get__(world, owner)
 
 
 class World:
@@ -157,7 +142,6 @@ class World:
         except (RuntimeError, ValueError) as exc:
             raise ValueError(f"device {device!r}: {exc}") from None
         self.rng = np.random.default_rng(self.seed)
-        self.step_count = 0
         # time = sum over runs of equal dt of (steps in the run) * dt, so it is exact to one rounding
         self._time_base = 0.0
         self._segment_dt = self.dt
@@ -166,13 +150,17 @@ class World:
         self.metadata: dict = {}
         self._key = register_world(self)
 
-        self.bodies = ArraySet(BODY_FIELDS, device=self.device)
+        # the parts (tumble.model): one dict holds the body arrays of all four, which share their rows
+        body_arrays: dict[str, wp.array] = {}
+        self.model = Model(self.device, body_arrays, HullSet(self.device), MeshSet(self.device))
+        self.contacts = contact_solver.ContactSet(self.device)
+        self.state = State(self.device, body_arrays, self.contacts.previous)
+        self.control = Control(self.device, body_arrays)
+        # every body array as one table, for the stages (model, state, control and the solver's scratch)
+        self.bodies = body_rows(self.device, body_arrays, self.model, self.state, self.control)
         self.emitters: list[Emitter] = []
         self.broadphase = broadphase.BroadPhase(self.device)
-        self.contacts = contact_solver.ContactSet(self.device)
         self.joints = joint_solver.JointSet(self.device)
-        self.hulls = HullSet(self.device)  # convex prototypes, row 0 the unit box
-        self.meshes = MeshSet(self.device)  # static triangle meshes and their BVHs
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes: tuple[int, int] | None = None
@@ -224,6 +212,26 @@ class World:
     @restitution_threshold.setter
     def restitution_threshold(self, value: float) -> None:
         self._restitution_threshold = validate.number(value, "restitution_threshold", low=0.0)
+
+    @property
+    def step_count(self) -> int:
+        """Steps taken (kept in `world.state`)."""
+        return self.state.step_count
+
+    @step_count.setter
+    def step_count(self, value: int) -> None:
+        self.state.step_count = value
+
+    @property
+    def hulls(self) -> HullSet:
+        """Convex prototypes (a `HullSet`, kept in `world.model`), row 0 the unit box; `hulls.prototypes[body_geometry[i]]`
+        keeps a convex body's user frame."""
+        return self.model.hulls
+
+    @property
+    def meshes(self) -> MeshSet:
+        """Static triangle meshes and their Warp BVHs (a `MeshSet`, kept in `world.model`); add them with `add_mesh`."""
+        return self.model.meshes
 
     @property
     def key(self) -> int:
@@ -568,7 +576,7 @@ class World:
             static=static,
             bound=np.array([proto.bound_radius]),
         )
-        self.bodies.write("body_geometry", self._slot(ids[0]), index)
+        self.bodies.write("body_geometry", self._row(ids[0]), index)
         return ids[0]
 
     def add_mesh(
@@ -614,7 +622,7 @@ class World:
             friction=validate.friction(friction),
             bound=np.array([float(np.linalg.norm(v, axis=1).max())]),
         )
-        self.bodies.write("body_geometry", self._slot(ids[0]), index)
+        self.bodies.write("body_geometry", self._row(ids[0]), index)
         return ids[0]
 
     def add_body(self, shape: str | ShapeType, **kwargs: Any) -> BodyId:
@@ -812,7 +820,7 @@ class World:
         damping: float = 0.0,
         break_force: float = math.inf,
         collide: bool = False,
-    ) -> joint_solver.JointId:
+    ) -> JointId:
         """Join two bodies (either may be None: the world, a fixed frame); see `tumble.solver.joints`.
 
         Args:
@@ -859,11 +867,11 @@ class World:
             break_force=break_force,
             collide=collide,
         )
-        return joint_solver.JointId(self.joints.add(rows)[0])
+        return JointId(self.joints.add(rows)[0], 0, self._key)
 
     def _joint_body(self, body, key: str):
         try:
-            i = self._slot(body)
+            i = self._row(body)
         except (IndexError, TypeError, ValueError):
             raise joint_solver.JointArgumentError(
                 key, f"no body {body!r} (the world has {self.bodies.count} bodies)"
@@ -1057,6 +1065,21 @@ class World:
             return readonly(np.ones(self._id_count, dtype=bool))
         return readonly(self._slot_of_id >= 0)
 
+    def body_row(self, body: BodyId | int) -> int:
+        """Row of a live body in the arrays of `world.bodies` (`world.model.bodies`, ...).
+
+        Rows are in id order until bodies are removed or a large world renumbers them along a
+        space-filling curve (`SORT_MIN_BODIES`); the `body_*` views are always in id order.
+        """
+        return self._row(body)
+
+    @property
+    def body_rows(self) -> np.ndarray:
+        """Row of each body id in the arrays of `world.bodies`, -1 for removed ids, shape (body_count,), int64."""
+        if self._slot_of_id is None:
+            return readonly(np.arange(self._id_count))
+        return readonly(self._slot_of_id.copy())
+
     def _set_id_rows(self, of_id: np.ndarray) -> None:
         """Take `of_id` (row of each id, -1 = free) as the id table: trailing free ids are dropped."""
         alive = np.flatnonzero(of_id >= 0)
@@ -1241,10 +1264,6 @@ class World:
             self._set_id_rows(grown)
         generation = self._body_generation[ids]
         return [BodyId(i, g, self._key) for i, g in zip(ids.tolist(), generation.tolist())]
-
-    def _slot(self, body) -> int:
-        """Row of the body with id `body` in the body arrays (kept for callers of the old name)."""
-        return self._row(body)
 
     def _sort_bodies(self) -> None:
         """Renumber the body rows along a space-filling curve (ids stay the same).
@@ -1565,31 +1584,19 @@ class World:
         """Number of contact points found by the last step (speculative ones included)."""
         return self.contacts.count
 
-    body_shape = property(lambda self: self._view("body_shape"), doc="Shape types (ShapeType), shape (n,), int32.")
-    body_kind = property(
-        lambda self: self._view("body_kind"),
-        doc="How each body moves (BodyKind: dynamic, static, kinematic), shape (n,), int32.",
-    )
-    body_radius = property(lambda self: self._view("body_radius"), doc="Sphere and capsule radii [m], shape (n,).")
-    body_geometry = property(
-        lambda self: self._view("body_geometry"),
-        doc="Row of each convex body's hull in `hulls.prototypes`, shape (n,), int32.",
-    )
-    body_half_extents = property(
-        lambda self: self._view("body_half_extents"), doc="Box half extents [m], shape (n, 3)."
-    )
-    body_mass = property(lambda self: self._view("body_mass"), doc="Masses [kg], shape (n,); 0 for static bodies.")
-    body_inv_mass = property(lambda self: self._view("body_inv_mass"), doc="Inverse masses [1/kg], shape (n,).")
-    body_restitution = property(lambda self: self._view("body_restitution"), doc="Restitution, shape (n,).")
-    body_friction = property(lambda self: self._view("body_friction"), doc="Friction coefficients, shape (n,).")
-    body_position = property(lambda self: self._view("body_position"), doc="Positions [m], shape (n, 3).")
-    body_orientation = property(
-        lambda self: self._view("body_orientation"), doc="Orientations (x, y, z, w), shape (n, 4)."
-    )
-    body_velocity = property(lambda self: self._view("body_velocity"), doc="Linear velocities [m/s], shape (n, 3).")
-    body_angular_velocity = property(
-        lambda self: self._view("body_angular_velocity"), doc="Angular velocities, world frame [rad/s], shape (n, 3)."
-    )
+    body_shape = BodyView("body_shape")
+    body_kind = BodyView("body_kind")
+    body_radius = BodyView("body_radius")
+    body_geometry = BodyView("body_geometry")
+    body_half_extents = BodyView("body_half_extents")
+    body_mass = BodyView("body_mass")
+    body_inv_mass = BodyView("body_inv_mass")
+    body_restitution = BodyView("body_restitution")
+    body_friction = BodyView("body_friction")
+    body_position = BodyView("body_position")
+    body_orientation = BodyView("body_orientation")
+    body_velocity = BodyView("body_velocity")
+    body_angular_velocity = BodyView("body_angular_velocity")
 
     joint_count = property(lambda self: self.joints.count, doc="Number of joints, broken ones included.")
     joint_force = property(
@@ -1690,6 +1697,7 @@ class World:
         if not isinstance(state, Snapshot):
             raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")
         snapshot.restore(self, state)
+        self.bodies.sync()  # the solver's scratch rows, which snapshots leave out, to the restored capacity
         self._launch_sizes = None  # derived from the arrays that the restore replaced
 
     def state_hash(self) -> str:

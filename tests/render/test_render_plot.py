@@ -106,7 +106,7 @@ def test_missing_arrays_leave_panels_saying_so(tmp_path):
     assert len(titles) == 4
     assert titles[0].startswith("Kinetic energy: not recorded") and "mass" in titles[0]
     assert titles[3].startswith("Contact count: not recorded")
-    assert "no cloth" in fig._suptitle.get_text()
+    assert "no cloth" in fig.get_suptitle()
 
 
 def test_plot_file_is_a_png_of_the_figure_size(tmp_path):

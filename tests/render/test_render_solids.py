@@ -83,7 +83,7 @@ def test_bodies_sharing_a_hull_prototype_are_one_batch():
     world = _mixed_world()
     hull_rows = np.asarray(world.body_geometry)[np.asarray(world.body_shape) == tumble.ShapeType.CONVEX]
     # point two bodies at one prototype, as an emitter of one hull would
-    world.bodies.write("body_geometry", world._slot(world.body(7)), int(hull_rows[0]))
+    world.bodies.write("body_geometry", world.body_row(world.body(7)), int(hull_rows[0]))
     batches = [b for b in scene_arrays(world).solids if b.key[0] == "hull"]
     assert sorted(len(b.body) for b in batches) == [1, 2]
 
@@ -274,4 +274,4 @@ def test_hull_buffers_past_the_cache_size_are_freed_but_not_while_drawn(small_re
     full = small_renderer.render(world, camera)
     monkeypatch.setattr(renderer_module, "SOLID_CACHE_SIZE", 2)
     np.testing.assert_array_equal(small_renderer.render(world, camera), full)
-    assert len(small_renderer._solid_cache) == 3  # all drawn now; older ones go when the next frame needs room
+    assert small_renderer.cached_batches == 3  # all drawn now; older ones go when the next frame needs room

@@ -1,4 +1,4 @@
-"""state.py: ArraySet storage (growth, rows, views, reordering, loading), read-only views and handles."""
+"""state.py: ArraySet and RowGroup storage (growth, rows, views, reordering, loading), read-only views and handles."""
 
 from __future__ import annotations
 
@@ -10,7 +10,21 @@ import pytest
 import warp as wp
 
 import tumble
-from tumble.state import ArraySet, BodyId, ClothId, Handle, float_t, host_view, mat33, numpy_dtype, quat, readonly, vec3
+from tumble.state import (
+    ArraySet,
+    BodyId,
+    ClothId,
+    Handle,
+    JointId,
+    RowGroup,
+    float_t,
+    host_view,
+    mat33,
+    numpy_dtype,
+    quat,
+    readonly,
+    vec3,
+)
 
 FIELDS = {"mass": float_t, "position": vec3, "orientation": quat, "frame": mat33, "tag": wp.int32}
 
@@ -170,3 +184,58 @@ def test_a_handle_finds_its_world_only_while_it_lives():
     gc.collect()
     with pytest.raises(tumble.HandleError, match="no longer exists"):
         _ = ball.world
+
+
+def _group(capacity: int = 4) -> tuple[RowGroup, ArraySet, ArraySet]:
+    shared: dict = {}
+    a = ArraySet({"mass": float_t, "tag": wp.int32}, device="cpu", capacity=capacity, arrays=shared)
+    b = ArraySet({"position": vec3, "orientation": quat}, device="cpu", capacity=capacity, arrays=shared)
+    return RowGroup(a, b), a, b
+
+
+def test_a_row_group_adds_reorders_and_grows_its_sets_together():
+    group, a, b = _group()
+    r = rows(6)
+    added = group.append({k: r[k] for k in ("mass", "tag", "position")})
+    assert added == range(0, 6) and a.count == b.count == group.count == 6
+    assert a.capacity == b.capacity == group.capacity >= 6
+    assert set(group.fields) == {"mass", "tag", "position", "orientation"} == set(group.arrays)
+    np.testing.assert_array_equal(group.numpy("orientation"), 0.0)  # not given: zero
+    group.take(np.array([5, 0, 3]))
+    np.testing.assert_array_equal(group.numpy("tag"), [5, 0, 3])
+    np.testing.assert_array_equal(group.numpy("position")[:, 0], [5.0, 0.0, 3.0])
+    # each set holds its own fields only
+    assert set(a.fields) == {"mass", "tag"} and not hasattr(a, "position") and a.tag is group.tag
+
+
+def test_rows_dropped_by_take_are_zero_when_added_again():
+    """A field not given for new rows is zero even where a dropped row left its values."""
+    group, a, b = _group()
+    r = rows(4, start=1)
+    group.append(r | {"position": r["position"]})
+    group.take(np.array([0]))
+    group.append({"mass": np.ones(3)})
+    np.testing.assert_array_equal(group.numpy("tag"), [1, 0, 0, 0])
+    np.testing.assert_array_equal(group.numpy("position")[1:], 0.0)
+
+
+def test_sync_grows_a_set_that_a_load_left_behind():
+    group, a, b = _group()
+    group.append({"mass": np.ones(2)})
+    saved = {n: a.arrays[n].numpy().copy() for n in a.fields}
+    a.load({n: np.resize(v, 64) for n, v in saved.items()}, count=2, capacity=64)
+    assert b.capacity < 64
+    group.sync()
+    assert b.capacity >= 64 and b.count == 2 and group.capacity == 64
+
+
+def test_a_row_group_needs_one_shared_dict():
+    with pytest.raises(ValueError, match="share one arrays dict"):
+        RowGroup(ArraySet({"x": float_t}, device="cpu"), ArraySet({"y": float_t}, device="cpu"))
+
+
+def test_joint_handles_carry_their_world():
+    w = tumble.World()
+    a = w.add_sphere(position=(0, 0, 1), radius=0.1)
+    joint = w.add_joint("ball", a, None, anchor=(0, 0, 1.2))
+    assert isinstance(joint, JointId) and joint.index == 0 and joint.world is w

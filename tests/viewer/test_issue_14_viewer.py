@@ -176,4 +176,4 @@ def test_an_error_in_the_simulation_thread_pauses_with_a_message(window, qtbot):
     qtbot.waitUntil(lambda: not window.clock.playing, timeout=10000)
     qtbot.waitUntil(lambda: "NaN" in window.message_label.text(), timeout=10000)
     assert "Simulation stopped" in window.message_label.text()
-    assert window.sim._thread is not None and window.sim._thread.is_alive()
+    assert window.sim.running

@@ -162,7 +162,7 @@ def test_drag_on_a_body_pulls_it_towards_the_cursor(window, qtbot):
     assert (x1, y1) == pytest.approx((x, y - 40), abs=2.0)
     qtbot.mouseRelease(window.view, Qt.MouseButton.LeftButton, pos=QtCore.QPoint(x, y - 40))
     assert window.held is None
-    window._on_tick()
+    window.on_tick()
     assert window.view.spring_line is None
 
 
@@ -237,12 +237,12 @@ def test_slow_frames_lower_the_image_resolution_and_shadows_toggle(window):
     """The image view draws smaller while frames are slow, back up when fast; shadows can be switched."""
     view = window.view
     view.render_scale = 1.0  # (a slow first paint on a busy machine may already have lowered it)
-    view._adapt_scale(0.5)
+    view.adapt_scale(0.5)
     assert view.render_scale == 0.75
-    view._adapt_scale(0.5)
-    view._adapt_scale(0.5)
+    view.adapt_scale(0.5)
+    view.adapt_scale(0.5)
     assert view.render_scale == 0.5  # never below MIN_RENDER_SCALE
-    view._adapt_scale(0.001)
+    view.adapt_scale(0.001)
     assert view.render_scale == 0.75
     # shadows start off when drawing in software (Mesa llvmpipe on the test machine), else on
     assert view.shadows is (not view.software)
@@ -255,7 +255,7 @@ def test_slow_frames_lower_the_image_resolution_and_shadows_toggle(window):
 def test_a_drawing_failure_pauses_with_a_message(window):
     """When the view cannot draw, the window pauses and says why instead of crashing."""
     window.play()
-    window._on_view_failed("drawing failed: test")
+    window.on_view_failed("drawing failed: test")
     assert not window.clock.playing
     assert "drawing failed: test" in window.message_label.text()
 

@@ -47,6 +47,7 @@ from ..collision.hashgrid import HashGrid, cell_hash, cell_of
 from ..collision.hulls import Hulls
 from ..collision.narrowphase import box_closest, hull_closest
 from ..launch import LaunchCache, launch
+from ..model import BodyArrays
 from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
 from ..state import float_t, quat, vec3
@@ -58,40 +59,6 @@ BOX = wp.constant(int(ShapeType.BOX))
 CAPSULE = wp.constant(int(ShapeType.CAPSULE))
 CONVEX = wp.constant(int(ShapeType.CONVEX))
 MESH = wp.constant(int(ShapeType.MESH))
-
-
-@wp.struct
-class BodyArrays:
-    """The world's body arrays that cloth collisions read and write (see `tumble.world.BODY_FIELDS`)."""
-
-    shape: wp.array(dtype=wp.int32)
-    position: wp.array(dtype=vec3)
-    orientation: wp.array(dtype=quat)
-    radius: wp.array(dtype=float_t)
-    half_extents: wp.array(dtype=vec3)
-    geometry: wp.array(dtype=wp.int32)
-    inv_mass: wp.array(dtype=float_t)
-    inv_inertia: wp.array(dtype=vec3)
-    friction: wp.array(dtype=float_t)
-    velocity: wp.array(dtype=vec3)
-    angular_velocity: wp.array(dtype=vec3)
-    delta_position: wp.array(dtype=vec3)
-    delta_rotation: wp.array(dtype=vec3)
-
-
-def body_arrays(bodies, cached: tuple | None = None) -> tuple:
-    """The struct over a body `ArraySet`'s arrays, as (struct, arrays): `cached` (a previous return)
-    again while the set's arrays are the same ones, so that a recorded launch re-packs nothing.
-    The caller keeps it (`ClothSystem` does, per world step); it is a cache, rebuilt on demand."""
-    # wp.struct turns the class into a Struct, whose fields are `vars`; mypy does not apply class decorators
-    # (python/mypy#3135), so to it BodyArrays is still the class
-    arrays = [bodies.arrays["body_" + name] for name in BodyArrays.vars]  # type: ignore[attr-defined]
-    if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
-        return cached
-    s = BodyArrays()
-    for name, array in zip(BodyArrays.vars, arrays):  # type: ignore[attr-defined]
-        setattr(s, name, array)
-    return s, arrays
 
 
 @wp.func

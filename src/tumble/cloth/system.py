@@ -41,6 +41,7 @@ import warp as wp
 from .. import validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
+from ..model import Field, Role, body_arrays, fields_of
 from ..state import BodyId, ClothId, Handle, float_t, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
@@ -53,27 +54,27 @@ DEFAULT_DAMPING = {"structural": 0.002, "shear": 0.0005, "bend": 0.0001}
 #: default areal density [kg/m^2] when neither mass nor areal_density is given (light cotton)
 DEFAULT_AREAL_DENSITY = 0.2
 
-_PARTICLE_FIELDS = {
-    # model
-    "particle_mass": float_t,  # [kg]
-    "particle_inv_mass": float_t,  # [1/kg], 0 = pinned
-    "particle_thickness": float_t,  # [m]
-    "particle_friction": float_t,
-    "particle_cloth": wp.int32,  # index of the cloth in creation order
-    "particle_i": wp.int32,  # grid coordinates in its cloth
-    "particle_j": wp.int32,
-    "particle_rest_position": vec3,  # [m]
-    # state
-    "particle_position": vec3,  # [m]
-    "particle_velocity": vec3,  # [m/s]
-    "particle_pin_target": vec3,  # [m], where a pinned particle should be at the end of the step
-    # scratch
-    "particle_position_prev": vec3,  # [m], start of the substep
-    "particle_force": vec3,  # [N], accumulated per substep
-    "particle_external_force": vec3,  # [N], user force for the current step
-    "particle_wind": vec3,  # [m/s], wind velocity at the particle this step
-}
-_STATE_FIELDS = ("particle_position", "particle_velocity", "particle_pin_target", "particle_inv_mass")
+#: every per-particle array, declared once (as `tumble.model.BODY_FIELDS` declares the body arrays)
+PARTICLE_FIELDS: tuple[Field, ...] = (
+    Field("particle_mass", float_t, Role.MODEL, "kg", "mass"),
+    Field("particle_inv_mass", float_t, Role.MODEL, "1/kg", "inverse mass, 0 = pinned (pins may change it)"),
+    Field("particle_thickness", float_t, Role.MODEL, "m", "collision thickness"),
+    Field("particle_friction", float_t, Role.MODEL, "", "friction coefficient"),
+    Field("particle_cloth", wp.int32, Role.MODEL, "", "index of the cloth in creation order"),
+    Field("particle_i", wp.int32, Role.MODEL, "", "grid column in its cloth"),
+    Field("particle_j", wp.int32, Role.MODEL, "", "grid row in its cloth"),
+    Field("particle_rest_position", vec3, Role.MODEL, "m", "position in the rest shape"),
+    Field("particle_position", vec3, Role.STATE, "m", "position"),
+    Field("particle_velocity", vec3, Role.STATE, "m/s", "velocity"),
+    Field("particle_pin_target", vec3, Role.STATE, "m", "where a pinned particle should be at the end of the step"),
+    Field("particle_position_prev", vec3, Role.SCRATCH, "m", "position at the start of the substep"),
+    Field("particle_force", vec3, Role.SCRATCH, "N", "force accumulated over the substep"),
+    Field("particle_external_force", vec3, Role.CONTROL, "N", "user force for the current step"),
+    Field("particle_wind", vec3, Role.SCRATCH, "m/s", "wind velocity at the particle this step"),
+)
+_PARTICLE_FIELDS = fields_of(PARTICLE_FIELDS)
+#: the arrays whose live values a new cloth's rows are appended to (the rest are rebuilt from the host copy)
+_STATE_FIELDS = (*fields_of(PARTICLE_FIELDS, Role.STATE), "particle_inv_mass")
 
 
 @dataclass(frozen=True)
@@ -182,7 +183,7 @@ class ClothSystem:
         self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
-        self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (collide.body_arrays; a cache)
+        self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (model.body_arrays; a cache)
         self._pin_dt = 0.0
         self._cache = LaunchCache()
         self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
@@ -696,7 +697,7 @@ class ClothSystem:
         dt = h * max(1, int(substeps))
         a = self._arrays
         self._gravity = np.array(gravity, dtype=np.float64)
-        self._bodies = collide.body_arrays(bodies, self._bodies)
+        self._bodies = body_arrays(bodies, self._bodies)
         self._substep_index = 0
         self._pin_impulse.zero_()
         self._pin_dt = dt

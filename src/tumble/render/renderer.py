@@ -396,7 +396,7 @@ class Renderer:
         self._capsule_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         self._joint_buf = ctx.buffer(reserve=64 * CAPSULE_FLOATS * 4, dynamic=True)
         # hull and mesh vertex buffers by SolidBatch.key: (source, vbo, instance buffer, vao, shadow vao, count)
-        self._solid_cache: dict[tuple, tuple] = {}
+        self._solid_cache: dict[tuple, tuple] = {}  # batch key -> its GPU buffers (`cached_batches`)
 
         va = ctx.vertex_array
         self._sky_vao = va(self._sky, [])
@@ -655,6 +655,11 @@ class Renderer:
             fbo.use()
             ctx.disable(mgl.BLEND)
             self._set(p, "u_glass", 0.0)
+
+    @property
+    def cached_batches(self) -> int:
+        """Instanced batches whose buffers are kept on the GPU (at most `SOLID_CACHE_SIZE` after a frame)."""
+        return len(self._solid_cache)
 
     def release(self) -> None:
         """Free the GL objects this renderer made (not the context); the renderer is unusable after."""

@@ -177,19 +177,6 @@ JOINT_FIELDS = {
 _BALL, _HINGE, _SLIDER, _FIXED, _DISTANCE = (int(k) for k in JointKind)
 
 
-@dataclass(frozen=True)
-class JointId:
-    """Public handle to one joint: its creation index."""
-
-    index: int
-
-    def __index__(self) -> int:
-        return self.index
-
-    def __int__(self) -> int:
-        return self.index
-
-
 # ---------------------------------------------------------------------------- geometry of a joint
 
 

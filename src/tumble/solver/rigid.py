@@ -1,7 +1,7 @@
 """Rigid-body algebra shared by the solver's stages (contacts, joints, integration) and the cloth coupling.
 
 Warp functions only: each reads a body's orientation and principal inverse inertia, as the body
-arrays hold them (`state.BodyArrays`), and works in the world frame.
+arrays hold them (`model.BodyArrays`), and works in the world frame.
 """
 
 from __future__ import annotations

@@ -304,6 +304,11 @@ class SimulationThread:
             self._thread.join(timeout=30.0)
             self._thread = None
 
+    @property
+    def running(self) -> bool:
+        """Whether the worker thread is running."""
+        return self._thread is not None and self._thread.is_alive()
+
     def wake(self) -> None:
         """Tick now rather than at the end of the current period (e.g. after play)."""
         self._wake.set()

@@ -201,9 +201,9 @@ class ImageSceneView(_SceneViewMixin, QtWidgets.QWidget):
         self.paint_overlay(painter)
         painter.end()
         self.frame_count += 1
-        self._adapt_scale(time.perf_counter() - start)
+        self.adapt_scale(time.perf_counter() - start)
 
-    def _adapt_scale(self, seconds: float) -> None:
+    def adapt_scale(self, seconds: float) -> None:
         """Software rendering is slow at full size: draw smaller (scaled up) while frames are slow."""
         if not self.adaptive:
             return

@@ -236,7 +236,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         # one timer drives both the simulation and the repaints
         self.timer = QtCore.QTimer(self)
         self.timer.setTimerType(QtCore.Qt.TimerType.PreciseTimer)
-        self.timer.timeout.connect(self._on_tick)
+        self.timer.timeout.connect(self.on_tick)
         self.timer.start(TICK_MS)
         self.sim.start()
         if not paused:
@@ -253,7 +253,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             view.shadows = self.controls.shadows.isChecked()
             view.show_joints = self.controls.joints.isChecked()
         view.installEventFilter(self)
-        view.failed.connect(self._on_view_failed)
+        view.failed.connect(self.on_view_failed)
         if hasattr(view, "ready"):
             view.ready.connect(self._view_ready)
         layout = self.central.layout()
@@ -385,7 +385,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
             self.show_message(f"Simulation stopped: {exc}", error=True)
             return False
 
-    def _on_tick(self) -> None:
+    def on_tick(self) -> None:
         error, self.sim.error = self.sim.error, None
         if error is not None:
             self.pause()
@@ -767,7 +767,7 @@ class ViewerWindow(QtWidgets.QMainWindow):
         if hasattr(self, "play_action"):
             self.play_action.setText("Pause" if self.clock.playing else "Play")
 
-    def _on_view_failed(self, reason: str) -> None:
+    def on_view_failed(self, reason: str) -> None:
         """The GL view could not draw: switch to the offscreen image view, or explain and stop."""
         if isinstance(self.view, ImageSceneView):
             self.pause()

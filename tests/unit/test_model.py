@@ -1,0 +1,119 @@
+"""tumble.model: the one declaration of the body arrays, and the Model / State / Control parts of a World."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.model import BODY_FIELDS, BodyArrays, Control, Model, Role, State, body_arrays, fields_of
+
+
+@pytest.fixture
+def world() -> tumble.World:
+    w = tumble.World(dt=1 / 240, substeps=2)
+    w.add_plane()
+    w.add_sphere(position=(0, 0, 0.5), radius=0.1)
+    w.add_box(position=(0.5, 0, 0.5), half_extents=(0.1, 0.1, 0.1))
+    return w
+
+
+def test_each_body_field_is_declared_once_with_a_role_and_a_unit_string():
+    names = [f.name for f in BODY_FIELDS]
+    assert len(names) == len(set(names))
+    assert all(n.startswith("body_") for n in names)
+    assert all(isinstance(f.role, Role) and isinstance(f.unit, str) and f.doc for f in BODY_FIELDS)
+    # what the issue places where: poses and velocities are state, user forces control, masses model
+    role = {f.name: f.role for f in BODY_FIELDS}
+    assert role["body_position"] is role["body_angular_velocity"] is Role.STATE
+    assert role["body_force"] is role["body_torque"] is Role.CONTROL
+    assert role["body_mass"] is role["body_inv_inertia"] is role["body_shape"] is Role.MODEL
+    assert role["body_warm_velocity"] is role["body_delta_position"] is Role.SCRATCH
+
+
+def test_the_world_is_built_from_parts_that_split_the_fields_between_them(world):
+    assert isinstance(world.model, Model) and isinstance(world.state, State) and isinstance(world.control, Control)
+    parts = {
+        Role.MODEL: world.model.bodies,
+        Role.STATE: world.state.bodies,
+        Role.CONTROL: world.control.bodies,
+    }
+    for role, part in parts.items():
+        assert set(part.fields) == set(fields_of(BODY_FIELDS, role))
+        assert part.count == world.body_count == 3
+    # the stages' table holds every field once, scratch included, over the same arrays
+    assert set(world.bodies.fields) == {f.name for f in BODY_FIELDS}
+    assert world.bodies.arrays["body_position"] is world.state.bodies.arrays["body_position"]
+    assert world.hulls is world.model.hulls and world.meshes is world.model.meshes
+    # the state's warm-start contacts are the contact solver's
+    assert world.state.contacts is world.contacts.previous
+
+
+def test_state_step_count_and_pose_change_while_the_model_does_not(world):
+    model_before = {n: world.model.bodies.numpy(n).copy() for n in world.model.bodies.fields}
+    pose_before = world.state.bodies.numpy("body_position").copy()
+    world.run(0.1)
+    assert world.state.step_count == world.step_count == 24
+    for n, values in model_before.items():
+        np.testing.assert_array_equal(world.model.bodies.numpy(n), values, err_msg=n)
+    assert not np.array_equal(world.state.bodies.numpy("body_position"), pose_before)
+
+
+def test_control_is_cleared_after_the_step_that_used_it(world):
+    world.apply_force(world.body(1), (1.0, 0.0, 0.0))
+    assert world.control.bodies.numpy("body_force")[1, 0] == 1.0
+    world.step()
+    np.testing.assert_array_equal(world.control.bodies.numpy("body_force"), 0.0)
+
+
+def test_kernel_struct_derives_from_the_declaration(world):
+    kernel = [f for f in BODY_FIELDS if f.kernel]
+    assert list(BodyArrays.vars) == [f.short for f in kernel]  # type: ignore[attr-defined]
+    s, arrays = body_arrays(world.bodies)
+    for f, a in zip(kernel, arrays):
+        assert getattr(s, f.short) is world.bodies.arrays[f.name] is a
+    # cached while the arrays are the same, rebuilt when they were reallocated
+    assert body_arrays(world.bodies, (s, arrays))[0] is s
+    world.add_spheres(position=np.zeros((40, 3)) + (0, 0, 2), radius=0.01)
+    assert body_arrays(world.bodies, (s, arrays))[0] is not s
+
+
+def test_views_are_documented_from_the_declaration():
+    doc = tumble.World.body_position.__doc__
+    assert "[m]" in doc and "(n, 3)" in doc
+    assert "int32" in tumble.World.body_shape.__doc__
+    assert "[kg]" in tumble.World.body_mass.__doc__
+
+
+def test_snapshots_hold_state_not_scratch_and_each_array_once(world):
+    world.run(0.05)
+    snap = world.snapshot()
+    saved = set(snap.arrays)
+    assert not any("body_warm_velocity" in p or "body_delta_position" in p for p in saved)
+    assert any(p.endswith("state/bodies/body_position") for p in saved)
+    assert any(p.endswith("model/bodies/body_mass") for p in saved)
+    assert any(p.endswith("control/bodies/body_force") for p in saved)
+    # the warm-start contacts are held by the state and by the contact solver: saved under one path
+    prev = [p for p in saved if p.endswith("previous_impulse_n")]
+    assert len(prev) == 1, prev
+
+
+def test_a_restore_into_a_smaller_world_grows_the_solver_scratch(world):
+    big = tumble.World(dt=1 / 240, substeps=2)
+    big.add_plane()
+    big.add_sphere(position=(0, 0, 0.5), radius=0.1)
+    big.add_box(position=(0.5, 0, 0.5), half_extents=(0.1, 0.1, 0.1))
+    big.bodies.reserve(100)
+    snap = big.snapshot()
+    world.restore(snap)
+    for name in fields_of(BODY_FIELDS, Role.SCRATCH):
+        assert world.bodies.arrays[name].shape[0] >= world.bodies.capacity == 100
+    world.run(0.05)
+    big.run(0.05)
+    assert world.state_hash() == big.state_hash()
+
+
+def test_numpy_views_match_declared_shapes(world):
+    for f in BODY_FIELDS:
+        assert world.bodies.numpy(f.name).shape == (3, *f.shape), f.name
+        assert world.bodies.arrays[f.name].dtype == f.dtype, f.name
