@@ -111,3 +111,59 @@ def test_basenames_are_unique_where_they_are_imported_by_basename():
             seen.setdefault(path.name, []).append(path.relative_to(ROOT).as_posix())
     clashes = {name: paths for name, paths in seen.items() if len(paths) > 1}
     assert not clashes, f"rename one of each: {clashes}"
+
+
+def _imports(path: Path, module: str, modules: set[str]) -> set[str]:
+    """Tumble modules that `module` imports anywhere in its file (functions included), TYPE_CHECKING blocks aside."""
+    import ast
+
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    typing_only = {
+        id(sub)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING"
+        for sub in ast.walk(node)
+    }
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name in modules)
+        elif isinstance(node, ast.ImportFrom):
+            base = package
+            for _ in range(node.level - 1):
+                base = base.rpartition(".")[0]
+            target = node.module if not node.level else (f"{base}.{node.module}" if node.module else base)
+            for a in node.names:
+                out.add(f"{target}.{a.name}" if f"{target}.{a.name}" in modules else target)
+    return (out & modules) - {module}
+
+
+def test_no_import_cycles():
+    """No chain of imports, module-level or inside functions, leads from a module back to itself."""
+    files = {}
+    for path in SRC.rglob("*.py"):
+        parts = path.relative_to(SRC.parent).with_suffix("").parts
+        files[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph = {m: _imports(p, m, set(files)) for m, p in files.items()}
+    # depth-first search for a back edge; the package itself (`tumble`) is the public front, imported by
+    # commands, io and the viewer, and imports only world-side modules, so it takes part like any other
+    state: dict[str, int] = {}
+    path_now: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        path_now.append(m)
+        for n in sorted(graph[m]):
+            if state.get(n) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(path_now[path_now.index(n) :] + [n]))
+            if n not in state:
+                visit(n)
+        path_now.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)

@@ -87,6 +87,6 @@ def read_snapshot(path: str | _os.PathLike[str]) -> Snapshot:
 def load_snapshot(path: str | _os.PathLike[str], **overrides: "Unpack[WorldOverrides]") -> World:
     """Rebuild the world a snapshot file of a scene was taken from, at the saved moment; stepping it
     continues the saved run bit for bit (`tumble run --resume FILE`). Overrides as in `load_scene` (device)."""
-    from . import snapshot
+    from .io.scene import load_snapshot as _load
 
-    return snapshot.load(path, **overrides)
+    return _load(path, **overrides)

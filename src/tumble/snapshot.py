@@ -16,7 +16,7 @@ does not know is an error (`SnapshotError`), never silently left out.
 
 File format (`.npz`): one array per state array under its path ("bodies/body_position", ...)
 and a JSON manifest under "manifest" with the plain values, the format version and, for a world
-built from a scene file, the scene's text, so that `load` can rebuild the world first.
+built from a scene file, the scene's text, so that `tumble.load_snapshot` (`io.scene.load_snapshot`) can rebuild the world first.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Unpack
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import warp as wp
@@ -36,7 +36,6 @@ import warp as wp
 from .errors import TumbleError
 
 if TYPE_CHECKING:
-    from .io.scene import WorldOverrides
     from .world import World
 from .launch import LaunchCache
 from .state import ArraySet, Handle
@@ -484,22 +483,3 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         manifest.get("scene_path"),
         dict(manifest.get("overrides") or {}),
     )
-
-
-def load(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> World:
-    """Rebuild the world a snapshot file was taken from (it must come from a scene) and restore it.
-
-    Keyword overrides are those of `tumble.load_scene` (e.g. device) and replace the saved ones.
-    """
-    from .io.scene import build_world, parse_scene
-
-    snap = read(path)
-    if snap.scene is None:
-        raise SnapshotError(
-            f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
-            "build the same world and call world.restore(tumble.snapshot.read(path))"
-        )
-    scene = parse_scene(snap.scene, snap.scene_path)
-    world = build_world(scene, **{**snap.overrides, **overrides})
-    world.restore(snap)
-    return world

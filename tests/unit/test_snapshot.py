@@ -92,7 +92,7 @@ def test_world_built_in_python_restores(tmp_path):
     _steps(b, 0.2)
     assert a.state_hash() == b.state_hash()
     with pytest.raises(SnapshotError, match="built in Python"):
-        snapshot.load(path)
+        tumble.load_snapshot(path)
 
 
 def test_snapshot_of_another_world_is_refused_and_changes_nothing():

@@ -93,11 +93,11 @@ def _check_arguments(args: argparse.Namespace) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..io.record import Recorder
-    from ..io.scene import load_scene
+    from ..io.scene import load_scene, load_snapshot
 
     _check_arguments(args)
     if args.resume is not None:
-        world = snapshot.load(args.resume, device=args.device)
+        world = load_snapshot(args.resume, device=args.device)
         args.scene = str(world.metadata.get("path") or args.resume)
     else:
         world = load_scene(args.scene, seed=args.seed, device=args.device)

@@ -34,7 +34,7 @@ One module per job, each importing only from those before it:
 
 from __future__ import annotations
 
-from .build import WORLD_OVERRIDES, WorldOverrides, build_world, load_scene
+from .build import WORLD_OVERRIDES, WorldOverrides, build_world, load_scene, load_snapshot
 from .checks import (
     PIN_NAMES,
     SPRING_KINDS,
@@ -101,6 +101,7 @@ __all__ = [
     "integer",
     "list_samples",
     "load_scene",
+    "load_snapshot",
     "number",
     "parse_scene",
     "per_spring",

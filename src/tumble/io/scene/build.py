@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
-from ... import validate
+from ... import snapshot, validate
 from ...errors import SceneError
 from ...world import World
-from .parse import Scene, parse_table, read_scene, table_label
+from .parse import Scene, parse_scene, parse_table, read_scene, table_label
 from .schema import SCHEMA
 
 if TYPE_CHECKING:
@@ -154,6 +154,24 @@ def load_scene(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]
         **overrides: World settings replacing the file's [world] values, e.g. seed=3, device="cuda".
     """
     return build_world(read_scene(path), **overrides)
+
+
+def load_snapshot(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrides]) -> World:
+    """Rebuild the world a snapshot file was taken from (it must come from a scene) and restore it.
+
+    Keyword overrides are those of `load_scene` (e.g. device) and replace the saved ones. Lives
+    here, above `World`, so that `tumble.snapshot` (which World imports) never imports the scene
+    loader.
+    """
+    snap = snapshot.read(path)
+    if snap.scene is None:
+        raise snapshot.SnapshotError(
+            f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
+            "build the same world and call world.restore(tumble.snapshot.read(path))"
+        )
+    world = build_world(parse_scene(snap.scene, snap.scene_path), **{**snap.overrides, **overrides})
+    world.restore(snap)
+    return world
 
 
 def _given(values: dict) -> dict:
