@@ -35,6 +35,8 @@ from .limits import MAX_RELEASE_PER_STEP
 from .npmath import quat_mul, quat_to_matrix
 from .shapes import (
     DEFAULT_DENSITY,
+    DEFAULT_FRICTION,
+    DEFAULT_RESTITUTION,
     ShapeType,
     box_inertia,
     box_volume,
@@ -107,8 +109,8 @@ class Emitter:
         scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         random_orientation: bool = False,
         angular_speed: float | Sequence[float] = 0.0,
         seed: int | None = None,

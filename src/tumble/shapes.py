@@ -13,6 +13,10 @@ import numpy as np
 
 #: density [kg/m^3] of a body given neither mass nor density (water)
 DEFAULT_DENSITY = 1000.0
+#: default coefficient of restitution of a body (every `World.add_*`, emitters, scene tables)
+DEFAULT_RESTITUTION = 0.5
+#: default friction coefficient of a body
+DEFAULT_FRICTION = 0.5
 
 
 class ShapeType(enum.IntEnum):

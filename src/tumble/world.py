@@ -40,7 +40,7 @@ from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_rows
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
 from .runtime import init_warp
-from .shapes import ShapeType
+from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, ShapeType
 from .snapshot import Snapshot
 from .solver import contacts as contact_solver
 from .solver import integrate
@@ -250,8 +250,8 @@ class World:
         *,
         normal: Sequence[float] | np.ndarray = (0.0, 0.0, 1.0),
         offset: float = 0.0,
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
     ) -> BodyId:
         """Add a static infinite plane {x : dot(normal, x) = offset}; bodies stay on the +normal side.
 
@@ -285,8 +285,8 @@ class World:
         velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
         kinematic: bool = False,
     ) -> BodyId:
@@ -335,8 +335,8 @@ class World:
         velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
         kinematic: bool = False,
     ) -> BodyId:
@@ -365,8 +365,8 @@ class World:
         velocity: ArrayLike = (0.0, 0.0, 0.0),
         orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
         kinematic: bool = False,
     ) -> list[BodyId]:
@@ -412,8 +412,8 @@ class World:
         velocity: ArrayLike = (0.0, 0.0, 0.0),
         orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
         kinematic: bool = False,
     ) -> list[BodyId]:
@@ -451,8 +451,8 @@ class World:
         velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
     ) -> BodyId:
         """Add a solid capsule: the points within `radius` of a segment along the body's z axis.
@@ -488,8 +488,8 @@ class World:
         velocity: ArrayLike = (0.0, 0.0, 0.0),
         orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
         angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
     ) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
@@ -527,8 +527,8 @@ class World:
         density: float | None = None,
         velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         static: bool = False,
     ) -> BodyId:
         """Add a solid convex body: the convex hull of `points`, or of the vertices of a mesh `file`.
@@ -588,8 +588,8 @@ class World:
         scale: float | Sequence[float] = 1.0,
         position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
     ) -> BodyId:
         """Add a static triangle mesh, from a file (OBJ, STL, PLY, OFF, glTF/GLB through trimesh) or arrays.
 
@@ -658,8 +658,8 @@ class World:
         scale: float | Sequence[float] = 1.0,
         mass: float | Sequence[float] | None = None,
         density: float | Sequence[float] | None = None,
-        restitution: float = 0.5,
-        friction: float = 0.5,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
         random_orientation: bool = False,
         angular_speed: float | Sequence[float] = 0.0,
         seed: int | None = None,
