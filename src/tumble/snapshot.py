@@ -46,7 +46,7 @@ FORMAT = 2  # 2: the body rows saved by part (model, state, control)
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
 # and the stages' table of the body rows, whose sets the model, state and control parts hold
 # (the solver's scratch rows are reset every step)
-_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "device", "_launch_sizes", "bodies"})
+_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "_stage_timers", "device", "_launch_sizes", "bodies"})
 
 
 # what `ArraySet` itself keeps beside its arrays (captured through its markers)
