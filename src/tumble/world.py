@@ -1366,7 +1366,7 @@ class World:
 
         # cloth, step start: its substeps, user forces, wind, the bodies that can reach it
         if cloth is not None:
-            hulls, meshes = self.hulls.struct(), self.meshes.ids()
+            hulls, meshes = self.hulls.struct(), self.meshes.struct()
             with self._timer("cloth"):
                 cloth.begin_step(
                     h, self.substeps, bodies=bodies, gravity=self.gravity, time=self.time, step=self.step_count

@@ -45,7 +45,8 @@ import warp as wp
 
 from ..collision.hashgrid import HashGrid, cell_hash, cell_of
 from ..collision.hulls import Hulls
-from ..collision.narrowphase import box_closest, hull_closest
+from ..collision.meshes import Meshes, edge_table
+from ..collision.narrowphase import box_closest, hull_closest, segment_closest
 from ..launch import LaunchCache, launch
 from ..model import BodyArrays
 from ..shapes import ShapeType
@@ -228,12 +229,17 @@ def _slack(
 
 
 @wp.func
-def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
+def _mesh_distance(mesh: wp.uint64, closed: int, c: vec3, q: quat, xp: vec3, x_start: vec3, reach: float_t):
     """Signed distance of xp from a static mesh placed at (c, q), and the outward normal.
 
-    Faces are one-sided, and a mesh may be open (a terrain, a plate): a point is behind the
-    mesh only behind a face's interior and less than half the reach deep; near an edge or a
-    corner (where the pseudo-normal's sign is unreliable beside an open border) only in front.
+    Faces are one-sided on a closed mesh (a solid): a point is inside only behind a face's
+    interior and less than half the reach deep; near an edge or a corner (where the
+    pseudo-normal's sign is unreliable) only in front. An open mesh (a terrain, a plate) has no
+    inside, and a cloth may lie on either side of it: the side is the one x_start (the point at
+    the start of the substep) was on, so that a point which crossed the sheet during the substep
+    is sent back, and one that lies behind it is kept behind, not pushed through to the front
+    (pushed through a zero-thickness plate, a particle was thrown out at up to 2 reach / h).
+    A point that begins less than a quarter of the reach behind still counts as in front.
     """
     zero = float_t(0.0)
     pl = wp.quat_rotate_inv(q, xp - c)
@@ -244,14 +250,27 @@ def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
     if not query.result:
         return False, zero, n
     cf = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
-    rel = pl - vec3(float_t(cf[0]), float_t(cf[1]), float_t(cf[2]))
+    closest = vec3(float_t(cf[0]), float_t(cf[1]), float_t(cf[2]))
+    rel = pl - closest
     nf = wp.mesh_eval_face_normal(mesh, query.face)
     n = wp.normalize(vec3(float_t(nf[0]), float_t(nf[1]), float_t(nf[2])))
     d = wp.dot(rel, n)
     bw = wp.float32(1.0) - query.u - query.v
-    if wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4):
+    at_border = wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4)
+    length = wp.length(rel)
+    if closed == 0:
+        # open: the side x_start was on; at an edge or a corner the direction to it is the normal
+        if wp.dot(wp.quat_rotate_inv(q, x_start - c) - closest, n) < float_t(-0.25) * reach:
+            n = -n
+            d = -d
+        if at_border:
+            if length <= float_t(1.0e-9):
+                return False, zero, n
+            n = rel / length
+            d = length
+        return True, d, wp.quat_rotate(q, n)
+    if at_border:
         # at an edge or a corner: the direction to it is the normal, and only the front side counts
-        length = wp.length(rel)
         if d <= zero or length <= float_t(1.0e-9):
             return False, zero, n
         n = rel / length
@@ -263,10 +282,11 @@ def _mesh_distance(mesh: wp.uint64, c: vec3, q: quat, xp: vec3, reach: float_t):
 
 @wp.func
 def _surface(
-    shape: int, b: int, xp: vec3, bodies: BodyArrays, hulls: Hulls, mesh_ids: wp.array(dtype=wp.uint64), reach: float_t
+    shape: int, b: int, xp: vec3, x_start: vec3, bodies: BodyArrays, hulls: Hulls, meshes: Meshes, reach: float_t
 ):
     """Signed distance d of point xp from body b's surface and the outward normal n there; found is
-    False where the body cannot be near (a mesh with no triangle within `reach`)."""
+    False where the body cannot be near (a mesh with no triangle within `reach`). x_start is the
+    point at the start of the substep (the side of an open mesh it is kept on)."""
     zero = float_t(0.0)
     one = float_t(1.0)
     c = bodies.position[b]
@@ -299,7 +319,8 @@ def _surface(
         _hull_point, nl, d = hull_closest(hulls, bodies.geometry[b], vec3(one, one, one), wp.quat_rotate_inv(q, xp - c))
         n = wp.quat_rotate(q, nl)
     elif shape == MESH:
-        found, d, n = _mesh_distance(mesh_ids[bodies.geometry[b]], c, q, xp, reach)
+        g = bodies.geometry[b]
+        found, d, n = _mesh_distance(meshes.id[g], meshes.closed[g], c, q, xp, x_start, reach)
     else:
         found = False
     return found, d, n
@@ -318,7 +339,7 @@ def _collide_bodies(
     candidate_count: int,
     bodies: BodyArrays,
     hulls: Hulls,
-    mesh_ids: wp.array(dtype=wp.uint64),
+    meshes: Meshes,
     contact_count_prev: wp.array(dtype=wp.int32),
     contact_count_next: wp.array(dtype=wp.int32),
     pin_load: wp.array(dtype=vec3),
@@ -345,7 +366,7 @@ def _collide_bodies(
         c = bodies.position[b]
         q = bodies.orientation[b]
         # signed distance d from the body's surface and outward normal n
-        found, d, n = _surface(bodies.shape[b], b, xp, bodies, hulls, mesh_ids, float_t(2.0) * thickness[p])
+        found, d, n = _surface(bodies.shape[b], b, xp, x_prev[p], bodies, hulls, meshes, float_t(2.0) * thickness[p])
         depth = thickness[p] - d
         if not found or depth <= zero:
             continue
@@ -461,6 +482,39 @@ def closest_on_triangle(p: vec3, a: vec3, b: vec3, c: vec3):
     return vec3(one - v - w, v, w)
 
 
+@wp.func
+def _off_triangle(c: vec3, c_start: vec3, a0: vec3, a1: vec3, a2: vec3, s0: vec3, s1: vec3, s2: vec3, reach: float_t):
+    """Whether point c is closer than `reach` to triangle (a0, a1, a2), which was at (s0, s1, s2)
+    when the substep began (c at c_start): (hit, beta, n, depth).
+
+    beta are the barycentric weights of the triangle's closest point, n the direction from it
+    towards c and depth how far the triangle must move along -n (c along +n) to leave `reach`
+    between them. The side c_start was on decides n, so a point that got past the triangle's
+    plane during the substep is pushed back rather than through.
+    """
+    zero = float_t(0.0)
+    beta = closest_on_triangle(c, a0, a1, a2)
+    d = c - (a0 * beta[0] + a1 * beta[1] + a2 * beta[2])
+    dist = wp.length(d)
+    n = vec3(zero, zero, float_t(1.0))
+    if dist >= reach:
+        return False, beta, n, zero
+    face = wp.cross(a1 - a0, a2 - a0)
+    p_start = s0 * beta[0] + s1 * beta[1] + s2 * beta[2]
+    if wp.dot(c_start - p_start, face) < zero:
+        face = -face
+    face_len = wp.length(face)
+    if face_len <= float_t(1.0e-14):
+        return False, beta, n, zero  # a collapsed triangle: its particles' own contacts handle it
+    n = face / face_len
+    depth = reach - dist
+    if wp.dot(d, n) < zero:
+        depth = reach + dist  # the point is past the triangle: all the way back
+    elif dist > float_t(1.0e-12):
+        n = d / dist
+    return True, beta, n, depth
+
+
 @wp.kernel
 def _catch_small_spheres(
     x: wp.array(dtype=vec3),
@@ -501,26 +555,12 @@ def _catch_small_spheres(
         a0 = x[i0]
         a1 = x[i1]
         a2 = x[i2]
-        beta = closest_on_triangle(c, a0, a1, a2)
-        d = c - (a0 * beta[0] + a1 * beta[1] + a2 * beta[2])
-        dist = wp.length(d)
-        if dist >= r + gap:
+        hit, beta, n, depth = _off_triangle(
+            c, c - bodies.velocity[b] * h, a0, a1, a2, x_prev[i0], x_prev[i1], x_prev[i2], r + gap
+        )
+        if not hit:
             continue
-        # the side the centre was on at the start of the substep decides the normal, so a sphere
-        # that got past the triangle's plane is pushed back rather than through
-        face = wp.cross(a1 - a0, a2 - a0)
         p_prev = x_prev[i0] * beta[0] + x_prev[i1] * beta[1] + x_prev[i2] * beta[2]
-        if wp.dot(c - bodies.velocity[b] * h - p_prev, face) < zero:
-            face = -face
-        face_len = wp.length(face)
-        if face_len <= float_t(1.0e-14):
-            continue  # a collapsed triangle: its particles' own contacts handle it
-        n = face / face_len
-        depth = r + gap - dist
-        if wp.dot(d, n) < zero:
-            depth = r + gap + dist  # the centre is past the triangle: all the way back
-        elif dist > float_t(1.0e-12):
-            n = d / dist
         # lambda moves the closest point by -lambda sum(beta_i^2 w_i) n and the centre by lambda w_b n;
         # particles held by taut tethers give way less, as against any body
         w_b = bodies.inv_mass[b]
@@ -549,6 +589,164 @@ def _catch_small_spheres(
         wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
         wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
         _push_body(b, tdir * lam_t + n * lam, r_b, q, inv_i, w_b, h, bodies)
+
+
+@wp.func
+def _mesh_vertex(points: wp.array(dtype=wp.vec3f), indices: wp.array(dtype=wp.int32), corner: int):
+    """Vertex `corner` (3 f + k: corner k of triangle f) of a mesh, in its frame, as vec3."""
+    v = points[indices[corner]]
+    return vec3(float_t(v[0]), float_t(v[1]), float_t(v[2]))
+
+
+@wp.func
+def _to_frame(q: quat, c: vec3, x: vec3):
+    """A world point in the frame at (c, q)."""
+    return wp.quat_rotate_inv(q, x - c)
+
+
+@wp.kernel
+def _collide_mesh_features(
+    x: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    thickness: wp.array(dtype=float_t),
+    friction: wp.array(dtype=float_t),
+    triangles: wp.array2d(dtype=wp.int32),
+    edge_owner: wp.array(dtype=wp.int32),
+    candidates: wp.array(dtype=wp.int32),
+    candidate_count: int,
+    bodies: BodyArrays,
+    meshes: Meshes,
+):
+    t = wp.tid()
+    i0 = triangles[t, 0]
+    i1 = triangles[t, 1]
+    i2 = triangles[t, 2]
+    w0 = inv_m[i0]
+    w1 = inv_m[i1]
+    w2 = inv_m[i2]
+    zero = float_t(0.0)
+    one = float_t(1.0)
+    if w0 + w1 + w2 <= zero:
+        return
+    none = vec3(zero, zero, zero)
+    still = quat(zero, zero, zero, one)
+    # the triangle keeps half the particles' thickness from the features, as from small spheres
+    # (where the particles' own contacts hold the cloth, the triangles stay out of their way)
+    gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
+    mu_cloth = (friction[i0] + friction[i1] + friction[i2]) / float_t(3.0)
+    owned = edge_owner[t]
+    for k in range(candidate_count):
+        b = candidates[k]
+        if bodies.shape[b] != MESH:
+            continue
+        g = bodies.geometry[b]
+        mesh = meshes.id[g]
+        first = meshes.feature_start[g]
+        c = bodies.position[b]
+        q = bodies.orientation[b]
+        mu = wp.sqrt(mu_cloth * bodies.friction[b])
+        # the triangle in the mesh's frame at the start of the substep and now: its box, widened
+        # by the gap, finds the mesh triangles whose features can touch it
+        s0 = _to_frame(q, c, x_prev[i0])
+        s1 = _to_frame(q, c, x_prev[i1])
+        s2 = _to_frame(q, c, x_prev[i2])
+        a0 = _to_frame(q, c, x[i0])
+        a1 = _to_frame(q, c, x[i1])
+        a2 = _to_frame(q, c, x[i2])
+        lo = wp.min(wp.min(wp.min(a0, a1), wp.min(a2, s0)), wp.min(s1, s2)) - vec3(gap, gap, gap)
+        hi = wp.max(wp.max(wp.max(a0, a1), wp.max(a2, s0)), wp.max(s1, s2)) + vec3(gap, gap, gap)
+        query = wp.mesh_query_aabb(
+            mesh,
+            wp.vec3f(wp.float32(lo[0]), wp.float32(lo[1]), wp.float32(lo[2])),
+            wp.vec3f(wp.float32(hi[0]), wp.float32(hi[1]), wp.float32(hi[2])),
+        )
+        m = wp.mesh_get(mesh)
+        f = int(0)
+        while wp.mesh_query_aabb_next(query, f):
+            flags = meshes.feature[first + f]
+            # a sharp vertex against the triangle: lambda = depth / sum(beta_i^2 w_i) moves particle i
+            # by -lambda beta_i w_i n (the closest point by -depth n), then Coulomb friction on the
+            # closest point's slip over the substep, bounded by mu lambda
+            for j in range(3):
+                if (flags & (1 << j)) == 0:
+                    continue
+                v = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                a0 = _to_frame(q, c, x[i0])
+                a1 = _to_frame(q, c, x[i1])
+                a2 = _to_frame(q, c, x[i2])
+                hit, beta, n, depth = _off_triangle(v, v, a0, a1, a2, s0, s1, s2, gap)
+                if not hit:
+                    continue
+                w_tri = beta[0] * beta[0] * w0 + beta[1] * beta[1] * w1 + beta[2] * beta[2] * w2
+                if w_tri <= zero:
+                    continue
+                lam = depth / w_tri
+                slip = (
+                    (a0 * beta[0] + a1 * beta[1] + a2 * beta[2])
+                    - n * depth
+                    - (s0 * beta[0] + s1 * beta[1] + s2 * beta[2])
+                )
+                tdir, lam_t = _coulomb(slip, n, none, w_tri, zero, one, mu, lam, still, none)
+                move = wp.quat_rotate(q, n * lam + tdir * lam_t)
+                wp.atomic_sub(x, i0, move * (beta[0] * w0))
+                wp.atomic_sub(x, i1, move * (beta[1] * w1))
+                wp.atomic_sub(x, i2, move * (beta[2] * w2))
+            # a sharp edge against the triangle's edges (each cloth edge on one triangle only): closest
+            # points inside both, the cloth edge's ends moved by weights (1 - s, s) as above
+            for j in range(3):
+                if (flags & (8 << j)) == 0:
+                    continue
+                e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
+                e_half = float_t(0.5) * wp.length(e1 - e0)
+                if e_half <= float_t(1.0e-12):
+                    continue
+                e_dir = (e1 - e0) / (float_t(2.0) * e_half)
+                e_mid = float_t(0.5) * (e0 + e1)
+                for e in range(3):
+                    if (owned & (1 << e)) == 0:
+                        continue
+                    ia = triangles[t, e]
+                    ib = triangles[t, (e + 1) % 3]
+                    wa = inv_m[ia]
+                    wb = inv_m[ib]
+                    la = _to_frame(q, c, x[ia])
+                    lb = _to_frame(q, c, x[ib])
+                    c_half = float_t(0.5) * wp.length(lb - la)
+                    if c_half <= float_t(1.0e-12):
+                        continue
+                    c_dir = (lb - la) / (float_t(2.0) * c_half)
+                    sc, se = segment_closest(float_t(0.5) * (la + lb), c_dir, c_half, e_mid, e_dir, e_half)
+                    # only inside both edges: at an end, a vertex or a particle contact holds it
+                    if wp.abs(sc) >= c_half or wp.abs(se) >= e_half:
+                        continue
+                    s = float_t(0.5) + float_t(0.5) * sc / c_half
+                    on_mesh = e_mid + e_dir * se
+                    d = la * (one - s) + lb * s - on_mesh
+                    d_start = _to_frame(q, c, x_prev[ia]) * (one - s) + _to_frame(q, c, x_prev[ib]) * s - on_mesh
+                    # the side the cloth edge was on at the start of the substep
+                    start_len = wp.length(d_start)
+                    if start_len <= float_t(1.0e-12):
+                        continue
+                    n = d_start / start_len
+                    along = wp.dot(d, n)
+                    dist = wp.length(d)
+                    if along > zero and dist > float_t(1.0e-12):
+                        n = d / dist
+                        along = dist
+                    depth = gap - along
+                    if depth <= zero:
+                        continue
+                    w_edge = (one - s) * (one - s) * wa + s * s * wb
+                    if w_edge <= zero:
+                        continue
+                    lam = depth / w_edge
+                    slip = d + n * depth - d_start
+                    tdir, lam_t = _coulomb(slip, n, none, w_edge, zero, one, mu, lam, still, none)
+                    move = wp.quat_rotate(q, n * lam - tdir * lam_t)
+                    wp.atomic_add(x, ia, move * ((one - s) * wa))
+                    wp.atomic_add(x, ib, move * (s * wb))
 
 
 @wp.kernel
@@ -691,7 +889,7 @@ def collide_bodies(
     candidates,
     bodies,
     hulls,
-    mesh_ids,
+    meshes,
     contact_count_prev,
     contact_count_next,
     pin_load,
@@ -714,7 +912,7 @@ def collide_bodies(
         candidates: body indices to test, shape (k,) int32.
         bodies: the world's body arrays (`BodyArrays`, from `body_arrays`); positions and velocities of
             dynamic bodies are updated.
-        hulls: the world's `Hulls` struct (convex bodies); mesh_ids: its mesh ids by row (`MeshSet.ids`).
+        hulls: the world's `Hulls` struct (convex bodies); meshes: its `Meshes` struct (`MeshSet.struct`).
         contact_count_prev: particles touching each body in the previous pass, shape (n,) int32.
         contact_count_next: zeroed; receives this pass's counts, shape (n,) int32.
         pin_load: the pins' load [kg m], shape (P,) vec3 (added to: the part of the bodies' pushes that
@@ -745,7 +943,7 @@ def collide_bodies(
             k,
             bodies,
             hulls,
-            mesh_ids,
+            meshes,
             contact_count_prev,
             contact_count_next,
             pin_load,
@@ -809,6 +1007,63 @@ def catch_small_spheres(
             float(h),
             float(taut),
         ],
+        x.device,
+        cache,
+    )
+
+
+def edge_owners(triangles: np.ndarray) -> np.ndarray:
+    """Per triangle, bit k set where it is the first triangle holding its edge k (corner k to k + 1), (T,) int32:
+    each cloth edge then meets a mesh edge once (`collide_mesh_features`)."""
+    flags = np.zeros(len(triangles), dtype=np.int64)
+    if len(triangles):
+        first, _other, _uses = edge_table(triangles)
+        np.bitwise_or.at(flags, first // 3, 1 << (first % 3))
+    return flags.astype(np.int32)
+
+
+def collide_mesh_features(
+    x,
+    x_prev,
+    inv_mass,
+    thickness,
+    friction,
+    triangles,
+    edge_owner,
+    candidates,
+    bodies,
+    meshes,
+    *,
+    cache: LaunchCache | None = None,
+):
+    """Keep the sharp features of static meshes (a cone's tip, a box's edge, a plate's border) out of the cloth's triangles.
+
+    Particles alone keep out of a mesh's surface, but a feature narrower than the gaps between
+    them pokes through a triangle. For each triangle, the mesh BVH is queried with the
+    triangle's box (now and at the start of the substep, widened by half its thickness); each
+    sharp vertex found (`meshes.sharp_features`) is kept half the thickness from the triangle,
+    and each sharp edge from the triangle's own edges (closest points inside both), on the side
+    the cloth was on when the substep began. The triangle's particles move by their barycentric
+    weights times their inverse masses (position-based, as `catch_small_spheres`), with Coulomb
+    friction as for particles. Serial on the CPU, so deterministic there.
+
+    Args:
+        x: particle positions [m], shape (P,) vec3 (corrected in place); x_prev: at the substep's start.
+        inv_mass, thickness, friction: per particle, shape (P,).
+        triangles: (T, 3) int32; edge_owner: `edge_owners(triangles)`, (T,) int32.
+        candidates: body indices that can reach the cloth, (k,) int32 (only meshes are read).
+        bodies: `BodyArrays`; meshes: the world's `Meshes` struct (`MeshSet.struct`).
+        cache: recorded launches to replay.
+
+    Cost O(T x (log F + features near each triangle)) per call, F the mesh's triangles.
+    """
+    k = candidates.shape[0]
+    if k == 0 or triangles.shape[0] == 0:
+        return
+    launch(
+        _collide_mesh_features,
+        triangles.shape[0],
+        [x, x_prev, inv_mass, thickness, friction, triangles, edge_owner, candidates, k, bodies, meshes],
         x.device,
         cache,
     )

@@ -42,6 +42,7 @@ from .. import validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Field, Role, body_arrays, fields_of
+from ..shapes import ShapeType
 from ..state import BodyId, ClothId, Handle, float_t, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
@@ -183,6 +184,8 @@ class ClothSystem:
         self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
+        self._meshes_near = False  # a static mesh can reach the cloth this step
+        self._edge_owner = wp.zeros(0, dtype=wp.int32, device=self.device)  # collide.edge_owners of the triangles
         self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (model.body_arrays; a cache)
         self._pin_dt = 0.0
         self._cache = LaunchCache()
@@ -392,6 +395,7 @@ class ClothSystem:
             len(self._host["structural_ids"]), dtype=float_t, device=self.device
         )
         self._build_limits()
+        self._edge_owner = wp.array(collide.edge_owners(self._host["triangles"]), dtype=wp.int32, device=self.device)
         self._grid = collide.SelfCollisionGrid(p, self.device)
         self._pair_travel = math.inf
         self._reach = float(self._host["particle_thickness"].max())
@@ -491,7 +495,7 @@ class ClothSystem:
         Args:
             h: the world's substep [s].
             bodies: the world's body `ArraySet` (read; dynamic bodies receive the cloth's pushes and pulls).
-            hulls: the world's `Hulls` struct; meshes: its static meshes' Warp ids by row (`MeshSet.ids()`).
+            hulls: the world's `Hulls` struct; meshes: its static meshes (`MeshSet.struct()`).
         """
         if self._particle_count == 0:
             return
@@ -639,7 +643,8 @@ class ClothSystem:
         )
 
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
-        """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
+        """Particles, then triangles against small spheres and meshes' sharp features, out of the candidate
+        bodies; bodies pushed back."""
         a = self._arrays
         assert self._bodies is not None  # set by begin_step
         bodies = self._bodies[0]
@@ -679,6 +684,20 @@ class ClothSystem:
             hi,
             cache=self._cache,
         )
+        if self._meshes_near:
+            collide.collide_mesh_features(
+                a["particle_position"],
+                a["particle_position_prev"],
+                a["particle_inv_mass"],
+                a["particle_thickness"],
+                a["particle_friction"],
+                a["triangles"],
+                self._edge_owner,
+                self._candidates,
+                bodies,
+                meshes,
+                cache=self._cache,
+            )
         self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
     def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
@@ -796,6 +815,9 @@ class ClothSystem:
             holder = np.isin(near, self.body_pins.body.numpy()[: self.body_pins.count])
             near = near[~holder | (self._contacts_prev.numpy()[near] > 0)]
         self._bodies_near = bool(len(near))
+        self._meshes_near = bool(len(candidates)) and bool(
+            np.any(bodies.numpy("body_shape")[candidates] == int(ShapeType.MESH))
+        )
         total = self.substeps_for(dt)
         if self._bodies_near and self.substeps is None:
             total = max(total, int(substeps))

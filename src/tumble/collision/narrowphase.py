@@ -631,6 +631,9 @@ def _segment_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3, hb: fl
     return s, t
 
 
+segment_closest = _segment_closest  # for cloth edges against mesh edges (cloth/collide.py)
+
+
 @wp.func
 def collide_capsule_capsule(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t

@@ -142,7 +142,7 @@ def test_cloth_stages_run_without_a_world():
     free = tumble.cloth.ClothSystem("cpu", gravity=world.gravity)
     free.add_cloth(**kwargs)
     bodies = make_world().bodies  # an empty world's body arrays
-    stages = {"bodies": bodies, "hulls": world.hulls.struct(), "meshes": world.meshes.ids()}
+    stages = {"bodies": bodies, "hulls": world.hulls.struct(), "meshes": world.meshes.struct()}
     h = world.dt / world.substeps
     for step in range(10):
         free.begin_step(h, world.substeps, bodies=bodies, gravity=world.gravity, time=world.time, step=step)
