@@ -604,8 +604,128 @@ def _to_frame(q: quat, c: vec3, x: vec3):
     return wp.quat_rotate_inv(q, x - c)
 
 
+@wp.func
+def _signs(j: int):
+    """(+-1, +-1, +-1): the signs of corner j of a box, bit k of j set for -1 along axis k."""
+    one = float_t(1.0)
+    two = float_t(2.0)
+    return vec3(one - two * float_t(j % 2), one - two * float_t((j // 2) % 2), one - two * float_t((j // 4) % 2))
+
+
+@wp.func
+def _keep_vertex_off(
+    x: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    i0: int,
+    i1: int,
+    i2: int,
+    s0: vec3,
+    s1: vec3,
+    s2: vec3,
+    v: vec3,
+    c: vec3,
+    q: quat,
+    gap: float_t,
+    mu: float_t,
+):
+    """Keep a static vertex v (in the frame at (c, q)) `gap` off the triangle (i0, i1, i2), which began
+    the substep at (s0, s1, s2) in that frame: lambda = depth / sum(beta_i^2 w_i) moves particle i by
+    -lambda beta_i w_i n (the closest point by -depth n), then Coulomb friction on the closest point's
+    slip over the substep, bounded by mu lambda."""
+    zero = float_t(0.0)
+    one = float_t(1.0)
+    a0 = _to_frame(q, c, x[i0])
+    a1 = _to_frame(q, c, x[i1])
+    a2 = _to_frame(q, c, x[i2])
+    hit, beta, n, depth = _off_triangle(v, v, a0, a1, a2, s0, s1, s2, gap)
+    if hit:
+        w0 = inv_m[i0]
+        w1 = inv_m[i1]
+        w2 = inv_m[i2]
+        w_tri = beta[0] * beta[0] * w0 + beta[1] * beta[1] * w1 + beta[2] * beta[2] * w2
+        if w_tri > zero:
+            lam = depth / w_tri
+            moved = a0 * beta[0] + a1 * beta[1] + a2 * beta[2] - n * depth
+            slip = moved - (s0 * beta[0] + s1 * beta[1] + s2 * beta[2])
+            none = vec3(zero, zero, zero)
+            tdir, lam_t = _coulomb(slip, n, none, w_tri, zero, one, mu, lam, quat(zero, zero, zero, one), none)
+            move = wp.quat_rotate(q, n * lam + tdir * lam_t)
+            wp.atomic_sub(x, i0, move * (beta[0] * w0))
+            wp.atomic_sub(x, i1, move * (beta[1] * w1))
+            wp.atomic_sub(x, i2, move * (beta[2] * w2))
+
+
+@wp.func
+def _keep_edge_off(
+    x: wp.array(dtype=vec3),
+    x_prev: wp.array(dtype=vec3),
+    inv_m: wp.array(dtype=float_t),
+    triangles: wp.array2d(dtype=wp.int32),
+    t: int,
+    owned: int,
+    e0: vec3,
+    e1: vec3,
+    c: vec3,
+    q: quat,
+    gap: float_t,
+    mu: float_t,
+):
+    """Keep a static edge (e0, e1) (in the frame at (c, q)) `gap` off the edges of triangle t that it
+    owns (bit e of `owned`: corner e to e + 1): closest points inside both edges (at an end, a
+    vertex or a particle contact holds it), on the side the cloth edge began the substep on; the
+    cloth edge's ends move by weights (1 - s, s), with friction, as `_keep_vertex_off`."""
+    zero = float_t(0.0)
+    one = float_t(1.0)
+    e_half = float_t(0.5) * wp.length(e1 - e0)
+    if e_half > float_t(1.0e-12):
+        e_dir = (e1 - e0) / (float_t(2.0) * e_half)
+        e_mid = float_t(0.5) * (e0 + e1)
+        for e in range(3):
+            if (owned & (1 << e)) == 0:
+                continue
+            ia = triangles[t, e]
+            ib = triangles[t, (e + 1) % 3]
+            wa = inv_m[ia]
+            wb = inv_m[ib]
+            la = _to_frame(q, c, x[ia])
+            lb = _to_frame(q, c, x[ib])
+            c_half = float_t(0.5) * wp.length(lb - la)
+            if c_half <= float_t(1.0e-12):
+                continue
+            sc, se = segment_closest(
+                float_t(0.5) * (la + lb), (lb - la) / (float_t(2.0) * c_half), c_half, e_mid, e_dir, e_half
+            )
+            if wp.abs(sc) >= c_half or wp.abs(se) >= e_half:
+                continue
+            s = float_t(0.5) + float_t(0.5) * sc / c_half
+            on_edge = e_mid + e_dir * se
+            d = la * (one - s) + lb * s - on_edge
+            d_start = _to_frame(q, c, x_prev[ia]) * (one - s) + _to_frame(q, c, x_prev[ib]) * s - on_edge
+            # the side the cloth edge was on at the start of the substep
+            start_len = wp.length(d_start)
+            if start_len <= float_t(1.0e-12):
+                continue
+            n = d_start / start_len
+            along = wp.dot(d, n)
+            dist = wp.length(d)
+            if along > zero and dist > float_t(1.0e-12):
+                n = d / dist
+                along = dist
+            depth = gap - along
+            w_edge = (one - s) * (one - s) * wa + s * s * wb
+            if depth <= zero or w_edge <= zero:
+                continue
+            lam = depth / w_edge
+            slip = d + n * depth - d_start
+            none = vec3(zero, zero, zero)
+            tdir, lam_t = _coulomb(slip, n, none, w_edge, zero, one, mu, lam, quat(zero, zero, zero, one), none)
+            move = wp.quat_rotate(q, n * lam - tdir * lam_t)
+            wp.atomic_add(x, ia, move * ((one - s) * wa))
+            wp.atomic_add(x, ib, move * (s * wb))
+
+
 @wp.kernel
-def _collide_mesh_features(
+def _collide_features(
     x: wp.array(dtype=vec3),
     x_prev: wp.array(dtype=vec3),
     inv_m: wp.array(dtype=float_t),
@@ -622,15 +742,9 @@ def _collide_mesh_features(
     i0 = triangles[t, 0]
     i1 = triangles[t, 1]
     i2 = triangles[t, 2]
-    w0 = inv_m[i0]
-    w1 = inv_m[i1]
-    w2 = inv_m[i2]
     zero = float_t(0.0)
-    one = float_t(1.0)
-    if w0 + w1 + w2 <= zero:
+    if inv_m[i0] + inv_m[i1] + inv_m[i2] <= zero:
         return
-    none = vec3(zero, zero, zero)
-    still = quat(zero, zero, zero, one)
     # the triangle keeps half the particles' thickness from the features, as from small spheres
     # (where the particles' own contacts hold the cloth, the triangles stay out of their way)
     gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
@@ -638,16 +752,13 @@ def _collide_mesh_features(
     owned = edge_owner[t]
     for k in range(candidate_count):
         b = candidates[k]
-        if bodies.shape[b] != MESH:
+        shape = bodies.shape[b]
+        if shape != MESH and (shape != BOX or bodies.inv_mass[b] > zero):
             continue
-        g = bodies.geometry[b]
-        mesh = meshes.id[g]
-        first = meshes.feature_start[g]
         c = bodies.position[b]
         q = bodies.orientation[b]
         mu = wp.sqrt(mu_cloth * bodies.friction[b])
-        # the triangle in the mesh's frame at the start of the substep and now: its box, widened
-        # by the gap, finds the mesh triangles whose features can touch it
+        # the triangle in the body's frame at the start of the substep and now, and its box widened by the gap
         s0 = _to_frame(q, c, x_prev[i0])
         s1 = _to_frame(q, c, x_prev[i1])
         s2 = _to_frame(q, c, x_prev[i2])
@@ -656,6 +767,37 @@ def _collide_mesh_features(
         a2 = _to_frame(q, c, x[i2])
         lo = wp.min(wp.min(wp.min(a0, a1), wp.min(a2, s0)), wp.min(s1, s2)) - vec3(gap, gap, gap)
         hi = wp.max(wp.max(wp.max(a0, a1), wp.max(a2, s0)), wp.max(s1, s2)) + vec3(gap, gap, gap)
+        if shape == BOX:
+            # a static box's 8 corners and 12 edges, where the triangle's box meets the box
+            he = bodies.half_extents[b]
+            if lo[0] > he[0] or lo[1] > he[1] or lo[2] > he[2] or hi[0] < -he[0] or hi[1] < -he[1] or hi[2] < -he[2]:
+                continue
+            for j in range(8):
+                corner = wp.cw_mul(he, _signs(j))
+                _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, corner, c, q, gap, mu)
+            for j in range(12):
+                # edges along axis j // 4, at the signs (u, w) of the other two axes
+                axis = j // 4
+                sign = _signs(j % 4)
+                u = sign[0]
+                w = sign[1]
+                e0 = vec3(zero, zero, zero)
+                e1 = vec3(zero, zero, zero)
+                if axis == 0:
+                    e0 = vec3(-he[0], u * he[1], w * he[2])
+                    e1 = vec3(he[0], u * he[1], w * he[2])
+                elif axis == 1:
+                    e0 = vec3(u * he[0], -he[1], w * he[2])
+                    e1 = vec3(u * he[0], he[1], w * he[2])
+                else:
+                    e0 = vec3(u * he[0], w * he[1], -he[2])
+                    e1 = vec3(u * he[0], w * he[1], he[2])
+                _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
+            continue
+        # a mesh: the triangles its BVH finds in the box, each with the sharp features it owns
+        g = bodies.geometry[b]
+        mesh = meshes.id[g]
+        first = meshes.feature_start[g]
         query = wp.mesh_query_aabb(
             mesh,
             wp.vec3f(wp.float32(lo[0]), wp.float32(lo[1]), wp.float32(lo[2])),
@@ -665,88 +807,15 @@ def _collide_mesh_features(
         f = int(0)
         while wp.mesh_query_aabb_next(query, f):
             flags = meshes.feature[first + f]
-            # a sharp vertex against the triangle: lambda = depth / sum(beta_i^2 w_i) moves particle i
-            # by -lambda beta_i w_i n (the closest point by -depth n), then Coulomb friction on the
-            # closest point's slip over the substep, bounded by mu lambda
             for j in range(3):
-                if (flags & (1 << j)) == 0:
-                    continue
-                v = _mesh_vertex(m.points, m.indices, 3 * f + j)
-                a0 = _to_frame(q, c, x[i0])
-                a1 = _to_frame(q, c, x[i1])
-                a2 = _to_frame(q, c, x[i2])
-                hit, beta, n, depth = _off_triangle(v, v, a0, a1, a2, s0, s1, s2, gap)
-                if not hit:
-                    continue
-                w_tri = beta[0] * beta[0] * w0 + beta[1] * beta[1] * w1 + beta[2] * beta[2] * w2
-                if w_tri <= zero:
-                    continue
-                lam = depth / w_tri
-                slip = (
-                    (a0 * beta[0] + a1 * beta[1] + a2 * beta[2])
-                    - n * depth
-                    - (s0 * beta[0] + s1 * beta[1] + s2 * beta[2])
-                )
-                tdir, lam_t = _coulomb(slip, n, none, w_tri, zero, one, mu, lam, still, none)
-                move = wp.quat_rotate(q, n * lam + tdir * lam_t)
-                wp.atomic_sub(x, i0, move * (beta[0] * w0))
-                wp.atomic_sub(x, i1, move * (beta[1] * w1))
-                wp.atomic_sub(x, i2, move * (beta[2] * w2))
-            # a sharp edge against the triangle's edges (each cloth edge on one triangle only): closest
-            # points inside both, the cloth edge's ends moved by weights (1 - s, s) as above
+                if (flags & (1 << j)) != 0:
+                    v = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                    _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, v, c, q, gap, mu)
             for j in range(3):
-                if (flags & (8 << j)) == 0:
-                    continue
-                e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
-                e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
-                e_half = float_t(0.5) * wp.length(e1 - e0)
-                if e_half <= float_t(1.0e-12):
-                    continue
-                e_dir = (e1 - e0) / (float_t(2.0) * e_half)
-                e_mid = float_t(0.5) * (e0 + e1)
-                for e in range(3):
-                    if (owned & (1 << e)) == 0:
-                        continue
-                    ia = triangles[t, e]
-                    ib = triangles[t, (e + 1) % 3]
-                    wa = inv_m[ia]
-                    wb = inv_m[ib]
-                    la = _to_frame(q, c, x[ia])
-                    lb = _to_frame(q, c, x[ib])
-                    c_half = float_t(0.5) * wp.length(lb - la)
-                    if c_half <= float_t(1.0e-12):
-                        continue
-                    c_dir = (lb - la) / (float_t(2.0) * c_half)
-                    sc, se = segment_closest(float_t(0.5) * (la + lb), c_dir, c_half, e_mid, e_dir, e_half)
-                    # only inside both edges: at an end, a vertex or a particle contact holds it
-                    if wp.abs(sc) >= c_half or wp.abs(se) >= e_half:
-                        continue
-                    s = float_t(0.5) + float_t(0.5) * sc / c_half
-                    on_mesh = e_mid + e_dir * se
-                    d = la * (one - s) + lb * s - on_mesh
-                    d_start = _to_frame(q, c, x_prev[ia]) * (one - s) + _to_frame(q, c, x_prev[ib]) * s - on_mesh
-                    # the side the cloth edge was on at the start of the substep
-                    start_len = wp.length(d_start)
-                    if start_len <= float_t(1.0e-12):
-                        continue
-                    n = d_start / start_len
-                    along = wp.dot(d, n)
-                    dist = wp.length(d)
-                    if along > zero and dist > float_t(1.0e-12):
-                        n = d / dist
-                        along = dist
-                    depth = gap - along
-                    if depth <= zero:
-                        continue
-                    w_edge = (one - s) * (one - s) * wa + s * s * wb
-                    if w_edge <= zero:
-                        continue
-                    lam = depth / w_edge
-                    slip = d + n * depth - d_start
-                    tdir, lam_t = _coulomb(slip, n, none, w_edge, zero, one, mu, lam, still, none)
-                    move = wp.quat_rotate(q, n * lam - tdir * lam_t)
-                    wp.atomic_add(x, ia, move * ((one - s) * wa))
-                    wp.atomic_add(x, ib, move * (s * wb))
+                if (flags & (8 << j)) != 0:
+                    e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                    e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
+                    _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
 
 
 @wp.kernel
@@ -1014,7 +1083,7 @@ def catch_small_spheres(
 
 def edge_owners(triangles: np.ndarray) -> np.ndarray:
     """Per triangle, bit k set where it is the first triangle holding its edge k (corner k to k + 1), (T,) int32:
-    each cloth edge then meets a mesh edge once (`collide_mesh_features`)."""
+    each cloth edge then meets a mesh edge once (`collide_features`)."""
     flags = np.zeros(len(triangles), dtype=np.int64)
     if len(triangles):
         first, _other, _uses = edge_table(triangles)
@@ -1022,7 +1091,7 @@ def edge_owners(triangles: np.ndarray) -> np.ndarray:
     return flags.astype(np.int32)
 
 
-def collide_mesh_features(
+def collide_features(
     x,
     x_prev,
     inv_mass,
@@ -1036,32 +1105,35 @@ def collide_mesh_features(
     *,
     cache: LaunchCache | None = None,
 ):
-    """Keep the sharp features of static meshes (a cone's tip, a box's edge, a plate's border) out of the cloth's triangles.
+    """Keep the sharp features of static meshes and boxes (a cone's tip, a box's edge, a plate's border) out of the cloth's triangles.
 
-    Particles alone keep out of a mesh's surface, but a feature narrower than the gaps between
-    them pokes through a triangle. For each triangle, the mesh BVH is queried with the
-    triangle's box (now and at the start of the substep, widened by half its thickness); each
-    sharp vertex found (`meshes.sharp_features`) is kept half the thickness from the triangle,
-    and each sharp edge from the triangle's own edges (closest points inside both), on the side
-    the cloth was on when the substep began. The triangle's particles move by their barycentric
-    weights times their inverse masses (position-based, as `catch_small_spheres`), with Coulomb
-    friction as for particles. Serial on the CPU, so deterministic there.
+    Particles alone keep out of a body's surface, but a feature narrower than the gaps between
+    them pokes through a triangle. For each triangle and each static mesh, the mesh BVH is
+    queried with the triangle's box (now and at the start of the substep, widened by half its
+    thickness); each sharp vertex found (`meshes.sharp_features`) is kept half the thickness from
+    the triangle, and each sharp edge from the triangle's own edges (closest points inside both),
+    on the side the cloth was on when the substep began. A static box's 8 corners and 12 edges
+    are treated alike (no BVH: one box test first), so a mesh box and the box primitive drape a
+    cloth alike. The triangle's particles move by their barycentric weights times their inverse
+    masses (position-based, as `catch_small_spheres`), with Coulomb friction as for particles.
+    Serial on the CPU, so deterministic there. Dynamic boxes are left to the particle contacts.
 
     Args:
         x: particle positions [m], shape (P,) vec3 (corrected in place); x_prev: at the substep's start.
         inv_mass, thickness, friction: per particle, shape (P,).
         triangles: (T, 3) int32; edge_owner: `edge_owners(triangles)`, (T,) int32.
-        candidates: body indices that can reach the cloth, (k,) int32 (only meshes are read).
+        candidates: body indices that can reach the cloth, (k,) int32 (only meshes and static boxes are read).
         bodies: `BodyArrays`; meshes: the world's `Meshes` struct (`MeshSet.struct`).
         cache: recorded launches to replay.
 
-    Cost O(T x (log F + features near each triangle)) per call, F the mesh's triangles.
+    Cost O(T x (log F + features near each triangle)) per call for a mesh of F triangles, O(T x 20)
+    for a box near the triangle.
     """
     k = candidates.shape[0]
     if k == 0 or triangles.shape[0] == 0:
         return
     launch(
-        _collide_mesh_features,
+        _collide_features,
         triangles.shape[0],
         [x, x_prev, inv_mass, thickness, friction, triangles, edge_owner, candidates, k, bodies, meshes],
         x.device,

@@ -184,7 +184,7 @@ class ClothSystem:
         self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
-        self._meshes_near = False  # a static mesh can reach the cloth this step
+        self._features_near = False  # a static mesh or box can reach the cloth this step
         self._edge_owner = wp.zeros(0, dtype=wp.int32, device=self.device)  # collide.edge_owners of the triangles
         self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (model.body_arrays; a cache)
         self._pin_dt = 0.0
@@ -643,7 +643,7 @@ class ClothSystem:
         )
 
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
-        """Particles, then triangles against small spheres and meshes' sharp features, out of the candidate
+        """Particles, then triangles against small spheres and the sharp features of static meshes and boxes, out of the candidate
         bodies; bodies pushed back."""
         a = self._arrays
         assert self._bodies is not None  # set by begin_step
@@ -684,8 +684,8 @@ class ClothSystem:
             hi,
             cache=self._cache,
         )
-        if self._meshes_near:
-            collide.collide_mesh_features(
+        if self._features_near:
+            collide.collide_features(
                 a["particle_position"],
                 a["particle_position_prev"],
                 a["particle_inv_mass"],
@@ -815,9 +815,9 @@ class ClothSystem:
             holder = np.isin(near, self.body_pins.body.numpy()[: self.body_pins.count])
             near = near[~holder | (self._contacts_prev.numpy()[near] > 0)]
         self._bodies_near = bool(len(near))
-        self._meshes_near = bool(len(candidates)) and bool(
-            np.any(bodies.numpy("body_shape")[candidates] == int(ShapeType.MESH))
-        )
+        shape = bodies.numpy("body_shape")[candidates]
+        static_box = (shape == int(ShapeType.BOX)) & (bodies.numpy("body_inv_mass")[candidates] == 0.0)
+        self._features_near = bool(np.any((shape == int(ShapeType.MESH)) | static_box))
         total = self.substeps_for(dt)
         if self._bodies_near and self.substeps is None:
             total = max(total, int(substeps))
