@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import warp as wp
 
-from tumble.collision.meshes import MeshSet
+from tumble.collision.meshes import MeshSet, sharp_features
 
 #: a unit square in z = 0, counter-clockwise seen from +z (two triangles)
 SQUARE = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
@@ -43,3 +44,40 @@ def test_the_bvh_finds_the_closest_point_of_the_mesh():
     wp.launch(_closest, dim=3, inputs=[wp.uint64(meshes.ids().numpy()[row]), wp.array(points, dtype=wp.vec3f), out])
     expected = np.array([[0.25, 0.75, 0.0], [1.0, 0.5, 0.0], [0.0, 0.0, 0.0]])
     np.testing.assert_allclose(out.numpy(), expected, atol=1e-6)
+
+
+def _count(flags, shift):
+    return sum(int(f >> shift & 7).bit_count() for f in flags)
+
+
+def test_sharp_features_are_the_corners_and_edges_each_flagged_once():
+    """A box mesh: closed, its 8 corners and 12 edges (not the face diagonals); the open square: its
+    4 corners and 4 border edges; a flat grid's inner vertices and edges are not sharp."""
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    flags, closed = sharp_features(box.vertices, box.faces)
+    assert closed and _count(flags, 0) == 8 and _count(flags, 3) == 12
+    flags, closed = sharp_features(SQUARE, SQUARE_TRIANGLES)
+    assert not closed and _count(flags, 0) == 4 and _count(flags, 3) == 4
+    # a 3 x 3 flat grid of 2 x 2 quads: the middle vertex and the 8 inner edges are not sharp
+    v = np.array([[i, j, 0.0] for j in range(3) for i in range(3)])
+    t = np.array([[a, a + 1, a + 4] for a in (0, 1, 3, 4)] + [[a, a + 4, a + 3] for a in (0, 1, 3, 4)])
+    flags, closed = sharp_features(v, t)
+    assert not closed and _count(flags, 0) == 8 and _count(flags, 3) == 8
+    # a convex solid: every vertex and edge is sharp, a concave edge is not
+    ico = trimesh.creation.icosphere(1)
+    flags, closed = sharp_features(ico.vertices, ico.faces)
+    assert closed and _count(flags, 0) == len(ico.vertices) and _count(flags, 3) == len(ico.edges_unique)
+
+
+def test_struct_holds_the_features_of_every_row():
+    """MeshSet.struct(): ids, closed flags and feature rows concatenated with their starts."""
+    meshes = MeshSet("cpu")
+    meshes.add(SQUARE, SQUARE_TRIANGLES)
+    tetra = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    meshes.add(tetra, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+    s = meshes.struct()
+    assert s.closed.numpy().tolist() == [0, 1]
+    assert s.feature_start.numpy().tolist() == [0, 2, 6]
+    assert _count(s.feature.numpy()[2:6], 0) == 4 and _count(s.feature.numpy()[2:6], 3) == 6
+    np.testing.assert_array_equal(s.id.numpy(), meshes.ids().numpy())
