@@ -594,7 +594,8 @@ class World:
     ) -> BodyId:
         """Add a static triangle mesh, from a file (OBJ, STL, PLY, OFF, glTF/GLB through trimesh) or arrays.
 
-        Spheres, capsules, boxes and convex bodies collide with it through its BVH (`wp.Mesh`).
+        Spheres, capsules, boxes, convex bodies and cloth (particles and triangles) collide with it through
+        its BVH (`wp.Mesh`).
         Faces are one-sided: wound counter-clockwise seen from where bodies stay (outward on a
         closed mesh). NaN vertices, bad indices and zero-area triangles are dropped with a
         one-line notice each.
