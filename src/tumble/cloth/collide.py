@@ -605,6 +605,19 @@ def _to_frame(q: quat, c: vec3, x: vec3):
 
 
 @wp.func
+def _overlaps(a_lo: vec3, a_hi: vec3, b_lo: vec3, b_hi: vec3):
+    """Whether the boxes [a_lo, a_hi] and [b_lo, b_hi] overlap."""
+    return (
+        a_lo[0] <= b_hi[0]
+        and a_lo[1] <= b_hi[1]
+        and a_lo[2] <= b_hi[2]
+        and b_lo[0] <= a_hi[0]
+        and b_lo[1] <= a_hi[1]
+        and b_lo[2] <= a_hi[2]
+    )
+
+
+@wp.func
 def _signs(j: int):
     """(+-1, +-1, +-1): the signs of corner j of a box, bit k of j set for -1 along axis k."""
     one = float_t(1.0)
@@ -770,11 +783,12 @@ def _collide_features(
         if shape == BOX:
             # a static box's 8 corners and 12 edges, where the triangle's box meets the box
             he = bodies.half_extents[b]
-            if lo[0] > he[0] or lo[1] > he[1] or lo[2] > he[2] or hi[0] < -he[0] or hi[1] < -he[1] or hi[2] < -he[2]:
+            if not _overlaps(-he, he, lo, hi):
                 continue
             for j in range(8):
                 corner = wp.cw_mul(he, _signs(j))
-                _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, corner, c, q, gap, mu)
+                if _overlaps(corner, corner, lo, hi):
+                    _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, corner, c, q, gap, mu)
             for j in range(12):
                 # edges along axis j // 4, at the signs (u, w) of the other two axes
                 axis = j // 4
@@ -792,7 +806,8 @@ def _collide_features(
                 else:
                     e0 = vec3(u * he[0], w * he[1], -he[2])
                     e1 = vec3(u * he[0], w * he[1], he[2])
-                _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
+                if _overlaps(wp.min(e0, e1), wp.max(e0, e1), lo, hi):
+                    _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
             continue
         # a mesh: the triangles its BVH finds in the box, each with the sharp features it owns
         g = bodies.geometry[b]
@@ -810,12 +825,14 @@ def _collide_features(
             for j in range(3):
                 if (flags & (1 << j)) != 0:
                     v = _mesh_vertex(m.points, m.indices, 3 * f + j)
-                    _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, v, c, q, gap, mu)
+                    if _overlaps(v, v, lo, hi):
+                        _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, v, c, q, gap, mu)
             for j in range(3):
                 if (flags & (8 << j)) != 0:
                     e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
                     e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
-                    _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
+                    if _overlaps(wp.min(e0, e1), wp.max(e0, e1), lo, hi):
+                        _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
 
 
 @wp.kernel

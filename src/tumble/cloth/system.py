@@ -601,6 +601,24 @@ class ClothSystem:
                     )
                     self._collide_bodies(hi, hulls, meshes)
 
+        # the triangles against the sharp features of static meshes and boxes, once the particles
+        # are settled against the faces (once a substep: their cost is one BVH query a triangle)
+        if touching and self._features_near:
+            assert self._bodies is not None  # set by begin_step
+            collide.collide_features(
+                a["particle_position"],
+                a["particle_position_prev"],
+                a["particle_inv_mass"],
+                a["particle_thickness"],
+                a["particle_friction"],
+                a["triangles"],
+                self._edge_owner,
+                self._candidates,
+                self._bodies[0],
+                meshes,
+                cache=cache,
+            )
+
         # with a dynamic body near, the stretch limit has the last word: the cloth ends every substep
         # within its limit; what it takes back from the contacts stays inside the particles'
         # thickness and is pushed out again next substep (the body's push that the taut cloth
@@ -643,8 +661,7 @@ class ClothSystem:
         )
 
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
-        """Particles, then triangles against small spheres and the sharp features of static meshes and boxes, out of the candidate
-        bodies; bodies pushed back."""
+        """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
         a = self._arrays
         assert self._bodies is not None  # set by begin_step
         bodies = self._bodies[0]
@@ -684,20 +701,6 @@ class ClothSystem:
             hi,
             cache=self._cache,
         )
-        if self._features_near:
-            collide.collide_features(
-                a["particle_position"],
-                a["particle_position_prev"],
-                a["particle_inv_mass"],
-                a["particle_thickness"],
-                a["particle_friction"],
-                a["triangles"],
-                self._edge_owner,
-                self._candidates,
-                bodies,
-                meshes,
-                cache=self._cache,
-            )
         self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
 
     def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
