@@ -6,8 +6,10 @@ arithmetic, indexing and component access that kernels use on them (`p_b - p_a`,
 are compiled by Warp and declared nowhere, and a `vec3d` is not even a `Vector[float64, 3]` to the
 checker, so every kernel line would read as an error. This plugin gives those classes an Any
 fallback, as if they derived from Any: their constructors are still checked, everything else they
-do is Any; `wp.types.vector(length, dtype)` makes such a class too. `wp.tid()` returns one index or a tuple depending on how the caller unpacks it, which a
-return type cannot say; its calls are typed Any.
+do is Any; `wp.types.vector(length, dtype)` makes such a class too, and so does Tumble's
+`structs.array_struct` (a Warp struct whose fields a field table names). `wp.tid()` returns one
+index or a tuple depending on how the caller unpacks it, which a return type cannot say; its
+calls are typed Any.
 
 Host code keeps Warp's own types (`wp.array`, `wp.launch`, `wp.zeros`, ...). The annotations of
 kernel arguments (`wp.array(dtype=vec3)`) are calls, which no plugin can turn into types: the
@@ -61,6 +63,8 @@ class WarpPlugin(Plugin):
 
     def get_dynamic_class_hook(self, fullname: str) -> Callable[[DynamicClassDefContext], None] | None:
         if fullname in ("warp.types.vector", "warp._src.types.vector", "warp.types.matrix", "warp._src.types.matrix"):
+            return _vector_class
+        if fullname == "tumble.structs.array_struct":  # a Warp struct whose fields come from a field table
             return _vector_class
         return None
 

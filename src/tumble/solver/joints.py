@@ -77,10 +77,12 @@ pair, like the rope bridge's paired ties) stays a soft row, as do the other kind
 rows coupled only by the sweep went unstable there too.
 
 Kernels: one solve kernel per joint kind, each launched over the rows of its kind in creation
-order (so a pass sweeps the ball joints, then the hinges, ...); the ball joint's is written out
-on its own (`_solve_ball`; it warm starts and relaxes every ball joint and solves the lone ones), the
-others come from `_make_solve(kind)`, whose branches on the kind are resolved when Warp compiles
-it (`wp.static`); the ball joints' chains have `_solve_ball_chains`. No adjoint code is generated.
+order (so a pass sweeps the ball joints, then the hinges, ...), all from `_make_solve(kind)`,
+whose branches on the kind are resolved when Warp compiles it (`wp.static`): the ball joint's
+point row is written out on its own (it warm starts and relaxes every ball joint and solves the
+lone ones); the ball joints' chains have `_solve_ball_chains`. Every kernel takes the joint
+arrays as one struct, `Joints` (derived from `JOINT_FIELDS`), and the body arrays as the
+solver's `Bodies`, each built once per set of arrays. No adjoint code is generated.
 
 Joint force: the accumulated impulses are per substep (each substep applies them again as its
 warm start), so the step's mean force is the sum of the substeps' final impulses over dt (the
@@ -108,6 +110,8 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..state import ArraySet, float_t, quat, readonly, vec3
+from ..structs import array_struct, fill_struct
+from .contacts import Bodies, body_struct
 from .rigid import inv_inertia_world, safe_inverse
 
 # no adjoint code: nothing differentiates through the joints, and it would double the compile time
@@ -172,6 +176,9 @@ JOINT_FIELDS = {
     "joint_force": vec3,  # mean force on b over the last step, world [N]
     "joint_torque": vec3,  # mean torque on b over the last step, world [N m]
 }
+
+#: the joint arrays as the kernels take them: `joint_body_a` is `j.body_a`
+Joints = array_struct("Joints", JOINT_FIELDS, "joint_", __name__)
 
 # the kinds as plain ints, for the compile-time branches (wp.static) of the solve kernels
 _BALL, _HINGE, _SLIDER, _FIXED, _DISTANCE = (int(k) for k in JointKind)
@@ -343,17 +350,7 @@ class _Body:
 
 
 @wp.func
-def _load(
-    i: int,
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    load: wp.array(dtype=float_t),
-    h: float_t,
-):
+def _load(i: int, b: Bodies, load: wp.array(dtype=float_t), h: float_t):
     """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin.
 
     The inertia carries the joints' geometric stiffness (`_inv_inertia_loaded`).
@@ -361,12 +358,12 @@ def _load(
     s = _Body()
     s.q = wp.quat_identity(dtype=float_t)
     if i >= 0:
-        s.x = x[i]
-        s.q = q[i]
-        s.v = v[i]
-        s.w = w[i]
-        s.m = inv_mass[i]
-        s.I = _inv_inertia_loaded(q[i], inv_inertia[i], load[i], h)
+        s.x = b.x[i]
+        s.q = b.q[i]
+        s.v = b.v[i]
+        s.w = b.w[i]
+        s.m = b.inv_mass[i]
+        s.I = _inv_inertia_loaded(b.q[i], b.inv_inertia[i], load[i], h)
     return s
 
 
@@ -473,41 +470,12 @@ def _make_solve(kind: int):
             g.value = length
         return g
 
-    @wp.kernel
+    # a name of its own: a recorded CPU graph finds a kernel by its name
+    @wp.kernel(name=f"_solve_{JointKind(kind).name.lower()}")
     def solve(
         rows: wp.array(dtype=wp.int32),
-        body_a: wp.array(dtype=wp.int32),
-        body_b: wp.array(dtype=wp.int32),
-        local_a: wp.array(dtype=vec3),
-        local_b: wp.array(dtype=vec3),
-        frame_a: wp.array(dtype=quat),
-        frame_b: wp.array(dtype=quat),
-        limit: wp.array(dtype=wp.int32),
-        lower: wp.array(dtype=float_t),
-        upper: wp.array(dtype=float_t),
-        motor: wp.array(dtype=wp.int32),
-        motor_speed: wp.array(dtype=float_t),
-        motor_max: wp.array(dtype=float_t),
-        length: wp.array(dtype=float_t),
-        stiffness: wp.array(dtype=float_t),
-        damping: wp.array(dtype=float_t),
-        scale: wp.array(dtype=float_t),
-        enabled: wp.array(dtype=wp.int32),
-        imp_linear: wp.array(dtype=vec3),
-        imp_angular: wp.array(dtype=vec3),
-        imp_axial: wp.array(dtype=float_t),
-        imp_lower: wp.array(dtype=float_t),
-        imp_upper: wp.array(dtype=float_t),
-        sum_linear: wp.array(dtype=vec3),
-        sum_angular: wp.array(dtype=vec3),
-        x: wp.array(dtype=vec3),
-        q: wp.array(dtype=quat),
-        v: wp.array(dtype=vec3),
-        w: wp.array(dtype=vec3),
-        inv_mass: wp.array(dtype=float_t),
-        inv_inertia: wp.array(dtype=vec3),
-        warm_v: wp.array(dtype=vec3),
-        warm_w: wp.array(dtype=vec3),
+        j: Joints,
+        b: Bodies,
         load: wp.array(dtype=float_t),
         mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
         h: float_t,
@@ -521,159 +489,198 @@ def _make_solve(kind: int):
         if thread >= count:
             return  # launched over the rows of one kind
         k = rows[thread]
-        if enabled[k] == 0:
+        if j.enabled[k] == 0:
             return
-        ia = body_a[k]
-        ib = body_b[k]
-        A = _load(ia, x, q, v, w, inv_mass, inv_inertia, load, h)
-        B = _load(ib, x, q, v, w, inv_mass, inv_inertia, load, h)
-        g = geometry(A.x, A.q, B.x, B.q, local_a[k], local_b[k], frame_a[k], frame_b[k], A.m, B.m, A.I, B.I)
-        s0 = _Velocities()
-        s0.va = A.v
-        s0.wa = A.w
-        s0.vb = B.v
-        s0.wb = B.w
-        s = s0
-        zero = float_t(0.0)
-
-        if mode == 0:
-            # warm start: last step's impulses, at the current poses
-            s = _total(g, s, imp_linear[k], imp_angular[k], imp_axial[k] + imp_lower[k] - imp_upper[k])
+        if wp.static(kind == _BALL):
+            # the point row as one soft (or, relaxing, rigid) row; the chains' rows are solved
+            # exactly by `_solve_ball_chains` in the pass with bias, the lone ones here
+            g = _ball(k, j, b, load, h)
+            P0 = j.impulse_linear[k]
+            P = P0  # warm start: last step's impulse
+            if mode != 0:
+                cdot = g.cdot
+                ms = float_t(1.0)
+                isc = float_t(0.0)
+                if mode == 1:
+                    cdot = cdot + g.C * bias_rate
+                    ms = mass_scale
+                    isc = impulse_scale
+                P = (-ms * _solve33(_ball_mass(g), cdot) - isc * P0) * j.scale[k]
+                j.impulse_linear[k] = P0 + P
+            add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), b.v, b.w, b.inv_mass, serial)
+            add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), b.v, b.w, b.inv_mass, serial)
+            if mode == 2:
+                # relax: the impulse is final for the substep and starts the next one (warm start)
+                T = P0 + P
+                add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), b.warm_v, b.warm_w, b.inv_mass, serial)
+                add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), b.warm_v, b.warm_w, b.inv_mass, serial)
+                j.sum_linear[k] = j.sum_linear[k] + T
         else:
-            use_bias = 0
-            ms = float_t(1.0)
-            isc = zero
-            if mode == 1:
-                use_bias = 1
-                ms = mass_scale
-                isc = impulse_scale
-            relax = scale[k]
-            inv_h = float_t(1.0) / h
+            ia = j.body_a[k]
+            ib = j.body_b[k]
+            A = _load(ia, b, load, h)
+            B = _load(ib, b, load, h)
+            g = geometry(A.x, A.q, B.x, B.q, j.local_a[k], j.local_b[k], j.frame_a[k], j.frame_b[k], A.m, B.m, A.I, B.I)
+            s0 = _Velocities()
+            s0.va = A.v
+            s0.wa = A.w
+            s0.vb = B.v
+            s0.wb = B.w
+            s = s0
+            zero = float_t(0.0)
 
-            # axial: motor or spring, then the limits
-            axial = imp_axial[k]
-            if motor[k] != 0 and (wp.static(kind == _HINGE or kind == _SLIDER)):
-                # drive the joint speed to the target; |impulse| <= max torque (force) * h
-                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - motor_speed[k]
-                cap = motor_max[k] * h
-                new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
-                s = _apply_axial(g, s, new - axial)
-                axial = new
-            if wp.static(kind == _DISTANCE) and lower[k] < upper[k] and (stiffness[k] > zero or damping[k] > zero):
-                # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
-                meff = _axial_mass(g)
-                if meff > zero:
-                    kc = damping[k] + h * stiffness[k]
-                    a2 = h * kc * safe_inverse(meff)
-                    sms = a2 / (float_t(1.0) + a2)
-                    sis = float_t(1.0) / (float_t(1.0) + a2)
-                    sbias = stiffness[k] / kc * (g.value - length[k])
-                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-                    new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
+            if mode == 0:
+                # warm start: last step's impulses, at the current poses
+                s = _total(
+                    g,
+                    s,
+                    j.impulse_linear[k],
+                    j.impulse_angular[k],
+                    j.impulse_axial[k] + j.impulse_lower[k] - j.impulse_upper[k],
+                )
+            else:
+                use_bias = 0
+                ms = float_t(1.0)
+                isc = zero
+                if mode == 1:
+                    use_bias = 1
+                    ms = mass_scale
+                    isc = impulse_scale
+                relax = j.scale[k]
+                inv_h = float_t(1.0) / h
+
+                # axial: motor or spring, then the limits
+                axial = j.impulse_axial[k]
+                if j.motor[k] != 0 and (wp.static(kind == _HINGE or kind == _SLIDER)):
+                    # drive the joint speed to the target; |impulse| <= max torque (force) * h
+                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - j.motor_speed[k]
+                    cap = j.motor_max[k] * h
+                    new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
                     s = _apply_axial(g, s, new - axial)
                     axial = new
-            if wp.static(kind == _DISTANCE) and lower[k] >= upper[k]:
-                # rigid rod: C = |d| - length, two-sided
-                bias = zero
-                if use_bias != 0:
-                    bias = bias_rate * (g.value - lower[k])
-                cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-                new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
-                s = _apply_axial(g, s, new - axial)
-                axial = new
-            imp_axial[k] = axial
-            if limit[k] != 0 and lower[k] < upper[k]:
-                lo = imp_lower[k]
-                new = _limit(g, s, g.value - lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax)
-                s = _apply_axial(g, s, new - lo)
-                imp_lower[k] = new
-                hi = imp_upper[k]
-                new = _limit(g, s, upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax)
-                s = _apply_axial(g, s, hi - new)
-                imp_upper[k] = new
+                if (
+                    wp.static(kind == _DISTANCE)
+                    and j.lower[k] < j.upper[k]
+                    and (j.stiffness[k] > zero or j.damping[k] > zero)
+                ):
+                    # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
+                    meff = _axial_mass(g)
+                    if meff > zero:
+                        kc = j.damping[k] + h * j.stiffness[k]
+                        a2 = h * kc * safe_inverse(meff)
+                        sms = a2 / (float_t(1.0) + a2)
+                        sis = float_t(1.0) / (float_t(1.0) + a2)
+                        sbias = j.stiffness[k] / kc * (g.value - j.length[k])
+                        cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                        new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
+                        s = _apply_axial(g, s, new - axial)
+                        axial = new
+                if wp.static(kind == _DISTANCE) and j.lower[k] >= j.upper[k]:
+                    # rigid rod: C = |d| - length, two-sided
+                    bias = zero
+                    if use_bias != 0:
+                        bias = bias_rate * (g.value - j.lower[k])
+                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                    new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
+                    s = _apply_axial(g, s, new - axial)
+                    axial = new
+                j.impulse_axial[k] = axial
+                if j.limit[k] != 0 and j.lower[k] < j.upper[k]:
+                    lo = j.impulse_lower[k]
+                    new = _limit(
+                        g, s, g.value - j.lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax
+                    )
+                    s = _apply_axial(g, s, new - lo)
+                    j.impulse_lower[k] = new
+                    hi = j.impulse_upper[k]
+                    new = _limit(
+                        g, s, j.upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax
+                    )
+                    s = _apply_axial(g, s, hi - new)
+                    j.impulse_upper[k] = new
 
-            # angular: all three axes (fixed, slider) or the two across the hinge axis
-            if wp.static(kind == _FIXED or kind == _SLIDER):
-                L0 = imp_angular[k]
-                cdot3 = s.wb - s.wa
-                bias3 = vec3()
-                if use_bias != 0:
-                    bias3 = g.twist * bias_rate
-                L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
-                L = L * relax
-                s = _apply_angular(g, s, L)
-                imp_angular[k] = L0 + L
-            if wp.static(kind == _HINGE):
-                L0 = imp_angular[k]
-                e1 = g.perp1
-                e2 = g.perp2
-                cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
-                bias2 = wp.vec2d()
-                if use_bias != 0:
-                    bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
-                acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
-                lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
-                lam = lam * relax
-                L = e1 * lam[0] + e2 * lam[1]
-                s = _apply_angular(g, s, L)
-                # keep only the components across the axis (the axis carries the motor and limits)
-                imp_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+                # angular: all three axes (fixed, slider) or the two across the hinge axis
+                if wp.static(kind == _FIXED or kind == _SLIDER):
+                    L0 = j.impulse_angular[k]
+                    cdot3 = s.wb - s.wa
+                    bias3 = vec3()
+                    if use_bias != 0:
+                        bias3 = g.twist * bias_rate
+                    L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
+                    L = L * relax
+                    s = _apply_angular(g, s, L)
+                    j.impulse_angular[k] = L0 + L
+                if wp.static(kind == _HINGE):
+                    L0 = j.impulse_angular[k]
+                    e1 = g.perp1
+                    e2 = g.perp2
+                    cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
+                    bias2 = wp.vec2d()
+                    if use_bias != 0:
+                        bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
+                    acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
+                    lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
+                    lam = lam * relax
+                    L = e1 * lam[0] + e2 * lam[1]
+                    s = _apply_angular(g, s, L)
+                    # keep only the components across the axis (the axis carries the motor and limits)
+                    j.impulse_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
 
-            # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
-            if wp.static(kind == _BALL or kind == _HINGE or kind == _FIXED):
-                P0 = imp_linear[k]
-                cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
-                bias3 = vec3()
-                if use_bias != 0:
-                    bias3 = g.d * bias_rate
-                Sa = wp.skew(g.ra)
-                Sb = wp.skew(g.rb)
-                K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
-                P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
-                s = _apply_linear(g, s, P)
-                imp_linear[k] = P0 + P
-            if wp.static(kind == _SLIDER):
-                P0 = imp_linear[k]
-                e1 = g.perp1
-                e2 = g.perp2
-                ja1 = wp.cross(g.arm_a, e1)
-                ja2 = wp.cross(g.arm_a, e2)
-                jb1 = wp.cross(g.rb, e1)
-                jb2 = wp.cross(g.rb, e2)
-                m = g.ma + g.mb
-                K2 = wp.mat22d(
-                    m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
-                    wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
-                    wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
-                    m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2),
-                )
-                dv = s.vb - s.va
-                cdot2 = wp.vec2d(
-                    wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
-                    wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa),
-                )
-                bias2 = wp.vec2d()
-                if use_bias != 0:
-                    bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
-                acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
-                lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
-                s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
-                imp_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+                # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
+                if wp.static(kind == _BALL or kind == _HINGE or kind == _FIXED):
+                    P0 = j.impulse_linear[k]
+                    cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
+                    bias3 = vec3()
+                    if use_bias != 0:
+                        bias3 = g.d * bias_rate
+                    Sa = wp.skew(g.ra)
+                    Sb = wp.skew(g.rb)
+                    K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
+                    P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
+                    s = _apply_linear(g, s, P)
+                    j.impulse_linear[k] = P0 + P
+                if wp.static(kind == _SLIDER):
+                    P0 = j.impulse_linear[k]
+                    e1 = g.perp1
+                    e2 = g.perp2
+                    ja1 = wp.cross(g.arm_a, e1)
+                    ja2 = wp.cross(g.arm_a, e2)
+                    jb1 = wp.cross(g.rb, e1)
+                    jb2 = wp.cross(g.rb, e2)
+                    m = g.ma + g.mb
+                    K2 = wp.mat22d(
+                        m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
+                        wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
+                        wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
+                        m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2),
+                    )
+                    dv = s.vb - s.va
+                    cdot2 = wp.vec2d(
+                        wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
+                        wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa),
+                    )
+                    bias2 = wp.vec2d()
+                    if use_bias != 0:
+                        bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
+                    acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
+                    lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
+                    s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
+                    j.impulse_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
 
-        add_velocity(ia, s.va - s0.va, s.wa - s0.wa, v, w, inv_mass, serial)
-        add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, v, w, inv_mass, serial)
-        if mode == 2:
-            # relax: these impulses are final for the substep and start the next one (warm start)
-            axial = imp_axial[k] + imp_lower[k] - imp_upper[k]
-            t = _total(g, _Velocities(), imp_linear[k], imp_angular[k], axial)
-            add_velocity(ia, t.va, t.wa, warm_v, warm_w, inv_mass, serial)
-            add_velocity(ib, t.vb, t.wb, warm_v, warm_w, inv_mass, serial)
-            # and count them towards the step's mean force
-            sum_linear[k] = sum_linear[k] + imp_linear[k] + g.n * axial
-            spin = imp_angular[k]
-            if wp.static(kind == _HINGE):
-                spin = spin + g.axis * axial  # a hinge's axial row is angular
-            sum_angular[k] = sum_angular[k] + spin
+            add_velocity(ia, s.va - s0.va, s.wa - s0.wa, b.v, b.w, b.inv_mass, serial)
+            add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, b.v, b.w, b.inv_mass, serial)
+            if mode == 2:
+                # relax: these impulses are final for the substep and start the next one (warm start)
+                axial = j.impulse_axial[k] + j.impulse_lower[k] - j.impulse_upper[k]
+                t = _total(g, _Velocities(), j.impulse_linear[k], j.impulse_angular[k], axial)
+                add_velocity(ia, t.va, t.wa, b.warm_v, b.warm_w, b.inv_mass, serial)
+                add_velocity(ib, t.vb, t.wb, b.warm_v, b.warm_w, b.inv_mass, serial)
+                # and count them towards the step's mean force
+                j.sum_linear[k] = j.sum_linear[k] + j.impulse_linear[k] + g.n * axial
+                spin = j.impulse_angular[k]
+                if wp.static(kind == _HINGE):
+                    spin = spin + g.axis * axial  # a hinge's axial row is angular
+                j.sum_angular[k] = j.sum_angular[k] + spin
 
     return solve
 
@@ -699,30 +706,15 @@ class _Ball:
 
 
 @wp.func
-def _ball(
-    k: int,
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    enabled: wp.array(dtype=wp.int32),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    load: wp.array(dtype=float_t),
-    h: float_t,
-):
+def _ball(k: int, j: Joints, b: Bodies, load: wp.array(dtype=float_t), h: float_t):
     g = _Ball()
-    g.ia = body_a[k]
-    g.ib = body_b[k]
-    g.on = enabled[k]
-    A = _load(g.ia, x, q, v, w, inv_mass, inv_inertia, load, h)
-    B = _load(g.ib, x, q, v, w, inv_mass, inv_inertia, load, h)
-    ra = wp.quat_rotate(A.q, local_a[k])  # the world (identity pose): its anchor is the world point
-    rb = wp.quat_rotate(B.q, local_b[k])
+    g.ia = j.body_a[k]
+    g.ib = j.body_b[k]
+    g.on = j.enabled[k]
+    A = _load(g.ia, b, load, h)
+    B = _load(g.ib, b, load, h)
+    ra = wp.quat_rotate(A.q, j.local_a[k])  # the world (identity pose): its anchor is the world point
+    rb = wp.quat_rotate(B.q, j.local_b[k])
     pa = A.x + ra
     pb = B.x + rb
     if g.ia < 0:
@@ -746,64 +738,6 @@ def _ball_mass(g: _Ball):
     Sa = wp.skew(g.ra)
     Sb = wp.skew(g.rb)
     return wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
-
-
-@wp.kernel
-def _solve_ball(
-    rows: wp.array(dtype=wp.int32),
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    scale: wp.array(dtype=float_t),
-    enabled: wp.array(dtype=wp.int32),
-    imp_linear: wp.array(dtype=vec3),
-    sum_linear: wp.array(dtype=vec3),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    warm_v: wp.array(dtype=vec3),
-    warm_w: wp.array(dtype=vec3),
-    load: wp.array(dtype=float_t),
-    mode: int,
-    h: float_t,
-    bias_rate: float_t,
-    mass_scale: float_t,
-    impulse_scale: float_t,
-    serial: int,
-    count: int,
-):
-    """Ball joints alone (the chains' and ragdolls' kind): the point row as one soft (or, relaxing, rigid) row."""
-    thread = wp.tid()
-    if thread >= count:
-        return
-    k = rows[thread]
-    if enabled[k] == 0:
-        return
-    g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
-    P0 = imp_linear[k]
-    P = P0  # warm start: last step's impulse
-    if mode != 0:
-        cdot = g.cdot
-        ms = float_t(1.0)
-        isc = float_t(0.0)
-        if mode == 1:
-            cdot = cdot + g.C * bias_rate
-            ms = mass_scale
-            isc = impulse_scale
-        P = (-ms * _solve33(_ball_mass(g), cdot) - isc * P0) * scale[k]
-        imp_linear[k] = P0 + P
-    add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), v, w, inv_mass, serial)
-    add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), v, w, inv_mass, serial)
-    if mode == 2:
-        # relax: the impulse is final for the substep and starts the next one (warm start)
-        T = P0 + P
-        add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), warm_v, warm_w, inv_mass, serial)
-        add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), warm_v, warm_w, inv_mass, serial)
-        sum_linear[k] = sum_linear[k] + T
 
 
 @wp.func
@@ -833,31 +767,27 @@ def _coupling(g: _Ball, f: _Ball):
     return out
 
 
+@wp.struct
+class _ChainScratch:
+    """Scratch of the chains' elimination, one entry per chain slot (`JointSet.refresh` sizes it)."""
+
+    inv_d: wp.array(dtype=wp.mat33d)  # the eliminated diagonal block, inverted
+    lower: wp.array(dtype=wp.mat33d)  # its coupling to the previous slot, A[t, t - 1]
+    rhs: wp.array(dtype=vec3)  # the eliminated right-hand side, then the slot's impulse
+    arm_a: wp.array(dtype=vec3)  # and the joint's world arms and (loaded) inverse inertias
+    arm_b: wp.array(dtype=vec3)
+    inertia_a: wp.array(dtype=wp.mat33d)
+    inertia_b: wp.array(dtype=wp.mat33d)
+
+
 @wp.kernel
 def _solve_ball_chains(
     chain_joints: wp.array(dtype=wp.int32),
     chain_start: wp.array(dtype=wp.int32),
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    scale: wp.array(dtype=float_t),
-    enabled: wp.array(dtype=wp.int32),
-    imp_linear: wp.array(dtype=vec3),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
+    j: Joints,
+    b: Bodies,
     load: wp.array(dtype=float_t),
-    inv_d: wp.array(dtype=wp.mat33d),  # scratch per chain slot: the eliminated diagonal block, inverted
-    lower: wp.array(dtype=wp.mat33d),  # its coupling to the previous slot, A[t, t - 1]
-    rhs: wp.array(dtype=vec3),  # the eliminated right-hand side, then the slot's impulse
-    arm_a: wp.array(dtype=vec3),  # and the joint's world arms and (loaded) inverse inertias
-    arm_b: wp.array(dtype=vec3),
-    inertia_a: wp.array(dtype=wp.mat33d),
-    inertia_b: wp.array(dtype=wp.mat33d),
+    scratch: _ChainScratch,
     h: float_t,
     bias_rate: float_t,
     serial: int,
@@ -866,7 +796,7 @@ def _solve_ball_chains(
     """The point rows of one chain of ball joints (consecutive joints share a body), solved exactly
     with bias: A lambda = -(Cdot + b C), A = J M^-1 J^T block tridiagonal (3 x 3 blocks: K on the
     diagonal, `_coupling` beside it), by block elimination down the chain and back substitution up it.
-    (The relax pass is the plain sweep, `_solve_ball`: the chain is solved again next substep.)
+    (The relax pass is the plain sweep, the ball kind's solve kernel: the chain is solved again next substep.)
     """
     p = wp.tid()
     if p >= count:
@@ -877,114 +807,94 @@ def _solve_ball_chains(
     # eliminate down the chain: D_t = A_tt - A_t,t-1 D_t-1^-1 A_t-1,t, y_t = r_t - A_t,t-1 D_t-1^-1 y_t-1
     for t in range(s, e):
         k = chain_joints[t]
-        g = _ball(k, body_a, body_b, local_a, local_b, enabled, x, q, v, w, inv_mass, inv_inertia, load, h)
+        g = _ball(k, j, b, load, h)
         r = -(g.cdot + g.C * bias_rate)
         D = _ball_mass(g)
         B = wp.mat33d()
         if t > s:
             # the previous joint as stored: its bodies and arms (the coupling takes the shared bodies' masses from g)
             f = _Ball()
-            f.ia = body_a[chain_joints[t - 1]]
-            f.ib = body_b[chain_joints[t - 1]]
-            f.on = enabled[chain_joints[t - 1]]
-            f.ra = arm_a[t - 1]
-            f.rb = arm_b[t - 1]
+            f.ia = j.body_a[chain_joints[t - 1]]
+            f.ib = j.body_b[chain_joints[t - 1]]
+            f.on = j.enabled[chain_joints[t - 1]]
+            f.ra = scratch.arm_a[t - 1]
+            f.rb = scratch.arm_b[t - 1]
             B = _coupling(g, f)
-            L = B * inv_d[t - 1]
+            L = B * scratch.inv_d[t - 1]
             D = D - L * wp.transpose(B)
-            r = r - L * rhs[t - 1]
+            r = r - L * scratch.rhs[t - 1]
         if g.on == 0:
             D = one
             r = vec3()
         Dinv = wp.mat33d()
         if wp.determinant(D) != float_t(0.0):
             Dinv = wp.inverse(D)
-        inv_d[t] = Dinv
-        lower[t] = B
-        rhs[t] = r
-        arm_a[t] = g.ra
-        arm_b[t] = g.rb
-        inertia_a[t] = g.Ia
-        inertia_b[t] = g.Ib
+        scratch.inv_d[t] = Dinv
+        scratch.lower[t] = B
+        scratch.rhs[t] = r
+        scratch.arm_a[t] = g.ra
+        scratch.arm_b[t] = g.rb
+        scratch.inertia_a[t] = g.Ia
+        scratch.inertia_b[t] = g.Ib
     # back substitution up the chain: lambda_t = D_t^-1 (y_t - A_t,t+1 lambda_t+1), A_t,t+1 = A_t+1,t^T
-    lam = inv_d[e - 1] * rhs[e - 1]
-    rhs[e - 1] = lam
+    lam = scratch.inv_d[e - 1] * scratch.rhs[e - 1]
+    scratch.rhs[e - 1] = lam
     for i in range(e - 1 - s):
         t = e - 2 - i
-        lam = inv_d[t] * (rhs[t] - wp.transpose(lower[t + 1]) * lam)
-        rhs[t] = lam
+        lam = scratch.inv_d[t] * (scratch.rhs[t] - wp.transpose(scratch.lower[t + 1]) * lam)
+        scratch.rhs[t] = lam
     # apply the impulses
     for t in range(s, e):
         k = chain_joints[t]
-        if enabled[k] != 0:
-            ia = body_a[k]
-            ib = body_b[k]
+        if j.enabled[k] != 0:
+            ia = j.body_a[k]
+            ib = j.body_b[k]
             ma = float_t(0.0)
             mb = float_t(0.0)
             if ia >= 0:
-                ma = inv_mass[ia]
+                ma = b.inv_mass[ia]
             if ib >= 0:
-                mb = inv_mass[ib]
-            ra = arm_a[t]
-            rb = arm_b[t]
-            Ia = inertia_a[t]
-            Ib = inertia_b[t]
-            P = rhs[t] * scale[k]
-            imp_linear[k] = imp_linear[k] + P
-            add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), v, w, inv_mass, serial)
-            add_velocity(ib, P * mb, Ib * wp.cross(rb, P), v, w, inv_mass, serial)
+                mb = b.inv_mass[ib]
+            ra = scratch.arm_a[t]
+            rb = scratch.arm_b[t]
+            Ia = scratch.inertia_a[t]
+            Ib = scratch.inertia_b[t]
+            P = scratch.rhs[t] * j.scale[k]
+            j.impulse_linear[k] = j.impulse_linear[k] + P
+            add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), b.v, b.w, b.inv_mass, serial)
+            add_velocity(ib, P * mb, Ib * wp.cross(rb, P), b.v, b.w, b.inv_mass, serial)
 
 
-#: one solve kernel per joint kind (the ball joint's written out on its own)
-_SOLVE: dict[JointKind, wp.Kernel] = {kind: _make_solve(int(kind)) for kind in JointKind if kind != JointKind.BALL}
-_SOLVE[JointKind.BALL] = _solve_ball
+#: one solve kernel per joint kind
+_SOLVE: dict[JointKind, wp.Kernel] = {kind: _make_solve(int(kind)) for kind in JointKind}
 
 
 @wp.kernel
-def _finish(
-    break_force: wp.array(dtype=float_t),
-    enabled: wp.array(dtype=wp.int32),
-    imp_linear: wp.array(dtype=vec3),
-    imp_angular: wp.array(dtype=vec3),
-    imp_axial: wp.array(dtype=float_t),
-    imp_lower: wp.array(dtype=float_t),
-    imp_upper: wp.array(dtype=float_t),
-    sum_linear: wp.array(dtype=vec3),
-    sum_angular: wp.array(dtype=vec3),
-    force: wp.array(dtype=vec3),
-    torque: wp.array(dtype=vec3),
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    local_a: wp.array(dtype=vec3),
-    local_b: wp.array(dtype=vec3),
-    load: wp.array(dtype=float_t),
-    inv_dt: float_t,
-    count: int,
-):
+def _finish(j: Joints, load: wp.array(dtype=float_t), inv_dt: float_t, count: int):
     k = wp.tid()
     if k >= count:
         return
     # mean force over the step: the substeps' impulses (each acts once per substep) summed, over dt
-    f = sum_linear[k] * inv_dt
-    force[k] = f
-    torque[k] = sum_angular[k] * inv_dt
-    sum_linear[k] = vec3()
-    sum_angular[k] = vec3()
-    if enabled[k] == 0:
+    f = j.sum_linear[k] * inv_dt
+    j.force[k] = f
+    j.torque[k] = j.sum_angular[k] * inv_dt
+    j.sum_linear[k] = vec3()
+    j.sum_angular[k] = vec3()
+    if j.enabled[k] == 0:
         return
     # geometric load of the next step: |F| |r| on each body (|r| = |local anchor|, a rotation keeps lengths)
     f_len = wp.length(f)
-    if body_a[k] >= 0:
-        wp.atomic_add(load, body_a[k], f_len * wp.length(local_a[k]))
-    if body_b[k] >= 0:
-        wp.atomic_add(load, body_b[k], f_len * wp.length(local_b[k]))
-    if f_len > break_force[k]:
-        enabled[k] = 0
-        imp_linear[k] = vec3()
-        imp_angular[k] = vec3()
-        imp_axial[k] = float_t(0.0)
-        imp_lower[k] = float_t(0.0)
-        imp_upper[k] = float_t(0.0)
+    if j.body_a[k] >= 0:
+        wp.atomic_add(load, j.body_a[k], f_len * wp.length(j.local_a[k]))
+    if j.body_b[k] >= 0:
+        wp.atomic_add(load, j.body_b[k], f_len * wp.length(j.local_b[k]))
+    if f_len > j.break_force[k]:
+        j.enabled[k] = 0
+        j.impulse_linear[k] = vec3()
+        j.impulse_angular[k] = vec3()
+        j.impulse_axial[k] = float_t(0.0)
+        j.impulse_lower[k] = float_t(0.0)
+        j.impulse_upper[k] = float_t(0.0)
 
 
 @wp.kernel
@@ -1102,81 +1012,6 @@ def ball_chains(body_a: np.ndarray, body_b: np.ndarray) -> tuple[np.ndarray, np.
     return np.array(order, dtype=np.int32), np.array(starts, dtype=np.int32)
 
 
-#: the arrays the solve kernels take, in their argument order (ball joints: the first list is `_BALL_JOINT_ARRAYS`)
-_SOLVE_JOINT_ARRAYS = (
-    "joint_body_a",
-    "joint_body_b",
-    "joint_local_a",
-    "joint_local_b",
-    "joint_frame_a",
-    "joint_frame_b",
-    "joint_limit",
-    "joint_lower",
-    "joint_upper",
-    "joint_motor",
-    "joint_motor_speed",
-    "joint_motor_max",
-    "joint_length",
-    "joint_stiffness",
-    "joint_damping",
-    "joint_scale",
-    "joint_enabled",
-    "joint_impulse_linear",
-    "joint_impulse_angular",
-    "joint_impulse_axial",
-    "joint_impulse_lower",
-    "joint_impulse_upper",
-    "joint_sum_linear",
-    "joint_sum_angular",
-)
-_BALL_JOINT_ARRAYS = (
-    "joint_body_a",
-    "joint_body_b",
-    "joint_local_a",
-    "joint_local_b",
-    "joint_scale",
-    "joint_enabled",
-    "joint_impulse_linear",
-    "joint_sum_linear",
-)
-_CHAIN_JOINT_ARRAYS = _BALL_JOINT_ARRAYS[:-1]  # no force sums: the chains' pass is not the relax pass
-_CHAIN_BODY_ARRAYS = (
-    "body_position",
-    "body_orientation",
-    "body_velocity",
-    "body_angular_velocity",
-    "body_inv_mass",
-    "body_inv_inertia",
-)
-_SOLVE_BODY_ARRAYS = (
-    "body_position",
-    "body_orientation",
-    "body_velocity",
-    "body_angular_velocity",
-    "body_inv_mass",
-    "body_inv_inertia",
-    "body_warm_velocity",
-    "body_warm_angular_velocity",
-)
-_FINISH_JOINT_ARRAYS = (
-    "joint_break_force",
-    "joint_enabled",
-    "joint_impulse_linear",
-    "joint_impulse_angular",
-    "joint_impulse_axial",
-    "joint_impulse_lower",
-    "joint_impulse_upper",
-    "joint_sum_linear",
-    "joint_sum_angular",
-    "joint_force",
-    "joint_torque",
-    "joint_body_a",
-    "joint_body_b",
-    "joint_local_a",
-    "joint_local_b",
-)
-
-
 class JointSet(ArraySet):
     """Joint arrays (see JOINT_FIELDS), in creation order, and the pair filter they imply."""
 
@@ -1191,6 +1026,10 @@ class JointSet(ArraySet):
         self._chain_count = self._lone_count = 0
         self._dirty = True
         self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
+        # the kernels' structs, built once per set of arrays (see `_structs`)
+        self._struct: Joints | None = None
+        self._bodies: Bodies | None = None
+        self._chain_scratch: _ChainScratch | None = None
 
     # -------------------------------------------------------------- building
 
@@ -1230,13 +1069,16 @@ class JointSet(ArraySet):
         self._chain_count = int((size > 1).sum())
         self._chain_start = self._ints(np.concatenate([[0], np.cumsum(size[size > 1])]))
         self._chain_joints = self._ints(chain)
-        self._chain_inv_d = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
-        self._chain_lower = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
-        self._chain_rhs = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
-        self._chain_arm_a = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
-        self._chain_arm_b = wp.zeros(max(len(chain), 1), dtype=vec3, device=self.device)
-        self._chain_inertia_a = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
-        self._chain_inertia_b = wp.zeros(max(len(chain), 1), dtype=wp.mat33d, device=self.device)
+        slots = max(len(chain), 1)
+        self._chain_inv_d = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        self._chain_lower = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        self._chain_rhs = wp.zeros(slots, dtype=vec3, device=self.device)
+        self._chain_arm_a = wp.zeros(slots, dtype=vec3, device=self.device)
+        self._chain_arm_b = wp.zeros(slots, dtype=vec3, device=self.device)
+        self._chain_inertia_a = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        self._chain_inertia_b = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        # (the arrays stay attributes too, so that a recorded graph's key names them)
+        self._chain_scratch = fill_struct(_ChainScratch, vars(self), "_chain_")
         self._lone_count = len(lone)
         self._lone_joints = self._ints(lone)
         no_collide = (self.numpy("joint_collide") == 0) & (a >= 0) & (b >= 0)
@@ -1322,17 +1164,24 @@ class JointSet(ArraySet):
         out.pair_count = int(last)
         return out
 
+    def struct(self) -> Joints:
+        """The joint arrays as the kernels take them, built again only when the arrays were."""
+        if self._struct is None or self._struct.enabled is not self.arrays["joint_enabled"]:
+            self._struct = fill_struct(Joints, self.arrays, "joint_")
+        return self._struct
+
+    def _body_struct(self, bodies) -> Bodies:
+        """The body arrays as the kernels take them, built again only when the arrays were."""
+        if self._bodies is None or self._bodies.v is not bodies.arrays["body_velocity"]:
+            self._bodies = body_struct(bodies)
+        return self._bodies
+
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
         """One pass: the joints of each kind present, kind by kind (each in creation order)."""
-        j, b = self.arrays, bodies.arrays
-        shared = [
-            *(b[name] for name in _SOLVE_BODY_ARRAYS),
-            self._body_load(bodies),
-            mode,
-            h,
-            *softness(h),
-            1 if self.device == "cpu" else 0,
-        ]
+        j, b = self.struct(), self._body_struct(bodies)
+        load = self._body_load(bodies)
+        serial = 1 if self.device == "cpu" else 0
+        soft = softness(h)
         for kind, rows in self._rows.items():
             count = rows.shape[0]
             if kind == JointKind.BALL and mode == 1:
@@ -1340,38 +1189,13 @@ class JointSet(ArraySet):
                 # then the lone ones as soft rows; the relax pass sweeps every ball joint
                 if self._chain_count:
                     chains = (self._chain_joints, self._chain_start)
-                    scratch: tuple[wp.array, ...] = (
-                        self._chain_inv_d,
-                        self._chain_lower,
-                        self._chain_rhs,
-                        self._chain_arm_a,
-                    )
-                    scratch += (self._chain_arm_b, self._chain_inertia_a, self._chain_inertia_b)
-                    ball = (j[name] for name in _CHAIN_JOINT_ARRAYS)
-                    body = (b[name] for name in _CHAIN_BODY_ARRAYS)
-                    bias = softness(h)[0]
-                    launch(
-                        _solve_ball_chains,
-                        self._chain_count,
-                        [
-                            *chains,
-                            *ball,
-                            *body,
-                            self._body_load(bodies),
-                            *scratch,
-                            h,
-                            bias,
-                            shared[-1],
-                            self._chain_count,
-                        ],
-                        self.device,
-                        cache,
-                    )
+                    count = self._chain_count
+                    args = [*chains, j, b, load, self._chain_scratch, h, soft[0], serial, count]
+                    launch(_solve_ball_chains, count, args, self.device, cache)
                 rows, count = self._lone_joints, self._lone_count
                 if count == 0:
                     continue
-            names = _BALL_JOINT_ARRAYS if kind == JointKind.BALL else _SOLVE_JOINT_ARRAYS
-            launch(_SOLVE[kind], count, [rows, *(j[name] for name in names), *shared, count], self.device, cache)
+            launch(_SOLVE[kind], count, [rows, j, b, load, mode, h, *soft, serial, count], self.device, cache)
 
     def warm_start(self, bodies, h: float, cache: LaunchCache | None = None) -> None:
         """Apply last step's impulses (first substep only; later ones warm start through the relax pass)."""
@@ -1388,16 +1212,9 @@ class JointSet(ArraySet):
         """Joint forces and torques, the mean over the step of `dt` seconds; joints over their break force break."""
         if self.count == 0:
             return
-        j = self.arrays
         load = self._load
         load.zero_()
-        launch(
-            _finish,
-            self.capacity,
-            [*(j[name] for name in _FINISH_JOINT_ARRAYS), load, 1.0 / dt, self.count],
-            self.device,
-            cache,
-        )
+        launch(_finish, self.capacity, [self.struct(), load, 1.0 / dt, self.count], self.device, cache)
 
     # -------------------------------------------------------------- views
 
