@@ -21,9 +21,10 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
+from ..solver.contacts import Bodies, body_struct
 from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times
-from ..state import float_t, quat, vec3
+from ..state import float_t, vec3
 
 
 @wp.kernel
@@ -35,25 +36,20 @@ def _reaction(
     particle_mass: wp.array(dtype=float_t),
     gravity: vec3,
     h: float_t,
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
+    bodies: Bodies,
     serial: int,
 ):
     k = wp.tid()
     b = pin_body[k]
-    im = inv_mass[b]
+    im = bodies.inv_mass[b]
     if im == float_t(0.0):
         return
     p = pin_particle[k]
     F = particle_force[p] + gravity * particle_mass[p]
-    r = wp.quat_rotate(q[b], pin_local[k])
+    r = wp.quat_rotate(bodies.q[b], pin_local[k])
     dv = F * (im * h)
-    dw = inv_inertia_times(q[b], inv_inertia[b], wp.cross(r, F)) * h
-    add_velocity(b, dv, dw, v, w, inv_mass, serial)
+    dw = inv_inertia_times(bodies.q[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
+    add_velocity(b, dv, dw, bodies.v, bodies.w, bodies.inv_mass, serial)
 
 
 @wp.kernel
@@ -61,15 +57,14 @@ def _follow(
     pin_particle: wp.array(dtype=wp.int32),
     pin_body: wp.array(dtype=wp.int32),
     pin_local: wp.array(dtype=vec3),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
+    bodies: Bodies,
     particle_position: wp.array(dtype=vec3),
     particle_pin_target: wp.array(dtype=vec3),
 ):
     k = wp.tid()
     b = pin_body[k]
     p = pin_particle[k]
-    point = x[b] + wp.quat_rotate(q[b], pin_local[k])
+    point = bodies.x[b] + wp.quat_rotate(bodies.q[b], pin_local[k])
     particle_position[p] = point
     particle_pin_target[p] = point
 
@@ -112,6 +107,7 @@ class BodyPins:
         self._particle = np.zeros(0, dtype=np.int32)
         self._body = np.zeros(0, dtype=np.int32)
         self._local = np.zeros((0, 3))
+        self._bodies: Bodies | None = None  # the body arrays as the kernels take them (`_body_struct`)
         self._upload()
 
     def add(self, particles: np.ndarray, body_row: int, local: np.ndarray) -> None:
@@ -138,66 +134,32 @@ class BodyPins:
         self.body: wp.array = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
         self.local: wp.array = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
 
-    def react(self, arrays: dict, bodies, gravity, h: float) -> None:
-        """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""
+    def _body_struct(self, bodies) -> Bodies:
+        """The body arrays as the kernels take them, built again only when the arrays were."""
+        if self._bodies is None or self._bodies.v is not bodies.arrays["body_velocity"]:
+            self._bodies = body_struct(bodies)
+        return self._bodies
+
+    def _react(self, force: wp.array, mass: wp.array, bodies, gravity: vec3, h: float) -> None:
+        """`force` on the pin particles, plus `gravity` times their `mass`, acts on the bodies for `h` seconds."""
         if self.count == 0:
             return
-        b = bodies.arrays
-        wp.launch(
-            _reaction,
-            dim=self.count,
-            device=self.device,
-            inputs=[
-                self.particle,
-                self.body,
-                self.local,
-                arrays["particle_force"],
-                arrays["particle_mass"],
-                vec3(*gravity),
-                h,
-                b["body_position"],
-                b["body_orientation"],
-                b["body_velocity"],
-                b["body_angular_velocity"],
-                b["body_inv_mass"],
-                b["body_inv_inertia"],
-                1 if self.device == "cpu" else 0,
-            ],
-        )
+        inputs = [self.particle, self.body, self.local, force, mass, gravity, h, self._body_struct(bodies)]
+        wp.launch(_reaction, dim=self.count, device=self.device, inputs=[*inputs, 1 if self.device == "cpu" else 0])
+
+    def react(self, arrays: dict, bodies, gravity, h: float) -> None:
+        """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""
+        self._react(arrays["particle_force"], arrays["particle_mass"], bodies, vec3(*gravity), h)
 
     def react_constraints(self, arrays: dict, bodies, h: float) -> None:
         """The stretch limit's and tethers' pull on the pins this substep (`particle_pin_load`,
         lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
-        if self.count == 0:
-            return
-        b = bodies.arrays
-        wp.launch(
-            _reaction,
-            dim=self.count,
-            device=self.device,
-            inputs=[
-                self.particle,
-                self.body,
-                self.local,
-                arrays["particle_pin_load"],
-                arrays["particle_mass"],
-                vec3(0.0, 0.0, 0.0),
-                1.0 / h,
-                b["body_position"],
-                b["body_orientation"],
-                b["body_velocity"],
-                b["body_angular_velocity"],
-                b["body_inv_mass"],
-                b["body_inv_inertia"],
-                1 if self.device == "cpu" else 0,
-            ],
-        )
+        self._react(arrays["particle_pin_load"], arrays["particle_mass"], bodies, vec3(0.0, 0.0, 0.0), 1.0 / h)
 
     def follow(self, arrays: dict, bodies) -> None:
         """Put the pinned particles on their body points."""
         if self.count == 0:
             return
-        b = bodies.arrays
         wp.launch(
             _follow,
             dim=self.count,
@@ -206,8 +168,7 @@ class BodyPins:
                 self.particle,
                 self.body,
                 self.local,
-                b["body_position"],
-                b["body_orientation"],
+                self._body_struct(bodies),
                 arrays["particle_position"],
                 arrays["particle_pin_target"],
             ],

@@ -23,6 +23,11 @@ BODY_FIELDS = {
     "body_angular_velocity": vec3,
     "body_inv_mass": float_t,
     "body_inv_inertia": vec3,
+    # not read by the pins, but part of the solver's body struct that their kernels take
+    "body_delta_position": vec3,
+    "body_delta_rotation": vec3,
+    "body_warm_velocity": vec3,
+    "body_warm_angular_velocity": vec3,
 }
 G = np.array([0.0, 0.0, -9.81])
 
