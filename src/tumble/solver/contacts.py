@@ -604,6 +604,22 @@ def _friction_row(
     return out
 
 
+@wp.struct
+class SolvePass:
+    """The parameters of one contact solve pass (`solve`), for the normal rows: the soft constraint's at this substep."""
+
+    inv_h: float_t  # 1 / substep [1/s]
+    use_bias: int  # 1: the pass with bias (overlap pushed out softly); 0: the relax pass
+    bias_rate: float_t  # soft constraint (see `softness`)
+    mass_scale: float_t
+    impulse_scale: float_t
+    static_bias_rate: float_t  # the same, twice as stiff, against a static body
+    static_mass_scale: float_t
+    static_impulse_scale: float_t
+    max_push: float_t  # largest push-out speed [m/s]
+    slop: float_t  # overlap held rigidly [m]
+
+
 @wp.func
 def _normal_target(
     s0: float_t,
@@ -614,16 +630,7 @@ def _normal_target(
     dtha: vec3,
     dxb: vec3,
     dthb: vec3,
-    inv_h: float_t,
-    use_bias: int,
-    bias_rate: float_t,
-    mass_scale: float_t,
-    impulse_scale: float_t,
-    static_bias_rate: float_t,
-    static_mass_scale: float_t,
-    static_impulse_scale: float_t,
-    max_push: float_t,
-    slop: float_t,
+    p: SolvePass,
     static: bool,
 ):
     """(bias, mass scale, impulse scale) of a normal row for this pass.
@@ -638,15 +645,15 @@ def _normal_target(
     ms = float_t(1.0)
     isc = float_t(0.0)
     if s > float_t(0.0):
-        bias = s * inv_h
-    elif use_bias != 0 and s < -slop:
-        bias = wp.max(bias_rate * (s + slop), -max_push)
-        ms = mass_scale
-        isc = impulse_scale
+        bias = s * p.inv_h
+    elif p.use_bias != 0 and s < -p.slop:
+        bias = wp.max(p.bias_rate * (s + p.slop), -p.max_push)
+        ms = p.mass_scale
+        isc = p.impulse_scale
         if static:
-            bias = wp.max(static_bias_rate * (s + slop), -max_push)
-            ms = static_mass_scale
-            isc = static_impulse_scale
+            bias = wp.max(p.static_bias_rate * (s + p.slop), -p.max_push)
+            ms = p.static_mass_scale
+            isc = p.static_impulse_scale
     return bias, ms, isc
 
 
@@ -736,7 +743,7 @@ def _solve(
     b_dtheta: wp.array(dtype=vec3),
     b_warm_v: wp.array(dtype=vec3),
     b_warm_w: wp.array(dtype=vec3),
-    # parameters
+    # parameters (taken one by one, and gathered in a local struct: values the compiler keeps in registers)
     inv_h: float_t,
     use_bias: int,
     bias_rate: float_t,
@@ -753,6 +760,17 @@ def _solve(
     k = wp.tid()
     if k >= counts[0]:
         return  # launched over the capacity, the count on the device: the recorded launch survives a new count
+    p = SolvePass()
+    p.inv_h = inv_h
+    p.use_bias = use_bias
+    p.bias_rate = bias_rate
+    p.mass_scale = mass_scale
+    p.impulse_scale = impulse_scale
+    p.static_bias_rate = static_bias_rate
+    p.static_mass_scale = static_mass_scale
+    p.static_impulse_scale = static_impulse_scale
+    p.max_push = max_push
+    p.slop = slop
     rows = c_manifold[k]
     if rows == 0:
         return  # solved with the first row of its manifold
@@ -776,8 +794,7 @@ def _solve(
         )  # fmt: skip
         bias, ms, isc = _normal_target(
             c_separation[k], c_normal[k], c_r_a[k], c_r_b[k], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-            inv_h, use_bias, bias_rate, mass_scale, impulse_scale, static_bias_rate, static_mass_scale,
-            static_impulse_scale, max_push, slop, static,
+            p, static,
         )  # fmt: skip
         dv = _normal_row(
             k, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias, ms, isc, c_scale[k], c_jn, c_jn_max,
@@ -792,8 +809,7 @@ def _solve(
             kk = k + i
             bias, ms, isc = _normal_target(
                 c_separation[kk], c_normal[kk], c_r_a[kk], c_r_b[kk], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-                inv_h, use_bias, bias_rate, mass_scale, impulse_scale, static_bias_rate, static_mass_scale,
-                static_impulse_scale, max_push, slop, static,
+                p, static,
             )  # fmt: skip
             bias4[i] = bias
             ms4[i] = ms
@@ -861,7 +877,7 @@ def _solve(
     dvb = dv.vb
     dwb = dv.wb
     _add_pair(b_v, b_w, b_inv_mass, ia, ib, dva, dwa, dvb, dwb, serial)
-    if use_bias == 0:
+    if p.use_bias == 0:
         # relax: these impulses are final for this substep, and the next substep starts from them
         # (warm start), so sum their velocity changes per body now instead of in another pass
         P = vec3()
@@ -878,17 +894,19 @@ def _solve(
         _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
 
 
+@wp.struct
+class ImpactPass:
+    """The parameters of one collision pass (`impacts`)."""
+
+    gravity: vec3  # [m/s^2]
+    h: float_t  # substep [s]
+    threshold: float_t  # approach speed [m/s] below which a contact carrying load does not bounce
+    floor: float_t  # the same for a contact carrying none: the approach gravity gives in two substeps
+    ahead: int  # 1: the velocities are the next substep's but for its gravity kick
+
+
 @wp.func
-def _rebound(
-    k: int,
-    c: Contacts,
-    b: Bodies,
-    gravity: vec3,
-    h: float_t,
-    threshold: float_t,
-    floor: float_t,
-    ahead: int,
-):
+def _rebound(k: int, c: Contacts, b: Bodies, p: ImpactPass):
     """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
     substep faster than `threshold` [m/s]; else -1 (no collision).
 
@@ -913,25 +931,25 @@ def _rebound(
         ga = float_t(1.0)
     if b.inv_mass[ib] > float_t(0.0):
         gb = float_t(1.0)
-    gn = wp.min((gb - ga) * wp.dot(gravity, n), float_t(0.0))
-    kick = float_t(1 - ahead) * gn * h
+    gn = wp.min((gb - ga) * wp.dot(p.gravity, n), float_t(0.0))
+    kick = float_t(1 - p.ahead) * gn * p.h
     vp = vn - kick
     # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
     # contact that carries none is a fresh impact and bounces down to `floor`, the approach
     # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
-    limit = threshold
+    limit = p.threshold
     if c.jn[k] == float_t(0.0):
-        limit = wp.min(threshold, floor)
+        limit = wp.min(p.threshold, p.floor)
     # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
     # s), and a contact that collides has s <= -(v_n + ahead g_n h) h (the closing test), so a
     # contact whose bound at that largest gap is well under the limit would return 0 there too
     # (resting contacts under load; the factor 2 is far beyond any rounding)
-    gap = -(vn + float_t(ahead) * gn * h) * h
-    if vp * vp - float_t(2.0) * gn * gap + gn * h * vp < float_t(0.5) * limit * limit:
+    gap = -(vn + float_t(p.ahead) * gn * p.h) * p.h
+    if vp * vp - float_t(2.0) * gn * gap + gn * p.h * vp < float_t(0.5) * limit * limit:
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
     s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
-    if s + (vn + float_t(ahead) * gn * h) * h > float_t(0.0):
+    if s + (vn + float_t(p.ahead) * gn * p.h) * p.h > float_t(0.0):
         return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
     # acceleration g_n (v' = v + g_n h, then s' = s + v' h) keeps E = v^2 / 2 - g_n s + g_n h v / 2
@@ -943,14 +961,14 @@ def _rebound(
     # and never faster than the elastic rebound |v_n| (no kinetic energy gain). Without
     # gravity along n this is u = e |v_n|. Before the first solve the velocity has this
     # substep's kick already: take it off for the pair (s, v), put it back on u.
-    eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * h * vp
+    eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * p.h * vp
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
     if vi2 <= limit * limit:
         return float_t(-1.0)
     rhs = e * e * eb + gn * s
     u = float_t(0.0)
     if rhs > float_t(0.0):
-        gh = gn * h
+        gh = gn * p.h
         u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)) + kick
     u = wp.min(wp.max(u, float_t(0.0)), -vn)
     c.relative_velocity[k] = -wp.sqrt(vi2)
@@ -958,18 +976,7 @@ def _rebound(
 
 
 @wp.func
-def _impact(
-    k: int,
-    rows: int,
-    c: Contacts,
-    b: Bodies,
-    gravity: vec3,
-    h: float_t,
-    threshold: float_t,
-    floor: float_t,
-    ahead: int,
-    serial: int,
-):
+def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: int):
     """Collide the rows of the manifold at k (`rows` contacts) that close within the substep
     faster than `threshold` [m/s]; 1 if any did.
 
@@ -987,7 +994,7 @@ def _impact(
     u4 = vec4()
     hits = int(0)
     for i in range(rows):
-        u4[i] = _rebound(k + i, c, b, gravity, h, threshold, floor, ahead)
+        u4[i] = _rebound(k + i, c, b, p)
         if u4[i] >= float_t(0.0):
             hits += 1
     if hits == 0:
@@ -1084,80 +1091,85 @@ def _impact(
     return 1
 
 
-@wp.kernel
-def _impacts_serial(
-    c: Contacts,
-    b: Bodies,
-    gravity: vec3,
-    h: float_t,
-    threshold: float_t,
-    floor: float_t,
-    ahead: int,
-    counts: wp.array(dtype=wp.int32),
-    tested: wp.array(dtype=wp.int64),
-    changed: wp.array(dtype=wp.int64),
-    clock: wp.array(dtype=wp.int64),
-):
-    # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
-    # (a collision passes along a chain of touching bodies in either direction within a sweep;
-    # a body caught between two others needs several); at most IMPACT_SWEEPS.
-    # Whether a contact collides, and how, depends only on the velocities of its two bodies:
-    # everything else _impact reads is fixed during the pass. So after the first sweep a contact
-    # is tested again only if one of its bodies changed since its last test (`changed` and
-    # `tested` hold ticks of `clock`, which only grows); the ones skipped would collide nothing
-    # again, and the result is the same as sweeping them all.
-    count = counts[0]
-    t = clock[0]
-    one = wp.int64(1)
-    sweep = int(0)
-    hits = int(1)
-    while hits > 0 and sweep < IMPACT_SWEEPS:
-        hits = int(0)
-        for i in range(count):
-            k = i
-            if sweep % 2 == 1:
-                k = count - 1 - i
-            rows = c.manifold[k]
-            if rows == 0:
-                continue  # collided with the first row of its manifold
-            ia = c.body_a[k]
-            ib = c.body_b[k]
-            if sweep > 0:
-                last = tested[k]
-                if changed[ia] < last and changed[ib] < last:
-                    continue
-            t = t + one
-            tested[k] = t
-            hit = _impact(k, rows, c, b, gravity, h, threshold, floor, ahead, 1)
-            if hit > 0:
-                t = t + one
-                if b.inv_mass[ia] > float_t(0.0):
-                    changed[ia] = t
-                if b.inv_mass[ib] > float_t(0.0):
-                    changed[ib] = t
-                hits += hit
-        sweep += 1
-    clock[0] = t
+def _make_impacts(serial: int):
+    """The collision pass's kernel: one thread sweeping every contact (`serial`, the CPU), or one
+    thread per contact (CUDA); the other branch is left out when Warp compiles it."""
+
+    # a name of its own: a recorded CPU graph finds a kernel by its name
+    @wp.kernel(name="_impacts_serial" if serial else "_impacts_parallel")
+    def impacts(
+        c: Contacts,
+        b: Bodies,
+        gravity: vec3,
+        h: float_t,
+        threshold: float_t,
+        floor: float_t,
+        ahead: int,
+        counts: wp.array(dtype=wp.int32),
+        tested: wp.array(dtype=wp.int64),
+        changed: wp.array(dtype=wp.int64),
+        clock: wp.array(dtype=wp.int64),
+    ):
+        # the parameters gathered in a local struct (values the compiler keeps in registers)
+        p = ImpactPass()
+        p.gravity = gravity
+        p.h = h
+        p.threshold = threshold
+        p.floor = floor
+        p.ahead = ahead
+        if wp.static(serial == 0):
+            # one thread per contact (CUDA): atomics and the Jacobi scale
+            thread = wp.tid()
+            if thread < counts[0]:
+                if c.manifold[thread] > 0:
+                    _impact(thread, c.manifold[thread], c, b, p, 0)
+        else:
+            # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
+            # (a collision passes along a chain of touching bodies in either direction within a sweep;
+            # a body caught between two others needs several); at most IMPACT_SWEEPS.
+            # Whether a contact collides, and how, depends only on the velocities of its two bodies:
+            # everything else _impact reads is fixed during the pass. So after the first sweep a contact
+            # is tested again only if one of its bodies changed since its last test (`changed` and
+            # `tested` hold ticks of `clock`, which only grows); the ones skipped would collide nothing
+            # again, and the result is the same as sweeping them all.
+            count = counts[0]
+            t = clock[0]
+            one = wp.int64(1)
+            sweep = int(0)
+            hits = int(1)
+            while hits > 0 and sweep < IMPACT_SWEEPS:
+                hits = int(0)
+                for i in range(count):
+                    k = i
+                    if sweep % 2 == 1:
+                        k = count - 1 - i
+                    rows = c.manifold[k]
+                    if rows == 0:
+                        continue  # collided with the first row of its manifold
+                    ia = c.body_a[k]
+                    ib = c.body_b[k]
+                    if sweep > 0:
+                        last = tested[k]
+                        if changed[ia] < last and changed[ib] < last:
+                            continue
+                    t = t + one
+                    tested[k] = t
+                    hit = _impact(k, rows, c, b, p, 1)
+                    if hit > 0:
+                        t = t + one
+                        if b.inv_mass[ia] > float_t(0.0):
+                            changed[ia] = t
+                        if b.inv_mass[ib] > float_t(0.0):
+                            changed[ib] = t
+                        hits += hit
+                sweep += 1
+            clock[0] = t
+
+    return impacts
 
 
-@wp.kernel
-def _impacts_parallel(
-    c: Contacts,
-    b: Bodies,
-    gravity: vec3,
-    h: float_t,
-    threshold: float_t,
-    floor: float_t,
-    ahead: int,
-    counts: wp.array(dtype=wp.int32),
-    tested: wp.array(dtype=wp.int64),
-    changed: wp.array(dtype=wp.int64),
-    clock: wp.array(dtype=wp.int64),
-):
-    k = wp.tid()
-    if k < counts[0]:
-        if c.manifold[k] > 0:
-            _impact(k, c.manifold[k], c, b, gravity, h, threshold, floor, ahead, 0)
+#: the collision pass, by `_serial`
+_IMPACTS = {serial: _make_impacts(serial) for serial in (0, 1)}
 
 
 # ---------------------------------------------------------------------------- host side
@@ -1452,8 +1464,6 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
     """One sweep of normal and friction impulses over all contacts at substep `h`."""
     if contacts.count == 0:
         return
-    soft = softness(h)
-    soft_static = softness(h, stiffness=2.0)
     c, b = contacts.arrays, bodies.arrays
     launch(
         _solve,
@@ -1463,8 +1473,8 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
             *(b[name] for name in _SOLVE_BODY_ARRAYS),
             1.0 / h,
             int(use_bias),
-            *soft,
-            *soft_static,
+            *softness(h),
+            *softness(h, stiffness=2.0),
             MAX_PUSH_VELOCITY,
             LINEAR_SLOP,
             _serial(contacts),
@@ -1542,7 +1552,8 @@ def impacts(
     if contacts.count == 0:
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
-    floor = 2.0 * float(np.linalg.norm(gravity)) * h
+    serial = _serial(contacts)
+    floor = 2.0 * float(np.linalg.norm(gravity)) * h  # the approach speed gravity gives in two substeps
     args = [
         *contacts._structs,
         vec3(*gravity),
@@ -1555,7 +1566,4 @@ def impacts(
         contacts.impact_changed,
         contacts.impact_clock,
     ]
-    if _serial(contacts):
-        launch(_impacts_serial, 1, args, contacts.device, cache)
-    else:
-        launch(_impacts_parallel, contacts.capacity, args, contacts.device, cache)
+    launch(_IMPACTS[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
