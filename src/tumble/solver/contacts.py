@@ -551,6 +551,18 @@ class Delta:
     wb: vec3
 
 
+@wp.struct
+class Pair:
+    """A contact's two bodies as its rows see them: velocities at the start of the pass, inverse masses."""
+
+    va: vec3
+    wa: vec3
+    vb: vec3
+    wb: vec3
+    ima: float_t
+    imb: float_t
+
+
 @wp.func
 def _friction_row(
     k: int,
@@ -568,22 +580,17 @@ def _friction_row(
     relax: float_t,
     c_jt1: wp.array(dtype=float_t),
     c_jt2: wp.array(dtype=float_t),
-    va: vec3,
-    wa: vec3,
-    vb: vec3,
-    wb: vec3,
-    ima: float_t,
-    imb: float_t,
+    pair: Pair,
     dv: Delta,
 ):
     """Coulomb friction of contact k at the anchors ra, rb: |jt| <= limit, clamped on the disc."""
     t1 = c_t1[k]
     t2 = c_t2[k]
-    v = vb + dv.vb - va - dv.va
+    v = pair.vb + dv.vb - pair.va - dv.va
     j1_old = c_jt1[k]
     j2_old = c_jt2[k]
-    vt1 = wp.dot(v, t1) + wp.dot(wb + dv.wb, wp.cross(rb, t1)) - wp.dot(wa + dv.wa, wp.cross(ra, t1))
-    vt2 = wp.dot(v, t2) + wp.dot(wb + dv.wb, wp.cross(rb, t2)) - wp.dot(wa + dv.wa, wp.cross(ra, t2))
+    vt1 = wp.dot(v, t1) + wp.dot(pair.wb + dv.wb, wp.cross(rb, t1)) - wp.dot(pair.wa + dv.wa, wp.cross(ra, t1))
+    vt2 = wp.dot(v, t2) + wp.dot(pair.wb + dv.wb, wp.cross(rb, t2)) - wp.dot(pair.wa + dv.wa, wp.cross(ra, t2))
     j1 = j1_old - c_mass_t1[k] * vt1 * relax
     j2 = j2_old - c_mass_t2[k] * vt2 * relax
     norm = wp.sqrt(j1 * j1 + j2 * j2)
@@ -597,8 +604,8 @@ def _friction_row(
     d2 = j2 - j2_old
     P = t1 * d1 + t2 * d2
     out = Delta()
-    out.va = dv.va - P * ima
-    out.vb = dv.vb + P * imb
+    out.va = dv.va - P * pair.ima
+    out.vb = dv.vb + P * pair.imb
     out.wa = dv.wa - c_ang_a_t1[k] * d1 - c_ang_a_t2[k] * d2
     out.wb = dv.wb + c_ang_b_t1[k] * d1 + c_ang_b_t2[k] * d2
     return out
@@ -672,12 +679,7 @@ def _normal_row(
     relax: float_t,
     c_jn: wp.array(dtype=float_t),
     c_jn_max: wp.array(dtype=float_t),
-    va: vec3,
-    wa: vec3,
-    vb: vec3,
-    wb: vec3,
-    ima: float_t,
-    imb: float_t,
+    pair: Pair,
     dv: Delta,
 ):
     """The normal row of contact k, the soft step dj = -m_n ms (v_n + bias) - isc j, clamped to j >= 0.
@@ -685,8 +687,8 @@ def _normal_row(
     Its fixed point is v_n + bias + (isc / ms) j / m_n = 0, so sweeping it again solves the same soft row.
     """
     n = c_normal[k]
-    vn = wp.dot(vb + dv.vb - va - dv.va, n) + wp.dot(wb + dv.wb, wp.cross(c_r_b[k], n))
-    vn = vn - wp.dot(wa + dv.wa, wp.cross(c_r_a[k], n))
+    vn = wp.dot(pair.vb + dv.vb - pair.va - dv.va, n) + wp.dot(pair.wb + dv.wb, wp.cross(c_r_b[k], n))
+    vn = vn - wp.dot(pair.wa + dv.wa, wp.cross(c_r_a[k], n))
     jn_old = c_jn[k]
     mn = c_mass_n[k]
     jn = wp.max(jn_old + (-mn * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
@@ -694,8 +696,8 @@ def _normal_row(
     c_jn_max[k] = wp.max(c_jn_max[k], jn)
     dj = jn - jn_old
     out = Delta()
-    out.va = dv.va - n * (dj * ima)
-    out.vb = dv.vb + n * (dj * imb)
+    out.va = dv.va - n * (dj * pair.ima)
+    out.vb = dv.vb + n * (dj * pair.imb)
     out.wa = dv.wa - c_ang_a_n[k] * dj
     out.wb = dv.wb + c_ang_b_n[k] * dj
     return out
@@ -783,6 +785,13 @@ def _solve(
     wa = b_w[ia]
     vb = b_v[ib]
     wb = b_w[ib]
+    pair = Pair()
+    pair.va = va
+    pair.wa = wa
+    pair.vb = vb
+    pair.wb = wb
+    pair.ima = ima
+    pair.imb = imb
     dv = Delta()
     static = ima == float_t(0.0) or imb == float_t(0.0)
 
@@ -790,7 +799,7 @@ def _solve(
         # a lone contact: its friction row, then its normal row (non-penetration matters more)
         dv = _friction_row(
             k, c_r_a[k], c_r_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2, c_mass_t1, c_mass_t2,
-            c_friction[k] * c_jn[k], c_scale[k], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+            c_friction[k] * c_jn[k], c_scale[k], c_jt1, c_jt2, pair, dv,
         )  # fmt: skip
         bias, ms, isc = _normal_target(
             c_separation[k], c_normal[k], c_r_a[k], c_r_b[k], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
@@ -798,7 +807,7 @@ def _solve(
         )  # fmt: skip
         dv = _normal_row(
             k, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias, ms, isc, c_scale[k], c_jn, c_jn_max,
-            va, wa, vb, wb, ima, imb, dv,
+            pair, dv,
         )  # fmt: skip
     else:
         # each normal row's target, fixed for the pass
@@ -843,7 +852,7 @@ def _solve(
                     torque += c_jn[k + i] * c_twist_arm[k + i]
                 dv = _friction_row(
                     k, c_centre_a[k], c_centre_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
-                    c_mass_t1, c_mass_t2, mu * load, c_scale[k], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+                    c_mass_t1, c_mass_t2, mu * load, c_scale[k], c_jt1, c_jt2, pair, dv,
                 )  # fmt: skip
                 n = c_normal[k]
                 jw_old = c_jtw[k]
@@ -861,12 +870,12 @@ def _solve(
                 if not patch:
                     dv = _friction_row(
                         kk, c_r_a[kk], c_r_b[kk], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
-                        c_mass_t1, c_mass_t2, mu * c_jn[kk], c_scale[kk], c_jt1, c_jt2, va, wa, vb, wb, ima, imb, dv,
+                        c_mass_t1, c_mass_t2, mu * c_jn[kk], c_scale[kk], c_jt1, c_jt2, pair, dv,
                     )  # fmt: skip
                 jn_before = c_jn[kk]
                 dv = _normal_row(
                     kk, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias4[i], ms4[i], isc4[i], c_scale[kk],
-                    c_jn, c_jn_max, va, wa, vb, wb, ima, imb, dv,
+                    c_jn, c_jn_max, pair, dv,
                 )  # fmt: skip
                 change = wp.max(change, wp.abs(c_jn[kk] - jn_before) / c_mass_n[kk])
             if sweep == 0 and change > MANIFOLD_IMPACT:
