@@ -285,6 +285,7 @@ class BroadPhase:
         n = bodies.count
         b = bodies.arrays
         grid = self.grid
+        out = (b["body_id"], self.pair_count_array, self.pair_a, self.pair_b)  # both queries' last arguments
         launch(
             _query_grid,
             n,
@@ -301,10 +302,7 @@ class BroadPhase:
                 grid.sorted_x,
                 grid.sorted_radius,
                 grid.sorted_coord,
-                b["body_id"],
-                self.pair_count_array,
-                self.pair_a,
-                self.pair_b,
+                *out,
             ],
             self.device,
             cache,
@@ -320,10 +318,7 @@ class BroadPhase:
                 b["body_orientation"],
                 self.swept_radius,
                 b["body_inv_mass"],
-                b["body_id"],
-                self.pair_count_array,
-                self.pair_a,
-                self.pair_b,
+                *out,
             ],
             self.device,
             cache,

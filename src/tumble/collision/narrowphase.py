@@ -270,6 +270,37 @@ def _reduce_manifold(u2: vec8, v2: vec8, d2: vec8, m: int):
 
 
 @wp.func
+def _emit_manifold(
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    n: vec3,
+    origin: vec3,
+    U: vec3,
+    V: vec3,
+    u2: vec8,
+    v2: vec8,
+    d2: vec8,
+    m: int,
+    ref_is_a: bool,
+    max_sep: float_t,
+):
+    """Emit the points of a face clip (m points at origin + u U + v V + d n on the incident side,
+    d their depth along the reference face's normal n), reduced to at most four (`_reduce_manifold`)."""
+    chosen = _reduce_manifold(u2, v2, d2, m)
+    for k in range(m):
+        if chosen & (1 << k):
+            on_inc = origin + U * u2[k] + V * v2[k] + n * d2[k]
+            on_ref = on_inc - n * d2[k]
+            if ref_is_a:
+                emit(c, a, b, A, B, n, on_ref, on_inc, max_sep)
+            else:
+                emit(c, a, b, A, B, -n, on_inc, on_ref, max_sep)
+
+
+@wp.func
 def _face_contacts(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool, axis: int, max_sep: float_t
 ):
@@ -353,15 +384,7 @@ def _face_contacts(
     if m == 0:
         return
     # reduce to at most four: deepest, farthest from it, then the largest triangles either side
-    chosen = _reduce_manifold(u2, v2, d2, m)
-    for k in range(m):
-        if chosen & (1 << k):
-            on_inc = face + U * u2[k] + V * v2[k] + n * d2[k]
-            on_ref = on_inc - n * d2[k]
-            if ref_is_a:
-                emit(c, a, b, A, B, n, on_ref, on_inc, max_sep)
-            else:
-                emit(c, a, b, A, B, -n, on_inc, on_ref, max_sep)
+    _emit_manifold(c, a, b, A, B, n, face, U, V, u2, v2, d2, m, ref_is_a, max_sep)
 
 
 @wp.func
@@ -1010,15 +1033,7 @@ def _hull_face_contacts(
                 v2[m] = vk
                 d2[m] = d
                 m += 1
-    chosen = _reduce_manifold(u2, v2, d2, m)
-    for k in range(m):
-        if chosen & (1 << k):
-            on_inc = origin + U * u2[k] + V * v2[k] + n * d2[k]
-            on_ref = on_inc - n * d2[k]
-            if ref_is_a:
-                emit(c, a, b, A, B, n, on_ref, on_inc, max_sep)
-            else:
-                emit(c, a, b, A, B, -n, on_inc, on_ref, max_sep)
+    _emit_manifold(c, a, b, A, B, n, origin, U, V, u2, v2, d2, m, ref_is_a, max_sep)
 
 
 @wp.func
