@@ -548,8 +548,19 @@ def collide_sphere_capsule(
 
 
 @wp.func
-def _golden_min_box(p0: vec3, u: vec3, lo: float_t, hi: float_t, hb: vec3):
-    """Parameter t in [lo, hi] minimising the signed distance of p0 + t u from a box (half extents hb).
+def _convex_distance(p: vec3, H: Hulls, h: int, one: vec3, hb: vec3):
+    """Signed distance of p from a box (h < 0: half extents hb) or from hull h (scaled by `one`)."""
+    if h < 0:
+        _q, _o, f = box_closest(p, hb)
+        return f
+    _q, _o, f = hull_closest(H, h, one, p)
+    return f
+
+
+@wp.func
+def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, one: vec3, hb: vec3):
+    """Parameter t in [lo, hi] minimising the signed distance of p0 + t u from a box or a hull
+    (`_convex_distance`).
 
     The signed distance from a convex set is a convex function, and so is its restriction to a
     line, so golden-section search finds the minimum: 40 steps shrink [lo, hi] by 0.618^40 ~ 4e-9.
@@ -557,21 +568,21 @@ def _golden_min_box(p0: vec3, u: vec3, lo: float_t, hi: float_t, hb: vec3):
     g = float_t(0.6180339887498949)
     x1 = hi - g * (hi - lo)
     x2 = lo + g * (hi - lo)
-    _q1, _o1, f1 = box_closest(p0 + u * x1, hb)
-    _q2, _o2, f2 = box_closest(p0 + u * x2, hb)
+    f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
+    f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
     for _it in range(40):
         if f1 <= f2:
             hi = x2
             x2 = x1
             f2 = f1
             x1 = hi - g * (hi - lo)
-            _q1, _o1, f1 = box_closest(p0 + u * x1, hb)
+            f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
         else:
             lo = x1
             x1 = x2
             f1 = f2
             x2 = lo + g * (hi - lo)
-            _q2, _o2, f2 = box_closest(p0 + u * x2, hb)
+            f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
     return (lo + hi) * float_t(0.5)
 
 
@@ -583,7 +594,7 @@ def collide_box_capsule(
     hh = _capsule_half_height(rb, hb)
     p0 = wp.quat_rotate_inv(A.q, B.x - A.x)
     u = wp.quat_rotate_inv(A.q, _axis(B.q, 2))
-    t = _golden_min_box(p0, u, -hh, hh, ha)
+    t = _golden_min(p0, u, -hh, hh, Hulls(), -1, vec3(), ha)  # a box: no hull
     q, out, d = box_closest(p0 + u * t, ha)
     # the box face nearest the contact normal; a segment nearly parallel to it (within ~11 deg)
     # is clipped to the face rectangle, and its two ends are the manifold (a line contact)
@@ -812,30 +823,6 @@ def collide_sphere_hull(
 
 
 @wp.func
-def _golden_min_hull(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, one: vec3):
-    """As `_golden_min_box`, for the signed distance from a hull (convex too), scaled by `one`."""
-    g = float_t(0.6180339887498949)
-    x1 = hi - g * (hi - lo)
-    x2 = lo + g * (hi - lo)
-    _q1, _o1, f1 = hull_closest(H, h, one, p0 + u * x1)
-    _q2, _o2, f2 = hull_closest(H, h, one, p0 + u * x2)
-    for _it in range(40):
-        if f1 <= f2:
-            hi = x2
-            x2 = x1
-            f2 = f1
-            x1 = hi - g * (hi - lo)
-            _q1, _o1, f1 = hull_closest(H, h, one, p0 + u * x1)
-        else:
-            lo = x1
-            x1 = x2
-            f1 = f2
-            x2 = lo + g * (hi - lo)
-            _q2, _o2, f2 = hull_closest(H, h, one, p0 + u * x2)
-    return (lo + hi) * float_t(0.5)
-
-
-@wp.func
 def collide_capsule_hull(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
 ):
@@ -844,7 +831,7 @@ def collide_capsule_hull(
     one = vec3(_ONE, _ONE, _ONE)
     p0 = wp.quat_rotate_inv(B.q, A.x - B.x)
     u = wp.quat_rotate_inv(B.q, _axis(A.q, 2))
-    t = _golden_min_hull(p0, u, -hh, hh, H, h, one)
+    t = _golden_min(p0, u, -hh, hh, H, h, one, vec3())
     q, out, _d = hull_closest(H, h, one, p0 + u * t)
     # a segment nearly parallel to the face nearest the normal is clipped to that face's prism
     # (side planes through its edges): the two ends are the manifold, as for boxes
