@@ -61,6 +61,7 @@ from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
 from ..shapes import ShapeType
 from ..state import ArraySet, float_t, host_view, quat, vec3
+from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
 
 vec4 = wp.types.vector(length=4, dtype=float_t)
@@ -161,45 +162,8 @@ class Bodies:
     warm_w: wp.array(dtype=vec3)
 
 
-@wp.struct
-class Contacts:
-    """Contact arrays the solver reads and writes."""
-
-    body_a: wp.array(dtype=wp.int32)
-    body_b: wp.array(dtype=wp.int32)
-    normal: wp.array(dtype=vec3)
-    separation: wp.array(dtype=float_t)
-    local_a: wp.array(dtype=vec3)
-    local_b: wp.array(dtype=vec3)
-    r_a: wp.array(dtype=vec3)
-    r_b: wp.array(dtype=vec3)
-    t1: wp.array(dtype=vec3)
-    t2: wp.array(dtype=vec3)
-    ang_a_n: wp.array(dtype=vec3)
-    ang_b_n: wp.array(dtype=vec3)
-    ang_a_t1: wp.array(dtype=vec3)
-    ang_b_t1: wp.array(dtype=vec3)
-    ang_a_t2: wp.array(dtype=vec3)
-    ang_b_t2: wp.array(dtype=vec3)
-    mass_n: wp.array(dtype=float_t)
-    mass_t1: wp.array(dtype=float_t)
-    mass_t2: wp.array(dtype=float_t)
-    friction: wp.array(dtype=float_t)
-    restitution: wp.array(dtype=float_t)
-    relative_velocity: wp.array(dtype=float_t)
-    scale: wp.array(dtype=float_t)
-    manifold: wp.array(dtype=wp.int32)
-    centre_a: wp.array(dtype=vec3)
-    centre_b: wp.array(dtype=vec3)
-    ang_a_twist: wp.array(dtype=vec3)
-    ang_b_twist: wp.array(dtype=vec3)
-    mass_twist: wp.array(dtype=float_t)
-    twist_arm: wp.array(dtype=float_t)
-    jn: wp.array(dtype=float_t)
-    jt1: wp.array(dtype=float_t)
-    jt2: wp.array(dtype=float_t)
-    jtw: wp.array(dtype=float_t)
-    jn_max: wp.array(dtype=float_t)
+#: the contact arrays as the kernels take them: `contact_normal` is `c.normal`
+Contacts = array_struct("Contacts", CONTACT_FIELDS, "contact_", __name__)
 
 
 @wp.func
@@ -316,10 +280,10 @@ def _match(
                 best_d = d
                 best = p
     if best >= 0:
-        c.jn[k] = prev_jn[best]
+        c.impulse_n[k] = prev_jn[best]
         jt_world[k] = prev_jt[best]
     else:
-        c.jn[k] = float_t(0.0)
+        c.impulse_n[k] = float_t(0.0)
         jt_world[k] = vec3()
 
 
@@ -343,7 +307,7 @@ def _store(
         prev_local[k] = c.local_b[k]
     else:
         prev_local[k] = c.local_a[k]
-    prev_jn[k] = c.jn[k]
+    prev_jn[k] = c.impulse_n[k]
     # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
     f = k
     share = float_t(1.0)
@@ -351,7 +315,9 @@ def _store(
     if c.mass_twist[first] > float_t(0.0):
         f = first
         share = float_t(1.0) / float_t(c.manifold[first])
-    prev_jt[k] = (c.t1[f] * c.jt1[f] + c.t2[f] * c.jt2[f] + c.normal[f] * c.jtw[f]) * share
+    prev_jt[k] = (
+        c.tangent1[f] * c.impulse_t1[f] + c.tangent2[f] * c.impulse_t2[f] + c.normal[f] * c.impulse_twist[f]
+    ) * share
 
 
 # ---------------------------------------------------------------------------- prepare / solve
@@ -437,8 +403,8 @@ def _prepare(
         t1 = wp.cross(n, vec3(float_t(0.0), float_t(1.0), float_t(0.0)))
     t1 = wp.normalize(t1)
     t2 = wp.cross(n, t1)
-    c.t1[k] = t1
-    c.t2[k] = t2
+    c.tangent1[k] = t1
+    c.tangent2[k] = t2
     # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
     # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
     Ia = inv_inertia_world(qa, b.inv_inertia[ia])
@@ -446,8 +412,8 @@ def _prepare(
     im = b.inv_mass[ia] + b.inv_mass[ib]
     ca = wp.cross(ra, n)
     cb = wp.cross(rb, n)
-    c.ang_a_n[k] = Ia * ca
-    c.ang_b_n[k] = Ib * cb
+    c.angular_a_n[k] = Ia * ca
+    c.angular_b_n[k] = Ib * cb
     c.mass_n[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # friction rows at the anchors (the patch centre for a patch); a patch's other rows have none
     on = float_t(1.0)
@@ -455,20 +421,20 @@ def _prepare(
         on = float_t(0.0)
     ca = wp.cross(fa, t1)
     cb = wp.cross(fb, t1)
-    c.ang_a_t1[k] = Ia * ca * on
-    c.ang_b_t1[k] = Ib * cb * on
+    c.angular_a_t1[k] = Ia * ca * on
+    c.angular_b_t1[k] = Ib * cb * on
     c.mass_t1[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
     ca = wp.cross(fa, t2)
     cb = wp.cross(fb, t2)
-    c.ang_a_t2[k] = Ia * ca * on
-    c.ang_b_t2[k] = Ib * cb * on
+    c.angular_a_t2[k] = Ia * ca * on
+    c.angular_b_t2[k] = Ib * cb * on
     c.mass_t2[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
     # twist about n: angular response I^-1 n, effective mass 1 / (n . I_a^-1 n + n . I_b^-1 n)
     tw = float_t(0.0)
     if patch != 0 and first == k:
         tw = float_t(1.0)
-    c.ang_a_twist[k] = Ia * n * tw
-    c.ang_b_twist[k] = Ib * n * tw
+    c.angular_a_twist[k] = Ia * n * tw
+    c.angular_b_twist[k] = Ib * n * tw
     c.mass_twist[k] = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
     c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
@@ -483,10 +449,10 @@ def _prepare(
         if first == k:
             for i in range(rows):
                 jt = jt + jt_world[k + i]
-    c.jt1[k] = wp.dot(jt, t1)
-    c.jt2[k] = wp.dot(jt, t2)
-    c.jtw[k] = wp.dot(jt, n) * tw
-    c.jn_max[k] = float_t(0.0)
+    c.impulse_t1[k] = wp.dot(jt, t1)
+    c.impulse_t2[k] = wp.dot(jt, t2)
+    c.impulse_twist[k] = wp.dot(jt, n) * tw
+    c.max_impulse_n[k] = float_t(0.0)
     c.scale[k] = float_t(1.0)
     if jacobi != 0:
         c.scale[k] = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
@@ -530,12 +496,22 @@ def _warm_start(c: Contacts, b: Bodies, serial: int, counts: wp.array(dtype=wp.i
     k = wp.tid()
     if k >= counts[0]:
         return
-    jn = c.jn[k]
-    j1 = c.jt1[k]
-    j2 = c.jt2[k]
-    P = c.normal[k] * jn + c.t1[k] * j1 + c.t2[k] * j2
-    dwa = c.ang_a_n[k] * jn + c.ang_a_t1[k] * j1 + c.ang_a_t2[k] * j2 + c.ang_a_twist[k] * c.jtw[k]
-    dwb = c.ang_b_n[k] * jn + c.ang_b_t1[k] * j1 + c.ang_b_t2[k] * j2 + c.ang_b_twist[k] * c.jtw[k]
+    jn = c.impulse_n[k]
+    j1 = c.impulse_t1[k]
+    j2 = c.impulse_t2[k]
+    P = c.normal[k] * jn + c.tangent1[k] * j1 + c.tangent2[k] * j2
+    dwa = (
+        c.angular_a_n[k] * jn
+        + c.angular_a_t1[k] * j1
+        + c.angular_a_t2[k] * j2
+        + c.angular_a_twist[k] * c.impulse_twist[k]
+    )
+    dwb = (
+        c.angular_b_n[k] * jn
+        + c.angular_b_t1[k] * j1
+        + c.angular_b_t2[k] * j2
+        + c.angular_b_twist[k] * c.impulse_twist[k]
+    )
     ia = c.body_a[k]
     ib = c.body_b[k]
     _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial)
@@ -947,7 +923,7 @@ def _rebound(k: int, c: Contacts, b: Bodies, p: ImpactPass):
     # contact that carries none is a fresh impact and bounces down to `floor`, the approach
     # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
     limit = p.threshold
-    if c.jn[k] == float_t(0.0):
+    if c.impulse_n[k] == float_t(0.0):
         limit = wp.min(p.threshold, p.floor)
     # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
     # s), and a contact that collides has s <= -(v_n + ahead g_n h) h (the closing test), so a
@@ -1070,8 +1046,8 @@ def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: in
                 rb = c.centre_b[k]
         if j > float_t(0.0) and c.friction[kk] > float_t(0.0):
             relax = c.scale[kk]
-            t1 = c.t1[kk]
-            t2 = c.t2[kk]
+            t1 = c.tangent1[kk]
+            t2 = c.tangent2[kk]
             v1 = _speed_along(b, ia, ib, ra, rb, t1)
             v2 = _speed_along(b, ia, ib, ra, rb, t2)
             vt = wp.sqrt(v1 * v1 + v2 * v2)
@@ -1223,38 +1199,8 @@ class ContactSet(ArraySet):
         return w
 
     def struct(self) -> Contacts:
-        a = self.arrays
-        c = Contacts()
-        c.body_a, c.body_b, c.normal, c.separation = (
-            a["contact_body_a"],
-            a["contact_body_b"],
-            a["contact_normal"],
-            a["contact_separation"],
-        )
-        c.local_a, c.local_b, c.r_a, c.r_b = (
-            a["contact_local_a"],
-            a["contact_local_b"],
-            a["contact_r_a"],
-            a["contact_r_b"],
-        )
-        c.t1, c.t2 = a["contact_tangent1"], a["contact_tangent2"]
-        c.ang_a_n, c.ang_b_n = a["contact_angular_a_n"], a["contact_angular_b_n"]
-        c.ang_a_t1, c.ang_b_t1 = a["contact_angular_a_t1"], a["contact_angular_b_t1"]
-        c.ang_a_t2, c.ang_b_t2 = a["contact_angular_a_t2"], a["contact_angular_b_t2"]
-        c.mass_n, c.mass_t1, c.mass_t2 = a["contact_mass_n"], a["contact_mass_t1"], a["contact_mass_t2"]
-        c.friction, c.restitution = a["contact_friction"], a["contact_restitution"]
-        c.relative_velocity, c.scale = a["contact_relative_velocity"], a["contact_scale"]
-        c.manifold = a["contact_manifold"]
-        c.centre_a, c.centre_b = a["contact_centre_a"], a["contact_centre_b"]
-        c.ang_a_twist, c.ang_b_twist = a["contact_angular_a_twist"], a["contact_angular_b_twist"]
-        c.mass_twist, c.twist_arm, c.jtw = a["contact_mass_twist"], a["contact_twist_arm"], a["contact_impulse_twist"]
-        c.jn, c.jt1, c.jt2, c.jn_max = (
-            a["contact_impulse_n"],
-            a["contact_impulse_t1"],
-            a["contact_impulse_t2"],
-            a["contact_max_impulse_n"],
-        )
-        return c
+        """The contact arrays as the kernels take them (`begin_solve` keeps one per set of arrays)."""
+        return fill_struct(Contacts, self.arrays, "contact_")
 
     def begin_solve(self, bodies) -> tuple:
         """Host side of the solver stages, before any of them runs: size the scratch buffers, put
