@@ -754,22 +754,16 @@ def _solve(
         return  # solved with the first row of its manifold
     ia = c_body_a[k]
     ib = c_body_b[k]
-    ima = b_inv_mass[ia]
-    imb = b_inv_mass[ib]
     # the two bodies' velocities and this manifold's changes to them, accumulated locally, stored once
-    va = b_v[ia]
-    wa = b_w[ia]
-    vb = b_v[ib]
-    wb = b_w[ib]
     pair = Pair()
-    pair.va = va
-    pair.wa = wa
-    pair.vb = vb
-    pair.wb = wb
-    pair.ima = ima
-    pair.imb = imb
+    pair.va = b_v[ia]
+    pair.wa = b_w[ia]
+    pair.vb = b_v[ib]
+    pair.wb = b_w[ib]
+    pair.ima = b_inv_mass[ia]
+    pair.imb = b_inv_mass[ib]
     dv = Delta()
-    static = ima == float_t(0.0) or imb == float_t(0.0)
+    static = pair.ima == float_t(0.0) or pair.imb == float_t(0.0)
 
     if rows == 1:
         # a lone contact: its friction row, then its normal row (non-penetration matters more)
@@ -832,7 +826,7 @@ def _solve(
                 )  # fmt: skip
                 n = c_normal[k]
                 jw_old = c_jtw[k]
-                wn = wp.dot(wb + dv.wb - wa - dv.wa, n)
+                wn = wp.dot(pair.wb + dv.wb - pair.wa - dv.wa, n)
                 jw = wp.clamp(jw_old - c_mass_twist[k] * wn * c_scale[k], -mu * torque, mu * torque)
                 c_jtw[k] = jw
                 dw = jw - jw_old
@@ -876,7 +870,7 @@ def _solve(
             P = P + c_normal[kk] * jn + c_t1[kk] * j1 + c_t2[kk] * j2
             wa_ = wa_ + c_ang_a_n[kk] * jn + c_ang_a_t1[kk] * j1 + c_ang_a_t2[kk] * j2 + c_ang_a_twist[kk] * c_jtw[kk]
             wb_ = wb_ + c_ang_b_n[kk] * jn + c_ang_b_t1[kk] * j1 + c_ang_b_t2[kk] * j2 + c_ang_b_twist[kk] * c_jtw[kk]
-        _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * ima, -wa_, P * imb, wb_, serial)
+        _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * pair.ima, -wa_, P * pair.imb, wb_, serial)
 
 
 @wp.struct
