@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import warp as wp
 
 from .state import ArraySet, RowGroup, float_t, numpy_dtype, quat, vec3
+from .structs import array_struct, fill_struct
 
 if TYPE_CHECKING:
     from .collision.hulls import HullSet
@@ -123,17 +124,10 @@ BODY_FIELDS: tuple[Field, ...] = (
 BODY_FIELD = {f.name: f for f in BODY_FIELDS}
 
 
-def _struct_of(name: str, declaration: tuple[Field, ...], doc: str):
-    """A Warp struct with one array per kernel field of `declaration`, named by its short name."""
-    annotations: dict[str, object] = {f.short: wp.array(dtype=f.dtype) for f in declaration if f.kernel}
-    cls = type(name, (), {"__annotations__": annotations, "__doc__": doc, "__module__": __name__})
-    cls.__qualname__ = name
-    return wp.struct(cls)
-
-
-#: the body arrays the kernels read and write, one struct (solver stages and cloth coupling alike)
-BodyArrays = _struct_of("BodyArrays", BODY_FIELDS, "The body arrays the kernels read and write (see BODY_FIELDS).")
 _KERNEL_FIELDS = tuple(f for f in BODY_FIELDS if f.kernel)
+#: the body arrays the kernels read and write, as one struct (contacts, joints, cloth coupling and pins alike):
+#: `body_position` is `b.position`
+BodyArrays = array_struct("BodyArrays", {f.name: f.dtype for f in _KERNEL_FIELDS}, "body_", __name__)
 
 
 def body_arrays(bodies, cached: tuple | None = None) -> tuple:
@@ -145,10 +139,7 @@ def body_arrays(bodies, cached: tuple | None = None) -> tuple:
     arrays = [bodies.arrays[f.name] for f in _KERNEL_FIELDS]
     if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
         return cached
-    s = BodyArrays()
-    for f, array in zip(_KERNEL_FIELDS, arrays):
-        setattr(s, f.short, array)
-    return s, arrays
+    return fill_struct(BodyArrays, bodies.arrays, "body_"), arrays
 
 
 class Model:

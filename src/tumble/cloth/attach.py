@@ -21,7 +21,7 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..solver.contacts import Bodies, body_struct
+from ..model import BodyArrays, body_arrays
 from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times
 from ..state import float_t, vec3
@@ -36,7 +36,7 @@ def _reaction(
     particle_mass: wp.array(dtype=float_t),
     gravity: vec3,
     h: float_t,
-    bodies: Bodies,
+    bodies: BodyArrays,
     serial: int,
 ):
     k = wp.tid()
@@ -46,10 +46,10 @@ def _reaction(
         return
     p = pin_particle[k]
     F = particle_force[p] + gravity * particle_mass[p]
-    r = wp.quat_rotate(bodies.q[b], pin_local[k])
+    r = wp.quat_rotate(bodies.orientation[b], pin_local[k])
     dv = F * (im * h)
-    dw = inv_inertia_times(bodies.q[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
-    add_velocity(b, dv, dw, bodies.v, bodies.w, bodies.inv_mass, serial)
+    dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
+    add_velocity(b, dv, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
 
 
 @wp.kernel
@@ -57,14 +57,14 @@ def _follow(
     pin_particle: wp.array(dtype=wp.int32),
     pin_body: wp.array(dtype=wp.int32),
     pin_local: wp.array(dtype=vec3),
-    bodies: Bodies,
+    bodies: BodyArrays,
     particle_position: wp.array(dtype=vec3),
     particle_pin_target: wp.array(dtype=vec3),
 ):
     k = wp.tid()
     b = pin_body[k]
     p = pin_particle[k]
-    point = bodies.x[b] + wp.quat_rotate(bodies.q[b], pin_local[k])
+    point = bodies.position[b] + wp.quat_rotate(bodies.orientation[b], pin_local[k])
     particle_position[p] = point
     particle_pin_target[p] = point
 
@@ -107,7 +107,7 @@ class BodyPins:
         self._particle = np.zeros(0, dtype=np.int32)
         self._body = np.zeros(0, dtype=np.int32)
         self._local = np.zeros((0, 3))
-        self._bodies: Bodies | None = None  # the body arrays as the kernels take them (`_body_struct`)
+        self._bodies: tuple | None = None  # the body arrays as the kernels take them (`_body_struct`)
         self._upload()
 
     def add(self, particles: np.ndarray, body_row: int, local: np.ndarray) -> None:
@@ -134,11 +134,10 @@ class BodyPins:
         self.body: wp.array = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
         self.local: wp.array = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
 
-    def _body_struct(self, bodies) -> Bodies:
+    def _body_struct(self, bodies) -> BodyArrays:
         """The body arrays as the kernels take them, built again only when the arrays were."""
-        if self._bodies is None or self._bodies.v is not bodies.arrays["body_velocity"]:
-            self._bodies = body_struct(bodies)
-        return self._bodies
+        self._bodies = body_arrays(bodies, self._bodies)
+        return self._bodies[0]
 
     def _react(self, force: wp.array, mass: wp.array, bodies, gravity: vec3, h: float) -> None:
         """`force` on the pin particles, plus `gravity` times their `mass`, acts on the bodies for `h` seconds."""

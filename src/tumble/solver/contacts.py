@@ -59,8 +59,9 @@ import warp as wp
 
 from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
+from ..model import BodyArrays, body_arrays
 from ..shapes import ShapeType
-from ..state import ArraySet, float_t, host_view, quat, vec3
+from ..state import ArraySet, float_t, host_view, vec3
 from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
 
@@ -146,30 +147,18 @@ PREVIOUS_FIELDS = {
 }
 
 
-@wp.struct
-class Bodies:
-    """Body arrays the solver reads and writes."""
-
-    x: wp.array(dtype=vec3)
-    q: wp.array(dtype=quat)
-    v: wp.array(dtype=vec3)
-    w: wp.array(dtype=vec3)
-    inv_mass: wp.array(dtype=float_t)
-    inv_inertia: wp.array(dtype=vec3)
-    dx: wp.array(dtype=vec3)  # displacement since the start of the step
-    dtheta: wp.array(dtype=vec3)  # rotation vector accumulated since the start of the step
-    warm_v: wp.array(dtype=vec3)  # next substep's warm start, summed per body by the relax pass
-    warm_w: wp.array(dtype=vec3)
-
-
 #: the contact arrays as the kernels take them: `contact_normal` is `c.normal`
 Contacts = array_struct("Contacts", CONTACT_FIELDS, "contact_", __name__)
 
 
 @wp.func
-def _speed_along(b: Bodies, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
+def _speed_along(b: BodyArrays, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
     """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
-    return wp.dot(b.v[ib] - b.v[ia], d) + wp.dot(b.w[ib], wp.cross(rb, d)) - wp.dot(b.w[ia], wp.cross(ra, d))
+    return (
+        wp.dot(b.velocity[ib] - b.velocity[ia], d)
+        + wp.dot(b.angular_velocity[ib], wp.cross(rb, d))
+        - wp.dot(b.angular_velocity[ia], wp.cross(ra, d))
+    )
 
 
 # ---------------------------------------------------------------------------- manifolds
@@ -335,7 +324,7 @@ def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp
 @wp.kernel
 def _prepare(
     c: Contacts,
-    b: Bodies,
+    b: BodyArrays,
     body_friction: wp.array(dtype=float_t),
     body_restitution: wp.array(dtype=float_t),
     body_shape: wp.array(dtype=wp.int32),
@@ -351,8 +340,8 @@ def _prepare(
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
-    qa = b.q[ia]
-    qb = b.q[ib]
+    qa = b.orientation[ia]
+    qb = b.orientation[ib]
     ra = wp.quat_rotate(qa, c.local_a[k])
     rb = wp.quat_rotate(qb, c.local_b[k])
     c.r_a[k] = ra
@@ -492,7 +481,7 @@ def _add_pair(
 
 
 @wp.kernel
-def _warm_start(c: Contacts, b: Bodies, serial: int, counts: wp.array(dtype=wp.int32)):
+def _warm_start(c: Contacts, b: BodyArrays, serial: int, counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
     if k >= counts[0]:
         return
@@ -514,7 +503,9 @@ def _warm_start(c: Contacts, b: Bodies, serial: int, counts: wp.array(dtype=wp.i
     )
     ia = c.body_a[k]
     ib = c.body_b[k]
-    _add_pair(b.v, b.w, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial)
+    _add_pair(
+        b.velocity, b.angular_velocity, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial
+    )
 
 
 @wp.struct
@@ -885,7 +876,7 @@ class ImpactPass:
 
 
 @wp.func
-def _rebound(k: int, c: Contacts, b: Bodies, p: ImpactPass):
+def _rebound(k: int, c: Contacts, b: BodyArrays, p: ImpactPass):
     """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
     substep faster than `threshold` [m/s]; else -1 (no collision).
 
@@ -927,7 +918,13 @@ def _rebound(k: int, c: Contacts, b: Bodies, p: ImpactPass):
     if vp * vp - float_t(2.0) * gn * gap + gn * p.h * vp < float_t(0.5) * limit * limit:
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
-    s = c.separation[k] + wp.dot(n, b.dx[ib] + wp.cross(b.dtheta[ib], rb) - b.dx[ia] - wp.cross(b.dtheta[ia], ra))
+    s = c.separation[k] + wp.dot(
+        n,
+        b.delta_position[ib]
+        + wp.cross(b.delta_rotation[ib], rb)
+        - b.delta_position[ia]
+        - wp.cross(b.delta_rotation[ia], ra),
+    )
     if s + (vn + float_t(p.ahead) * gn * p.h) * p.h > float_t(0.0):
         return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
@@ -955,7 +952,7 @@ def _rebound(k: int, c: Contacts, b: Bodies, p: ImpactPass):
 
 
 @wp.func
-def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: int):
+def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial: int):
     """Collide the rows of the manifold at k (`rows` contacts) that close within the substep
     faster than `threshold` [m/s]; 1 if any did.
 
@@ -985,8 +982,8 @@ def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: in
     # normal: v_n -> u, j = m_n (u - v_n), 1 / m_n = 1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + ...,
     # with the inertia at the current orientations (a fast-spinning box turns far in a step; with
     # the step start's, the impulse would not keep the energy exactly); a lone row is exact in one sweep
-    qa = b.q[ia]
-    qb = b.q[ib]
+    qa = b.orientation[ia]
+    qb = b.orientation[ib]
     j4 = vec4()
     sweep = int(0)
     moving = int(1)
@@ -1011,7 +1008,18 @@ def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: in
                 j = wp.max(j_old + (u4[i] - vn) / kn * c.scale[kk], float_t(0.0))
                 dj = j - j_old
                 j4[i] = j
-                _add_pair(b.v, b.w, b.inv_mass, ia, ib, -n * (dj * ima), -dwa * dj, n * (dj * imb), dwb * dj, serial)
+                _add_pair(
+                    b.velocity,
+                    b.angular_velocity,
+                    b.inv_mass,
+                    ia,
+                    ib,
+                    -n * (dj * ima),
+                    -dwa * dj,
+                    n * (dj * imb),
+                    dwb * dj,
+                    serial,
+                )
                 if wp.abs(dj) * kn > MANIFOLD_TOLERANCE:
                     moving = int(1)
         sweep += 1
@@ -1055,10 +1063,21 @@ def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: in
                 dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
                 k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
                 jt = wp.min(vt / k_d, c.friction[kk] * j / relax) * relax
-                _add_pair(b.v, b.w, b.inv_mass, ia, ib, -d * (jt * ima), -dwa * jt, d * (jt * imb), dwb * jt, serial)
+                _add_pair(
+                    b.velocity,
+                    b.angular_velocity,
+                    b.inv_mass,
+                    ia,
+                    ib,
+                    -d * (jt * ima),
+                    -dwa * jt,
+                    d * (jt * imb),
+                    dwb * jt,
+                    serial,
+                )
     if patch and torque > float_t(0.0) and c.friction[k] > float_t(0.0):
         n = c.normal[k]
-        wn = wp.dot(b.w[ib] - b.w[ia], n)
+        wn = wp.dot(b.angular_velocity[ib] - b.angular_velocity[ia], n)
         if wn != float_t(0.0):
             d = -n * wp.sign(wn)
             dwa = inv_inertia_times(qa, b.inv_inertia[ia], d)
@@ -1066,7 +1085,7 @@ def _impact(k: int, rows: int, c: Contacts, b: Bodies, p: ImpactPass, serial: in
             k_w = wp.dot(d, dwa) + wp.dot(d, dwb)
             relax = c.scale[k]
             jw = wp.min(wp.abs(wn) / k_w, c.friction[k] * torque / relax) * relax
-            _add_pair(b.v, b.w, b.inv_mass, ia, ib, vec3(), -dwa * jw, vec3(), dwb * jw, serial)
+            _add_pair(b.velocity, b.angular_velocity, b.inv_mass, ia, ib, vec3(), -dwa * jw, vec3(), dwb * jw, serial)
     return 1
 
 
@@ -1078,7 +1097,7 @@ def _make_impacts(serial: int):
     @wp.kernel(name="_impacts_serial" if serial else "_impacts_parallel")
     def impacts(
         c: Contacts,
-        b: Bodies,
+        b: BodyArrays,
         gravity: vec3,
         h: float_t,
         threshold: float_t,
@@ -1168,7 +1187,7 @@ class ContactSet(ArraySet):
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
-        self._structs: tuple[Contacts, Bodies] | None = None
+        self._structs: tuple[Contacts, BodyArrays] | None = None
         self._writer: ContactWriter | None = None
 
     def grow(self, count: int) -> None:
@@ -1224,7 +1243,7 @@ class ContactSet(ArraySet):
                 self.impact_changed = wp.zeros(bodies.capacity, dtype=wp.int64, device=dev)
             self.owner_entries = wp.zeros(p.capacity, dtype=wp.int32, device=dev)
             self.impact_tested = wp.zeros(self.capacity, dtype=wp.int64, device=dev)
-            self._structs = (self.struct(), body_struct(bodies))
+            self._structs = (self.struct(), body_arrays(bodies)[0])
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
         counts = (self.count, p.count)
         if self.device == "cpu":
@@ -1335,16 +1354,6 @@ class ContactSet(ArraySet):
 def _serial(contacts: ContactSet) -> int:
     """1 where kernels run their threads one after another (the CPU): plain Gauss-Seidel updates."""
     return 1 if contacts.device == "cpu" else 0
-
-
-def body_struct(bodies) -> Bodies:
-    a = bodies.arrays
-    s = Bodies()
-    s.x, s.q, s.v, s.w = a["body_position"], a["body_orientation"], a["body_velocity"], a["body_angular_velocity"]
-    s.inv_mass, s.inv_inertia = a["body_inv_mass"], a["body_inv_inertia"]
-    s.dx, s.dtheta = a["body_delta_position"], a["body_delta_rotation"]
-    s.warm_v, s.warm_w = a["body_warm_velocity"], a["body_warm_angular_velocity"]
-    return s
 
 
 def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:

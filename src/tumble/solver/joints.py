@@ -82,7 +82,7 @@ whose branches on the kind are resolved when Warp compiles it (`wp.static`): the
 point row is written out on its own (it warm starts and relaxes every ball joint and solves the
 lone ones); the ball joints' chains have `_solve_ball_chains`. Every kernel takes the joint
 arrays as one struct, `Joints` (derived from `JOINT_FIELDS`), and the body arrays as the
-solver's `Bodies`, each built once per set of arrays. No adjoint code is generated.
+solver's `BodyArrays`, each built once per set of arrays. No adjoint code is generated.
 
 Joint force: the accumulated impulses are per substep (each substep applies them again as its
 warm start), so the step's mean force is the sum of the substeps' final impulses over dt (the
@@ -109,9 +109,9 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
+from ..model import BodyArrays, body_arrays
 from ..state import ArraySet, float_t, quat, readonly, vec3
 from ..structs import array_struct, fill_struct
-from .contacts import Bodies, body_struct
 from .rigid import inv_inertia_world, safe_inverse
 
 # no adjoint code: nothing differentiates through the joints, and it would double the compile time
@@ -350,7 +350,7 @@ class _Body:
 
 
 @wp.func
-def _load(i: int, b: Bodies, load: wp.array(dtype=float_t), h: float_t):
+def _load(i: int, b: BodyArrays, load: wp.array(dtype=float_t), h: float_t):
     """Pose, velocities and inverse mass / inertia of body row i; the world (-1) is fixed at the origin.
 
     The inertia carries the joints' geometric stiffness (`_inv_inertia_loaded`).
@@ -358,12 +358,12 @@ def _load(i: int, b: Bodies, load: wp.array(dtype=float_t), h: float_t):
     s = _Body()
     s.q = wp.quat_identity(dtype=float_t)
     if i >= 0:
-        s.x = b.x[i]
-        s.q = b.q[i]
-        s.v = b.v[i]
-        s.w = b.w[i]
+        s.x = b.position[i]
+        s.q = b.orientation[i]
+        s.v = b.velocity[i]
+        s.w = b.angular_velocity[i]
         s.m = b.inv_mass[i]
-        s.I = _inv_inertia_loaded(b.q[i], b.inv_inertia[i], load[i], h)
+        s.I = _inv_inertia_loaded(b.orientation[i], b.inv_inertia[i], load[i], h)
     return s
 
 
@@ -475,7 +475,7 @@ def _make_solve(kind: int):
     def solve(
         rows: wp.array(dtype=wp.int32),
         j: Joints,
-        b: Bodies,
+        b: BodyArrays,
         load: wp.array(dtype=float_t),
         mode: int,  # 0 warm start, 1 solve with bias, 2 relax (no bias; sums the next warm start)
         h: float_t,
@@ -507,13 +507,31 @@ def _make_solve(kind: int):
                     isc = impulse_scale
                 P = (-ms * _solve33(_ball_mass(g), cdot) - isc * P0) * j.scale[k]
                 j.impulse_linear[k] = P0 + P
-            add_velocity(g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), b.v, b.w, b.inv_mass, serial)
-            add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), b.v, b.w, b.inv_mass, serial)
+            add_velocity(
+                g.ia, -P * g.ma, -(g.Ia * wp.cross(g.ra, P)), b.velocity, b.angular_velocity, b.inv_mass, serial
+            )
+            add_velocity(g.ib, P * g.mb, g.Ib * wp.cross(g.rb, P), b.velocity, b.angular_velocity, b.inv_mass, serial)
             if mode == 2:
                 # relax: the impulse is final for the substep and starts the next one (warm start)
                 T = P0 + P
-                add_velocity(g.ia, -T * g.ma, -(g.Ia * wp.cross(g.ra, T)), b.warm_v, b.warm_w, b.inv_mass, serial)
-                add_velocity(g.ib, T * g.mb, g.Ib * wp.cross(g.rb, T), b.warm_v, b.warm_w, b.inv_mass, serial)
+                add_velocity(
+                    g.ia,
+                    -T * g.ma,
+                    -(g.Ia * wp.cross(g.ra, T)),
+                    b.warm_velocity,
+                    b.warm_angular_velocity,
+                    b.inv_mass,
+                    serial,
+                )
+                add_velocity(
+                    g.ib,
+                    T * g.mb,
+                    g.Ib * wp.cross(g.rb, T),
+                    b.warm_velocity,
+                    b.warm_angular_velocity,
+                    b.inv_mass,
+                    serial,
+                )
                 j.sum_linear[k] = j.sum_linear[k] + T
         else:
             ia = j.body_a[k]
@@ -667,14 +685,14 @@ def _make_solve(kind: int):
                     s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
                     j.impulse_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
 
-            add_velocity(ia, s.va - s0.va, s.wa - s0.wa, b.v, b.w, b.inv_mass, serial)
-            add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, b.v, b.w, b.inv_mass, serial)
+            add_velocity(ia, s.va - s0.va, s.wa - s0.wa, b.velocity, b.angular_velocity, b.inv_mass, serial)
+            add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, b.velocity, b.angular_velocity, b.inv_mass, serial)
             if mode == 2:
                 # relax: these impulses are final for the substep and start the next one (warm start)
                 axial = j.impulse_axial[k] + j.impulse_lower[k] - j.impulse_upper[k]
                 t = _total(g, _Velocities(), j.impulse_linear[k], j.impulse_angular[k], axial)
-                add_velocity(ia, t.va, t.wa, b.warm_v, b.warm_w, b.inv_mass, serial)
-                add_velocity(ib, t.vb, t.wb, b.warm_v, b.warm_w, b.inv_mass, serial)
+                add_velocity(ia, t.va, t.wa, b.warm_velocity, b.warm_angular_velocity, b.inv_mass, serial)
+                add_velocity(ib, t.vb, t.wb, b.warm_velocity, b.warm_angular_velocity, b.inv_mass, serial)
                 # and count them towards the step's mean force
                 j.sum_linear[k] = j.sum_linear[k] + j.impulse_linear[k] + g.n * axial
                 spin = j.impulse_angular[k]
@@ -706,7 +724,7 @@ class _Ball:
 
 
 @wp.func
-def _ball(k: int, j: Joints, b: Bodies, load: wp.array(dtype=float_t), h: float_t):
+def _ball(k: int, j: Joints, b: BodyArrays, load: wp.array(dtype=float_t), h: float_t):
     g = _Ball()
     g.ia = j.body_a[k]
     g.ib = j.body_b[k]
@@ -785,7 +803,7 @@ def _solve_ball_chains(
     chain_joints: wp.array(dtype=wp.int32),
     chain_start: wp.array(dtype=wp.int32),
     j: Joints,
-    b: Bodies,
+    b: BodyArrays,
     load: wp.array(dtype=float_t),
     scratch: _ChainScratch,
     h: float_t,
@@ -861,8 +879,8 @@ def _solve_ball_chains(
             Ib = scratch.inertia_b[t]
             P = scratch.rhs[t] * j.scale[k]
             j.impulse_linear[k] = j.impulse_linear[k] + P
-            add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), b.v, b.w, b.inv_mass, serial)
-            add_velocity(ib, P * mb, Ib * wp.cross(rb, P), b.v, b.w, b.inv_mass, serial)
+            add_velocity(ia, -P * ma, -(Ia * wp.cross(ra, P)), b.velocity, b.angular_velocity, b.inv_mass, serial)
+            add_velocity(ib, P * mb, Ib * wp.cross(rb, P), b.velocity, b.angular_velocity, b.inv_mass, serial)
 
 
 #: one solve kernel per joint kind
@@ -1028,7 +1046,7 @@ class JointSet(ArraySet):
         self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
         # the kernels' structs, built once per set of arrays (see `_structs`)
         self._struct: Joints | None = None
-        self._bodies: Bodies | None = None
+        self._bodies: tuple | None = None
         self._chain_scratch: _ChainScratch | None = None
 
     # -------------------------------------------------------------- building
@@ -1170,11 +1188,10 @@ class JointSet(ArraySet):
             self._struct = fill_struct(Joints, self.arrays, "joint_")
         return self._struct
 
-    def _body_struct(self, bodies) -> Bodies:
+    def _body_struct(self, bodies) -> BodyArrays:
         """The body arrays as the kernels take them, built again only when the arrays were."""
-        if self._bodies is None or self._bodies.v is not bodies.arrays["body_velocity"]:
-            self._bodies = body_struct(bodies)
-        return self._bodies
+        self._bodies = body_arrays(bodies, self._bodies)
+        return self._bodies[0]
 
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
         """One pass: the joints of each kind present, kind by kind (each in creation order)."""

@@ -12,30 +12,20 @@ import numpy as np
 import warp as wp
 
 from tumble.cloth.attach import BodyPins, sum_pin_load
-from tumble.state import ArraySet, float_t, quat, vec3
+from tumble.model import BODY_FIELDS, fields_of
+from tumble.state import ArraySet, float_t, vec3
 
 from ..reference import quat_matrix
 
-BODY_FIELDS = {
-    "body_position": vec3,
-    "body_orientation": quat,
-    "body_velocity": vec3,
-    "body_angular_velocity": vec3,
-    "body_inv_mass": float_t,
-    "body_inv_inertia": vec3,
-    # not read by the pins, but part of the solver's body struct that their kernels take
-    "body_delta_position": vec3,
-    "body_delta_rotation": vec3,
-    "body_warm_velocity": vec3,
-    "body_warm_angular_velocity": vec3,
-}
+#: the body arrays as a World holds them (the pins' kernels take the struct of every kernel field)
+BODY_ARRAYS = fields_of(BODY_FIELDS)
 G = np.array([0.0, 0.0, -9.81])
 
 
 def two_bodies() -> ArraySet:
     """Row 0: a static body; row 1: a dynamic one, turned 0.6 rad about (1, 1, 0), mass 2, moments (1, 2, 4)."""
     q = np.append(np.array([1.0, 1.0, 0.0]) / math.sqrt(2) * math.sin(0.3), math.cos(0.3))
-    b = ArraySet(BODY_FIELDS, device="cpu", capacity=2)
+    b = ArraySet(BODY_ARRAYS, device="cpu", capacity=2)
     b.append(
         {
             "body_position": np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]),
