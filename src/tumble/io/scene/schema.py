@@ -257,7 +257,8 @@ SCHEMA: dict[str, TableSpec] = {
             "mesh",
             True,
             "Static triangle meshes from files, read with trimesh; faces wound counter-clockwise seen from "
-            "where bodies stay (outward on a closed mesh).",
+            "where bodies stay (outward on a closed mesh). Cloth may lie on either side of an open mesh "
+            "(a plate, a terrain); a closed one is a solid.",
             {
                 "file": Field(file_name(), REQUIRED, "", "mesh file: OBJ, STL, PLY, OFF, glTF/GLB"),
                 "scale": Field(scale_factor(), _mesh("scale"), "", "factor(s) applied in the mesh's frame"),
