@@ -61,11 +61,6 @@ class Field:
     kernel: bool = False
 
     @property
-    def short(self) -> str:
-        """The name without its entity prefix ("position" for "body_position"): its name in Warp structs."""
-        return self.name.partition("_")[2]
-
-    @property
     def shape(self) -> tuple[int, ...]:
         """Trailing shape of one row as NumPy sees it: () for scalars, (3,) for vectors, (4,) for quaternions."""
         return numpy_dtype(self.dtype)[1]
@@ -184,15 +179,10 @@ class Control:
         self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.CONTROL), device=device, arrays=arrays)
 
 
-def body_rows(device: str, arrays: dict, model: Model, state: State, control: Control) -> RowGroup:
+def body_row_group(device: str, arrays: dict, model: Model, state: State, control: Control) -> RowGroup:
     """The row group over the parts' body arrays and the solver's scratch rows, in one arrays dict."""
     scratch = ArraySet(fields_of(BODY_FIELDS, Role.SCRATCH), device=device, arrays=arrays)
     return RowGroup(model.bodies, state.bodies, control.bodies, scratch)
-
-
-def view_doc(name: str) -> str:
-    """Documentation of a World view of the body array `name`, from its declaration."""
-    return BODY_FIELD[name].describe()
 
 
 __all__ = [

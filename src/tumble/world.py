@@ -36,7 +36,7 @@ from .collision.meshes import MeshSet
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
 from .launch import LaunchCache
-from .model import BODY_FIELD, Control, Model, State, body_rows
+from .model import BODY_FIELD, Control, Model, State, body_row_group
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
 from .runtime import init_warp
 from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, ShapeType
@@ -152,13 +152,13 @@ class World:
         self._key = register_world(self)
 
         # the parts (tumble.model): one dict holds the body arrays of all four, which share their rows
-        body_arrays: dict[str, wp.array] = {}
-        self.model = Model(self.device, body_arrays, HullSet(self.device), MeshSet(self.device))
+        shared: dict[str, wp.array] = {}
+        self.model = Model(self.device, shared, HullSet(self.device), MeshSet(self.device))
         self.contacts = contact_solver.ContactSet(self.device)
-        self.state = State(self.device, body_arrays, self.contacts.previous)
-        self.control = Control(self.device, body_arrays)
+        self.state = State(self.device, shared, self.contacts.previous)
+        self.control = Control(self.device, shared)
         # every body array as one table, for the stages (model, state, control and the solver's scratch)
-        self.bodies = body_rows(self.device, body_arrays, self.model, self.state, self.control)
+        self.bodies = body_row_group(self.device, shared, self.model, self.state, self.control)
         self.emitters: list[Emitter] = []
         self.broadphase = broadphase.BroadPhase(self.device)
         self.joints = joint_solver.JointSet(self.device)

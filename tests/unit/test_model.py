@@ -68,10 +68,11 @@ def test_control_is_cleared_after_the_step_that_used_it(world):
 
 def test_kernel_struct_derives_from_the_declaration(world):
     kernel = [f for f in BODY_FIELDS if f.kernel]
-    assert list(BodyArrays.vars) == [f.short for f in kernel]  # type: ignore[attr-defined]
+    short = [f.name.removeprefix("body_") for f in kernel]
+    assert list(BodyArrays.vars) == short  # type: ignore[attr-defined]
     s, arrays = body_arrays(world.bodies)
-    for f, a in zip(kernel, arrays):
-        assert getattr(s, f.short) is world.bodies.arrays[f.name] is a
+    for f, name, a in zip(kernel, short, arrays):
+        assert getattr(s, name) is world.bodies.arrays[f.name] is a
     # cached while the arrays are the same, rebuilt when they were reallocated
     assert body_arrays(world.bodies, (s, arrays))[0] is s
     world.add_spheres(position=np.zeros((40, 3)) + (0, 0, 2), radius=0.01)
