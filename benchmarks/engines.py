@@ -68,16 +68,20 @@ class TumbleAdapter:
     """Tumble on the CPU or a CUDA device (`World(device=...)`), default substeps.
 
     Cloth: `add_cloth` with its default springs and 10 % stretch limit, self-collision off.
+    `quality=True`: the settings docs/performance.md recommends for quality (`QUALITY_SUBSTEPS`).
     """
 
     name = "tumble"
+
+    #: substeps for quality: past this count benchmarks/curve.py finds no gain worth the time
+    QUALITY_SUBSTEPS = 16
 
     def settings(self) -> str:
         """The solver settings this adapter runs with, for the results table."""
         w = self.world
         return f"dt 1/{round(1 / w.dt)}, {w.substeps} substeps"
 
-    def __init__(self, scene: Scene, device: str = "cpu"):
+    def __init__(self, scene: Scene, device: str = "cpu", *, quality: bool = False):
         import warp as wp
 
         import tumble
@@ -85,6 +89,8 @@ class TumbleAdapter:
         self._wp = wp
         self.scene = scene
         self.world = world = tumble.World(gravity=GRAVITY, dt=scene.dt, device=device)
+        if quality:
+            world.substeps = self.QUALITY_SUBSTEPS
         self.device = world.device
         if scene.kind == "cloth":
             self.cloth_init = cloth = initial_cloth(scene)
@@ -139,6 +145,9 @@ class TumbleAdapter:
 class PyBulletAdapter:
     """PyBullet in DIRECT mode with its default solver; damping set to 0 (Tumble has none).
 
+    `quality=True`: `numSubSteps` = `QUALITY_SUBSTEPS`, the knob its quickstart guide names for
+    trading performance for accuracy (`setPhysicsEngineParameter`); iterations stay at its 50.
+
     Cloth is a soft body loaded from a generated OBJ grid into PyBullet's classic soft-body world
     (position-based links with PyBullet's built-in stiffness and 20 iterations; the mass-spring
     keywords of `loadSoftBody` only act in the deformable world, which diverged on this cloth at
@@ -147,20 +156,29 @@ class PyBulletAdapter:
 
     name = "pybullet"
 
+    QUALITY_SUBSTEPS = 4
+
     def settings(self) -> str:
         """The solver settings this adapter runs with, for the results table."""
-        return f"dt 1/{round(1 / self.scene.dt)}, default (10 iterations)"
+        params = self.p.getPhysicsEngineParameters(physicsClientId=self.client)
+        sub = params["numSubSteps"]
+        return f"dt 1/{round(1 / params['fixedTimeStep'])}, {params['numSolverIterations']} iterations" + (
+            f", {sub} substeps" if sub > 1 else ""
+        )
 
-    def __init__(self, scene: Scene, device: str = "cpu"):
+    def __init__(self, scene: Scene, device: str = "cpu", *, quality: bool = False):
         import pybullet as p
 
         self.p = p
         self.scene = scene
         self.client = cid = p.connect(p.DIRECT)
+        self.quality = quality
         if scene.kind == "cloth":
             self._build_cloth(scene)
             return
         p.setTimeStep(scene.dt, physicsClientId=cid)
+        if quality:
+            p.setPhysicsEngineParameter(numSubSteps=self.QUALITY_SUBSTEPS, physicsClientId=cid)
         p.setGravity(*GRAVITY, physicsClientId=cid)
         self.init = init = initial_bodies(scene)
         # pybullet multiplies the coefficients of the two bodies in contact
@@ -192,6 +210,8 @@ class PyBulletAdapter:
         cloth = self.cloth_init = initial_cloth(scene)
         p.resetSimulation(physicsClientId=cid)
         p.setTimeStep(scene.dt, physicsClientId=cid)
+        if self.quality:
+            p.setPhysicsEngineParameter(numSubSteps=self.QUALITY_SUBSTEPS, physicsClientId=cid)
         p.setGravity(*GRAVITY, physicsClientId=cid)
         # a grid OBJ in the cloth's local frame (z = 0), placed at the cloth's height
         fd, path = tempfile.mkstemp(suffix=".obj", prefix="tumble_bench_cloth_")
@@ -249,6 +269,10 @@ class PyBulletAdapter:
 class MuJoCoAdapter:
     """MuJoCo from a generated MJCF model: CG solver, default iterations and tolerance.
 
+    `quality=True`: what MuJoCo's documentation recommends for accuracy: the Newton solver, the
+    `implicitfast` integrator and elliptic friction cones (pyramidal cones approximate the
+    friction cone; elliptic ones are exact), at the same time step.
+
     Rigid bodies are free-jointed bodies with one geom each; contacts use `MUJOCO_SOLREF`.
     Cloth is a 2D `flexcomp` grid with edge equality constraints, pinned at two corners.
     """
@@ -257,14 +281,20 @@ class MuJoCoAdapter:
 
     def settings(self) -> str:
         """The solver settings this adapter runs with, for the results table."""
-        o = self.model.opt
-        return f"dt 1/{round(1 / o.timestep)}, CG, {o.iterations} iterations"
+        o, m = self.model.opt, self.mujoco
+        solver = m.mjtSolver(o.solver).name.removeprefix("mjSOL_").replace("NEWTON", "Newton")
+        extra = ""
+        if self.quality:
+            extra = f", {m.mjtIntegrator(o.integrator).name.removeprefix('mjINT_').lower()}, "
+            extra += f"{m.mjtCone(o.cone).name.removeprefix('mjCONE_').lower()} cones"
+        return f"dt 1/{round(1 / o.timestep)}, {solver}, {o.iterations} iterations{extra}"
 
-    def __init__(self, scene: Scene, device: str = "cpu"):
+    def __init__(self, scene: Scene, device: str = "cpu", *, quality: bool = False):
         import mujoco
 
         self.mujoco = mujoco
         self.scene = scene
+        self.quality = quality
         xml = self._cloth_xml(scene) if scene.kind == "cloth" else self._bodies_xml(scene)
         self.model = self._compile(xml)
         self.data = mujoco.MjData(self.model)
@@ -297,7 +327,8 @@ class MuJoCoAdapter:
         return (
             f'<mujoco model="{scene.name}">\n'
             f'  <option timestep="{scene.dt!r}" gravity="{GRAVITY[0]} {GRAVITY[1]} {GRAVITY[2]}" '
-            f'solver="CG" iterations="{iterations}"/>\n'
+            + ('solver="Newton" integrator="implicitfast" cone="elliptic" ' if self.quality else 'solver="CG" ')
+            + f'iterations="{iterations}"/>\n'
             f'  <size memory="{memory}"/>\n'
         )
 
@@ -370,6 +401,9 @@ class MuJoCoAdapter:
 class RapierAdapter:
     """Rapier (`rapier3d`, Rust, f32) on one thread with its defaults (4 solver iterations).
 
+    `quality=True`: `QUALITY_ITERATIONS` solver iterations, the "more accurate (but slower)"
+    setting of the example in Rapier's `IntegrationParameters` documentation.
+
     Planes are half-spaces on one fixed body; each moving body is a dynamic body with one
     collider carrying the body's mass, restitution 0.5 and friction 0.5 (Rapier combines a pair
     by the average, so each pair gets 0.5). Sleeping is off, as in the other engines.
@@ -377,15 +411,16 @@ class RapierAdapter:
 
     name = "rapier"
 
-    #: Rapier's own default solver iterations per step (its quality setting is `QUALITY_ITERATIONS`)
+    #: Rapier's own default solver iterations per step, and its documented setting for accuracy
     ITERATIONS = 4
+    QUALITY_ITERATIONS = 8
 
     def settings(self) -> str:
         """The solver settings this adapter runs with, for the results table."""
         p = self.world.integration_parameters
         return f"dt 1/{round(1 / p.dt)}, {p.num_solver_iterations} iterations, 1 thread"
 
-    def __init__(self, scene: Scene, device: str = "cpu", *, iterations: int | None = None):
+    def __init__(self, scene: Scene, device: str = "cpu", *, iterations: int | None = None, quality: bool = False):
         import rapier3d as r
 
         if scene.kind == "cloth":
@@ -395,7 +430,8 @@ class RapierAdapter:
         self.world = world = r.PhysicsWorld(gravity=r.Vec3(*GRAVITY))
         world.set_num_threads(1)
         world.integration_parameters.dt = scene.dt
-        world.integration_parameters.num_solver_iterations = iterations or self.ITERATIONS
+        default = self.QUALITY_ITERATIONS if quality else self.ITERATIONS
+        world.integration_parameters.num_solver_iterations = iterations or default
         self.init = init = initial_bodies(scene)
         ground = world.add_body(r.RigidBody.fixed())
         for normal, offset in init.planes:

@@ -5,11 +5,17 @@
     PYTHONPATH=src python benchmarks/run.py --scenes pile --engines tumble
     PYTHONPATH=src python benchmarks/run.py --quick                 # 0.5 s per scene
     PYTHONPATH=src python benchmarks/run.py --device cuda           # Tumble on the GPU
+    PYTHONPATH=src python benchmarks/run.py --quality               # every engine at its settings for quality
 
 For each scene the engines are built once and then stepped in alternating chunks (0.1 s of
 simulated time each), so that a change in machine load touches every engine alike. Warm-up
 (Tumble's kernel compilation included) happens on a small copy of the scene and is not timed.
 Figures, quality checks and the CSV columns are explained in benchmarks/README.md.
+
+The first comparison runs every engine at its defaults. `--quality` is the second: every engine
+at the settings its documentation recommends for accuracy (each adapter's docstring in
+engines.py says which and where from), compared by simulated seconds per wall-clock second
+beside the quality columns.
 """
 
 from __future__ import annotations
@@ -67,6 +73,11 @@ TARGET_CLOTH_RATIO = 10.0  # cloth_64 steps/s vs PyBullet
 TARGET_CLOTH_STRAIN = 0.10
 TARGET_PILE_100K = 10.0  # steps/s
 
+# targets of issue 19 (one core, Tumble's steps/s over Rapier's in the same run, at both defaults)
+TARGET_RAPIER = {"box_pyramid": 1.0, "pile_1k": 1.5, "pile_5k": 4.0, "boxes_1k": 1.5}
+TARGET_PILE_100K_19 = 5.0  # steps/s
+TARGET_CLOTH_128 = 100.0  # steps/s, with strain <= TARGET_CLOTH_STRAIN
+
 
 @dataclass
 class Result:
@@ -101,6 +112,11 @@ class Result:
     @property
     def body_steps_per_s(self) -> float:
         return self.steps_per_s * self.scene.body_count
+
+    @property
+    def realtime(self) -> float:
+        """Simulated seconds per wall-clock second."""
+        return self.sim_time / self.seconds if self.seconds > 0 else math.nan
 
 
 # ---------------------------------------------------------------------- machine
@@ -217,11 +233,11 @@ def measure_quality(adapter, scene: Scene) -> dict[str, float]:
     }
 
 
-def warm_up(engine: str, scene: Scene, device: str) -> None:
+def warm_up(engine: str, scene: Scene, device: str, quality: bool = False) -> None:
     """Build and step a small copy of the scene, so compilation and first-use costs are not timed."""
     small = {"pile": 64, "boxes": 27, "pyramid": 6, "cloth": 8}[scene.kind]
     tiny = Scene(f"{scene.name}_warmup", scene.kind, small, box_width=1.0, dt=scene.dt)
-    adapter = ADAPTERS[engine](tiny, device)
+    adapter = ADAPTERS[engine](tiny, device, quality=quality)
     adapter.step(3)
     adapter.sync()
     measure_quality(adapter, tiny)
@@ -229,12 +245,19 @@ def warm_up(engine: str, scene: Scene, device: str) -> None:
 
 
 def run_scene(
-    scene: Scene, engines: list[str], device: str, chunk: int, max_wall: float, log, all_peers: bool = False
+    scene: Scene,
+    engines: list[str],
+    device: str,
+    chunk: int,
+    max_wall: float,
+    log,
+    all_peers: bool = False,
+    quality: bool = False,
 ) -> list[Result]:
     """Run one scene in every engine, alternating chunks; returns the results (see `Result`).
 
     An engine stops early, with the simulated time it reached, once it has spent `max_wall`
-    seconds stepping.
+    seconds stepping. `quality`: every engine at its settings for accuracy (engines.py).
     """
     adapters, results, targets = {}, {}, {}
     for engine in engines:
@@ -247,9 +270,9 @@ def run_scene(
         result = results[engine] = Result(scene, engine)
         targets[engine] = scene.steps if engine == "tumble" else scene.peer_steps
         try:
-            warm_up(engine, scene, device)
+            warm_up(engine, scene, device, quality)
             start = time.perf_counter()
-            adapters[engine] = ADAPTERS[engine](scene, device)
+            adapters[engine] = ADAPTERS[engine](scene, device, quality=quality)
             result.settings = adapters[engine].settings()
             log(f"  {engine}: built in {time.perf_counter() - start:.1f} s")
         except Exception as error:  # noqa: BLE001 - one engine failing must not stop the others
@@ -347,7 +370,7 @@ def _console():
     from rich.console import Console
 
     # wide enough for the table when the output goes to a file or pipe
-    return Console() if sys.stdout.isatty() else Console(width=160)
+    return Console() if sys.stdout.isatty() else Console(width=200)
 
 
 def print_table(all_results: list[Result], info: dict[str, str], device: str) -> None:
@@ -365,6 +388,7 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
         ("sim s", "right"),
         ("steps/s", "right"),
         ("body-steps/s", "right"),
+        ("sim s/wall s", "right"),
         ("Tumble ×", "right"),
         ("overlap mm", "right"),
         ("ground mm", "right"),
@@ -381,7 +405,7 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
         previous = r.scene.name
         engine = r.engine + (f" ({r.note})" if r.note else "")
         if r.error:
-            table.add_row(r.scene.name, engine, r.settings, fmt(r.sim_time), "[red]failed[/red]", *[""] * 7)
+            table.add_row(r.scene.name, engine, r.settings, fmt(r.sim_time), "[red]failed[/red]", *[""] * 8)
             continue
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
@@ -392,6 +416,7 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
             f"{r.sim_time:.2f}",
             rate(r.steps_per_s),
             rate(r.body_steps_per_s),
+            fmt(r.realtime),
             ratio,
             fmt(q.get("overlap"), 1e3),
             fmt(q.get("ground"), 1e3),
@@ -413,7 +438,7 @@ def print_table(all_results: list[Result], info: dict[str, str], device: str) ->
 
 
 def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None]]:
-    """The targets of issue 7 as (target, measured, passed); passed is None if not measured."""
+    """The targets of issues 7 and 19 as (target, measured, passed); passed is None if not measured."""
 
     def find(scene: str, engine: str, steps: int | None = None) -> Result | None:
         for r in all_results:
@@ -459,27 +484,51 @@ def check_targets(all_results: list[Result]) -> list[tuple[str, str, bool | None
     tb = find("pile_100k", "tumble")
     checks.append(
         (
-            "pile 100k: >= 10 steps/s",
+            "pile 100k: >= 10 steps/s (issue 7)",
             f"{tb.steps_per_s:.1f} steps/s (over {tb.sim_time:g} s)" if tb else "not measured",
             None if tb is None else tb.steps_per_s >= TARGET_PILE_100K,
+        )
+    )
+    # issue 19: against Rapier, with overlap and ground penetration no worse than Rapier's
+    for scene, least in TARGET_RAPIER.items():
+        ra, tb = find(scene, "rapier"), find(scene, "tumble")
+        if not (ra and tb):
+            checks.append((f"{scene}: >= {least:g}x Rapier steps/s (issue 19)", "not measured", None))
+            continue
+        ratio = tumble_ratio(scene_results(scene), ra)
+        checks.append((f"{scene}: >= {least:g}x Rapier steps/s (issue 19)", f"{ratio:.2f}x", ratio >= least))
+    checks.append(
+        (
+            f"pile 100k: >= {TARGET_PILE_100K_19:g} steps/s (issue 19)",
+            f"{tb.steps_per_s:.1f} steps/s" if (tb := find("pile_100k", "tumble")) else "not measured",
+            None if tb is None else tb.steps_per_s >= TARGET_PILE_100K_19,
+        )
+    )
+    tb = find("cloth_128", "tumble")
+    checks.append(
+        (
+            f"cloth 128x128: >= {TARGET_CLOTH_128:g} steps/s with strain <= 10 % (issue 19)",
+            f"{tb.steps_per_s:.1f} steps/s, {tb.quality['strain'] * 100:.1f} %" if tb else "not measured",
+            None if tb is None else tb.steps_per_s >= TARGET_CLOTH_128 and tb.quality["strain"] <= TARGET_CLOTH_STRAIN,
         )
     )
     return checks
 
 
-def markdown_report(all_results: list[Result], info: dict[str, str], device: str) -> str:
+def markdown_report(all_results: list[Result], info: dict[str, str], device: str, quality: bool = False) -> str:
     """The results table and the targets as Markdown, for docs/performance.md."""
     lines = [
         f"Measured {info['date']} with `benchmarks/run.py{'' if device == 'cpu' else ' --device ' + device}`: "
         f"{info['cpu']}, {info['cores']} cores, one used"
+        + (", every engine at its settings for quality (`--quality`)" if quality else "")
         + (f", GPU {info['gpu']}" if info["gpu"] else "")
         + f"; load average {info['load']} at the end; Python {info['python']}, NumPy {info['numpy']}, "
         f"Warp {info['warp']}, PyBullet {info['pybullet']}, MuJoCo {info['mujoco']}, "
         f"Rapier {info['rapier']}, Tumble {info['tumble']}.",
         "",
-        "| scene | engine | settings | sim s | steps/s | body-steps/s | Tumble × | overlap mm | ground mm | wall mm "
-        "| KE J | strain % |",
-        "|---|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "| scene | engine | settings | sim s | steps/s | body-steps/s | sim s/wall s | Tumble × | overlap mm "
+        "| ground mm | wall mm | KE J | strain % |",
+        "|---|---|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for r in all_results:
         scene_results = [x for x in all_results if x.scene.name == r.scene.name and not x.early]
@@ -487,17 +536,19 @@ def markdown_report(all_results: list[Result], info: dict[str, str], device: str
         if r.error:
             lines.append(
                 f"| {r.scene.name} | {engine} | {r.settings} | {fmt(r.sim_time)} | failed: {r.error[:80]} "
-                "| | | | | | | |"
+                "| | | | | | | | |"
             )
             continue
         q = r.quality
         ratio = "" if r.engine == "tumble" else fmt(tumble_ratio(scene_results, r), digits=1)
         lines.append(
             f"| {r.scene.name} | {engine} | {r.settings} | {r.sim_time:.2f} | {rate(r.steps_per_s)} | {rate(r.body_steps_per_s)} "
-            f"| {ratio} | {fmt(q.get('overlap'), 1e3)} | {fmt(q.get('ground'), 1e3)} | {fmt(q.get('wall'), 1e3)} "
+            f"| {fmt(r.realtime)} | {ratio} | {fmt(q.get('overlap'), 1e3)} | {fmt(q.get('ground'), 1e3)} | {fmt(q.get('wall'), 1e3)} "
             f"| {fmt(q.get('kinetic_energy'), digits=3)} | {fmt(q.get('strain'), 100, 1)} |"
         )
-    lines += ["", "| target (issue 7) | measured | result |", "|---|---|---|"]
+    if quality:  # the targets are set at the engines' defaults
+        return "\n".join(lines) + "\n"
+    lines += ["", "| target | measured | result |", "|---|---|---|"]
     for target, measured, passed in check_targets(all_results):
         lines.append(
             f"| {target} | {measured} | {'not measured' if passed is None else ('pass' if passed else 'FAIL')} |"
@@ -505,9 +556,10 @@ def markdown_report(all_results: list[Result], info: dict[str, str], device: str
     return "\n".join(lines) + "\n"
 
 
-def update_doc(path: Path, report: str, device: str) -> None:
-    """Replace the block between this device's markers in `path` (append it if missing)."""
-    device = "cuda" if device.startswith("cuda") else device
+def update_doc(path: Path, report: str, device: str, quality: bool = False) -> None:
+    """Replace the block between this device's markers in `path` (append it if missing); the
+    `--quality` comparison has a block of its own."""
+    device = ("cuda" if device.startswith("cuda") else device) + (" quality" if quality else "")
     begin, end = f"<!-- results {device}: written by benchmarks/run.py --doc -->", f"<!-- end of results {device} -->"
     text = path.read_text() if path.exists() else ""
     block = f"{begin}\n{report}{end}"
@@ -638,6 +690,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         action="store_true",
         help="also run the peers a scene leaves out by default (PyBullet on cloth_128)",
     )
+    parser.add_argument(
+        "--quality",
+        action="store_true",
+        help="the second comparison: every engine at the settings its docs recommend for accuracy",
+    )
     parser.add_argument("--machine", default=None, help="name of the CSV file (default: from the CPU model)")
     parser.add_argument("--output", type=Path, default=HERE / "results", help="folder for the CSV")
     parser.add_argument("--no-csv", action="store_true", help="do not write the CSV")
@@ -710,6 +767,7 @@ def main(argv: list[str] | None = None) -> int:
             args.max_wall,
             lambda s: print(s, flush=True),
             all_peers=args.all_peers,
+            quality=args.quality,
         )
 
     joint_rows = []
@@ -738,7 +796,7 @@ def main(argv: list[str] | None = None) -> int:
     print_table(all_results, info, args.device)
     print_profile(all_results)
     console = _console()
-    for target, measured, passed in check_targets(all_results):
+    for target, measured, passed in [] if args.quality else check_targets(all_results):
         mark = (
             "[yellow]not measured[/yellow]"
             if passed is None
@@ -746,11 +804,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         console.print(f"target: {target}: {measured} -> {mark}")
     if args.doc is not None:
-        update_doc(args.doc, markdown_report(all_results, info, args.device), args.device)
+        report = markdown_report(all_results, info, args.device, args.quality)
+        update_doc(args.doc, report, args.device, args.quality)
         print(f"updated {args.doc}")
     if not args.no_csv:
         # shortened runs go to a file of their own, so they never replace the full figures
-        suffix = "" if args.duration is None else f"-{args.duration:g}s"
+        suffix = ("" if args.duration is None else f"-{args.duration:g}s") + ("-quality" if args.quality else "")
         path = args.output / f"{args.machine or machine_name(info)}{suffix}.csv"
         write_csv(path, all_results, info, args.device)
         print(f"wrote {path}")

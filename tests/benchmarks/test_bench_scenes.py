@@ -115,3 +115,48 @@ def test_mesh_benchmark_ground_is_100k_flat_triangles_and_the_same_pour():
     assert np.all(np.cross(e1, e2)[:, 2] > 0)  # wound counter-clockwise seen from above
     x = scenes.pile_positions(meshes.SPHERES, meshes.WIDTH, seed=1)
     assert np.abs(x[:, :2]).max() < meshes.MESH_HALF - 1.0  # a metre of mesh left around the pour
+
+
+@pytest.mark.parametrize("engine", ["tumble", "pybullet", "mujoco", "rapier"])
+def test_quality_settings_reach_the_engine(engine):
+    """`run.py --quality` builds every engine with the settings its docs recommend for accuracy:
+    read each back from the engine itself, not from the adapter's own record."""
+    pytest.importorskip({"tumble": "tumble", "pybullet": "pybullet", "mujoco": "mujoco", "rapier": "rapier3d"}[engine])
+    from benchmarks import engines
+
+    pile = scenes.Scene("pile_test", "pile", 20)
+    default, best = engines.ADAPTERS[engine](pile), engines.ADAPTERS[engine](pile, quality=True)
+    if engine == "tumble":
+        assert (default.world.substeps, best.world.substeps) == (8, engines.TumbleAdapter.QUALITY_SUBSTEPS)
+    elif engine == "pybullet":
+        read = [a.p.getPhysicsEngineParameters(physicsClientId=a.client)["numSubSteps"] for a in (default, best)]
+        assert read == [0, engines.PyBulletAdapter.QUALITY_SUBSTEPS]
+    elif engine == "mujoco":
+        import mujoco
+
+        o = best.model.opt
+        assert (o.solver, o.integrator, o.cone) == (
+            mujoco.mjtSolver.mjSOL_NEWTON,
+            mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+            mujoco.mjtCone.mjCONE_ELLIPTIC,
+        )
+        assert default.model.opt.solver == mujoco.mjtSolver.mjSOL_CG
+    else:
+        read = [a.world.integration_parameters.num_solver_iterations for a in (default, best)]
+        assert read == [engines.RapierAdapter.ITERATIONS, engines.RapierAdapter.QUALITY_ITERATIONS]
+    assert default.settings() != best.settings()  # the table tells the two comparisons apart
+    default.close()
+    best.close()
+
+
+def test_curve_bounce_row_measures_the_analytic_rebound():
+    """benchmarks/curve.py's bounce row: a 1 m drop with e = 0.5 rebounds to e^2 H = 0.25 m, to
+    within a few substeps' gravity kicks g h^2 (the apex is sampled once a step)."""
+    from benchmarks import curve
+
+    substeps = 2
+    h = curve.DT / substeps
+    figures = curve.bounce(substeps)
+    bound = 100.0 * 4 * 9.81 * h * h / 0.25  # [%]: 0.07 %
+    assert abs(figures["rebound error %"]) < bound
+    assert figures["ground mm"] < 1e3 * 9.81 * h * h  # never more than one kick below the plane
