@@ -27,6 +27,8 @@ from .state import ArraySet, RowGroup, float_t, numpy_dtype, quat, vec3
 from .structs import array_struct, fill_struct
 
 if TYPE_CHECKING:
+    from .cloth.system import ClothControl, ClothModel, ClothState
+    from .cloth.wind import Wind
     from .collision.hulls import HullSet
     from .collision.meshes import MeshSet
 
@@ -144,12 +146,16 @@ class Model:
         bodies: the model rows of `BODY_FIELDS` (shape, size, mass, inertia, material).
         hulls: convex prototypes, row 0 the unit box.
         meshes: static triangle meshes and their BVHs.
+        joints: the model rows of `solver.joints.JOINT_FIELDS` (kind, bodies, anchors, axes, limits,
+            motors, break force), None for a world without a joint solver.
     """
 
-    def __init__(self, device: str, arrays: dict, hulls: HullSet, meshes: MeshSet):
+    def __init__(self, device: str, arrays: dict, hulls: HullSet, meshes: MeshSet, *, joints: ArraySet | None = None):
         self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.MODEL), device=device, arrays=arrays)
         self.hulls = hulls
         self.meshes = meshes
+        self.joints = joints
+        self.cloth: ClothModel | None = None  # set with the first cloth
 
 
 class State:
@@ -159,24 +165,36 @@ class State:
     Attributes:
         bodies: the state rows of `BODY_FIELDS` (pose and velocities).
         contacts: last step's contacts with their impulses, the next step's warm start.
+        joints: the state rows of `solver.joints.JOINT_FIELDS` (accumulated impulses, the warm
+            start; forces; broken flags), None for a world without a joint solver.
         step_count: steps taken.
     """
 
-    def __init__(self, device: str, arrays: dict, contacts: ArraySet):
+    def __init__(self, device: str, arrays: dict, contacts: ArraySet, *, joints: ArraySet | None = None):
         self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.STATE), device=device, arrays=arrays)
         self.contacts = contacts
+        self.joints = joints
+        self.cloth: ClothState | None = None  # set with the first cloth
         self.step_count = 0
 
 
 class Control:
-    """This step's inputs, cleared once the step has used them.
+    """This step's inputs: user forces and drags, cleared once the step has used them, and the wind.
 
     Attributes:
         bodies: the control rows of `BODY_FIELDS` (user forces and torques).
+        cloth: the cloth's inputs (`cloth.system.ClothControl`: forces on particles, the wind), None
+            until the first cloth.
     """
 
     def __init__(self, device: str, arrays: dict):
         self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.CONTROL), device=device, arrays=arrays)
+        self.cloth: ClothControl | None = None
+
+    @property
+    def wind(self) -> Wind | None:
+        """The wind acting on cloth in the next steps (`World.set_wind` sets it), None for still air."""
+        return None if self.cloth is None else self.cloth.wind
 
 
 def body_row_group(device: str, arrays: dict, model: Model, state: State, control: Control) -> RowGroup:

@@ -38,9 +38,9 @@ from .errors import TumbleError
 if TYPE_CHECKING:
     from .world import World
 from .launch import LaunchCache
-from .state import ArraySet, Handle
+from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 2  # 2: the body rows saved by part (model, state, control)
+FORMAT = 3  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
@@ -51,6 +51,9 @@ _WORLD_SKIP = frozenset({"_key", "metadata", "profile", "_stage_timers", "device
 
 # what `ArraySet` itself keeps beside its arrays (captured through its markers)
 _ARRAYSET_OWN = frozenset({"fields", "arrays", "count", "capacity", "device"})
+# what a `RowGroup` keeps: its sets are saved where the world's parts (model, state, control) hold
+# them; the rest (the solver's scratch sets) is grown back to their rows by `RowGroup.sync`
+_ROWGROUP_OWN = frozenset({"parts", "arrays", "fields", "_part", "device"})
 
 
 class SnapshotError(TumbleError):
@@ -187,8 +190,10 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
             return
         seen.add(id(value))
         snap.values[path + "/:class"] = type(value).__qualname__
+        skip = _ROWGROUP_OWN if isinstance(value, RowGroup) else frozenset()
         for name, item in sorted(vars(value).items()):
-            _capture(item, f"{path}/{name}", snap, seen, arrays)
+            if name not in skip:
+                _capture(item, f"{path}/{name}", snap, seen, arrays)
     else:
         raise SnapshotError(
             f"cannot snapshot {path}: a value of type {type(value).__module__}.{type(value).__qualname__}"
@@ -283,6 +288,8 @@ def restore(world: World, snap: Snapshot) -> None:
     walk = _Restore(snap, children, world.device)
     walk.seen.add(id(world))
     walk.members(world, "", skip=_WORLD_SKIP)
+    for group in walk.groups:
+        group.sync()  # its scratch sets, which snapshots leave out, to the restored rows
     for owner, name, value in walk.derived:
         if isinstance(value, LaunchCache):
             value.clear()
@@ -317,6 +324,7 @@ class _Restore:
         self.derived: list[tuple] = []  # (owner, name, value) of every cache met on the way
         self.replaced: dict[int, wp.array] = {}  # arrays this restore replaced by new ones (kept alive here)
         self.seen: set[int] = set()
+        self.groups: list[RowGroup] = []  # row groups met, synced once their parts are restored
 
     def members(self, obj, path: str, skip=frozenset()) -> None:
         """Restore the attributes of `obj`: those the snapshot has, and none that it lacks."""
@@ -404,7 +412,9 @@ class _Restore:
         elif _is_ours(value):
             if id(value) not in self.seen:
                 self.seen.add(id(value))
-                self.members(value, path)
+                if isinstance(value, RowGroup):
+                    self.groups.append(value)
+                self.members(value, path, skip=_ROWGROUP_OWN if isinstance(value, RowGroup) else frozenset())
         else:
             raise SnapshotError(f"cannot restore {path}: a value of type {type(value).__qualname__}")
 

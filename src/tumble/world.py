@@ -152,16 +152,19 @@ class World:
         self._key = register_world(self)
 
         # the parts (tumble.model): one dict holds the body arrays of all four, which share their rows
+        # (the joint solver's rows are split the same way: definitions to the model, impulses to the state)
         shared: dict[str, wp.array] = {}
-        self.model = Model(self.device, shared, HullSet(self.device), MeshSet(self.device))
+        self.joints = joint_solver.JointSet(self.device)
+        self.model = Model(
+            self.device, shared, HullSet(self.device), MeshSet(self.device), joints=self.joints.definitions
+        )
         self.contacts = contact_solver.ContactSet(self.device)
-        self.state = State(self.device, shared, self.contacts.previous)
+        self.state = State(self.device, shared, self.contacts.previous, joints=self.joints.impulses)
         self.control = Control(self.device, shared)
         # every body array as one table, for the stages (model, state, control and the solver's scratch)
         self.bodies = body_row_group(self.device, shared, self.model, self.state, self.control)
         self.emitters: list[Emitter] = []
         self.broadphase = broadphase.BroadPhase(self.device)
-        self.joints = joint_solver.JointSet(self.device)
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes: tuple[int, int] | None = None
@@ -760,6 +763,8 @@ class World:
         """The world's `ClothSystem` (created on first use)."""
         if self._cloth is None:
             self._cloth = ClothSystem(self.device, world_key=self._key, gravity=self.gravity)
+            # the cloth's parts are the world's: topology and pins, particles, drags and wind
+            self.model.cloth, self.state.cloth, self.control.cloth = self._cloth.parts
         return self._cloth
 
     def pin_cloth_to_body(self, particles, body: BodyId | int) -> None:
@@ -1019,7 +1024,8 @@ class World:
         # joints and cloth pins on a body would lose their body: refused until they can be removed too
         held = [self.joints.numpy(name) for name in ("joint_body_a", "joint_body_b")]
         if self._cloth is not None:
-            held.append(np.asarray(self._cloth.body_pins._body))
+            pins = self._cloth.body_pins
+            held.append(pins.body.numpy()[: pins.count])
         for attached in held:
             if np.isin(rows, attached).any():
                 raise ValueError(

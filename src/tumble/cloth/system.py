@@ -43,7 +43,7 @@ from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Field, Role, body_arrays, fields_of
 from ..shapes import ShapeType
-from ..state import BodyId, ClothId, Handle, float_t, readonly, vec3
+from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, float_t, numpy_dtype, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
 from .wind import Wind, accumulate_air_forces, sample_wind
@@ -72,10 +72,14 @@ PARTICLE_FIELDS: tuple[Field, ...] = (
     Field("particle_force", vec3, Role.SCRATCH, "N", "force accumulated over the substep"),
     Field("particle_external_force", vec3, Role.CONTROL, "N", "user force for the current step"),
     Field("particle_wind", vec3, Role.SCRATCH, "m/s", "wind velocity at the particle this step"),
+    Field(
+        "particle_pin_load", vec3, Role.SCRATCH, "kg m", "the stretch limit's and tethers' pull on a pin, this substep"
+    ),
+    Field("particle_tether_first", wp.int32, Role.MODEL, "", "first tether of the particle (derived from the pins)"),
+    Field("particle_tether_count", wp.int32, Role.MODEL, "", "its number of tethers (derived from the pins)"),
 )
-_PARTICLE_FIELDS = fields_of(PARTICLE_FIELDS)
 #: the arrays whose live values a new cloth's rows are appended to (the rest are rebuilt from the host copy)
-_STATE_FIELDS = (*fields_of(PARTICLE_FIELDS, Role.STATE), "particle_inv_mass")
+_LIVE_FIELDS = (*fields_of(PARTICLE_FIELDS, Role.STATE), "particle_inv_mass")
 
 
 @dataclass(frozen=True)
@@ -111,8 +115,74 @@ class Cloth:
         return self.particle_start + j * self.nx + i
 
 
+def _particle_set(role: Role, device: str, arrays: dict[str, wp.array]) -> ArraySet:
+    """The particle rows of `role` (sized exactly to the particles: kernels run over whole arrays)."""
+    return ArraySet(fields_of(PARTICLE_FIELDS, role), device=device, capacity=1, arrays=arrays)
+
+
+class ClothModel:
+    """The cloth's part of the world's Model (`world.model.cloth`): what does not change while stepping.
+
+    Attributes:
+        particles: the model rows of `PARTICLE_FIELDS` (masses, inverse masses: 0 = pinned,
+            thickness, friction, grid place, rest shape, tethers).
+        cloths: where each cloth lives in the particle rows (`Cloth`), in creation order.
+        topology: name -> Warp array: springs (`spring_ids` (m, 2) int32, `spring_rest_length`,
+            `spring_stiffness`, `spring_damping`), structural springs and rest lengths, limited springs
+            and limits (`stretch_ids`, `stretch_limit`), `triangles` (T, 3) int32, and what is derived
+            from them and from the pins (`limit_*` per particle, `pin_index`, `tether_pin`, `tether_limit`).
+        body_pins: pins that follow bodies (cloth/attach.py).
+    """
+
+    def __init__(self, device: str, arrays: dict[str, wp.array]):
+        self.particles = _particle_set(Role.MODEL, device, arrays)
+        self.cloths: list[Cloth] = []
+        self.topology: dict[str, wp.array] = {}
+        self.body_pins = BodyPins(device)
+
+
+class ClothState:
+    """The cloth's part of the world's State (`world.state.cloth`): what changes while stepping.
+
+    Attributes:
+        particles: the state rows of `PARTICLE_FIELDS` (positions, velocities, pin targets).
+        body_contacts: per body row, how many particles touched it in the last cloth substep (the
+            coupling keeps a body in contact from one substep to the next), int32.
+        pair_margin: margin of the self-collision pair list [m] (the list itself is the stage's
+            `collide.SelfCollisionGrid`, rebuilt from the particles; snapshots keep it with the stage).
+        pair_travel: how much closer particles may have come since that list was built [m].
+    """
+
+    def __init__(self, device: str, arrays: dict[str, wp.array]):
+        self.particles = _particle_set(Role.STATE, device, arrays)
+        self.body_contacts = wp.zeros(16, dtype=wp.int32, device=device)
+        self.pair_margin = 0.0
+        self.pair_travel = math.inf
+
+
+class ClothControl:
+    """The cloth's part of the world's Control (`world.control.cloth`): this step's inputs.
+
+    Attributes:
+        particles: the control rows of `PARTICLE_FIELDS` (user forces during the current step).
+        forces: particle -> user force [N] for the next step (`ClothSystem.apply_force`, a viewer drag).
+        forces_applied: whether the current step's forces are not all zero (cleared by the next step).
+        wind: the wind for the next steps (`world.control.wind`; `World.set_wind` writes it), None: still air.
+    """
+
+    def __init__(self, device: str, arrays: dict[str, wp.array]):
+        self.particles = _particle_set(Role.CONTROL, device, arrays)
+        self.forces: dict[int, np.ndarray] = {}
+        self.forces_applied = False
+        self.wind: Wind | None = None
+
+
 class ClothSystem:
-    """All cloth of one world.
+    """All cloth of one world: the cloth stage of the step, over the cloth's parts.
+
+    Its parts are the world's: `model` (`world.model.cloth`), `state` (`world.state.cloth`) and
+    `control` (`world.control.cloth`), whose particle rows, with the stage's scratch rows, are one
+    `RowGroup` (`particles`) over one dict of arrays, as the body rows are.
 
     Tuning attributes (change at any time):
         stretch_iterations: (min, max) Provot sweeps per substep; sweeps stop after the minimum
@@ -152,8 +222,18 @@ class ClothSystem:
         self.device = device
         self.world_key = world_key
         self._gravity = np.array(gravity, dtype=np.float64)
-        self.cloths: list[Cloth] = []
-        self.wind: Wind | None = None
+        # the parts, and every particle array as one table (model, state, control and the stage's scratch)
+        shared: dict[str, wp.array] = {}
+        self.model = ClothModel(device, shared)
+        self.state = ClothState(device, shared)
+        self.control = ClothControl(device, shared)
+        self.particles = RowGroup(
+            self.model.particles,
+            self.state.particles,
+            self.control.particles,
+            _particle_set(Role.SCRATCH, device, shared),
+        )
+        self._strain = wp.zeros(1, dtype=float_t, device=device)  # max_strain's scratch
         self.stretch_iterations = (1, 128)
         self.stretch_relaxation = 1.5
         self.self_collision = True
@@ -164,24 +244,17 @@ class ClothSystem:
         self.min_substeps = 1
 
         self._host: dict[str, np.ndarray] = {}  # static description, concatenated over cloths
-        self._arrays: dict[str, wp.array] = {}
-        self._particle_count = 0
         self._stable_h = math.inf
         self._substep_index = 0
         self._cloth_total = 0
         self._cloth_done = 0
         self._cloth_h = 0.0
         self._clock = 0.0
-        self._pending_force: dict[int, np.ndarray] = {}
-        self._external_active = False
         self._candidates = wp.zeros(0, dtype=wp.int32, device=self.device)
         self._candidates_host = np.zeros(0, dtype=np.int32)
         self._reach = 0.0
-        self._pair_margin = 0.0  # margin of the self-collision pair list [m]
-        self._pair_travel = math.inf  # how much closer particles may have come since it was built [m]
-        self._contacts_prev = wp.zeros(16, dtype=wp.int32, device=self.device)
-        self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)
-        self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None
+        self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)  # this substep's body_contacts
+        self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None  # of control.wind
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
         self._features_near = False  # a static mesh or box can reach the cloth this step
@@ -189,8 +262,22 @@ class ClothSystem:
         self._bodies: tuple | None = None  # this step's body arrays as a Warp struct (model.body_arrays; a cache)
         self._pin_dt = 0.0
         self._cache = LaunchCache()
-        self.body_pins = BodyPins(self.device)  # pins that follow bodies (cloth/attach.py)
         self._violated = wp.zeros(1, dtype=wp.int32, device=self.device)
+
+    @property
+    def parts(self) -> tuple[ClothModel, ClothState, ClothControl]:
+        """The cloth's model, state and control parts (the world's `model.cloth`, `state.cloth`, `control.cloth`)."""
+        return self.model, self.state, self.control
+
+    @property
+    def cloths(self) -> list[Cloth]:
+        """Where each cloth lives in the particle arrays, in creation order (kept in the model part)."""
+        return self.model.cloths
+
+    @property
+    def body_pins(self) -> BodyPins:
+        """Pins that follow bodies (kept in the model part)."""
+        return self.model.body_pins
 
     # ------------------------------------------------------------------ building
 
@@ -261,7 +348,7 @@ class ClothSystem:
 
         # particles
         count = nx * ny
-        start = self._particle_count
+        start = self.particles.count
         x = grid.grid_positions(size, (nx, ny), position, q)
         m = np.full(count, total / count)
         inv_m = 1.0 / m
@@ -345,7 +432,7 @@ class ClothSystem:
             drag, lift: aerodynamic coefficients of a cloth face.
             air_density: [kg/m^3].
         """
-        self.wind = Wind(
+        self.control.wind = Wind(
             velocity=validate.vector(velocity, "velocity"),
             turbulence=validate.number(turbulence, "turbulence", low=0.0),
             scale=validate.positive(scale, "scale"),
@@ -354,7 +441,8 @@ class ClothSystem:
             lift=validate.number(lift, "lift", low=0.0),
             air_density=validate.number(air_density, "air_density", low=0.0),
         )
-        wave, amplitude, omega, phase = self.wind.mode_arrays()
+        # the turbulence modes on the device: the stage's, derived from the wind
+        wave, amplitude, omega, phase = self.control.wind.mode_arrays()
         self._wind_modes = (
             wp.array(wave, dtype=vec3, device=self.device),
             wp.array(amplitude, dtype=vec3, device=self.device),
@@ -362,25 +450,30 @@ class ClothSystem:
             wp.array(phase, dtype=float_t, device=self.device),
         )
 
+    @property
+    def wind(self) -> Wind | None:
+        """The wind acting on every cloth (kept in the control part: `world.control.wind`), None for still air."""
+        return self.control.wind
+
     def _append(self, rows: dict[str, np.ndarray]) -> None:
         """Concatenate a new cloth's rows onto the host description and the device state; re-upload."""
-        state = {name: self._arrays[name].numpy()[: self._particle_count] for name in _STATE_FIELDS if self._arrays}
+        n = self.particles.count
+        live = {name: self.particles.numpy(name).copy() for name in _LIVE_FIELDS} if n else {}
         for name, values in rows.items():
-            old = self._host.get(name)
-            if name in state:
-                old = state[name]
+            old = live.get(name, self._host.get(name))
             self._host[name] = values if old is None else np.concatenate([old, values])
         p = len(self._host["particle_mass"])
-        self._particle_count = p
-        for name, dtype in _PARTICLE_FIELDS.items():
-            host = self._host.get(name)
-            self._arrays[name] = (
-                wp.zeros(p, dtype=dtype, device=self.device)
-                if host is None
-                else wp.array(np.ascontiguousarray(host), dtype=dtype, device=self.device)
-            )
+        # every particle row anew, at exactly p rows (kernels run over whole arrays)
+        for part in self.particles.parts:
+            rows_of: dict[str, np.ndarray] = {}
+            for name, dtype in part.fields.items():
+                np_type, tail = numpy_dtype(dtype)
+                host = self._host.get(name)
+                rows_of[name] = np.zeros((p, *tail), np_type) if host is None else np.ascontiguousarray(host, np_type)
+            part.load(rows_of, count=p, capacity=p)
+        top = self.model.topology
         for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
-            self._arrays[name] = wp.array(
+            top[name] = wp.array(
                 np.ascontiguousarray(self._host[name], dtype=np.int32), dtype=wp.int32, device=self.device
             )
         for name in (
@@ -390,20 +483,18 @@ class ClothSystem:
             "structural_rest_length",
             "stretch_limit",
         ):
-            self._arrays[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
-        self._arrays["structural_strain"] = wp.zeros(
-            len(self._host["structural_ids"]), dtype=float_t, device=self.device
-        )
+            top[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
+        self._strain = wp.zeros(len(self._host["structural_ids"]), dtype=float_t, device=self.device)
         self._build_limits()
         self._edge_owner = wp.array(collide.edge_owners(self._host["triangles"]), dtype=wp.int32, device=self.device)
         self._grid = collide.SelfCollisionGrid(p, self.device)
-        self._pair_travel = math.inf
+        self.state.pair_travel = math.inf
         self._reach = float(self._host["particle_thickness"].max())
         self._update_pins()
 
     def _build_limits(self) -> None:
-        """Per particle: its limited springs (other end and limit, `springs.Limits`); the pins' load."""
-        h, dev, p = self._host, self.device, self._particle_count
+        """Per particle: its limited springs (other end and limit, `springs.Limits`)."""
+        h, dev, p = self._host, self.device, self.particles.count
         ids, limit = h["stretch_ids"], h["stretch_limit"]
         ends = np.concatenate([ids[:, 0], ids[:, 1]]).astype(np.int64)
         order = np.argsort(ends, kind="stable")
@@ -411,22 +502,20 @@ class ClothSystem:
         first = (np.cumsum(count) - count).astype(np.int32)
         other = np.concatenate([ids[:, 1], ids[:, 0]])[order].astype(np.int32)
         length = np.concatenate([limit, limit])[order]
-        a = self._arrays
-        a["limit_first"] = wp.array(first, dtype=wp.int32, device=dev)
-        a["limit_count"] = wp.array(count, dtype=wp.int32, device=dev)
-        a["limit_other"] = wp.array(np.resize(other, max(1, len(other))), dtype=wp.int32, device=dev)
-        a["limit_length"] = wp.array(np.resize(length, max(1, len(length))), dtype=float_t, device=dev)
+        top = self.model.topology
+        top["limit_first"] = wp.array(first, dtype=wp.int32, device=dev)
+        top["limit_count"] = wp.array(count, dtype=wp.int32, device=dev)
+        top["limit_other"] = wp.array(np.resize(other, max(1, len(other))), dtype=wp.int32, device=dev)
+        top["limit_length"] = wp.array(np.resize(length, max(1, len(length))), dtype=float_t, device=dev)
         self._limits = springs.Limits()
         for name in ("first", "count", "other", "length"):
-            setattr(self._limits, name, a["limit_" + name])
-        # per pinned particle: the stretch limit's and tethers' pull on it this substep, lambda u [kg m]
-        a["particle_pin_load"] = wp.zeros(p, dtype=vec3, device=dev)
+            setattr(self._limits, name, top["limit_" + name])
         self._pin_impulse = wp.zeros(1, dtype=vec3, device=dev)
 
     def _update_pins(self) -> None:
         """After pins changed: rebuild the tethers to the pins and the stable substep."""
-        self._pair_travel = math.inf
-        inv_m = self._arrays["particle_inv_mass"].numpy()[: self._particle_count]
+        self.state.pair_travel = math.inf
+        inv_m = self.particles.numpy("particle_inv_mass")
         rest = self._host["particle_rest_position"]
         parts, pins, limits = [], [], []
         for cloth in self.cloths:
@@ -442,21 +531,20 @@ class ClothSystem:
         def cat(xs, dtype):
             return np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype)
 
-        self._arrays["pin_index"] = wp.array(
-            np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32, device=self.device
-        )
-        self._arrays["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
-        self._arrays["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
+        top = self.model.topology
+        top["pin_index"] = wp.array(np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32, device=self.device)
+        top["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
+        top["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
         # per particle: its first tether and how many (tethers are sorted by particle)
         owner = cat(parts, np.int32)
-        p = self._particle_count
+        p = self.particles.count
         count = np.bincount(owner, minlength=p).astype(np.int32)
         first = (np.cumsum(count) - count).astype(np.int32)
-        self._arrays["particle_tether_first"] = wp.array(first, dtype=wp.int32, device=self.device)
-        self._arrays["particle_tether_count"] = wp.array(count, dtype=wp.int32, device=self.device)
-        a = self._arrays
+        self.particles.write("particle_tether_first", slice(0, p), first)
+        self.particles.write("particle_tether_count", slice(0, p), count)
+        a = self.particles.arrays
         self._tethers = springs.tether_arrays(
-            a["particle_tether_first"], a["particle_tether_count"], a["tether_pin"], a["tether_limit"]
+            a["particle_tether_first"], a["particle_tether_count"], top["tether_pin"], top["tether_limit"]
         )
         self._cache.clear()
         self._update_stable_step()
@@ -464,13 +552,15 @@ class ClothSystem:
     def _update_stable_step(self) -> None:
         """Largest stable substep for the current springs, masses and pins."""
         h = self._host
-        p = self._particle_count
+        p = self.particles.count
         stiffness = np.zeros(p)
         damping = np.zeros(p)
         for end in (0, 1):
             np.add.at(stiffness, h["spring_ids"][:, end], h["spring_stiffness"])
             np.add.at(damping, h["spring_ids"][:, end], h["spring_damping"])
-        self._stable_h = springs.stable_substep(stiffness, damping, self._arrays["particle_inv_mass"].numpy()[:p])
+        self._stable_h = springs.stable_substep(
+            stiffness, damping, self.particles.arrays["particle_inv_mass"].numpy()[:p]
+        )
 
     # ------------------------------------------------------------------ stepping
 
@@ -497,7 +587,7 @@ class ClothSystem:
             bodies: the world's body `ArraySet` (read; dynamic bodies receive the cloth's pushes and pulls).
             hulls: the world's `Hulls` struct; meshes: its static meshes (`MeshSet.struct()`).
         """
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return
         self._clock += h
         hc = self._cloth_h
@@ -509,7 +599,7 @@ class ClothSystem:
     def end_step(self, *, bodies, hulls, meshes) -> None:
         """Stage, once after the world step's last substep: any cloth substep that rounding left is run,
         so that every step runs exactly `substeps_for(dt)` of them (arguments as `substep`)."""
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return
         while self._cloth_done < self._cloth_total:
             self._cloth_substep(self._cloth_h, bodies, hulls, meshes)
@@ -518,17 +608,17 @@ class ClothSystem:
     def _cloth_substep(self, hi: float, bodies, hulls, meshes) -> None:
         """One cloth substep of `hi` seconds: forces, integration, constraints, collisions, velocities."""
         gravity = self._gravity
-        a = self._arrays
+        a, top = self.particles.arrays, self.model.topology
         total = self._cloth_total
         cache = self._cache
         # forces: springs, then air on every triangle
         springs.accumulate_spring_forces(
             a["particle_position"],
             a["particle_velocity"],
-            a["spring_ids"],
-            a["spring_rest_length"],
-            a["spring_stiffness"],
-            a["spring_damping"],
+            top["spring_ids"],
+            top["spring_rest_length"],
+            top["spring_stiffness"],
+            top["spring_damping"],
             a["particle_force"],
             cache=cache,
         )
@@ -538,7 +628,7 @@ class ClothSystem:
                 a["particle_position"],
                 a["particle_velocity"],
                 a["particle_wind"],
-                a["triangles"],
+                top["triangles"],
                 w.drag,
                 w.lift,
                 w.air_density,
@@ -548,7 +638,7 @@ class ClothSystem:
 
         self.body_pins.react(a, bodies, gravity, hi)  # the pull on body pins moves their bodies
         attach.sum_pin_load(
-            a["pin_index"], a["particle_force"], a["particle_mass"], gravity, self._pin_impulse, hi, cache=cache
+            top["pin_index"], a["particle_force"], a["particle_mass"], gravity, self._pin_impulse, hi, cache=cache
         )
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
@@ -611,7 +701,7 @@ class ClothSystem:
                 a["particle_inv_mass"],
                 a["particle_thickness"],
                 a["particle_friction"],
-                a["triangles"],
+                top["triangles"],
                 self._edge_owner,
                 self._candidates,
                 self._bodies[0],
@@ -629,7 +719,7 @@ class ClothSystem:
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
         self.body_pins.react_constraints(a, bodies, hi)
         attach.sum_pin_load(
-            a["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
+            top["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
         )
 
         # velocities from the corrected positions
@@ -641,7 +731,7 @@ class ClothSystem:
         """The stretch limit: tethers to the pins (unless `tethers` is False), then Provot's sweeps
         (`stretch_iterations`, the minimum replaced by `min_iterations` if given; over-relaxed by
         `relax`); the pins' share goes into `pin_load`. Returns the number of sweeps."""
-        a = self._arrays
+        a, top = self.particles.arrays, self.model.topology
         if tethers:
             springs.limit_tethers(
                 a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=self._cache
@@ -650,8 +740,8 @@ class ClothSystem:
         return springs.limit_stretch(
             a["particle_position"],
             a["particle_inv_mass"],
-            a["stretch_ids"],
-            a["stretch_limit"],
+            top["stretch_ids"],
+            top["stretch_limit"],
             self._violated,
             pin_load=pin_load,
             min_iterations=lo_it if min_iterations is None else min_iterations,
@@ -662,7 +752,7 @@ class ClothSystem:
 
     def _collide_bodies(self, hi: float, hulls, meshes) -> None:
         """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
-        a = self._arrays
+        a, top = self.particles.arrays, self.model.topology
         assert self._bodies is not None  # set by begin_step
         bodies = self._bodies[0]
         self._contacts_next.zero_()
@@ -678,7 +768,7 @@ class ClothSystem:
             bodies,
             hulls,
             meshes,
-            self._contacts_prev,
+            self.state.body_contacts,
             self._contacts_next,
             a["particle_pin_load"],
             hi,
@@ -693,15 +783,15 @@ class ClothSystem:
             a["particle_thickness"],
             a["particle_friction"],
             self._tethers,
-            a["triangles"],
+            top["triangles"],
             self._candidates,
             bodies,
-            self._contacts_prev,
+            self.state.body_contacts,
             self._contacts_next,
             hi,
             cache=self._cache,
         )
-        self._contacts_prev, self._contacts_next = self._contacts_next, self._contacts_prev
+        self.state.body_contacts, self._contacts_next = self._contacts_next, self.state.body_contacts
 
     def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
@@ -714,10 +804,10 @@ class ClothSystem:
             time: the world's clock at the start of the step [s] (the wind's time).
             step: the world's step count (named in errors).
         """
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return
         dt = h * max(1, int(substeps))
-        a = self._arrays
+        a = self.particles.arrays
         self._gravity = np.array(gravity, dtype=np.float64)
         self._bodies = body_arrays(bodies, self._bodies)
         self._substep_index = 0
@@ -725,24 +815,25 @@ class ClothSystem:
         self._pin_dt = dt
         self._cloth_done = 0
         self._clock = 0.0
-        p = self._particle_count
+        p = self.particles.count
 
         # user forces apply during this step only
-        if self._pending_force or self._external_active:
+        if self.control.forces or self.control.forces_applied:
             f = np.zeros((p, 3))
-            for i, force in self._pending_force.items():
+            for i, force in self.control.forces.items():
                 f[i] += force
             a["particle_external_force"].assign(f)
-            self._external_active = bool(self._pending_force)
-            self._pending_force = {}
+            self.control.forces_applied = bool(self.control.forces)
+            self.control.forces = {}
 
         # wind: sample the field at every particle at the start of the step
-        if self.wind is not None:
+        wind = self.control.wind
+        if wind is not None:
             assert self._wind_modes is not None  # set with the wind
             wave, amplitude, omega, phase = self._wind_modes
             sample_wind(
                 a["particle_position"],
-                self.wind.velocity,
+                wind.velocity,
                 wave,
                 amplitude,
                 omega,
@@ -772,10 +863,10 @@ class ClothSystem:
         # sum reaches the margin, then it is rebuilt (rarely, once the cloth has settled)
         assert self._grid is not None  # made with the first cloth (_append)
         if self.self_collision:
-            self._pair_travel += 2.0 * speed * dt
-            if self._pair_travel >= self._pair_margin:
-                self._pair_margin = min(max(0.25 * self._reach, 2.0 * speed * dt), self._reach)
-                self._pair_travel = 2.0 * speed * dt
+            self.state.pair_travel += 2.0 * speed * dt
+            if self.state.pair_travel >= self.state.pair_margin:
+                self.state.pair_margin = min(max(0.25 * self._reach, 2.0 * speed * dt), self._reach)
+                self.state.pair_travel = 2.0 * speed * dt
                 self._grid.find_pairs(
                     a["particle_position"],
                     a["particle_inv_mass"],
@@ -784,12 +875,12 @@ class ClothSystem:
                     a["particle_i"],
                     a["particle_j"],
                     self._reach,
-                    self._pair_margin,
+                    self.state.pair_margin,
                     cache=self._cache,
                 )
         else:
             self._grid.count = 0
-            self._pair_travel = math.inf
+            self.state.pair_travel = math.inf
 
         # bodies that can reach the cloth during this step
         n_bodies = bodies.count
@@ -802,11 +893,11 @@ class ClothSystem:
         if not np.array_equal(candidates, self._candidates_host):
             self._candidates_host = candidates
             self._candidates = wp.array(candidates, dtype=wp.int32, device=self.device)
-        if self._contacts_prev.shape[0] < n_bodies:
+        if self.state.body_contacts.shape[0] < n_bodies:
             size = max(16, 2 * n_bodies)
             prev = np.zeros(size, dtype=np.int32)
-            prev[: self._contacts_prev.shape[0]] = self._contacts_prev.numpy()
-            self._contacts_prev = wp.array(prev, dtype=wp.int32, device=self.device)
+            prev[: self.state.body_contacts.shape[0]] = self.state.body_contacts.numpy()
+            self.state.body_contacts = wp.array(prev, dtype=wp.int32, device=self.device)
             self._contacts_next = wp.zeros(size, dtype=wp.int32, device=self.device)
 
         # cloth substeps: the springs' stable count; while a dynamic body can reach the cloth, at
@@ -816,7 +907,7 @@ class ClothSystem:
         near = candidates[bodies.numpy("body_inv_mass")[candidates] > 0.0] if len(candidates) else candidates
         if len(near) and self.body_pins.count:
             holder = np.isin(near, self.body_pins.body.numpy()[: self.body_pins.count])
-            near = near[~holder | (self._contacts_prev.numpy()[near] > 0)]
+            near = near[~holder | (self.state.body_contacts.numpy()[near] > 0)]
         self._bodies_near = bool(len(near))
         shape = bodies.numpy("body_shape")[candidates]
         static_box = (shape == int(ShapeType.BOX)) & (bodies.numpy("body_inv_mass")[candidates] == 0.0)
@@ -832,17 +923,17 @@ class ClothSystem:
         the last substep's per-body contact counts (the next substep's are zeroed before use)."""
         self.body_pins.remap_bodies(slot)
         n = len(slot)
-        size = self._contacts_prev.shape[0]
+        size = self.state.body_contacts.shape[0]
         host = np.zeros(max(size, n), dtype=np.int32)
-        host[:size] = self._contacts_prev.numpy()
+        host[:size] = self.state.body_contacts.numpy()
         kept = slot >= 0  # a removed body (-1) takes its counts with it
         moved = host[:n][kept]
         host[:n] = 0
         host[slot[kept]] = moved
         if len(host) == size:
-            self._contacts_prev.assign(host)
+            self.state.body_contacts.assign(host)
         else:
-            self._contacts_prev = wp.array(host, dtype=wp.int32, device=self.device)
+            self.state.body_contacts = wp.array(host, dtype=wp.int32, device=self.device)
             self._contacts_next = wp.zeros(len(host), dtype=wp.int32, device=self.device)
 
     # ------------------------------------------------------------------ user interaction
@@ -851,21 +942,21 @@ class ClothSystem:
         """Apply a force [N] to one particle during the next world step only (e.g. a viewer drag)."""
         i = self._particle(particle)
         f = validate.vector(force, "force")
-        self._pending_force[i] = self._pending_force.get(i, np.zeros(3)) + f
+        self.control.forces[i] = self.control.forces.get(i, np.zeros(3)) + f
 
     def set_pin_target(self, particle: int, position: Sequence[float]) -> None:
         """Move a pinned particle to `position` [m] by the end of the next world step (pins it if free)."""
         i = self._particle(particle)
         target = validate.vector(position, "position")
         self._write("particle_pin_target", i, target)
-        if self._arrays["particle_inv_mass"].numpy()[i] != 0.0:
+        if self.particles.arrays["particle_inv_mass"].numpy()[i] != 0.0:
             self._write("particle_inv_mass", i, 0.0)
             self._update_pins()
 
     def pin(self, particle: int) -> None:
         """Pin a particle where it is now."""
         i = self._particle(particle)
-        self.set_pin_target(i, self._arrays["particle_position"].numpy()[i])
+        self.set_pin_target(i, self.particles.arrays["particle_position"].numpy()[i])
         self._write("particle_velocity", i, np.zeros(3))
 
     def pin_to_body(self, particles, body: BodyId) -> None:
@@ -884,7 +975,7 @@ class ClothSystem:
         `orientation` (x, y, z, w), where they are now (the world's side of `pin_to_body`)."""
         idx = np.unique(np.asarray([self._particle(p) for p in np.atleast_1d(particles)], dtype=np.int64))
         x, q = np.asarray(position, dtype=np.float64), np.asarray(orientation, dtype=np.float64)
-        offset = self._arrays["particle_position"].numpy()[idx] - x
+        offset = self.particles.arrays["particle_position"].numpy()[idx] - x
         # into the body frame: rotate by the conjugate quaternion (x, y, z, w)
         u, w = -q[:3], q[3]
         t = 2.0 * np.cross(u, offset)
@@ -902,44 +993,40 @@ class ClothSystem:
 
     def _particle(self, particle) -> int:
         i = validate.integer(particle, "particle", low=0)
-        if not 0 <= i < self._particle_count:
-            raise ValueError(f"particle index {particle!r} out of range 0..{self._particle_count - 1}")
+        if not 0 <= i < self.particles.count:
+            raise ValueError(f"particle index {particle!r} out of range 0..{self.particles.count - 1}")
         return i
 
     def _write(self, name: str, index: int, value) -> None:
-        arr = self._arrays[name]
-        host = arr.numpy()
-        host[index] = value
-        if self.device != "cpu":
-            arr.assign(host)
+        self.particles.write(name, index, value)
 
     def set_state(self, *, position=None, velocity=None) -> None:
         """Overwrite particle positions [m] and/or velocities [m/s], each shape (P, 3).
 
         Pinned particles also get `position` as their pin target.
         """
-        p = self._particle_count
+        p = self.particles.count
         for name, values in (("particle_position", position), ("particle_velocity", velocity)):
             if values is None:
                 continue
             a = validate.array(values, name.split("_")[1], f"finite numbers of shape ({p}, 3)")
             if a.shape != (p, 3) or not np.all(np.isfinite(a)):
                 raise ValueError(f"{name.split('_')[1]} must be finite with shape ({p}, 3), got shape {a.shape}")
-            self._arrays[name].assign(a)
-            self._pair_travel = math.inf  # rebuild the self-collision pairs
+            self.particles.arrays[name].assign(a)
+            self.state.pair_travel = math.inf  # rebuild the self-collision pairs
             if name == "particle_position":
                 pinned = self.particle_inv_mass == 0.0
-                target = self._arrays["particle_pin_target"].numpy()[:p].copy()
+                target = self.particles.arrays["particle_pin_target"].numpy()[:p].copy()
                 target[pinned] = a[pinned]
-                self._arrays["particle_pin_target"].assign(target)
+                self.particles.arrays["particle_pin_target"].assign(target)
 
     # ------------------------------------------------------------------ views and diagnostics
 
     def _view(self, name: str) -> np.ndarray:
         """A read-only copy of one particle array (read afresh on each access, as the World's views)."""
-        if not self._arrays:
+        if self.particles.count == 0:
             return readonly(np.zeros((0, 3)))
-        return readonly(self._arrays[name].numpy()[: self._particle_count].copy())
+        return readonly(self.particles.arrays[name].numpy()[: self.particles.count].copy())
 
     def cloth(self, handle: ClothId | int) -> Cloth:
         """Where the cloth `handle` (from `World.add_cloth`) lives in the particle arrays."""
@@ -957,7 +1044,7 @@ class ClothSystem:
     @property
     def particle_count(self) -> int:
         """Number of cloth particles, P (all cloths)."""
-        return self._particle_count
+        return self.particles.count
 
     @property
     def triangle_count(self) -> int:
@@ -989,9 +1076,9 @@ class ClothSystem:
     @property
     def particle_inv_mass(self) -> np.ndarray:
         """Particle inverse masses [1/kg], shape (P,); 0 for pinned particles."""
-        if not self._arrays:
+        if self.particles.count == 0:
             return readonly(np.zeros(0))
-        return readonly(self._arrays["particle_inv_mass"].numpy()[: self._particle_count])
+        return readonly(self.particles.arrays["particle_inv_mass"].numpy()[: self.particles.count])
 
     @property
     def triangles(self) -> np.ndarray:
@@ -1009,32 +1096,30 @@ class ClothSystem:
 
     def max_strain(self) -> float:
         """Largest strain (|xj - xi| - l0) / l0 over the structural springs (0.1 = 10 % longer)."""
-        if not self._arrays or len(self._host["structural_ids"]) == 0:
+        if self.particles.count == 0 or len(self._host["structural_ids"]) == 0:
             return 0.0
-        a = self._arrays
-        s = springs.strain(
-            a["particle_position"], a["structural_ids"], a["structural_rest_length"], a["structural_strain"]
-        )
+        a, top = self.particles.arrays, self.model.topology
+        s = springs.strain(a["particle_position"], top["structural_ids"], top["structural_rest_length"], self._strain)
         return float(s.max())
 
     def pin_force(self) -> np.ndarray:
         """Mean force [N] the cloth exerted on all its pins (fixed and on bodies) over the last world
         step, shape (3,): the springs' and the stretch limit's pull on them and the pinned particles'
         weight. At rest it balances the weight of the cloth and of whatever the cloth carries."""
-        if not self._arrays or not getattr(self, "_pin_dt", 0.0):
+        if self.particles.count == 0 or not getattr(self, "_pin_dt", 0.0):
             return np.zeros(3)
         return self._pin_impulse.numpy()[0] / self._pin_dt
 
     def kinetic_energy(self) -> float:
         """Kinetic energy of the cloth [J]: sum 1/2 m v^2."""
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return 0.0
         v = self._view("particle_velocity")
         return 0.5 * float(np.sum(self._host["particle_mass"] * np.einsum("ij,ij->i", v, v)))
 
     def momentum(self) -> np.ndarray:
         """Linear momentum of the cloth [kg m/s]: sum m v, shape (3,)."""
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return np.zeros(3)
         return self._host["particle_mass"] @ self._view("particle_velocity")
 
@@ -1044,7 +1129,7 @@ class ClothSystem:
         Args:
             gravity: [m/s^2], shape (3,); default the last step's (or the world's when the cloth was made).
         """
-        if self._particle_count == 0:
+        if self.particles.count == 0:
             return 0.0
         g = self._gravity if gravity is None else np.asarray(gravity, dtype=np.float64)
         x = self._view("particle_position")

@@ -109,8 +109,8 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays, body_arrays
-from ..state import ArraySet, float_t, quat, readonly, vec3
+from ..model import BodyArrays, Field, Role, body_arrays, fields_of
+from ..state import ArraySet, RowGroup, float_t, quat, readonly, vec3
 from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_world, safe_inverse
 
@@ -143,42 +143,45 @@ JOINT_NAMES = {
     "rope": JointKind.DISTANCE,
 }
 
-JOINT_FIELDS = {
-    # model
-    "joint_kind": wp.int32,  # JointKind
-    "joint_body_a": wp.int32,  # body row, or -1 for the world (a fixed frame at the origin)
-    "joint_body_b": wp.int32,
-    "joint_local_a": vec3,  # anchor in body a's frame [m] (in the world for the world)
-    "joint_local_b": vec3,
-    "joint_frame_a": quat,  # joint frame in body a's frame; its x axis is the hinge / slider axis
-    "joint_frame_b": quat,
-    "joint_limit": wp.int32,  # 1 = lower/upper rows act
-    "joint_lower": float_t,  # hinge [rad], slider [m], distance: min length [m]
-    "joint_upper": float_t,  # hinge [rad], slider [m], distance: max length [m]
-    "joint_motor": wp.int32,  # 1 = motor acts (hinge, slider)
-    "joint_motor_speed": float_t,  # target speed [rad/s] or [m/s], b relative to a
-    "joint_motor_max": float_t,  # largest motor torque [N m] or force [N]
-    "joint_length": float_t,  # distance: rest length of the spring [m]
-    "joint_stiffness": float_t,  # distance spring [N/m] (0 = none)
-    "joint_damping": float_t,  # distance spring damping [N s/m]
-    "joint_break_force": float_t,  # [N]; inf = unbreakable
-    "joint_collide": wp.int32,  # 1 = the pair still collides
-    "joint_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
-    # state
-    "joint_enabled": wp.int32,  # 0 once broken
-    "joint_impulse_linear": vec3,  # point / slider-line impulse on b, world [N s]
-    "joint_impulse_angular": vec3,  # angular impulse on b, world [N m s]
-    "joint_impulse_axial": float_t,  # motor or spring impulse along the axial row
-    "joint_impulse_lower": float_t,  # lower limit impulse (>= 0)
-    "joint_impulse_upper": float_t,  # upper limit impulse (>= 0)
-    "joint_sum_linear": vec3,  # the step's substep impulses summed, for the step's mean force
-    "joint_sum_angular": vec3,
-    "joint_force": vec3,  # mean force on b over the last step, world [N]
-    "joint_torque": vec3,  # mean torque on b over the last step, world [N m]
-}
+_M, _S, _X = Role.MODEL, Role.STATE, Role.SCRATCH
+
+#: every per-joint array, declared once (as `tumble.model.BODY_FIELDS` declares the body arrays): the
+#: definitions are the model's (`world.model.joints`), what changes while stepping the state's
+#: (`world.state.joints`), the step's running sums the solver's scratch
+JOINT_FIELDS: tuple[Field, ...] = (
+    Field("joint_kind", wp.int32, _M, "", "JointKind"),
+    Field("joint_body_a", wp.int32, _M, "", "body row, or -1 for the world (a fixed frame at the origin)"),
+    Field("joint_body_b", wp.int32, _M, "", "body row, or -1 for the world"),
+    Field("joint_local_a", vec3, _M, "m", "anchor in body a's frame (in the world for the world)"),
+    Field("joint_local_b", vec3, _M, "m", "anchor in body b's frame"),
+    Field("joint_frame_a", quat, _M, "", "joint frame in body a's frame; its x axis is the hinge / slider axis"),
+    Field("joint_frame_b", quat, _M, "", "joint frame in body b's frame"),
+    Field("joint_limit", wp.int32, _M, "", "1 = lower/upper rows act"),
+    Field("joint_lower", float_t, _M, "", "lower limit: hinge [rad], slider [m], distance: min length [m]"),
+    Field("joint_upper", float_t, _M, "", "upper limit: hinge [rad], slider [m], distance: max length [m]"),
+    Field("joint_motor", wp.int32, _M, "", "1 = motor acts (hinge, slider)"),
+    Field("joint_motor_speed", float_t, _M, "", "motor target speed [rad/s] or [m/s], b relative to a"),
+    Field("joint_motor_max", float_t, _M, "", "largest motor torque [N m] or force [N]"),
+    Field("joint_length", float_t, _M, "m", "distance: rest length of the spring"),
+    Field("joint_stiffness", float_t, _M, "N/m", "distance spring stiffness (0 = none)"),
+    Field("joint_damping", float_t, _M, "N s/m", "distance spring damping"),
+    Field("joint_break_force", float_t, _M, "N", "the joint breaks above this mean force; inf = unbreakable"),
+    Field("joint_collide", wp.int32, _M, "", "1 = the pair still collides"),
+    Field("joint_scale", float_t, _M, "", "impulse scale: 1 on the CPU; Jacobi relaxation on CUDA"),
+    Field("joint_enabled", wp.int32, _S, "", "1 while acting, 0 once broken"),
+    Field("joint_impulse_linear", vec3, _S, "N s", "point / slider-line impulse on b, world (the warm start)"),
+    Field("joint_impulse_angular", vec3, _S, "N m s", "angular impulse on b, world"),
+    Field("joint_impulse_axial", float_t, _S, "", "motor or spring impulse along the axial row"),
+    Field("joint_impulse_lower", float_t, _S, "", "lower limit impulse (>= 0)"),
+    Field("joint_impulse_upper", float_t, _S, "", "upper limit impulse (>= 0)"),
+    Field("joint_sum_linear", vec3, _X, "N s", "the step's substep impulses summed, for the step's mean force"),
+    Field("joint_sum_angular", vec3, _X, "N m s", "the step's angular substep impulses summed"),
+    Field("joint_force", vec3, _S, "N", "mean force on b over the last step, world"),
+    Field("joint_torque", vec3, _S, "N m", "mean torque on b over the last step, world"),
+)
 
 #: the joint arrays as the kernels take them: `joint_body_a` is `j.body_a`
-Joints = array_struct("Joints", JOINT_FIELDS, "joint_", __name__)
+Joints = array_struct("Joints", fields_of(JOINT_FIELDS), "joint_", __name__)
 
 # the kinds as plain ints, for the compile-time branches (wp.static) of the solve kernels
 _BALL, _HINGE, _SLIDER, _FIXED, _DISTANCE = (int(k) for k in JointKind)
@@ -1030,11 +1033,24 @@ def ball_chains(body_a: np.ndarray, body_b: np.ndarray) -> tuple[np.ndarray, np.
     return np.array(order, dtype=np.int32), np.array(starts, dtype=np.int32)
 
 
-class JointSet(ArraySet):
-    """Joint arrays (see JOINT_FIELDS), in creation order, and the pair filter they imply."""
+class JointSet(RowGroup):
+    """The joint rows (see JOINT_FIELDS), in creation order, as one table, and the solver's data.
+
+    Its parts share the rows: the definitions (`definitions`, the world's `model.joints`), what
+    changes while stepping (`impulses`, the world's `state.joints`) and the step's sums (the
+    solver's scratch). Beside them the solver keeps what it derives from the definitions (the
+    pair filter's keys, the ball joints' chains) and the per-body geometric load of the last
+    step (`_finish` sums it; a resume needs it, so snapshots keep it with the solver).
+    """
 
     def __init__(self, device: str):
-        super().__init__(JOINT_FIELDS, device=device, capacity=16)
+        shared: dict[str, wp.array] = {}
+        super().__init__(
+            *(
+                ArraySet(fields_of(JOINT_FIELDS, role), device=device, capacity=16, arrays=shared)
+                for role in (Role.MODEL, Role.STATE, Role.SCRATCH)
+            )
+        )
         self._pairs = _Pairs(device)
         self._keys: wp.array | None = None  # sorted keys of the non-colliding jointed pairs, and their joints
         self._key_joint: wp.array | None = None
@@ -1050,6 +1066,16 @@ class JointSet(ArraySet):
         self._chain_scratch: _ChainScratch | None = None
 
     # -------------------------------------------------------------- building
+
+    @property
+    def definitions(self) -> ArraySet:
+        """The model's joint rows: kind, bodies, anchors, frames, limits, motors, springs, break force."""
+        return self.parts[0]
+
+    @property
+    def impulses(self) -> ArraySet:
+        """The state's joint rows: accumulated impulses (the warm start), forces, broken flags."""
+        return self.parts[1]
 
     def add(self, rows: dict[str, np.ndarray]) -> range:
         """Append joints given as NumPy rows (see `World.add_joint`); returns their rows."""
