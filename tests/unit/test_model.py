@@ -118,3 +118,71 @@ def test_numpy_views_match_declared_shapes(world):
     for f in BODY_FIELDS:
         assert world.bodies.numpy(f.name).shape == (3, *f.shape), f.name
         assert world.bodies.arrays[f.name].dtype == f.dtype, f.name
+
+
+def _flag_on_a_hinge() -> tumble.World:
+    """A cloth in the wind beside a hinged box: every part has cloth and joint rows."""
+    w = tumble.World(dt=1 / 240, substeps=2)
+    box = w.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1), mass=1.0)
+    w.add_joint("hinge", None, box, anchor=(0, 0, 1.2), axis=(1, 0, 0))
+    w.add_cloth(size=(0.4, 0.3), resolution=(5, 4), position=(1, 0, 1), pins="top-edge")
+    w.set_wind(velocity=(0.0, 2.0, 0.0))
+    return w
+
+
+def test_joint_fields_split_between_model_state_and_the_solver():
+    """JOINT_FIELDS: definitions to the model, impulses and broken flags to the state, the step's sums are scratch."""
+    from tumble.solver.joints import JOINT_FIELDS, Joints
+
+    role = {f.name: f.role for f in JOINT_FIELDS}
+    assert role["joint_kind"] is role["joint_local_a"] is role["joint_break_force"] is Role.MODEL
+    assert role["joint_enabled"] is role["joint_impulse_linear"] is role["joint_force"] is Role.STATE
+    assert role["joint_sum_linear"] is Role.SCRATCH
+    # the kernels' one struct has every field, in declaration order
+    assert list(Joints.vars) == [f.name.removeprefix("joint_") for f in JOINT_FIELDS]  # type: ignore[attr-defined]
+    w = _flag_on_a_hinge()
+    assert set(w.model.joints.fields) == set(fields_of(JOINT_FIELDS, Role.MODEL))
+    assert set(w.state.joints.fields) == set(fields_of(JOINT_FIELDS, Role.STATE))
+    assert w.model.joints.count == w.state.joints.count == w.joint_count == 1
+    definitions = {n: w.model.joints.numpy(n).copy() for n in w.model.joints.fields}
+    w.run(0.1)
+    for n, values in definitions.items():
+        np.testing.assert_array_equal(w.model.joints.numpy(n), values, err_msg=n)
+    assert np.abs(w.state.joints.numpy("joint_impulse_linear")).max() > 0.0
+
+
+def test_cloth_particles_split_between_model_state_and_control():
+    """PARTICLE_FIELDS: masses and pins to the model, positions to the state, drags to the control; wind too."""
+    from tumble.cloth.system import PARTICLE_FIELDS
+
+    w = _flag_on_a_hinge()
+    assert (w.model.cloth, w.state.cloth, w.control.cloth) == w.cloth.parts
+    for role, part in ((Role.MODEL, w.model.cloth), (Role.STATE, w.state.cloth), (Role.CONTROL, w.control.cloth)):
+        assert set(part.particles.fields) == set(fields_of(PARTICLE_FIELDS, role))
+        assert part.particles.count == w.cloth.particle_count == 20
+    # one table over the parts' arrays and the stage's scratch rows
+    assert set(w.cloth.particles.fields) == {f.name for f in PARTICLE_FIELDS}
+    assert w.cloth.particles.arrays["particle_position"] is w.state.cloth.particles.arrays["particle_position"]
+    assert "spring_ids" in w.model.cloth.topology and len(w.model.cloth.cloths) == 1
+    assert w.control.wind is w.cloth.wind and w.control.wind.velocity[1] == 2.0
+    mass = w.model.cloth.particles.numpy("particle_mass").copy()
+    x = w.state.cloth.particles.numpy("particle_position").copy()
+    w.cloth.apply_force(7, (0.0, 0.0, 1.0))
+    assert w.control.cloth.forces
+    w.step()
+    assert not w.control.cloth.forces
+    assert w.control.cloth.particles.numpy("particle_external_force")[7, 2] == 1.0  # during that step
+    w.step()
+    np.testing.assert_array_equal(w.control.cloth.particles.numpy("particle_external_force"), 0.0)
+    np.testing.assert_array_equal(w.model.cloth.particles.numpy("particle_mass"), mass)
+    assert not np.array_equal(w.state.cloth.particles.numpy("particle_position"), x)
+
+
+def test_snapshots_hold_cloth_and_joint_state_once_and_no_scratch():
+    w = _flag_on_a_hinge()
+    w.run(0.05)
+    saved = set(w.snapshot().arrays)
+    for name in ("particle_position", "particle_mass", "particle_external_force", "joint_kind", "joint_impulse_linear"):
+        assert len([p for p in saved if p.endswith("/" + name)]) == 1, name
+    for name in ("particle_force", "particle_position_prev", "particle_wind", "joint_sum_linear"):
+        assert not any(p.endswith("/" + name) for p in saved), name

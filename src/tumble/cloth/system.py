@@ -43,7 +43,7 @@ from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Field, Role, body_arrays, fields_of
 from ..shapes import ShapeType
-from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, float_t, numpy_dtype, readonly, vec3
+from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, float_t, host_view, numpy_dtype, readonly, vec3
 from . import attach, collide, grid, springs
 from .attach import BodyPins
 from .wind import Wind, accumulate_air_forces, sample_wind
@@ -243,7 +243,6 @@ class ClothSystem:
         self.substeps: int | None = None
         self.min_substeps = 1
 
-        self._host: dict[str, np.ndarray] = {}  # static description, concatenated over cloths
         self._stable_h = math.inf
         self._substep_index = 0
         self._cloth_total = 0
@@ -390,7 +389,7 @@ class ClothSystem:
             nx=nx,
             ny=ny,
             size=size,
-            triangle_start=len(self._host.get("triangles", ())),
+            triangle_start=self.triangle_count,
             triangle_count=len(triangles),
             max_stretch=max_stretch,
         )
@@ -457,25 +456,22 @@ class ClothSystem:
 
     def _append(self, rows: dict[str, np.ndarray]) -> None:
         """Concatenate a new cloth's rows onto the host description and the device state; re-upload."""
+        # the live rows (positions, pins, ...) and topology, with the new cloth's after them
         n = self.particles.count
-        live = {name: self.particles.numpy(name).copy() for name in _LIVE_FIELDS} if n else {}
-        for name, values in rows.items():
-            old = live.get(name, self._host.get(name))
-            self._host[name] = values if old is None else np.concatenate([old, values])
-        p = len(self._host["particle_mass"])
+        host = {name: values if not n else np.concatenate([self._host(name), values]) for name, values in rows.items()}
+        p = len(host["particle_mass"])
         # every particle row anew, at exactly p rows (kernels run over whole arrays)
         for part in self.particles.parts:
             rows_of: dict[str, np.ndarray] = {}
             for name, dtype in part.fields.items():
                 np_type, tail = numpy_dtype(dtype)
-                host = self._host.get(name)
-                rows_of[name] = np.zeros((p, *tail), np_type) if host is None else np.ascontiguousarray(host, np_type)
+                rows_of[name] = (
+                    np.ascontiguousarray(host[name], np_type) if name in host else np.zeros((p, *tail), np_type)
+                )
             part.load(rows_of, count=p, capacity=p)
         top = self.model.topology
         for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
-            top[name] = wp.array(
-                np.ascontiguousarray(self._host[name], dtype=np.int32), dtype=wp.int32, device=self.device
-            )
+            top[name] = wp.array(np.ascontiguousarray(host[name], dtype=np.int32), dtype=wp.int32, device=self.device)
         for name in (
             "spring_rest_length",
             "spring_stiffness",
@@ -483,19 +479,19 @@ class ClothSystem:
             "structural_rest_length",
             "stretch_limit",
         ):
-            top[name] = wp.array(self._host[name], dtype=float_t, device=self.device)
-        self._strain = wp.zeros(len(self._host["structural_ids"]), dtype=float_t, device=self.device)
+            top[name] = wp.array(host[name], dtype=float_t, device=self.device)
+        self._strain = wp.zeros(len(host["structural_ids"]), dtype=float_t, device=self.device)
         self._build_limits()
-        self._edge_owner = wp.array(collide.edge_owners(self._host["triangles"]), dtype=wp.int32, device=self.device)
+        self._edge_owner = wp.array(collide.edge_owners(host["triangles"]), dtype=wp.int32, device=self.device)
         self._grid = collide.SelfCollisionGrid(p, self.device)
         self.state.pair_travel = math.inf
-        self._reach = float(self._host["particle_thickness"].max())
+        self._reach = float(host["particle_thickness"].max())
         self._update_pins()
 
     def _build_limits(self) -> None:
         """Per particle: its limited springs (other end and limit, `springs.Limits`)."""
-        h, dev, p = self._host, self.device, self.particles.count
-        ids, limit = h["stretch_ids"], h["stretch_limit"]
+        dev, p = self.device, self.particles.count
+        ids, limit = self._host("stretch_ids"), self._host("stretch_limit")
         ends = np.concatenate([ids[:, 0], ids[:, 1]]).astype(np.int64)
         order = np.argsort(ends, kind="stable")
         count = np.bincount(ends, minlength=p).astype(np.int32)
@@ -516,7 +512,7 @@ class ClothSystem:
         """After pins changed: rebuild the tethers to the pins and the stable substep."""
         self.state.pair_travel = math.inf
         inv_m = self.particles.numpy("particle_inv_mass")
-        rest = self._host["particle_rest_position"]
+        rest = self._host("particle_rest_position")
         parts, pins, limits = [], [], []
         for cloth in self.cloths:
             if cloth.max_stretch is None:
@@ -551,13 +547,13 @@ class ClothSystem:
 
     def _update_stable_step(self) -> None:
         """Largest stable substep for the current springs, masses and pins."""
-        h = self._host
         p = self.particles.count
+        ids = self._host("spring_ids")
         stiffness = np.zeros(p)
         damping = np.zeros(p)
         for end in (0, 1):
-            np.add.at(stiffness, h["spring_ids"][:, end], h["spring_stiffness"])
-            np.add.at(damping, h["spring_ids"][:, end], h["spring_damping"])
+            np.add.at(stiffness, ids[:, end], self._host("spring_stiffness"))
+            np.add.at(damping, ids[:, end], self._host("spring_damping"))
         self._stable_h = springs.stable_substep(
             stiffness, damping, self.particles.arrays["particle_inv_mass"].numpy()[:p]
         )
@@ -988,7 +984,7 @@ class ClothSystem:
         """Release a pinned particle; it keeps its current velocity."""
         i = self._particle(particle)
         self.body_pins.remove([i])
-        self._write("particle_inv_mass", i, 1.0 / self._host["particle_mass"][i])
+        self._write("particle_inv_mass", i, 1.0 / self._host("particle_mass")[i])
         self._update_pins()
 
     def _particle(self, particle) -> int:
@@ -996,6 +992,15 @@ class ClothSystem:
         if not 0 <= i < self.particles.count:
             raise ValueError(f"particle index {particle!r} out of range 0..{self.particles.count - 1}")
         return i
+
+    def _host(self, name: str) -> np.ndarray:
+        """Host view of a particle array or of the topology's `name`, its rows in use (no rows before the first cloth)."""
+        if name in self.particles.fields:
+            return self.particles.numpy(name)
+        top = self.model.topology
+        if name not in top:  # no cloth yet
+            return np.zeros((0, 3) if name == "triangles" else (0, 2) if name.endswith("_ids") else 0, np.int32)
+        return host_view(top[name])
 
     def _write(self, name: str, index: int, value) -> None:
         self.particles.write(name, index, value)
@@ -1049,12 +1054,12 @@ class ClothSystem:
     @property
     def triangle_count(self) -> int:
         """Number of cloth triangles, T (all cloths)."""
-        return len(self._host.get("triangles", ()))
+        return len(self._host("triangles"))
 
     @property
     def spring_count(self) -> int:
         """Number of springs of every kind (all cloths)."""
-        return len(self._host.get("spring_ids", ()))
+        return len(self._host("spring_ids"))
 
     particle_position = property(
         lambda self: self._view("particle_position"),
@@ -1071,7 +1076,7 @@ class ClothSystem:
     @property
     def particle_mass(self) -> np.ndarray:
         """Particle masses [kg], shape (P,)."""
-        return readonly(self._host.get("particle_mass", np.zeros(0)))
+        return readonly(self._host("particle_mass"))
 
     @property
     def particle_inv_mass(self) -> np.ndarray:
@@ -1083,12 +1088,12 @@ class ClothSystem:
     @property
     def triangles(self) -> np.ndarray:
         """Triangles as particle indices, shape (T, 3), int32, cloths in creation order."""
-        return readonly(self._host.get("triangles", np.zeros((0, 3), np.int32)))
+        return readonly(self._host("triangles"))
 
     @property
     def structural_springs(self) -> np.ndarray:
         """Particle pairs of the structural springs, shape (s, 2), int32."""
-        return readonly(self._host.get("structural_ids", np.zeros((0, 2), np.int32)))
+        return readonly(self._host("structural_ids"))
 
     def particle_position_numpy(self) -> np.ndarray:
         """A copy of the particle positions [m], shape (P, 3)."""
@@ -1096,7 +1101,7 @@ class ClothSystem:
 
     def max_strain(self) -> float:
         """Largest strain (|xj - xi| - l0) / l0 over the structural springs (0.1 = 10 % longer)."""
-        if self.particles.count == 0 or len(self._host["structural_ids"]) == 0:
+        if self.particles.count == 0 or len(self._host("structural_ids")) == 0:
             return 0.0
         a, top = self.particles.arrays, self.model.topology
         s = springs.strain(a["particle_position"], top["structural_ids"], top["structural_rest_length"], self._strain)
@@ -1115,13 +1120,13 @@ class ClothSystem:
         if self.particles.count == 0:
             return 0.0
         v = self._view("particle_velocity")
-        return 0.5 * float(np.sum(self._host["particle_mass"] * np.einsum("ij,ij->i", v, v)))
+        return 0.5 * float(np.sum(self._host("particle_mass") * np.einsum("ij,ij->i", v, v)))
 
     def momentum(self) -> np.ndarray:
         """Linear momentum of the cloth [kg m/s]: sum m v, shape (3,)."""
         if self.particles.count == 0:
             return np.zeros(3)
-        return self._host["particle_mass"] @ self._view("particle_velocity")
+        return self._host("particle_mass") @ self._view("particle_velocity")
 
     def potential_energy(self, gravity: Sequence[float] | np.ndarray | None = None) -> float:
         """Gravitational potential energy relative to the origin [J]: -sum m g . x.
@@ -1133,9 +1138,9 @@ class ClothSystem:
             return 0.0
         g = self._gravity if gravity is None else np.asarray(gravity, dtype=np.float64)
         x = self._view("particle_position")
-        return -float(np.sum(self._host["particle_mass"] * (x @ g)))
+        return -float(np.sum(self._host("particle_mass") * (x @ g)))
 
     def center_of_mass(self) -> np.ndarray:
         """Centre of mass of all cloth [m], shape (3,)."""
-        m = self._host["particle_mass"]
+        m = self._host("particle_mass")
         return (m[:, None] * self._view("particle_position")).sum(axis=0) / m.sum()
