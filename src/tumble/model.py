@@ -3,10 +3,12 @@
 As in Newton (and MuJoCo's mjModel / mjData split):
 
 - the **Model** holds what does not change while the world steps: each body's shape, size,
-  mass and inertia, material, and the static geometry (convex prototypes, triangle meshes);
-- the **State** holds what does: body poses and velocities, the contacts kept for the next
-  step's warm start, and the clock;
-- the **Control** holds this step's inputs: the forces and torques users apply;
+  mass and inertia, material, and the static geometry (convex prototypes, triangle meshes),
+  joint definitions, the cloth's topology, rest lengths, masses and pins;
+- the **State** holds what does: body poses and velocities, the contacts and joint impulses
+  kept for the next step's warm start, the cloth's particles, and the clock;
+- the **Control** holds this step's inputs: the forces and torques users apply, drags on cloth
+  particles, the wind;
 - solver **scratch** (motion since the step began, the next substep's warm start) belongs to
   the solver: it is reset every step and is never part of a snapshot.
 
@@ -148,6 +150,8 @@ class Model:
         meshes: static triangle meshes and their BVHs.
         joints: the model rows of `solver.joints.JOINT_FIELDS` (kind, bodies, anchors, axes, limits,
             motors, break force), None for a world without a joint solver.
+        cloth: the cloth's topology, rest shape, masses and pins (`cloth.system.ClothModel`), None
+            until the first cloth.
     """
 
     def __init__(self, device: str, arrays: dict, hulls: HullSet, meshes: MeshSet, *, joints: ArraySet | None = None):
@@ -167,6 +171,8 @@ class State:
         contacts: last step's contacts with their impulses, the next step's warm start.
         joints: the state rows of `solver.joints.JOINT_FIELDS` (accumulated impulses, the warm
             start; forces; broken flags), None for a world without a joint solver.
+        cloth: the cloth's particle positions, velocities and pin targets, and its contact counts
+            (`cloth.system.ClothState`), None until the first cloth.
         step_count: steps taken.
     """
 

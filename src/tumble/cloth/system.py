@@ -4,7 +4,10 @@
 once at the start of the step's substeps (the step's length and substeps, gravity, clock and the
 body arrays), `substep` once per world substep after the rigid bodies' positions were integrated
 and relaxed (the body arrays, hulls and meshes it collides with), and `end_step` once after the
-last substep. The cloth keeps no reference to the world. One cloth substep runs these stages,
+last substep. The cloth keeps no reference to the world; its data are the world's parts
+(`ClothModel`, `ClothState`, `ClothControl`: `world.model.cloth`, `world.state.cloth`,
+`world.control.cloth`), its particle arrays declared once in `PARTICLE_FIELDS` and stepped as one
+`RowGroup` with the stage's scratch rows. One cloth substep runs these stages,
 each a plain function over arrays (see `springs`, `wind` and `collide`):
 
 1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
