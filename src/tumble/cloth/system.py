@@ -81,8 +81,6 @@ PARTICLE_FIELDS: tuple[Field, ...] = (
     Field("particle_tether_first", wp.int32, Role.MODEL, "", "first tether of the particle (derived from the pins)"),
     Field("particle_tether_count", wp.int32, Role.MODEL, "", "its number of tethers (derived from the pins)"),
 )
-#: the arrays whose live values a new cloth's rows are appended to (the rest are rebuilt from the host copy)
-_LIVE_FIELDS = (*fields_of(PARTICLE_FIELDS, Role.STATE), "particle_inv_mass")
 
 
 @dataclass(frozen=True)
