@@ -49,6 +49,9 @@ FORMAT = 3  # 2: the body rows saved by part (model, state, control); 3: the joi
 _WORLD_SKIP = frozenset({"_key", "metadata", "profile", "_stage_timers", "device", "_launch_sizes", "bodies"})
 
 
+# the World's parts (tumble.model), walked first in this order
+_PARTS = {"model": 0, "state": 1, "control": 2}
+
 # what `ArraySet` itself keeps beside its arrays (captured through its markers)
 _ARRAYSET_OWN = frozenset({"fields", "arrays", "count", "capacity", "device"})
 # what a `RowGroup` keeps: its sets are saved where the world's parts (model, state, control) hold
@@ -127,7 +130,7 @@ def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 # --- taking a snapshot -------------------------------------------------------------------------
-# Paths name attributes ("cloth/_contacts_prev"), list items ("emitters/0") and dict entries; a
+# Paths name attributes ("state/cloth/body_contacts"), list items ("emitters/0") and dict entries; a
 # segment starting with ":" is a marker of the walk itself (":class", ":dtype", ...), never a name.
 
 
@@ -135,7 +138,7 @@ def take(world: World, *, arrays: bool = True) -> Snapshot:
     """Capture `world`'s state (see `World.snapshot`); with `arrays=False` only its layout (no array is copied)."""
     snap = Snapshot(step_count=world.step_count, time=world.time)
     seen: set[int] = {id(world)}
-    for name, value in sorted(vars(world).items()):
+    for name, value in _world_order(world):
         if name not in _WORLD_SKIP:
             _capture(value, name, snap, seen, arrays)
     scene = world.metadata.get("scene")
@@ -144,6 +147,12 @@ def take(world: World, *, arrays: bool = True) -> Snapshot:
         snap.scene_path = None if scene.path is None else str(Path(scene.path).resolve())
         snap.overrides = dict(world.metadata.get("overrides", {}))
     return snap
+
+
+def _world_order(world) -> list[tuple[str, Any]]:
+    """The world's attributes in the walk's order: its parts first, so that what the stages share with
+    them is saved under the part ("state/cloth/particles/..."), then the rest by name."""
+    return sorted(vars(world).items(), key=lambda item: (_PARTS.get(item[0], len(_PARTS)), item[0]))
 
 
 def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> None:
@@ -285,7 +294,7 @@ def restore(world: World, snap: Snapshot) -> None:
         for depth, leaf in enumerate(parts):
             if not leaf.startswith(":"):
                 children.setdefault("/".join(parts[:depth]), set()).add(leaf)
-    walk = _Restore(snap, children, world.device)
+    walk = _Restore(snap, children, world)
     walk.seen.add(id(world))
     walk.members(world, "", skip=_WORLD_SKIP)
     for group in walk.groups:
@@ -319,8 +328,8 @@ def _few(paths: list[str]) -> str:
 class _Restore:
     """Writes a snapshot back along the same walk that took it."""
 
-    def __init__(self, snap: Snapshot, children: dict[str, set[str]], device: str):
-        self.snap, self.children, self.device = snap, children, device
+    def __init__(self, snap: Snapshot, children: dict[str, set[str]], world: World):
+        self.snap, self.children, self.world, self.device = snap, children, world, world.device
         self.derived: list[tuple] = []  # (owner, name, value) of every cache met on the way
         self.replaced: dict[int, wp.array] = {}  # arrays this restore replaced by new ones (kept alive here)
         self.seen: set[int] = set()
@@ -330,7 +339,7 @@ class _Restore:
         """Restore the attributes of `obj`: those the snapshot has, and none that it lacks."""
         prefix = path + "/" if path else ""
         saved = self.children.get(path, set()) - skip
-        for name, value in sorted(vars(obj).items()):
+        for name, value in _world_order(obj) if obj is self.world else sorted(vars(obj).items()):
             if name in skip:
                 continue
             if name in saved:
