@@ -14,7 +14,7 @@ generators and plain values, inside every object of Tumble's own classes that th
 So a new stage's arrays are in snapshots without being listed here. A value of a type the walk
 does not know is an error (`SnapshotError`), never silently left out.
 
-File format (`.npz`): one array per state array under its path ("bodies/body_position", ...)
+File format (`.npz`): one array per state array under its path ("state/bodies/body_position", ...)
 and a JSON manifest under "manifest" with the plain values, the format version and, for a world
 built from a scene file, the scene's text, so that `tumble.load_snapshot` (`io.scene.load_snapshot`) can rebuild the world first.
 """
