@@ -173,7 +173,7 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
                 snap.arrays[f"{path}/{name}"] = value.arrays[name].numpy().copy()
         for name, item in sorted(vars(value).items()):  # a subclass's own attributes (ContactSet's matching data)
             if name not in _ARRAYSET_OWN:
-                _capture(item, f"{path}/{name}", snap, seen, arrays)
+                _capture_member(value, name, item, path, snap, seen, arrays)
     elif isinstance(value, wp.array):
         if arrays:
             snap.arrays[path] = value.numpy().copy()
@@ -202,11 +202,20 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
         skip = _ROWGROUP_OWN if isinstance(value, RowGroup) else frozenset()
         for name, item in sorted(vars(value).items()):
             if name not in skip:
-                _capture(item, f"{path}/{name}", snap, seen, arrays)
+                _capture_member(value, name, item, path, snap, seen, arrays)
     else:
         raise SnapshotError(
             f"cannot snapshot {path}: a value of type {type(value).__module__}.{type(value).__qualname__}"
         )
+
+
+def _capture_member(owner, name: str, item, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> None:
+    """One attribute of an object of ours; those its class names in `SNAPSHOT_CACHES` (caches
+    rebuilt when needed, such as keys of array identities) are kept by name only, as derived."""
+    if name in getattr(type(owner), "SNAPSHOT_CACHES", ()):
+        snap.values[f"{path}/{name}/:derived"] = True
+    else:
+        _capture(item, f"{path}/{name}", snap, seen, arrays)
 
 
 def _is_plain(value) -> bool:

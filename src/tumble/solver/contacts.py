@@ -1176,6 +1176,10 @@ _IMPACTS = {serial: _make_impacts(serial) for serial in (0, 1)}
 class ContactSet(ArraySet):
     """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting."""
 
+    #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
+    #: solver structs were built from, so it differs in a restored world while meaning the same
+    SNAPSHOT_CACHES = frozenset({"_sized"})
+
     def __init__(self, device: str):
         super().__init__(CONTACT_FIELDS, device=device, capacity=64)
         self.count_array = wp.zeros(1, dtype=wp.int32, device=device)
