@@ -59,15 +59,45 @@ def _version() -> str:
         return __version__
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: "tumble run: error: ... (see tumble run --help)", exit 2."""
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: "tumble run: error: ... (see tumble run --help)", exit 2; it
+    keeps what it is built of in public attributes, for the help texts' checks and docs.
+
+    Attributes:
+        options: every argument added (`argparse.Action`: flags, help, default), in order, `-h` first,
+            those of argument groups included.
+        commands: the subcommands' parsers by name (`build_parser` fills it).
+    """
+
+    def __init__(self, *args, **kwargs):
+        self.options: list[argparse.Action] = []  # before argparse's __init__, which adds -h
+        self.commands: dict[str, Parser] = {}
+        super().__init__(*args, **kwargs)
+
+    def add_argument(self, *args, **kwargs) -> argparse.Action:
+        action = super().add_argument(*args, **kwargs)
+        self.options.append(action)
+        return action
+
+    def add_mutually_exclusive_group(self, **kwargs):
+        group = super().add_mutually_exclusive_group(**kwargs)
+        add = group.add_argument
+
+        def add_argument(*args, **kw) -> argparse.Action:
+            action = add(*args, **kw)
+            self.options.append(action)
+            return action
+
+        group.add_argument = add_argument  # type: ignore[method-assign]  # recorded as the parser's own
+        return group
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
+def build_parser() -> Parser:
+    """The `tumble` parser: its subcommands' parsers are in `parser.commands`, each one's arguments in `options`."""
+    parser = Parser(
         prog="tumble",
         description="Tumble: particles, rigid bodies and cloth, simulated headless, viewed, rendered and plotted.",
         epilog="Scenes are TOML files (docs/scenes.md) or the names of bundled samples, e.g. sphere_pile. "
@@ -77,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
         "-V", "--version", action="version", version=f"tumble {_version()}", help="print the version and exit"
     )
     parser.add_argument("--debug", action="store_true", help="print the traceback of an error")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name, module_name in COMMANDS.items():
         module = importlib.import_module(f"tumble.commands.{module_name}")
         p = sub.add_parser(name, help=module.HELP, description=module.HELP[0].upper() + module.HELP[1:] + ".")
@@ -86,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--debug", action="store_true", default=argparse.SUPPRESS, help="print the traceback of an error"
         )
         p.set_defaults(_main=module.main)
+        parser.commands[name] = p
     return parser
 
 

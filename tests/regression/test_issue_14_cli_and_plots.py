@@ -41,9 +41,7 @@ def test_no_arguments_prints_help(tumble_subprocess_env):
 
 
 def _subparsers():
-    parser = build_parser()
-    action = next(a for a in parser._actions if a.dest == "command")
-    return action.choices
+    return build_parser().commands
 
 
 def test_every_scene_argument_says_it_takes_sample_names():
@@ -66,7 +64,7 @@ def test_help_strings_share_one_style():
     for name, module in COMMANDS.items():
         summary = import_module(f"tumble.commands.{module}").HELP
         assert summary[0].islower() and not summary.endswith("."), name
-        for action in _subparsers()[name]._actions:
+        for action in _subparsers()[name].options:
             if action.help and action.help != "==SUPPRESS==":
                 assert action.help[0].islower() or action.help[0] in "`-", (name, action.help)
                 assert not action.help.endswith("."), (name, action.help)

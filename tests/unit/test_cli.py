@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.cli import main
+from tumble.cli import COMMANDS, build_parser, main
 from tumble.io.scene import SAMPLES_DIR
 
 from .io.scene import BALL
@@ -199,3 +199,22 @@ def test_recorder_samples_at_the_nearest_step(write_scene):
     assert np.all(np.abs(time - np.arange(31) / 30) <= 0.5 * world.dt + 1e-12)
     with pytest.raises(ValueError, match="fps"):
         Recorder(world, fps=0)
+
+
+def test_the_parser_lists_its_commands_and_every_option():
+    """build_parser() keeps one parser per command in `commands`, each with every argument it takes in `options`."""
+    parser = build_parser()
+    assert list(parser.commands) == list(COMMANDS)
+    flags = {name: [f for a in p.options for f in a.option_strings] for name, p in parser.commands.items()}
+    for name, listed in flags.items():
+        assert listed[:2] == ["-h", "--help"] and "--debug" in listed, name
+        assert len(listed) == len(set(listed)), name
+    assert {"--duration", "--record", "--fps", "--resume"} <= set(flags["run"])
+    # the arguments of a mutually exclusive group are listed as the parser's own
+    assert {"--duration", "--frames"} <= set(flags["export"])
+    # and what is listed is what the parser takes: each option's value lands under its dest
+    export = {a.dest: a for a in parser.commands["export"].options}
+    args = parser.parse_args(["export", "sphere_pile", "-o", "x.usda", "--frames", "12"])
+    assert args.frames == 12 and export["frames"].type is int and args.output == "x.usda"
+    # the positional SCENE argument is an option too, with no flags
+    assert [a.dest for a in parser.commands["check"].options if not a.option_strings] == ["scene"]
