@@ -26,7 +26,6 @@ COVERED_ELSEWHERE = {
     "commands/render": "render/test_render_cli.py",
     "commands/view": "viewer/test_parts.py",
     "commands/wedge": "wedge/test_wedge_cli.py",
-    "io/plot": "render/test_render_plot.py",
     "io/video": "render/test_render_video.py",
     "render/camera": "render/test_render_camera.py",
     "render/colors": "render/test_render_renderer.py",

@@ -48,8 +48,8 @@ BYTES_PER_BODY = 2048
 BYTES_PER_PARTICLE = 8192
 #: recording memory per body per frame [bytes]: 13 float64 held per frame plus the padded copy saved
 BYTES_PER_BODY_FRAME = 256
-#: recording memory per cloth particle per frame [bytes]: position and velocity, held and copied
-BYTES_PER_PARTICLE_FRAME = 128
+#: recording memory per cloth particle per frame [bytes]: its state (position, velocity, pin target), held and copied
+BYTES_PER_PARTICLE_FRAME = 192
 
 #: environment variable capping the memory Tumble plans with, e.g. "2G" (default: what the machine has)
 MEMORY_ENV = "TUMBLE_MEMORY"

@@ -1579,6 +1579,13 @@ class World:
         out[live] = values[slot[live]]
         return readonly(out)
 
+    def body_values(self, name: str) -> np.ndarray:
+        """Any declared body array (`tumble.model.BODY_FIELDS`) by name, as the views give it: a
+        read-only copy, one row per body id (`body_values("body_mass")` is `body_mass`)."""
+        if name not in BODY_FIELD:
+            raise ValueError(f"no body array {name!r}; the declared ones are {', '.join(BODY_FIELD)}")
+        return self._view(name)
+
     @property
     def body_count(self) -> int:
         """Number of body ids, planes included: the rows of every per-body view.

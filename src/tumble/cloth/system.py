@@ -1062,6 +1062,10 @@ class ClothSystem:
         """Number of springs of every kind (all cloths)."""
         return len(self._host("spring_ids"))
 
+    def particle_values(self, name: str) -> np.ndarray:
+        """Any particle array of `PARTICLE_FIELDS` by name: a read-only copy, shape (P, ...)."""
+        return self._view(name)
+
     particle_position = property(
         lambda self: self._view("particle_position"),
         doc="Particle positions [m], shape (P, 3), cloths in creation order, i fastest.",

@@ -4,7 +4,7 @@ A recording is an .npz with, for F frames and N bodies (rows of bodies not yet e
 NaN and count as absent)::
 
     time (F,)  position (F, N, 3)  velocity (F, N, 3)  orientation (F, N, 4) as (x, y, z, w)
-    angular_velocity (F, N, 3)  shape (N,) int  shape_names  radius (N,)  half_extents (N, 3)
+    angular_velocity (F, N, 3)  shape (N,) int  shape_names (6,)  radius (N,)  half_extents (N, 3)
     mass (N,)  gravity (3,)  contact_count (F,)  kinetic_energy (F,) (used as is when present)
     cloth_position (F, P, 3)  cloth_triangles (T, 3)  cloth_rest_position (P, 3)
     cloth_mass (P,)  cloth_max_strain (F,)  momentum (F, 3) (bodies and cloth, used as is when present)

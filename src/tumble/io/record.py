@@ -6,15 +6,23 @@ Typical use::
     world.run(2.0, callback=recorder)           # records a frame every 1/60 s of simulated time
     recorder.save("pile.npz")
 
+The per-body and per-particle arrays are the declared ones (`model.BODY_FIELDS`,
+`cloth.system.PARTICLE_FIELDS`), named without their entity: each state array every frame
+(`body_position` -> position (F, N, 3), `particle_velocity` -> cloth_velocity (F, P, 3)), each
+model array once (`body_mass` -> mass (N,), `particle_mass` -> cloth_mass (P,)); scratch and
+control arrays are not recorded. A new declared array is recorded without a line here.
+
 The file format (documented in docs/scenes.md, "Recordings"), with F frames and N bodies (the
 final body count, in creation order; rows of bodies that did not exist yet at a frame are NaN):
 
     time (F,), position (F, N, 3), velocity (F, N, 3), orientation (F, N, 4) as (x, y, z, w),
     angular_velocity (F, N, 3), shape (N,) int32 indexing shape_names, shape_names (6,) (ShapeType order),
-    radius (N,), half_extents (N, 3), mass (N,), gravity (3,), dt (), fps (),
+    radius (N,), half_extents (N, 3), mass (N,), geometry (N,) int32, and the other model arrays
+    (id, kind, bound_radius, inv_mass, inv_inertia), gravity (3,), dt (), fps (),
     contact_count (F,) int32, kinetic_energy (F,), momentum (F, 3) [kg m/s] (bodies and cloth)
-    with cloth: cloth_position (F, P, 3), cloth_triangles (T, 3) int32, cloth_rest_position (P, 3),
-    cloth_mass (P,) [kg], cloth_max_strain (F,) (largest structural-spring strain per frame)
+    with cloth: cloth_position (F, P, 3), cloth_velocity (F, P, 3), cloth_pin_target (F, P, 3),
+    cloth_triangles (T, 3) int32, cloth_rest_position (P, 3), cloth_mass (P,) [kg], and the other
+    particle model arrays, cloth_max_strain (F,) (largest structural-spring strain per frame)
     since version 2: restitution (N,), friction (N,); with a scene [camera]: camera_position (3,),
     camera_target (3,), camera_up (3,), camera_fov () [degrees]
     with joints (J of them, in creation order): joint_force (F, J, 3) [N] and joint_torque (F, J, 3)
@@ -24,12 +32,13 @@ final body count, in creation order; rows of bodies that did not exist yet at a 
     points), joint_frame (J, 2, 4) joint frames in each body's frame (x = hinge / slider axis),
     joint_limit (J,) int32, joint_lower / joint_upper (J,) [rad or m], joint_break_force (J,) [N],
     joint_collide (J,) int32
-    with convex bodies or static meshes: geometry (N,) int32 (a body's hull or mesh row), and per
-    kind K in (hull, mesh): K_points (V, 3) [m] in the body / mesh frame, K_triangles (T, 3)
+    with convex bodies or static meshes, per kind K in (hull, mesh) (`geometry` is a body's row): K_points (V, 3) [m] in the body / mesh frame, K_triangles (T, 3)
     int32 indexing K_points, K_point_start and K_triangle_start (rows + 1,) int64 (row i is
     points [start[i], start[i + 1]) ...); hull triangles are the faces fanned, counter-clockwise outside
 
 Cost: one host copy of the body state per frame (~100 bytes per body per frame in memory).
+Files written before the model arrays were all recorded (no id, kind, ... nor cloth_velocity;
+geometry only with hulls or meshes) read the same: readers use what is there.
 """
 
 from __future__ import annotations
@@ -42,11 +51,31 @@ from typing import Any
 import numpy as np
 
 from .. import validate
+from ..cloth.system import PARTICLE_FIELDS
 from ..errors import TumbleError
+from ..model import BODY_FIELDS, Field, Role
 from ..shapes import SHAPE_NAMES
 
 #: format version written as `format_version` in every recording
 FORMAT_VERSION = 2
+
+
+def recorded_name(field: Field) -> str:
+    """The name a declared array has in a recording: `body_position` -> "position",
+    `particle_position` -> "cloth_position"."""
+    entity, _, rest = field.name.partition("_")
+    return rest if entity == "body" else f"cloth_{rest}"
+
+
+def _recorded(declaration: tuple[Field, ...], role: Role) -> dict[str, Field]:
+    return {recorded_name(f): f for f in declaration if f.role is role}
+
+
+#: the declared arrays recorded every frame (state) and once (model), by their names in a recording
+BODY_STATE = _recorded(BODY_FIELDS, Role.STATE)
+BODY_MODEL = _recorded(BODY_FIELDS, Role.MODEL)
+PARTICLE_STATE = _recorded(PARTICLE_FIELDS, Role.STATE)
+PARTICLE_MODEL = _recorded(PARTICLE_FIELDS, Role.MODEL)
 
 
 class Recorder:
@@ -91,20 +120,16 @@ class Recorder:
     def capture(self) -> None:
         """Record the world's current state as the next frame, whatever the time."""
         w = self.world
-        frame = {
-            "time": np.float64(w.time),
-            "position": np.array(w.body_position, dtype=np.float64),
-            "velocity": np.array(w.body_velocity, dtype=np.float64),
-            "orientation": np.array(w.body_orientation, dtype=np.float64),
-            "angular_velocity": np.array(w.body_angular_velocity, dtype=np.float64),
-            "contact_count": np.int32(w.contact_count),
-            "kinetic_energy": np.float64(w.kinetic_energy()),
-            "momentum": np.array(w.momentum(), dtype=np.float64),
-        }
+        frame: dict[str, Any] = {name: np.array(w.body_values(f.name)) for name, f in BODY_STATE.items()}
+        frame["time"] = np.float64(w.time)
+        frame["contact_count"] = np.int32(w.contact_count)
+        frame["kinetic_energy"] = np.float64(w.kinetic_energy())
+        frame["momentum"] = np.array(w.momentum(), dtype=np.float64)
         cloth = w.cloth if w.has_cloth else None
         if cloth is not None:
             frame["momentum"] = frame["momentum"] + cloth.momentum()
-            frame["cloth_position"] = np.array(cloth.particle_position, dtype=np.float64)
+            for name, f in PARTICLE_STATE.items():
+                frame[name] = np.array(cloth.particle_values(f.name))
             frame["cloth_max_strain"] = np.float64(cloth.max_strain())
         if getattr(w, "joint_count", 0):
             frame["joint_force"] = np.array(w.joint_force, dtype=np.float64)
@@ -124,20 +149,12 @@ class Recorder:
             "kinetic_energy": np.array([fr["kinetic_energy"] for fr in self.frames], dtype=np.float64),
             "momentum": np.array([fr["momentum"] for fr in self.frames], dtype=np.float64).reshape(f, 3),
         }
-        # per-body state, padded with NaN for bodies created after the frame
-        for name, width in (("position", 3), ("velocity", 3), ("orientation", 4), ("angular_velocity", 3)):
-            a = np.full((f, n, width), np.nan)
-            for k, fr in enumerate(self.frames):
-                rows = fr[name]
-                a[k, : len(rows)] = rows
-            out[name] = a
-        out["shape"] = np.array(w.body_shape, dtype=np.int32)
+        # per-body state, padded with NaN for bodies created after the frame; the model once
+        for name, decl in BODY_STATE.items():
+            out[name] = _frames(self.frames, name, n, decl.shape)
+        for name, decl in BODY_MODEL.items():
+            out[name] = np.array(w.body_values(decl.name))
         out["shape_names"] = np.array(SHAPE_NAMES)
-        out["radius"] = np.array(w.body_radius, dtype=np.float64)
-        out["half_extents"] = np.array(w.body_half_extents, dtype=np.float64)
-        out["mass"] = np.array(w.body_mass, dtype=np.float64)
-        out["restitution"] = np.array(w.body_restitution, dtype=np.float64)
-        out["friction"] = np.array(w.body_friction, dtype=np.float64)
         if self.camera is not None:
             out["camera_position"] = np.array(self.camera.position, dtype=np.float64)
             out["camera_target"] = np.array(self.camera.target, dtype=np.float64)
@@ -149,32 +166,17 @@ class Recorder:
 
         cloth = w.cloth if w.has_cloth else None
         if cloth is not None:
-            p = np.asarray(cloth.particle_position).shape[0]
-            a = np.full((f, p, 3), np.nan)
-            for k, fr in enumerate(self.frames):
-                rows = fr.get("cloth_position")
-                if rows is not None:
-                    a[k, : len(rows)] = rows
-            out["cloth_position"] = a
+            for name, decl in PARTICLE_STATE.items():
+                out[name] = _frames(self.frames, name, cloth.particle_count, decl.shape)
+            for name, decl in PARTICLE_MODEL.items():
+                out[name] = np.array(cloth.particle_values(decl.name))
             out["cloth_triangles"] = np.array(cloth.triangles, dtype=np.int32)
-            out["cloth_mass"] = np.array(cloth.particle_mass, dtype=np.float64)
             out["cloth_max_strain"] = np.array([fr.get("cloth_max_strain", np.nan) for fr in self.frames])
-            rest = getattr(cloth, "rest_position", getattr(cloth, "particle_rest_position", None))
-            if rest is not None:
-                out["cloth_rest_position"] = np.array(rest, dtype=np.float64)
         if getattr(w, "joint_count", 0):
             j = w.joint_count
-            for name, tail, fill in (
-                ("joint_force", (3,), np.nan),
-                ("joint_torque", (3,), np.nan),
-                ("joint_broken", (), False),
-            ):
-                a = np.full((f, j, *tail), fill)
-                for k, fr in enumerate(self.frames):
-                    rows = fr.get(name)
-                    if rows is not None:
-                        a[k, : len(rows)] = rows
-                out[name] = a
+            out["joint_force"] = _frames(self.frames, "joint_force", j, (3,))
+            out["joint_torque"] = _frames(self.frames, "joint_torque", j, (3,))
+            out["joint_broken"] = _frames(self.frames, "joint_broken", j, fill=False)
             bodies = np.stack([w.joints.numpy("joint_body_a"), w.joints.numpy("joint_body_b")], axis=1)
             ids = np.asarray(w.bodies.numpy("body_id"))
             out["joint_bodies"] = np.where(bodies >= 0, ids[np.maximum(bodies, 0)], -1).astype(np.int32)
@@ -201,6 +203,17 @@ class Recorder:
         return path
 
 
+def _frames(frames: list[dict[str, Any]], name: str, rows: int, tail: tuple[int, ...] = (), fill=np.nan) -> np.ndarray:
+    """The per-frame array `name` stacked over frames, `rows` rows of shape `tail` each; `fill` in
+    the rows of a frame that did not have them yet (a body emitted later, a cloth added later)."""
+    a = np.full((len(frames), rows, *tail), fill)
+    for k, fr in enumerate(frames):
+        got = fr.get(name)
+        if got is not None:
+            a[k, : len(got)] = got
+    return a
+
+
 def _joint_model(joints) -> dict[str, np.ndarray]:
     """The joints' fixed description (anchors, frames, limits), in creation order."""
     get = joints.numpy
@@ -225,7 +238,6 @@ def _geometry(w) -> dict[str, np.ndarray]:
     has_mesh = meshes is not None and len(meshes.vertices) > 0
     if not (has_hull or has_mesh):
         return out
-    out["geometry"] = np.array(w.body_geometry, dtype=np.int32)
     if has_hull:
         tris = []
         for p in w.hulls.prototypes:

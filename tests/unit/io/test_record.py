@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 import tumble
+from tumble.cloth.system import PARTICLE_FIELDS
 from tumble.errors import TumbleError
 from tumble.io.atomic import OutputError
-from tumble.io.record import FORMAT_VERSION, Recorder, RecordingError, load_recording
+from tumble.io.record import FORMAT_VERSION, Recorder, RecordingError, load_recording, recorded_name
+from tumble.model import BODY_FIELDS, Role
 
 DT = 1.0 / 64.0
 FPS = 16.0  # a frame every 4 steps
@@ -65,7 +67,35 @@ def test_bodies_and_world_settings_are_recorded_once():
     np.testing.assert_array_equal(rec["friction"], world.body_friction)
     np.testing.assert_array_equal(rec["gravity"], world.gravity)
     assert float(rec["dt"]) == DT and float(rec["fps"]) == FPS
-    assert "cloth_position" not in rec and "joint_force" not in rec and "geometry" not in rec
+    assert "cloth_position" not in rec and "joint_force" not in rec and "hull_points" not in rec
+    np.testing.assert_array_equal(rec["geometry"], 0)  # no hulls or meshes: every body's row 0
+
+
+def test_every_declared_state_array_is_recorded_per_frame_and_every_model_array_once():
+    """The recording's body and particle arrays are the declarations' state (F, rows, ...) and model (rows, ...) ones."""
+    world = tumble.World(dt=DT, substeps=2)
+    world.add_plane()
+    world.add_sphere(position=(0.0, 0.0, 1.0), radius=0.1)
+    world.add_cloth(size=(0.5, 0.5), resolution=(4, 3), position=(0.0, 0.0, 2.0), pins="top-corners")
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.25, callback=recorder)
+    rec, f = recorder.arrays(), recorder.frame_count
+    declared = {
+        "body": (BODY_FIELDS, world.body_count, world.body_values),
+        "cloth": (PARTICLE_FIELDS, world.cloth.particle_count, world.cloth.particle_values),
+    }
+    for fields, rows, values in declared.values():
+        for field in fields:
+            name = recorded_name(field)
+            if field.role is Role.STATE:
+                assert rec[name].shape == (f, rows, *field.shape), name
+                np.testing.assert_array_equal(rec[name][-1], values(field.name), err_msg=name)
+            elif field.role is Role.MODEL:
+                np.testing.assert_array_equal(rec[name], values(field.name), err_msg=name)
+            else:  # scratch and control arrays are not recorded
+                assert name not in rec, name
+    assert {"position", "velocity", "mass", "cloth_position", "cloth_velocity", "cloth_mass"} <= set(rec)
+    assert recorded_name(BODY_FIELDS[0]) == BODY_FIELDS[0].name.removeprefix("body_")
 
 
 def test_bodies_added_later_are_nan_before_they_exist():
