@@ -20,8 +20,9 @@ read-only views (`World.body_position`, ...) and their documentation all derive 
 from __future__ import annotations
 
 import enum
+import weakref
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import warp as wp
 
@@ -93,7 +94,7 @@ BODY_FIELDS: tuple[Field, ...] = (
     Field(
         "body_half_extents", vec3, _M, "m", "box half extents; for capsules, of the bounding box (r, r, a + r)", True
     ),
-    Field("body_bound_radius", float_t, _M, "m", "radius of a bounding sphere about the centre (inf for planes)"),
+    Field("body_bound_radius", float_t, _M, "m", "radius of a bounding sphere about the centre (inf for planes)", True),
     Field(
         "body_geometry",
         wp.int32,
@@ -105,7 +106,7 @@ BODY_FIELDS: tuple[Field, ...] = (
     Field("body_mass", float_t, _M, "kg", "mass (0 for static and kinematic bodies)"),
     Field("body_inv_mass", float_t, _M, "1/kg", "inverse mass (0 for static and kinematic bodies)", kernel=True),
     Field("body_inv_inertia", vec3, _M, "1/(kg m^2)", "principal inverse moments of inertia, body frame", True),
-    Field("body_restitution", float_t, _M, "", "coefficient of restitution"),
+    Field("body_restitution", float_t, _M, "", "coefficient of restitution", kernel=True),
     Field("body_friction", float_t, _M, "", "friction coefficient", kernel=True),
     Field("body_position", vec3, _S, "m", "centre of mass, world frame", kernel=True),
     Field("body_orientation", quat, _S, "", "body-to-world rotation, unit quaternion (x, y, z, w)", kernel=True),
@@ -139,6 +140,20 @@ def body_arrays(bodies, cached: tuple | None = None) -> tuple:
     if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
         return cached
     return fill_struct(BodyArrays, bodies.arrays, "body_"), arrays
+
+
+#: body row group -> its last `body_arrays` (dropped with the group)
+_STRUCTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def body_struct(bodies) -> Any:
+    """The `BodyArrays` struct over a body row group's arrays, the same one while its arrays are.
+
+    For the stages that keep no cache of their own (the narrow phase): a recorded launch then
+    finds the struct it recorded and re-packs nothing.
+    """
+    cached = _STRUCTS[bodies] = body_arrays(bodies, _STRUCTS.get(bodies))
+    return cached[0]
 
 
 class Model:
@@ -218,5 +233,6 @@ __all__ = [
     "Role",
     "State",
     "body_arrays",
+    "body_struct",
     "fields_of",
 ]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.model import BODY_FIELDS, BodyArrays, Control, Model, Role, State, body_arrays, fields_of
+from tumble.model import BODY_FIELDS, BodyArrays, Control, Model, Role, State, body_arrays, body_struct, fields_of
 
 
 @pytest.fixture
@@ -186,3 +186,19 @@ def test_snapshots_hold_cloth_and_joint_state_once_and_no_scratch():
         assert len([p for p in saved if p.endswith("/" + name)]) == 1, name
     for name in ("particle_force", "particle_position_prev", "particle_wind", "joint_sum_linear"):
         assert not any(p.endswith("/" + name) for p in saved), name
+
+
+def test_body_struct_is_kept_per_row_group_while_its_arrays_stay(world):
+    """body_struct gives one struct per row group, over its arrays, and a new one once they were reallocated."""
+    s = body_struct(world.bodies)
+    assert (
+        s.velocity is world.bodies.arrays["body_velocity"]
+        and s.bound_radius is world.bodies.arrays["body_bound_radius"]
+    )
+    assert body_struct(world.bodies) is s
+    other = tumble.World()
+    other.add_plane()
+    assert body_struct(other.bodies) is not s
+    world.add_spheres(position=np.zeros((40, 3)) + (0, 0, 2), radius=0.01)
+    t = body_struct(world.bodies)
+    assert t is not s and t.position is world.bodies.arrays["body_position"]

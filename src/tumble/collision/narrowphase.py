@@ -24,6 +24,7 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
+from ..model import BodyArrays, body_struct
 from ..shapes import ShapeType
 from ..state import float_t, host_view, quat, vec3
 from .hulls import Hulls, HullSet
@@ -1516,17 +1517,9 @@ def collide_vertices_mesh(
 def _collide_pairs(
     pair_a: wp.array(dtype=wp.int32),
     pair_b: wp.array(dtype=wp.int32),
-    shape: wp.array(dtype=wp.int32),
-    radius: wp.array(dtype=float_t),
-    half_extents: wp.array(dtype=vec3),
-    bound: wp.array(dtype=float_t),
-    geometry: wp.array(dtype=wp.int32),
+    body: BodyArrays,
     hulls: Hulls,
     mesh_ids: wp.array(dtype=wp.uint64),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
     dt: float_t,
     margin: float_t,
     c: ContactWriter,
@@ -1535,6 +1528,11 @@ def _collide_pairs(
     p = wp.tid()
     if p >= pair_count[0]:
         return  # launched over the pair capacity, the count on the device (see tumble.launch)
+    shape = body.shape
+    radius = body.radius
+    half_extents = body.half_extents
+    bound = body.bound_radius
+    geometry = body.geometry
     a = pair_a[p]
     b = pair_b[p]
     # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
@@ -1545,13 +1543,14 @@ def _collide_pairs(
     sa = shape[a]
     sb = shape[b]
     A = Pose()
-    A.x = x[a]
-    A.q = q[a]
+    A.x = body.position[a]
+    A.q = body.orientation[a]
     B = Pose()
-    B.x = x[b]
-    B.q = q[b]
+    B.x = body.position[b]
+    B.q = body.orientation[b]
     # speculative distance: how far the surfaces can approach in one step, plus a margin
-    reach = wp.length(v[b] - v[a])
+    w = body.angular_velocity
+    reach = wp.length(body.velocity[b] - body.velocity[a])
     if sa != int(ShapeType.PLANE):
         reach += wp.length(w[a]) * bound[a]
     reach += wp.length(w[b]) * bound[b]
@@ -1646,32 +1645,18 @@ def launch_pairs(
             host_view(count)[0] = pairs.pair_count
         else:
             count.assign(np.array([pairs.pair_count], dtype=np.int32))
-    b = bodies.arrays
-    launch(
-        _collide_pairs,
-        pairs.pair_a.shape[0],
-        [
-            pairs.pair_a,
-            pairs.pair_b,
-            b["body_shape"],
-            b["body_radius"],
-            b["body_half_extents"],
-            b["body_bound_radius"],
-            b["body_geometry"],
-            hulls.struct(),
-            meshes.ids(),
-            b["body_position"],
-            b["body_orientation"],
-            b["body_velocity"],
-            b["body_angular_velocity"],
-            dt,
-            SPECULATIVE_MARGIN,
-            contacts.writer(),
-            count,
-        ],
-        bodies.device,
-        cache,
-    )
+    args = [
+        pairs.pair_a,
+        pairs.pair_b,
+        body_struct(bodies),
+        hulls.struct(),
+        meshes.ids(),
+        dt,
+        SPECULATIVE_MARGIN,
+        contacts.writer(),
+        count,
+    ]
+    launch(_collide_pairs, pairs.pair_a.shape[0], args, bodies.device, cache)
 
 
 def collected(contacts) -> bool:

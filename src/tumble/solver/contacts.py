@@ -149,6 +149,8 @@ PREVIOUS_FIELDS = {
 
 #: the contact arrays as the kernels take them: `contact_normal` is `c.normal`
 Contacts = array_struct("Contacts", CONTACT_FIELDS, "contact_", __name__)
+#: last step's contacts as the kernels take them: `previous_body_a` is `p.body_a`
+Previous = array_struct("Previous", PREVIOUS_FIELDS, "previous_", __name__)
 
 
 @wp.func
@@ -234,69 +236,55 @@ def _owner_scatter(
 @wp.kernel
 def _match(
     c: Contacts,
-    inv_mass: wp.array(dtype=float_t),
-    bound: wp.array(dtype=float_t),
+    b: BodyArrays,
     tolerance: float_t,
     owner_start: wp.array(dtype=wp.int32),
     owner_count: wp.array(dtype=wp.int32),
     owner_entries: wp.array(dtype=wp.int32),
-    prev_a: wp.array(dtype=wp.int32),
-    prev_b: wp.array(dtype=wp.int32),
-    prev_local: wp.array(dtype=vec3),
-    prev_jn: wp.array(dtype=float_t),
-    prev_jt: wp.array(dtype=vec3),
+    p: Previous,
     jt_world: wp.array(dtype=vec3),
     counts: wp.array(dtype=wp.int32),
 ):
     k = wp.tid()
     if k >= counts[0]:
         return
-    a = c.body_a[k]
-    b = c.body_b[k]
-    o = a
+    ia = c.body_a[k]
+    ib = c.body_b[k]
+    o = ia
     local = c.local_a[k]
-    if inv_mass[a] == float_t(0.0):
-        o = b
+    if b.inv_mass[ia] == float_t(0.0):
+        o = ib
         local = c.local_b[k]
     best = int(-1)
-    best_d = (tolerance * bound[o]) * (tolerance * bound[o])
+    best_d = (tolerance * b.bound_radius[o]) * (tolerance * b.bound_radius[o])
     start = owner_start[o]
     for e in range(start, start + owner_count[o]):
-        p = owner_entries[e]
-        if prev_a[p] == a and prev_b[p] == b:
-            d = wp.length_sq(prev_local[p] - local)
+        j = owner_entries[e]
+        if p.body_a[j] == ia and p.body_b[j] == ib:
+            d = wp.length_sq(p.local_owner[j] - local)
             if d < best_d:
                 best_d = d
-                best = p
+                best = j
     if best >= 0:
-        c.impulse_n[k] = prev_jn[best]
-        jt_world[k] = prev_jt[best]
+        c.impulse_n[k] = p.impulse_n[best]
+        jt_world[k] = p.impulse_t[best]
     else:
         c.impulse_n[k] = float_t(0.0)
         jt_world[k] = vec3()
 
 
 @wp.kernel
-def _store(
-    c: Contacts,
-    inv_mass: wp.array(dtype=float_t),
-    prev_a: wp.array(dtype=wp.int32),
-    prev_b: wp.array(dtype=wp.int32),
-    prev_local: wp.array(dtype=vec3),
-    prev_jn: wp.array(dtype=float_t),
-    prev_jt: wp.array(dtype=vec3),
-    counts: wp.array(dtype=wp.int32),
-):
+def _store(c: Contacts, b: BodyArrays, p: Previous, counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
     if k >= counts[0]:
         return
-    prev_a[k] = c.body_a[k]
-    prev_b[k] = c.body_b[k]
-    if inv_mass[c.body_a[k]] == float_t(0.0):
-        prev_local[k] = c.local_b[k]
+    p.body_a[k] = c.body_a[k]
+    p.body_b[k] = c.body_b[k]
+    if b.inv_mass[c.body_a[k]] == float_t(0.0):
+        p.local_owner[k] = c.local_b[k]
     else:
-        prev_local[k] = c.local_a[k]
-    prev_jn[k] = c.impulse_n[k]
+        p.local_owner[k] = c.local_a[k]
+    p.impulse_n[k] = c.impulse_n[k]
     # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
     f = k
     share = float_t(1.0)
@@ -304,7 +292,7 @@ def _store(
     if c.mass_twist[first] > float_t(0.0):
         f = first
         share = float_t(1.0) / float_t(c.manifold[first])
-    prev_jt[k] = (
+    p.impulse_t[k] = (
         c.tangent1[f] * c.impulse_t1[f] + c.tangent2[f] * c.impulse_t2[f] + c.normal[f] * c.impulse_twist[f]
     ) * share
 
@@ -325,9 +313,6 @@ def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp
 def _prepare(
     c: Contacts,
     b: BodyArrays,
-    body_friction: wp.array(dtype=float_t),
-    body_restitution: wp.array(dtype=float_t),
-    body_shape: wp.array(dtype=wp.int32),
     jt_world: wp.array(dtype=vec3),
     gravity: vec3,
     jacobi: int,
@@ -360,7 +345,7 @@ def _prepare(
     fb = rb
     # a capsule's rows lie along its segment (two rows, two degrees of freedom: not rank-deficient),
     # so capsule pairs stay lone contacts
-    if body_shape[ia] == int(ShapeType.CAPSULE) or body_shape[ib] == int(ShapeType.CAPSULE):
+    if b.shape[ia] == int(ShapeType.CAPSULE) or b.shape[ib] == int(ShapeType.CAPSULE):
         rows = int(1)
     if rows > 1:
         patch = int(1)
@@ -426,8 +411,8 @@ def _prepare(
     c.angular_b_twist[k] = Ib * n * tw
     c.mass_twist[k] = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
-    c.friction[k] = wp.sqrt(body_friction[ia] * body_friction[ib])
-    c.restitution[k] = wp.max(body_restitution[ia], body_restitution[ib])
+    c.friction[k] = wp.sqrt(b.friction[ia] * b.friction[ib])
+    c.restitution[k] = wp.max(b.restitution[ia], b.restitution[ib])
     c.relative_velocity[k] = float_t(0.0)  # set by _impact when the contact collides
     # warm start values arrive as a world friction vector (tangent) plus the twist impulse along
     # n; project on the new tangents. A patch's friction was stored spread over its rows (so it
@@ -1191,7 +1176,7 @@ class ContactSet(ArraySet):
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
-        self._structs: tuple[Contacts, BodyArrays] | None = None
+        self._structs: tuple[Contacts, BodyArrays, Previous] | None = None
         self._writer: ContactWriter | None = None
 
     def grow(self, count: int) -> None:
@@ -1247,7 +1232,7 @@ class ContactSet(ArraySet):
                 self.impact_changed = wp.zeros(bodies.capacity, dtype=wp.int64, device=dev)
             self.owner_entries = wp.zeros(p.capacity, dtype=wp.int32, device=dev)
             self.impact_tested = wp.zeros(self.capacity, dtype=wp.int64, device=dev)
-            self._structs = (self.struct(), body_arrays(bodies)[0])
+            self._structs = (self.struct(), body_arrays(bodies)[0], fill_struct(Previous, p.arrays, "previous_"))
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
         counts = (self.count, p.count)
         if self.device == "cpu":
@@ -1261,53 +1246,22 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        p, b = self.previous, bodies.arrays
+        c, b, p = self._structs
         dev = self.device
         self.owner_count.zero_()
         self.owner_fill.zero_()
         # last step's contacts bucketed by owner (counting sort), launched over their capacity
-        wp.launch(
-            _owner_count,
-            dim=p.capacity,
-            device=dev,
-            inputs=[p.previous_body_a, p.previous_body_b, b["body_inv_mass"], self.owner_count, self.counts],
-        )
+        cap = self.previous.capacity
+        # (plain arrays: for so light a kernel, copying a struct argument per thread costs more than its work)
+        prev = self.previous.arrays
+        pair, inv_mass = [prev["previous_body_a"], prev["previous_body_b"]], bodies.arrays["body_inv_mass"]
+        wp.launch(_owner_count, dim=cap, device=dev, inputs=[*pair, inv_mass, self.owner_count, self.counts])
         wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
-        wp.launch(
-            _owner_scatter,
-            dim=p.capacity,
-            device=dev,
-            inputs=[
-                p.previous_body_a,
-                p.previous_body_b,
-                b["body_inv_mass"],
-                self.owner_start,
-                self.owner_fill,
-                self.owner_entries,
-                self.counts,
-            ],
-        )
-        wp.launch(
-            _match,
-            dim=self.capacity,
-            device=dev,
-            inputs=[
-                self._structs[0],
-                b["body_inv_mass"],
-                b["body_bound_radius"],
-                MATCH_TOLERANCE,
-                self.owner_start,
-                self.owner_count,
-                self.owner_entries,
-                p.previous_body_a,
-                p.previous_body_b,
-                p.previous_local_owner,
-                p.previous_impulse_n,
-                p.previous_impulse_t,
-                self.jt_world,
-                self.counts,
-            ],
-        )
+        owners = [self.owner_start, self.owner_fill, self.owner_entries]
+        wp.launch(_owner_scatter, dim=cap, device=dev, inputs=[*pair, inv_mass, *owners, self.counts])
+        owners = [self.owner_start, self.owner_count, self.owner_entries]
+        args = [c, b, MATCH_TOLERANCE, *owners, p, self.jt_world, self.counts]
+        wp.launch(_match, dim=self.capacity, device=dev, inputs=args)
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
         """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them in
@@ -1333,22 +1287,7 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        p = self.previous
-        wp.launch(
-            _store,
-            dim=self.capacity,
-            device=self.device,
-            inputs=[
-                self._structs[0],
-                bodies.arrays["body_inv_mass"],
-                p.previous_body_a,
-                p.previous_body_b,
-                p.previous_local_owner,
-                p.previous_impulse_n,
-                p.previous_impulse_t,
-                self.counts,
-            ],
-        )
+        wp.launch(_store, dim=self.capacity, device=self.device, inputs=[*self._structs, self.counts])
 
     def end_solve(self) -> None:
         """Host side after the solver stages: the contacts stored for warm starting are this step's."""
@@ -1380,7 +1319,7 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     jacobi = 0 if contacts.device == "cpu" else 1
-    c, b = contacts._structs
+    c, b, _ = contacts._structs
     if jacobi:
         contacts.body_count.zero_()
         wp.launch(
@@ -1389,7 +1328,6 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
             device=contacts.device,
             inputs=[c, contacts.body_count, contacts.counts],
         )
-    a = bodies.arrays
     wp.launch(
         _prepare,
         dim=contacts.capacity,
@@ -1397,9 +1335,6 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
         inputs=[
             c,
             b,
-            a["body_friction"],
-            a["body_restitution"],
-            a["body_shape"],
             contacts.jt_world,
             vec3(*gravity),
             jacobi,
@@ -1418,7 +1353,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
             _warm_start,
             dim=contacts.capacity,
             device=contacts.device,
-            inputs=[*contacts._structs, _serial(contacts), contacts.counts],
+            inputs=[*contacts._structs[:2], _serial(contacts), contacts.counts],
         )
 
 
@@ -1517,7 +1452,7 @@ def impacts(
     serial = _serial(contacts)
     floor = 2.0 * float(np.linalg.norm(gravity)) * h  # the approach speed gravity gives in two substeps
     args = [
-        *contacts._structs,
+        *contacts._structs[:2],
         vec3(*gravity),
         h,
         threshold,
