@@ -112,6 +112,7 @@ BODY_FIELDS: tuple[Field, ...] = (
     Field("body_orientation", quat, _S, "", "body-to-world rotation, unit quaternion (x, y, z, w)", kernel=True),
     Field("body_velocity", vec3, _S, "m/s", "linear velocity", kernel=True),
     Field("body_angular_velocity", vec3, _S, "rad/s", "angular velocity, world frame", kernel=True),
+    Field("body_joint_load", float_t, _S, "N m", "the joints' geometric load on the body last step (their stiffness)"),
     Field("body_force", vec3, _C, "N", "user force for the next step, at the centre of mass"),
     Field("body_torque", vec3, _C, "N m", "user torque for the next step, world frame"),
     Field("body_delta_position", vec3, _X, "m", "motion since the start of the step (separation updates)", True),

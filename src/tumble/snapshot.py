@@ -40,7 +40,8 @@ if TYPE_CHECKING:
 from .launch import LaunchCache
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 3  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too
+FORMAT = 4  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+# 4: the joints' geometric load is a body state array
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),

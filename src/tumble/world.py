@@ -1413,7 +1413,7 @@ class World:
         # keep this step's impulses for the next step's warm start
         with self._timer("solver"):
             contacts.store_impulses(bodies)
-            self.joints.finish(dt, cache=launches)  # joint forces; joints over their break force break
+            self.joints.finish(bodies, dt, cache=launches)  # joint forces; joints over their break force break
             integrate.clear_forces(bodies)
 
     def _solver_graph(self, dt: float, h: float):

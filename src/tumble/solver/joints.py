@@ -1059,7 +1059,6 @@ class JointSet(RowGroup):
         # the ball joints' chains (`ball_chains`), solved exactly, and those in none, soft (set by `refresh`)
         self._chain_count = self._lone_count = 0
         self._dirty = True
-        self._load = wp.zeros(1, dtype=float_t, device=device)  # geometric load per body row [N m]
         # the kernels' structs, built once per set of arrays (see `_structs`)
         self._struct: Joints | None = None
         self._bodies: tuple | None = None
@@ -1149,22 +1148,7 @@ class JointSet(RowGroup):
         for name in ("joint_body_a", "joint_body_b"):
             rows = self.numpy(name).astype(np.int64)
             self.write(name, slice(0, self.count), np.where(rows >= 0, slot[np.maximum(rows, 0)], -1))
-        old = np.zeros(len(slot))
-        size = min(len(slot), self._load.shape[0])
-        old[:size] = self._load.numpy()[:size]
-        moved = np.zeros(max(self._load.shape[0], len(slot)))
-        kept = slot >= 0
-        moved[slot[kept]] = old[kept]
-        self._load = wp.array(moved, dtype=float_t, device=self.device)
         self._dirty = True
-
-    def _body_load(self, bodies) -> wp.array:
-        """The per-body geometric load (`geometric_load`), grown to the body capacity."""
-        if self._load.shape[0] < bodies.capacity:
-            grown = np.zeros(bodies.capacity)
-            grown[: self._load.shape[0]] = self._load.numpy()
-            self._load = wp.array(grown, dtype=float_t, device=self.device)
-        return self._load
 
     # -------------------------------------------------------------- stepping
 
@@ -1222,7 +1206,7 @@ class JointSet(RowGroup):
     def _launch(self, bodies, h: float, mode: int, cache: LaunchCache | None) -> None:
         """One pass: the joints of each kind present, kind by kind (each in creation order)."""
         j, b = self.struct(), self._body_struct(bodies)
-        load = self._body_load(bodies)
+        load = bodies.arrays["body_joint_load"]  # last step's, in the State: a resume needs it
         serial = 1 if self.device == "cpu" else 0
         soft = softness(h)
         for kind, rows in self._rows.items():
@@ -1251,11 +1235,12 @@ class JointSet(RowGroup):
         if self.count:
             self._launch(bodies, h, 1 if use_bias else 2, cache)
 
-    def finish(self, dt: float, cache: LaunchCache | None = None) -> None:
-        """Joint forces and torques, the mean over the step of `dt` seconds; joints over their break force break."""
+    def finish(self, bodies, dt: float, cache: LaunchCache | None = None) -> None:
+        """Joint forces and torques, the mean over the step of `dt` seconds; joints over their break force
+        break; each body's geometric load (`body_joint_load`) for the next step."""
         if self.count == 0:
             return
-        load = self._load
+        load = bodies.arrays["body_joint_load"]
         load.zero_()
         launch(_finish, self.capacity, [self.struct(), load, 1.0 / dt, self.count], self.device, cache)
 
