@@ -88,7 +88,9 @@ class TumbleAdapter:
 
         self._wp = wp
         self.scene = scene
-        self.world = world = tumble.World(gravity=GRAVITY, dt=scene.dt, device=device)
+        substeps = {} if scene.substeps is None else {"substeps": scene.substeps}
+        gravity = (0.0, 0.0, -scene.gravity)
+        self.world = world = tumble.World(gravity=gravity, dt=scene.dt, device=device, **substeps)
         if quality:
             world.substeps = self.QUALITY_SUBSTEPS
         self.device = world.device
@@ -109,13 +111,14 @@ class TumbleAdapter:
             self._cloth_rows = np.argsort(_pixel_index(start, cloth.position[0], cloth.spacing, cloth.n))
             return
         self.init = init = initial_bodies(scene)
+        material = {"restitution": init.restitution, "friction": init.friction}
         for normal, offset in init.planes:
-            world.add_plane(normal=normal, offset=offset, restitution=RESTITUTION, friction=FRICTION)
+            world.add_plane(normal=normal, offset=offset, **material)
         first = world.body_count
         # all bodies in one vectorised call (add_sphere one by one costs ~2 ms a body)
         add = world.add_spheres if init.shape == "sphere" else world.add_boxes
         size = {"radius": init.radius} if init.shape == "sphere" else {"half_extents": init.half_extents}
-        add(position=init.position, mass=init.mass, restitution=RESTITUTION, friction=FRICTION, **size)
+        add(position=init.position, mass=init.mass, **size, **material)
         self._rows = slice(first, world.body_count)
 
     def step(self, k: int) -> None:

@@ -16,6 +16,12 @@ Geometry (z up, SI units):
 * cloth: an n x n grid of particles, 1 m x 1 m, total mass 0.2 kg, horizontal at z = 1.5 m,
   pinned at the two corners of the edge y = +0.5 m, swinging down under gravity (no ground,
   no self-collision).
+* large pyramid: Box3D's `large_pyramid` benchmark (erincatto/box3d, `shared/benchmarks.c`,
+  `CreateLargePyramid`), z up instead of y: 4,095 cubes of 1 m (half extent 0.5 m, density 1,
+  so 1 kg), 90 on the ground and one fewer in each row up, each row shifted by half a cube so
+  that every cube rests on two; no gaps (neighbours in a row touch, rows rest on each other);
+  friction 0.6 and restitution 0 (Box3D's defaults), gravity 10 m/s^2, dt = 1/60 s. Box3D's
+  ground is a static 200 m x 200 m box with its top at 0; here it is the plane z = 0.
 """
 
 from __future__ import annotations
@@ -51,6 +57,24 @@ CLOTH_HEIGHT = 1.5  # [m]
 
 NO_RAPIER_CLOTH = "Rapier has no mass-spring cloth to compare"
 
+# Box3D's large pyramid (see the module docstring)
+LARGE_PYRAMID_BASE = 90
+LARGE_PYRAMID_HALF = 0.5  # [m]
+LARGE_PYRAMID_MASS = 1.0  # [kg]: density 1 kg/m^3 times 1 m^3
+LARGE_PYRAMID_FRICTION = 0.6
+LARGE_PYRAMID_GRAVITY = 10.0  # [m/s^2]
+#: Tumble's recommended substeps at dt = 1/60 s for tall stacks: h = 1/1920 s, the default
+#: substep (1/240 s in 8), so contacts as stiff as at the defaults (docs/performance.md)
+LARGE_PYRAMID_SUBSTEPS = 32
+#: the top cube must stay within this of its start after 10 s [m] (issue 19)
+LARGE_PYRAMID_TOP_TOLERANCE = 0.02
+#: Box3D's figure: 1,614.82 ms for the benchmark's 200 steps of 1/60 s with 4 substeps, one
+#: thread of an AMD 7950X, SSE2 build (erincatto/box3d benchmark/amd7950x_sse2/large_pyramid.csv,
+#: commit 23367c3; its AVX2 build: 1,067.06 ms, benchmark/amd7950x_avx2/large_pyramid.csv, commit
+#: 688c058). benchmark/main.c times the 199 steps after an untimed first one, so per timed step it
+#: is 8.11 ms; 8.07 ms is the total over 200, as issue 19 quotes it.
+BOX3D_LARGE_PYRAMID_MS = 1614.82 / 200
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -69,6 +93,8 @@ class Scene:
         seed: seed of the jitter.
         skip: peers left out of this scene by default, with the reason (run.py --all-peers
             runs them anyway).
+        substeps: Tumble's substeps (None: its default).
+        gravity: magnitude of gravity [m/s^2], along -z.
     """
 
     name: str
@@ -81,6 +107,8 @@ class Scene:
     peers: bool = True
     seed: int = 7
     skip: tuple[tuple[str, str], ...] = ()
+    substeps: int | None = None
+    gravity: float = 9.81
 
     @property
     def steps(self) -> int:
@@ -113,6 +141,17 @@ SCENES: dict[str, Scene] = {
         Scene("pile_100k", "pile", 100_000, box_width=5.0, peers=False),
         Scene("boxes_1k", "boxes", 1_000),
         Scene("box_pyramid", "pyramid", 55),
+        Scene(
+            "large_pyramid",
+            "large_pyramid",
+            LARGE_PYRAMID_BASE * (LARGE_PYRAMID_BASE + 1) // 2,
+            dt=1.0 / 60.0,
+            duration=10.0,
+            peer_duration=10.0,
+            peers=False,
+            substeps=LARGE_PYRAMID_SUBSTEPS,
+            gravity=LARGE_PYRAMID_GRAVITY,
+        ),
         Scene("cloth_64", "cloth", 64, skip=(("rapier", NO_RAPIER_CLOTH),)),
         Scene(
             "cloth_128",
@@ -147,6 +186,8 @@ class Bodies:
         mass: mass of each body [kg].
         planes: static planes as (normal (3,), offset) with dot(normal, x) = offset, bodies on
             the +normal side; the ground first.
+        friction: friction coefficient of every body and plane.
+        restitution: restitution of every body and plane.
     """
 
     shape: str
@@ -155,6 +196,8 @@ class Bodies:
     half_extents: np.ndarray
     mass: float
     planes: list[tuple[np.ndarray, float]]
+    friction: float = FRICTION
+    restitution: float = RESTITUTION
 
 
 def box_planes(width: float) -> list[tuple[np.ndarray, float]]:
@@ -214,6 +257,18 @@ def pyramid_positions(count: int) -> np.ndarray:
     return np.stack([np.array(rows), np.zeros(count), np.array(heights)], axis=1)
 
 
+def large_pyramid_positions(base: int, half: float = LARGE_PYRAMID_HALF) -> np.ndarray:
+    """Cube centres of Box3D's large pyramid with `base` cubes on the ground, shape (base (base + 1) / 2, 3) [m].
+
+    Row i (from 0 at the ground) has base - i cubes at z = (2 i + 1) h, x = (i + 1) h + 2 (j - i) h - base h
+    for j = i .. base - 1: touching neighbours, each row shifted by h over the one below, as in
+    Box3D's `CreateLargePyramid` (its y is z here); the top cube is the last row.
+    """
+    i, j = np.nonzero(np.triu(np.ones((base, base), dtype=bool)))  # row i, j = i .. base - 1, row by row
+    x = (i + 1.0) * half + 2.0 * (j - i) * half - half * base
+    return np.stack([x, np.zeros(len(i)), (2.0 * i + 1.0) * half], axis=1)
+
+
 def initial_bodies(scene: Scene) -> Bodies:
     """The moving bodies and static planes of a pile or box-rain scene."""
     if scene.kind == "pile":
@@ -242,6 +297,20 @@ def initial_bodies(scene: Scene) -> Bodies:
             np.full(3, CUBE_HALF),
             CUBE_MASS,
             box_planes(0.0)[:1],
+        )
+    if scene.kind == "large_pyramid":
+        base = int(round((math.sqrt(8 * scene.count + 1) - 1) / 2))
+        if base * (base + 1) // 2 != scene.count:
+            raise ValueError(f"a pyramid has a triangular number of cubes, not {scene.count}")
+        return Bodies(
+            "box",
+            large_pyramid_positions(base),
+            0.0,
+            np.full(3, LARGE_PYRAMID_HALF),
+            LARGE_PYRAMID_MASS,
+            box_planes(0.0)[:1],
+            friction=LARGE_PYRAMID_FRICTION,
+            restitution=0.0,
         )
     raise ValueError(f"scene {scene.name!r} of kind {scene.kind!r} has no rigid bodies")
 

@@ -16,15 +16,17 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
 - a manifold (a pair's consecutive contacts sharing one normal, up to `MANIFOLD_ROWS`: a face's corners) is solved
-  as one block: after an impact (`MANIFOLD_IMPACT`) its rows are swept `MANIFOLD_SWEEPS` times,
-  forward and backward in turn (the collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
+  as one block: its rows are swept `MANIFOLD_SWEEPS` times, forward and backward in turn (the collision pass: until they converge to `MANIFOLD_TOLERANCE`), because its normal rows are coupled and rank-deficient (four coplanar
   corners, three degrees of freedom) and one sweep leaves each corner a different impulse;
   a patch (a manifold whose rows share the normal) takes its friction at its centre, on the
   disc |jt| <= mu sum jn, with a twist row about n, |j_twist| <= mu sum jn_i arm_i, so that no
   order of its corners enters the friction (a box landing flat or on one edge never turns
   about the vertical; tests/regression/test_issue_16_flat_landing_spins_a_box.py);
 - contacts with a static body are twice as stiff (they carry whole piles), as in Box2D;
-- overlaps up to `LINEAR_SLOP` are held rigidly (no push-out), so resting stacks do not jitter;
+- a lone contact's overlap up to `LINEAR_SLOP` is held rigidly (no push-out), so resting spheres
+  do not jitter; a manifold's rows have no slop (their corners share the load evenly, see
+  `_normal_target`): a resting row under load F settles at F / (m_n omega^2)
+  (tests/physics/test_stacks.py);
 - restitution is a collision pass at the start of every substep, before the solve (`impacts`,
   as in the collision/contact split of Guendelman, Bridson & Fedkiw, SIGGRAPH 2003): every
   contact that closes within the substep faster than the threshold collides once, as a
@@ -72,7 +74,7 @@ vec4 = wp.types.vector(length=4, dtype=float_t)
 #: and the damping ratio of the soft constraint
 CONTACT_HERTZ_PER_SUBSTEP_RATE = 0.125
 CONTACT_DAMPING_RATIO = 10.0
-#: overlap [m] tolerated without push-out: resting contacts stay rigid and still
+#: overlap [m] tolerated without push-out: resting contacts stay still
 LINEAR_SLOP = 2.0e-5
 #: largest speed [m/s] at which overlapping bodies are pushed apart
 MAX_PUSH_VELOCITY = 3.0
@@ -83,12 +85,11 @@ MATCH_TOLERANCE = 0.5
 #: a manifold: a pair's consecutive contacts (the narrow phase writes a pair's points together),
 #: in runs of up to this many, whose normal rows are solved together (see `_solve`)
 MANIFOLD_ROWS = wp.constant(4)
-#: Gauss-Seidel sweeps over one manifold's rows in each solve and relax pass; in the collision
-#: pass, sweeps until no row changes its velocity by MANIFOLD_TOLERANCE [m/s] (at most IMPACT_SWEEPS)
-MANIFOLD_SWEEPS = wp.constant(4)
-#: a manifold sweeps MANIFOLD_SWEEPS times when its first sweep changed a normal velocity by more
-#: than this [m/s] (an impact; a resting box's rows change by about g h, 5 mm/s at 8 substeps of 1/240 s, 20 times less)
-MANIFOLD_IMPACT = wp.constant(float_t(0.1))
+#: Gauss-Seidel sweeps over one manifold's rows in each solve and relax pass, resting or not (six:
+#: with four, a cube landing flat at 10 m/s kept 1.2e-8 m/s of sideways speed from the corners'
+#: order, against 1e-8 in tests/regression/test_issue_16_*); in the collision pass, sweeps until no
+#: row changes its velocity by MANIFOLD_TOLERANCE [m/s] (at most IMPACT_SWEEPS)
+MANIFOLD_SWEEPS = wp.constant(6)
 MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
 
 CONTACT_FIELDS = {
@@ -576,7 +577,7 @@ class SolvePass:
     static_mass_scale: float_t
     static_impulse_scale: float_t
     max_push: float_t  # largest push-out speed [m/s]
-    slop: float_t  # overlap held rigidly [m]
+    slop: float_t  # overlap not pushed out [m]
 
 
 @wp.func
@@ -591,8 +592,9 @@ def _normal_target(
     dthb: vec3,
     p: SolvePass,
     static: bool,
+    block: bool,
 ):
-    """(bias, mass scale, impulse scale) of a normal row for this pass.
+    """(bias, mass scale, impulse scale) of a normal row for this pass (`block`: a row of a manifold).
 
     The current separation, linearised in the motion since the step began:
     s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a)). Speculative (s > 0) lets
@@ -605,14 +607,23 @@ def _normal_target(
     isc = float_t(0.0)
     if s > float_t(0.0):
         bias = s * p.inv_h
-    elif p.use_bias != 0 and s < -p.slop:
-        bias = wp.max(p.bias_rate * (s + p.slop), -p.max_push)
+    # a manifold's rows have no slop: soft from s = 0, as in Box2D v3 and Box3D. A rigid row in
+    # the slop carries any load at no overlap, so a face's corner that sat at s = 0 took up to a
+    # third of a cube's load while the soft corners sank, and the box tilted (0.8 mm across a
+    # cube in a tower of ten at dt = 1/60 s, 4 substeps, whose top then leaned 11 mm). The four
+    # rows then settle evenly, each at F_i / (m_n omega^2), micrometres under a few bodies' weight.
+    # A lone contact has no such freedom and keeps its rigid slop
+    slop = p.slop
+    if block:
+        slop = float_t(0.0)
+    if p.use_bias != 0 and s < -slop:
         ms = p.mass_scale
         isc = p.impulse_scale
+        bias = wp.max(p.bias_rate * (s + slop), -p.max_push)
         if static:
-            bias = wp.max(p.static_bias_rate * (s + p.slop), -p.max_push)
             ms = p.static_mass_scale
             isc = p.static_impulse_scale
+            bias = wp.max(p.static_bias_rate * (s + slop), -p.max_push)
     return bias, ms, isc
 
 
@@ -749,7 +760,7 @@ def _solve(
         )  # fmt: skip
         bias, ms, isc = _normal_target(
             c_separation[k], c_normal[k], c_r_a[k], c_r_b[k], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-            p, static,
+            p, static, False,
         )  # fmt: skip
         dv = _normal_row(
             k, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias, ms, isc, c_scale[k], c_jn, c_jn_max,
@@ -764,7 +775,7 @@ def _solve(
             kk = k + i
             bias, ms, isc = _normal_target(
                 c_separation[kk], c_normal[kk], c_r_a[kk], c_r_b[kk], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-                p, static,
+                p, static, True,
             )  # fmt: skip
             bias4[i] = bias
             ms4[i] = ms
@@ -776,20 +787,16 @@ def _solve(
         # friction bounded by those impulses, corner after corner, turns it into spin. So the
         # manifold's rows are swept MANIFOLD_SWEEPS times, forward and backward in turn: projected
         # Gauss-Seidel on the manifold's own block, whose velocities converge whatever the order
-        # of the corners. Only an impact needs them: a manifold whose first sweep changed no normal
-        # velocity by MANIFOLD_IMPACT stops there (resting contact, converged across passes by
-        # the warm start, as before). Not a stop at a small tolerance: that would leave a resting
-        # stack a remainder of that size after every substep's gravity kick, which kept it rocking
-        # (2.5e-4 rad/s at 1e-5 m/s); resting changes stay far from MANIFOLD_IMPACT, so the map
-        # is smooth there. A patch (rows sharing the
+        # of the corners. Resting manifolds too (a fixed count, not a stop at a tolerance, so the
+        # map stays smooth): one forward sweep a pass at rest gave the first corners more of the
+        # load every substep, and the remainder, held by friction, leaned stacks over (a tower of
+        # ten 1 m cubes at dt = 1/60 s, 4 substeps: its top 11 mm off its start after 4 s, now
+        # 0.2 mm; Box3D's 4,095-cube pyramid at 32 substeps: 24 mm, now 11). A patch (rows sharing the
         # normal) has its friction at its centre, on the disc |jt| <= mu sum_i jn_i, and a twist
         # row about n, |j_twist| <= mu sum_i jn_i arm_i, so no order of corners enters it either.
         patch = c_mass_twist[k] > float_t(0.0)
         mu = c_friction[k]
-        sweeps = int(1)
-        sweep = int(0)
-        while sweep < sweeps:
-            change = float_t(0.0)  # the largest normal velocity change of this sweep [m/s]
+        for sweep in range(MANIFOLD_SWEEPS):
             if patch:
                 load = float_t(0.0)
                 torque = float_t(0.0)
@@ -818,15 +825,10 @@ def _solve(
                         kk, c_r_a[kk], c_r_b[kk], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
                         c_mass_t1, c_mass_t2, mu * c_jn[kk], c_scale[kk], c_jt1, c_jt2, pair, dv,
                     )  # fmt: skip
-                jn_before = c_jn[kk]
                 dv = _normal_row(
                     kk, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias4[i], ms4[i], isc4[i], c_scale[kk],
                     c_jn, c_jn_max, pair, dv,
                 )  # fmt: skip
-                change = wp.max(change, wp.abs(c_jn[kk] - jn_before) / c_mass_n[kk])
-            if sweep == 0 and change > MANIFOLD_IMPACT:
-                sweeps = MANIFOLD_SWEEPS
-            sweep += 1
     dva = dv.va
     dwa = dv.wa
     dvb = dv.vb
