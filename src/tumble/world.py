@@ -104,7 +104,10 @@ class World:
         gravity: gravitational acceleration [m/s^2], shape (3,).
         dt: fixed time step [s] used by `step()` and `run()`, in (0, 0.1] (`tumble.limits.MAX_DT`).
         substeps: solver substeps per step (more = stiffer stacks, less penetration), an integer in
-            [1, 1000] (`tumble.limits.MAX_SUBSTEPS`); `run` refuses more than 10^9 steps.
+            [1, 1000] (`tumble.limits.MAX_SUBSTEPS`); `run` refuses more than 10^9 steps. Contact
+            stiffness is 1/8 of the substep rate, so a stack's sag goes as (dt / substeps)^2: for
+            tall stacks keep dt / substeps at the default 1/1920 s (32 substeps at dt = 1/60 s;
+            docs/performance.md, "Tall stacks").
         seed: seed of the world's random generator (emitters, turbulence), an integer >= 0.
         device: Warp device, "cpu" (default) or "cuda".
         restitution_threshold: impact speed [m/s] below which contacts that carry load do not
