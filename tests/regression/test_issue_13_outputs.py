@@ -199,7 +199,9 @@ def test_a_full_disk_keeps_the_old_recording_and_plot(tmp_path, tumble_subproces
     )
     image = tmp_path / "plot.png"
     image.write_bytes(OLD)
-    result = _tumble(["plot", str(good), "-o", str(image)], tumble_subprocess_env, limit=5_000)
+    # as on a machine's first plot: matplotlib's font cache is built and cannot be saved either
+    cold = {**tumble_subprocess_env, "MPLCONFIGDIR": str(tmp_path / "mpl")}
+    result = _tumble(["plot", str(good), "-o", str(image)], cold, limit=5_000)
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "File too large" in result.stderr
     assert image.read_bytes() == OLD and _leftovers(tmp_path) == []
@@ -289,3 +291,19 @@ def test_viewer_screenshots_and_videos_are_written_atomically(tmp_path):
     data = (tmp_path / "clip.mp4").read_bytes()
     assert data[4:8] == b"ftyp" and video.frame_count == 10
     assert _leftovers(tmp_path) == []
+
+
+def test_a_first_ctrl_c_waits_for_the_step_to_end_and_a_second_stops_at_once():
+    """run's SIGINT handler only asks the loop to stop between steps; a second Ctrl-C raises at once."""
+    from tumble.commands.run import interrupt_between_steps
+
+    before = signal.getsignal(signal.SIGINT)
+    with interrupt_between_steps() as interrupted:
+        assert not interrupted.is_set()
+        os.kill(os.getpid(), signal.SIGINT)  # handled in the main thread before the next bytecode
+        time.sleep(0.01)
+        assert interrupted.is_set()  # the request is recorded, nothing was raised mid-step
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.5)
+    assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time
 
 from .. import limits, snapshot
@@ -150,20 +153,56 @@ def _check_record_memory(args: argparse.Namespace, world, steps: int) -> None:
 def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
     """Step `world` `steps` times (recording each step), then print the summary."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     err = Console(stderr=True)
 
     # load every kernel the world uses before the clock starts, compiling on a machine's first run
     prepare_kernels(world.device, report=lambda line: err.print(line, highlight=False))
-    start = time.perf_counter()
-    world.step()
-    if recorder is not None:
-        recorder(world)
-    first_step = time.perf_counter() - start
-    err.print(f"first step done in {first_step:.2f} s", highlight=False)
+    with interrupt_between_steps() as interrupted:
+        start = time.perf_counter()
+        world.step()
+        if recorder is not None:
+            recorder(world)
+        first_step = time.perf_counter() - start
+        err.print(f"first step done in {first_step:.2f} s", highlight=False)
+        wall = _step_on(world, steps, recorder, err, interrupted)
 
-    # the remaining steps, with a progress bar when stderr is a terminal
+    if recorder is not None:
+        recorder.save(args.record)
+    _print_summary(args, world, steps, wall, first_step, recorder)
+    if args.profile:
+        _print_profile(world, steps)
+
+
+@contextlib.contextmanager
+def interrupt_between_steps():
+    """Turn a Ctrl-C into a request that the step loop honours between two steps.
+
+    Yields an Event that the first SIGINT sets; the loop then raises KeyboardInterrupt at a clean point
+    (the world between steps, the recorder holding whole frames). A second Ctrl-C raises at once, as
+    Python's default handler does. Outside the main thread (signals cannot be caught there) the
+    default behaviour is kept.
+    """
+    interrupted = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield interrupted
+        return
+
+    def request(signum, frame):
+        interrupted.set()
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # a second Ctrl-C stops at once
+
+    previous = signal.signal(signal.SIGINT, request)
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _step_on(world, steps: int, recorder, err, interrupted: threading.Event) -> float:
+    """The steps after the first, with a progress bar when stderr is a terminal; returns their wall time."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
     start = time.perf_counter()
     every = max(1, (steps - 1) // 200)
     with Progress(
@@ -178,18 +217,16 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
     ) as progress:
         task = progress.add_task("steps", total=steps - 1)
         for k in range(1, steps):
+            if interrupted.is_set():
+                raise KeyboardInterrupt
             world.step()
             if recorder is not None:
                 recorder(world)
             if k % every == 0:
                 progress.update(task, completed=k)
-    wall = time.perf_counter() - start
-
-    if recorder is not None:
-        recorder.save(args.record)
-    _print_summary(args, world, steps, wall, first_step, recorder)
-    if args.profile:
-        _print_profile(world, steps)
+    if interrupted.is_set():  # Ctrl-C during the last step
+        raise KeyboardInterrupt
+    return time.perf_counter() - start
 
 
 def _print_summary(args, world, steps: int, wall: float, first_step: float, recorder) -> None:

@@ -214,6 +214,25 @@ PANELS = {
 }
 
 
+def _quiet_font_cache() -> None:
+    """Keep matplotlib's "Could not save font_manager cache" off the user's screen.
+
+    On its first start matplotlib builds a font list and caches it in its config folder; when that
+    write fails (a full disk, a read-only home) it logs a warning and simply rebuilds the list next
+    time. It says nothing about the user's plot, whose own write errors Tumble reports in one line.
+    """
+    import logging
+
+    logger = logging.getLogger("matplotlib.font_manager")
+    if not any(isinstance(f, _FontCacheFilter) for f in logger.filters):
+        logger.addFilter(_FontCacheFilter())
+
+
+class _FontCacheFilter:
+    def filter(self, record) -> bool:
+        return not str(record.msg).startswith("Could not save font_manager cache")
+
+
 def build_figure(record: dict, *, name: str | None = None):
     """A matplotlib Figure (Agg) with one panel per quantity, stacked over a shared time axis.
 
@@ -223,6 +242,7 @@ def build_figure(record: dict, *, name: str | None = None):
     bodies are being emitted every panel shades that time span, and the potential-energy
     panel's title says how many appeared (the energy changes as they do).
     """
+    _quiet_font_cache()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
