@@ -40,8 +40,8 @@ if TYPE_CHECKING:
 from .launch import LaunchCache
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 4  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
-# 4: the joints' geometric load is a body state array
+FORMAT = 5  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+# 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),

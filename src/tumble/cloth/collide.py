@@ -1158,23 +1158,28 @@ def collide_features(
     )
 
 
+def pair_buffer(particle_count: int, device: str) -> wp.array:
+    """The first buffer of the self-collision pair list of P particles: (max(64, 4 P), 2) int32."""
+    return wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
+
+
 class SelfCollisionGrid:
-    """Preallocated buffers of the particle spatial hash and of the candidate pair list.
+    """The self-collision pair finder: the particle spatial hash and the device-side pair counter.
+
+    The pair list it fills is state (`ClothState.pairs`, kept from step to step while the particles
+    stay within its margin); this object holds only scratch.
 
     Args:
-        particle_count: P.
         device: Warp device.
     """
 
-    def __init__(self, particle_count: int, device: str):
+    def __init__(self, device: str):
         self.grid = HashGrid(device)
-        self.pair_count = wp.zeros(1, dtype=wp.int32, device=device)
-        self.pairs = wp.zeros((max(64, 4 * particle_count), 2), dtype=wp.int32, device=device)
-        self.count = 0  # pairs found by the last `find_pairs`
-        self.overflow = 0  # pairs that did not fit (the buffer grows for the next step)
+        self.found = wp.zeros(1, dtype=wp.int32, device=device)
 
     def find_pairs(
         self,
+        pairs: wp.array,
         x,
         inv_mass,
         thickness,
@@ -1185,10 +1190,11 @@ class SelfCollisionGrid:
         margin: float,
         *,
         cache: LaunchCache | None = None,
-    ) -> int:
-        """Once per world step: every non-neighbour pair within its mean thickness + `margin`.
+    ) -> tuple[wp.array, int]:
+        """Every non-neighbour pair within its mean thickness + `margin`, written to `pairs`.
 
         Args:
+            pairs: the pair buffer, (K, 2) int32 (`pair_buffer`).
             x: positions [m], shape (P,) vec3.
             inv_mass: [1/kg], shape (P,).
             thickness: [m], shape (P,).
@@ -1198,7 +1204,9 @@ class SelfCollisionGrid:
             cache: recorded launches to replay.
 
         Returns:
-            The number of pairs kept in `pairs`.
+            The buffer holding the list (`pairs`, or a larger one with the first K pairs when more than
+            K were found: this step keeps the truncated list, the next finds room) and the number of
+            pairs in it.
         """
         n, dev = x.shape[0], x.device
         reach = max_thickness + margin
@@ -1206,7 +1214,7 @@ class SelfCollisionGrid:
         # counting sort of the particles into hashed cells (shared with the bodies' broad phase)
         grid = self.grid.build(x, n, 1.0 / inv_cell)
         # candidate pairs
-        self.pair_count.zero_()
+        self.found.zero_()
         launch(
             _find_pairs,
             n,
@@ -1225,35 +1233,33 @@ class SelfCollisionGrid:
                 grid.cell_count,
                 grid.entries,
                 grid.point_cell_coord,
-                self.pair_count,
-                self.pairs,
+                self.found,
+                pairs,
             ],
             dev,
             cache,
         )
-        found = int(self.pair_count.numpy()[0])
-        capacity = self.pairs.shape[0]
-        self.count = min(found, capacity)
-        self.overflow = max(0, found - capacity)
-        if self.overflow:
+        found = int(self.found.numpy()[0])
+        count = min(found, pairs.shape[0])
+        if found > count:
             # keep this step's truncated list; make room for the next step
-            kept = self.pairs.numpy()[: self.count].copy()
-            self.pairs = wp.zeros((2 * found, 2), dtype=wp.int32, device=dev)
-            self.pairs.assign(np.concatenate([kept, np.zeros((2 * found - self.count, 2), np.int32)]))
-        return self.count
+            kept = pairs.numpy()[:count].copy()
+            pairs = wp.zeros((2 * found, 2), dtype=wp.int32, device=dev)
+            pairs.assign(np.concatenate([kept, np.zeros((2 * found - count, 2), np.int32)]))
+        return pairs, count
 
-    def separate(self, x, inv_mass, thickness, *, cache: LaunchCache | None = None) -> None:
-        """Every substep: push the listed pairs that are closer than their mean thickness apart.
 
-        Args:
-            x: positions [m], shape (P,) vec3 (corrected in place).
-            inv_mass: [1/kg], shape (P,).
-            thickness: [m], shape (P,).
-            cache: recorded launches to replay.
-        """
-        if self.count:
-            # launched over the whole buffer (threads past `count` return), so the recorded
-            # launch is reused whatever the count
-            launch(
-                _separate_pairs, self.pairs.shape[0], [x, inv_mass, thickness, self.pairs, self.count], x.device, cache
-            )
+def separate_pairs(x, inv_mass, thickness, pairs, count: int, *, cache: LaunchCache | None = None) -> None:
+    """Every substep: push the listed pairs that are closer than their mean thickness apart.
+
+    Args:
+        x: positions [m], shape (P,) vec3 (corrected in place).
+        inv_mass: [1/kg], shape (P,).
+        thickness: [m], shape (P,).
+        pairs: the pair list, (K, 2) int32; count: how many of its rows are pairs.
+        cache: recorded launches to replay.
+    """
+    if count:
+        # launched over the whole buffer (threads past `count` return), so the recorded
+        # launch is reused whatever the count
+        launch(_separate_pairs, pairs.shape[0], [x, inv_mass, thickness, pairs, count], x.device, cache)

@@ -149,14 +149,19 @@ class ClothState:
         particles: the state rows of `PARTICLE_FIELDS` (positions, velocities, pin targets).
         body_contacts: per body row, how many particles touched it in the last cloth substep (the
             coupling keeps a body in contact from one substep to the next), int32.
-        pair_margin: margin of the self-collision pair list [m] (the list itself is the stage's
-            `collide.SelfCollisionGrid`, rebuilt from the particles; snapshots keep it with the stage).
+        pairs: the self-collision pair list, a Verlet list of particle pairs, (K, 2) int32, of which
+            the first `pair_count` rows are pairs; kept from step to step while the particles stay
+            within its margin, so a resumed run separates the same pairs.
+        pair_count: the number of pairs in `pairs`.
+        pair_margin: margin of the self-collision pair list [m].
         pair_travel: how much closer particles may have come since that list was built [m].
     """
 
     def __init__(self, device: str, arrays: dict[str, wp.array]):
         self.particles = _particle_set(Role.STATE, device, arrays)
         self.body_contacts = wp.zeros(16, dtype=wp.int32, device=device)
+        self.pairs = collide.pair_buffer(0, device)
+        self.pair_count = 0
         self.pair_margin = 0.0
         self.pair_travel = math.inf
 
@@ -484,7 +489,9 @@ class ClothSystem:
         self._strain = wp.zeros(len(host["structural_ids"]), dtype=float_t, device=self.device)
         self._build_limits()
         self._edge_owner = wp.array(collide.edge_owners(host["triangles"]), dtype=wp.int32, device=self.device)
-        self._grid = collide.SelfCollisionGrid(p, self.device)
+        self._grid = collide.SelfCollisionGrid(self.device)
+        self.state.pairs = collide.pair_buffer(p, self.device)
+        self.state.pair_count = 0
         self.state.pair_travel = math.inf
         self._reach = float(host["particle_thickness"].max())
         self._update_pins()
@@ -669,11 +676,8 @@ class ClothSystem:
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
-            assert self._grid is not None  # made with the first cloth (_append)
-            if self.self_collision and self._grid.count:
-                self._grid.separate(
-                    a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
-                )
+            if self.self_collision and self.state.pair_count:
+                self._separate_pairs(cache)
                 self._limit(pin_load, 1.0, tethers=False, min_iterations=0)
 
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
@@ -682,10 +686,8 @@ class ClothSystem:
                 self._collide_bodies(hi, hulls, meshes)
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
-                if self.self_collision and self._grid.count:
-                    self._grid.separate(
-                        a["particle_position"], a["particle_inv_mass"], a["particle_thickness"], cache=cache
-                    )
+                if self.self_collision and self.state.pair_count:
+                    self._separate_pairs(cache)
                     self._collide_bodies(hi, hulls, meshes)
 
         # the triangles against the sharp features of static meshes and boxes, once the particles
@@ -722,6 +724,18 @@ class ClothSystem:
         # velocities from the corrected positions
         springs.update_velocities(
             a["particle_position"], a["particle_position_prev"], a["particle_velocity"], hi, cache=cache
+        )
+
+    def _separate_pairs(self, cache) -> None:
+        """The pairs of the self-collision list pushed apart to their mean thickness."""
+        a = self.particles.arrays
+        collide.separate_pairs(
+            a["particle_position"],
+            a["particle_inv_mass"],
+            a["particle_thickness"],
+            self.state.pairs,
+            self.state.pair_count,
+            cache=cache,
         )
 
     def _limit(self, pin_load, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
@@ -864,7 +878,8 @@ class ClothSystem:
             if self.state.pair_travel >= self.state.pair_margin:
                 self.state.pair_margin = min(max(0.25 * self._reach, 2.0 * speed * dt), self._reach)
                 self.state.pair_travel = 2.0 * speed * dt
-                self._grid.find_pairs(
+                self.state.pairs, self.state.pair_count = self._grid.find_pairs(
+                    self.state.pairs,
                     a["particle_position"],
                     a["particle_inv_mass"],
                     a["particle_thickness"],
@@ -876,7 +891,7 @@ class ClothSystem:
                     cache=self._cache,
                 )
         else:
-            self._grid.count = 0
+            self.state.pair_count = 0
             self.state.pair_travel = math.inf
 
         # bodies that can reach the cloth during this step

@@ -55,3 +55,68 @@ def test_self_collision_separates_two_cloths():
     x = world.cloth.particle_position
     gap = x[9:, 2] - x[:9, 2]
     assert gap.min() >= 0.05 * 0.99
+
+
+def _brute_force_pairs(x, inv_m, thickness, cloth, gi, gj, margin):
+    """Every pair p < q within its mean thickness + margin, not grid neighbours (|di|, |dj| <= 2 in one
+    cloth) and not two pins, found by checking all pairs."""
+    found = set()
+    for p in range(len(x)):
+        for q in range(p + 1, len(x)):
+            if cloth[p] == cloth[q] and abs(gi[p] - gi[q]) <= 2 and abs(gj[p] - gj[q]) <= 2:
+                continue
+            near = 0.5 * (thickness[p] + thickness[q]) + margin
+            if np.sum((x[p] - x[q]) ** 2) < near * near and inv_m[p] + inv_m[q] > 0:
+                found.add((p, q))
+    return found
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_self_collision_pairs_equal_brute_force_and_the_buffer_grows(seed):
+    """find_pairs lists exactly the brute-force pairs; from a buffer too small it keeps the first K and
+    returns a larger buffer that holds the whole list on the next call."""
+    import warp as wp
+
+    from tumble.state import float_t, vec3
+
+    rng = np.random.default_rng(seed)
+    n = 400
+    x = rng.uniform(0.0, 0.4, size=(n, 3))
+    inv_m = np.where(rng.uniform(size=n) < 0.1, 0.0, 1.0)
+    thickness = rng.uniform(0.01, 0.03, size=n)
+    cloth = rng.integers(0, 2, size=n).astype(np.int32)
+    gi, gj = rng.integers(0, 30, size=n).astype(np.int32), rng.integers(0, 30, size=n).astype(np.int32)
+    margin = 0.01
+    expected = _brute_force_pairs(x, inv_m, thickness, cloth, gi, gj, margin)
+    assert len(expected) > 64  # more than the smallest buffer holds
+
+    def arr(a, dtype):
+        return wp.array(a, dtype=dtype, device="cpu")
+
+    args = (arr(x, vec3), arr(inv_m, float_t), arr(thickness, float_t), arr(cloth, wp.int32))
+    args += (arr(gi, wp.int32), arr(gj, wp.int32), float(thickness.max()), margin)
+    finder = collide.SelfCollisionGrid("cpu")
+    small = collide.pair_buffer(0, "cpu")
+    grown, count = finder.find_pairs(small, *args)
+    assert count == small.shape[0] == 64 and grown.shape[0] >= len(expected)
+    assert {tuple(r) for r in grown.numpy()[:count]} <= expected  # the truncated list: true pairs
+    again, count = finder.find_pairs(grown, *args)
+    assert again is grown and count == len(expected)
+    assert {tuple(r) for r in again.numpy()[:count]} == expected
+
+
+def test_separate_pairs_pushes_a_listed_pair_to_its_thickness_by_inverse_mass():
+    """Two particles 0.01 m apart with thickness 0.03: pushed to 0.03 apart, the light one three times as far."""
+    import warp as wp
+
+    from tumble.state import float_t, vec3
+
+    x = wp.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [5.0, 0.0, 0.0]], dtype=vec3, device="cpu")
+    inv_m = wp.array([1.0, 3.0, 1.0], dtype=float_t, device="cpu")
+    thickness = wp.array([0.03, 0.03, 0.03], dtype=float_t, device="cpu")
+    pairs = wp.array([[0, 1], [0, 2]], dtype=wp.int32, device="cpu")
+    collide.separate_pairs(x, inv_m, thickness, pairs, 1)
+    out = x.numpy()
+    assert out[1, 0] - out[0, 0] == pytest.approx(0.03, abs=1e-15)
+    assert -out[0, 0] == pytest.approx(0.005, abs=1e-15) and out[1, 0] - 0.01 == pytest.approx(0.015, abs=1e-15)
+    assert np.array_equal(out[2], [5.0, 0.0, 0.0])  # past the count: not read
