@@ -115,7 +115,7 @@ def build_parser() -> Parser:
         p.add_argument(
             "--debug", action="store_true", default=argparse.SUPPRESS, help="print the traceback of an error"
         )
-        p.set_defaults(_main=module.main)
+        p.set_defaults(command_main=module.main)
         parser.commands[name] = p
     return parser
 
@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         warnings.filterwarnings("ignore", category=RuntimeWarning)
     prefix = f"tumble {args.command}: error:"
     try:
-        return int(args._main(args) or 0)
+        return int(args.command_main(args) or 0)
     except KeyboardInterrupt:
         print(f"tumble {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, TypeGuard
 
 from .errors import TumbleError
 from .io.atomic import atomic_path
+from .progress import new_bar
 
 if TYPE_CHECKING:
     from rich.progress import Progress
@@ -1152,30 +1153,14 @@ class _Progress:
         self.bar: Progress | None = None
 
     def start(self, engine: str) -> None:
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
+        from rich.progress import TextColumn, TimeElapsedColumn
 
         if self.live or self.lines:
             skipped = f", {self.done} already done" if self.done else ""
             self.console.print(f"wedge: {self.total} variants{skipped}, on {engine}", highlight=False)
         if self.live and not self.lines:
-            self.bar = Progress(
-                TextColumn("wedge"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[failed]}"),
-                TimeElapsedColumn(),
-                TextColumn("left"),
-                TimeRemainingColumn(),
-                console=self.console,
-                transient=False,
-            )
+            extra = (TextColumn("{task.fields[failed]}"), TimeElapsedColumn(), TextColumn("left"))
+            self.bar = new_bar(self.console, "variants", extra=extra)
             self.bar.start()
             self.task = self.bar.add_task("wedge", total=self.total, completed=self.done, failed="")
 

@@ -207,6 +207,20 @@ class BroadPhase:
         self._body_capacity = 0
         self._ordinary_limit = np.inf
 
+    def graph_key(self) -> tuple:
+        """What the recorded launches of this stage bake in: its limits, capacities and the arrays it
+        launches with (a recorded graph of `launch` is valid while this tuple is unchanged)."""
+        grid = self.grid
+        return (
+            self._ordinary_limit,
+            self.pair_capacity,
+            id(self.pair_a),
+            id(self.swept_radius),
+            grid.mask,
+            id(grid.cell_count),
+            id(grid.entries),
+        )
+
     def bodies_changed(self) -> None:
         """Bodies were removed (or replaced): size the grid afresh at the next `find_pairs`."""
         self._sized_for = -1

@@ -13,6 +13,7 @@ import time
 from .. import limits, snapshot
 from ..errors import TumbleError
 from ..io.atomic import check_output
+from ..progress import progress_bar
 from ..runtime import init_warp, prepare_kernels
 
 HELP = "simulate a scene headless and print a summary"
@@ -201,21 +202,11 @@ def interrupt_between_steps():
 
 def _step_on(world, steps: int, recorder, err, interrupted: threading.Event) -> float:
     """The steps after the first, with a progress bar when stderr is a terminal; returns their wall time."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     start = time.perf_counter()
     every = max(1, (steps - 1) // 200)
-    with Progress(
-        TextColumn("simulating"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("steps"),
-        TimeRemainingColumn(),
-        console=err,
-        transient=True,
-        disable=not err.is_terminal,
-    ) as progress:
-        task = progress.add_task("steps", total=steps - 1)
+    with progress_bar(
+        steps - 1, "simulating", unit="steps", enabled=err.is_terminal, transient=True, console=err
+    ) as advance:
         for k in range(1, steps):
             if interrupted.is_set():
                 raise KeyboardInterrupt
@@ -223,7 +214,7 @@ def _step_on(world, steps: int, recorder, err, interrupted: threading.Event) -> 
             if recorder is not None:
                 recorder(world)
             if k % every == 0:
-                progress.update(task, completed=k)
+                advance(completed=k)
     if interrupted.is_set():  # Ctrl-C during the last step
         raise KeyboardInterrupt
     return time.perf_counter() - start

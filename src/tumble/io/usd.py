@@ -997,7 +997,7 @@ def export(
     Raises:
         TumbleError: no pxr, a bad suffix or folder, bad options, an unreadable or newer recording.
     """
-    from .video import _progress
+    from ..progress import progress_bar
 
     require_pxr()
     path = check_output(path)
@@ -1006,14 +1006,14 @@ def export(
 
     if hasattr(source, "step") and hasattr(source, "body_position"):
         out_fps, n = _world_frames(fps, duration, frames)
-        with _progress(n, "simulating", progress) as advance:
+        with progress_bar(n, "simulating", enabled=progress) as advance:
             rec = simulate(source, fps=out_fps, frames=n, advance=advance)
         index = np.arange(n)
     else:
         rec = _recording(source)
         index, out_fps = select_frames(rec, fps=fps, duration=duration, frames=frames)
     take = Take.from_recording(rec, index, out_fps)
-    with _progress(take.frame_count, f"writing {path.name}", progress) as advance:
+    with progress_bar(take.frame_count, f"writing {path.name}", enabled=progress) as advance:
         _write_atomic(take, path, bodies=bodies, physics=physics, advance=advance)
     return path
 

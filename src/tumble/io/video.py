@@ -14,7 +14,6 @@ starts); between frames the world steps at its own `dt`. `duration * fps` frames
 
 from __future__ import annotations
 
-import contextlib
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Self
 import numpy as np
 
 from .. import validate
+from ..progress import progress_bar
 
 #: output kinds `export` understands, by suffix (no suffix or an existing folder: PNG frames)
 FORMATS = {".mp4": "mp4", ".gif": "gif"}
@@ -119,27 +119,6 @@ def render_frames(
             ctx.release()
 
 
-@contextlib.contextmanager
-def _progress(total: int, label: str, enabled: bool):
-    """A rich progress bar (frames done, time left) on stderr, or a no-op."""
-    if not enabled:
-        yield lambda: None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    columns = (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("frames"),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, console=Console(stderr=True), transient=False) as bar:
-        task = bar.add_task(label, total=total)
-        yield lambda: bar.advance(task)
-
-
 def export(
     world,
     out,
@@ -192,7 +171,7 @@ def export(
     label = f"rendering {out.name or out}"
 
     # every kind is written beside `out` and renamed into place when complete (tumble.io.atomic)
-    with _progress(n, label, progress) as advance:
+    with progress_bar(n, label, enabled=progress) as advance:
         if kind == "png":
             from PIL import Image
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -346,15 +347,17 @@ def test_version_1_recording_still_exports(recording, tmp_path):
 
 
 def test_failed_write_leaves_the_old_file_and_no_temp(recording, tmp_path, monkeypatch):
-    """An error while authoring leaves an existing target untouched and no temporary file beside it."""
+    """An error at the last moment (the rename over the target, after the stage was written to its
+    temporary file) leaves an existing target untouched and no temporary file beside it."""
     target = tmp_path / "keep.usda"
     target.write_text("old", encoding="utf-8")
 
-    def broken(self):
-        raise RuntimeError("boom")
+    def broken(src, dst):
+        assert Path(src).parent == tmp_path and Path(src).stat().st_size > 0  # the whole stage, beside it
+        raise OSError("boom")
 
-    monkeypatch.setattr(usd._Writer, "write", broken)
-    with pytest.raises(RuntimeError):
+    monkeypatch.setattr(os, "replace", broken)
+    with pytest.raises(OSError, match="boom"):
         usd.export(recording, target)
     assert target.read_text(encoding="utf-8") == "old"
     assert os.listdir(tmp_path) == ["keep.usda"]
