@@ -3,7 +3,7 @@
 - `src/tumble/<package>/<module>.py` is tested in `tests/unit/<package>/test_<module>.py`, and a
   module with several test files adds `test_<module>_<topic>.py` beside it;
 - the modules of the GUI, the renderer and the commands are tested by the cross-module suites
-  (tests/render, tests/viewer, tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
+  (tests/viewer, tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
 - test files in folders without `__init__.py` are imported by their basename, so those basenames
   must be unique (pytest's default "prepend" import mode).
 """
@@ -22,17 +22,10 @@ COVERED_ELSEWHERE = {
     "commands/check": "unit/test_cli.py",
     "commands/run": "unit/test_cli.py",
     "commands/export": "unit/io/test_usd.py",
-    "commands/plot": "render/test_render_plot.py",
+    "commands/plot": "render/test_render_cli.py",
     "commands/render": "render/test_render_cli.py",
     "commands/view": "viewer/test_parts.py",
     "commands/wedge": "wedge/test_wedge_cli.py",
-    "io/video": "render/test_render_video.py",
-    "render/camera": "render/test_render_camera.py",
-    "render/colors": "render/test_render_renderer.py",
-    "render/renderer": "render/test_render_renderer.py",
-    "render/shaders": "render/test_render_renderer.py",  # compiled and drawn by every render
-    "render/solids": "render/test_render_solids.py",
-    "render/supports": "render/test_issue_14_pictures.py",
     "viewer/controls": "viewer/test_cloth_controls.py",
     "viewer/picking": "viewer/test_parts.py",
     "viewer/recorder": "regression/test_issue_13_outputs.py",
