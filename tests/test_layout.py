@@ -3,7 +3,7 @@
 - `src/tumble/<package>/<module>.py` is tested in `tests/unit/<package>/test_<module>.py`, and a
   module with several test files adds `test_<module>_<topic>.py` beside it;
 - the modules of the GUI, the renderer and the commands are tested by the cross-module suites
-  (tests/viewer, tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
+  (tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
 - test files in folders without `__init__.py` are imported by their basename, so those basenames
   must be unique (pytest's default "prepend" import mode).
 """
@@ -24,14 +24,7 @@ COVERED_ELSEWHERE = {
     "commands/export": "unit/io/test_usd.py",
     "commands/plot": "render/test_render_cli.py",
     "commands/render": "render/test_render_cli.py",
-    "commands/view": "viewer/test_parts.py",
     "commands/wedge": "wedge/test_wedge_cli.py",
-    "viewer/controls": "viewer/test_cloth_controls.py",
-    "viewer/picking": "viewer/test_parts.py",
-    "viewer/recorder": "regression/test_issue_13_outputs.py",
-    "viewer/sim": "viewer/test_parts.py",
-    "viewer/views": "viewer/test_gl_window.py",
-    "viewer/window": "viewer/test_window.py",
 }
 #: unit test files that check the whole package rather than one module
 PACKAGE_WIDE = {"test_cuda_codegen.py"}  # every Warp kernel compiles for CUDA

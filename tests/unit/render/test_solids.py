@@ -10,7 +10,6 @@ import pytest
 
 import tumble
 from tumble.render import Camera, body_colors, scene_arrays, solids, vertex_normals
-from tumble.viewer import picking
 
 pytest.importorskip("scipy")  # convex hulls are taken with SciPy
 
@@ -266,22 +265,3 @@ def test_hull_buffers_past_the_cache_size_are_freed_but_not_while_drawn(small_re
     monkeypatch.setattr(renderer_module, "SOLID_CACHE_SIZE", 2)
     np.testing.assert_array_equal(small_renderer.render(world, camera), full)
     assert small_renderer.cached_batches == 3  # all drawn now; older ones go when the next frame needs room
-
-
-def test_picking_hits_capsules_and_hulls_exactly():
-    """Rays that pass inside the bounding sphere but miss the shape pick nothing; rays on the shape pick it."""
-    world = tumble.World(gravity=(0, 0, 0))
-    q = (0.0, math.sin(math.pi / 4), 0.0, math.cos(math.pi / 4))  # capsule lying along x
-    capsule = world.add_capsule(position=(0.0, 0.0, 0.0), radius=0.1, half_height=0.4, orientation=q)
-    hull = world.add_convex(points=TETRA * 2, position=(0.0, 0.0, 2.0))
-    down = np.array([0.0, 0.0, -1.0])
-    grab = picking.pick(world, (0.45, 0.0, 1.0), down)  # over the capsule's cap: hits its top at z = r
-    assert grab is not None and grab.index == capsule
-    centre = np.asarray(world.body_position)[capsule]
-    assert grab.distance == pytest.approx(1.0 - (centre[2] + math.sqrt(0.1**2 - 0.05**2)), abs=1e-9)
-    assert picking.pick(world, (0.0, 0.3, 1.0), down) is None  # inside the bound (0.5), beside the capsule
-    # the hull (tetrahedron of edge 0.8 at the origin of its user frame, moved to z = 2)
-    along = np.array([0.0, 1.0, 0.0])
-    grab = picking.pick(world, (0.1, -5.0, 2.1), along)
-    assert grab is not None and grab.index == hull and grab.distance == pytest.approx(5.0, abs=1e-9)
-    assert picking.pick(world, (0.7, -5.0, 2.7), along) is None  # inside its bounding box, outside the hull
