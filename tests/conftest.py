@@ -1,4 +1,4 @@
-"""Shared fixtures: headless Qt, scene files written on the fly, a subprocess environment."""
+"""Shared fixtures: headless Qt, scene files written on the fly, a subprocess environment, one GL context, viewers."""
 
 from __future__ import annotations
 
@@ -32,3 +32,142 @@ def tumble_subprocess_env():
     env["PYTHONIOENCODING"] = "utf-8"
     env["COLUMNS"] = "120"
     return env
+
+
+# ------------------------------------------------------------------------------------------------ renderer
+# The renderer's tests (tests/unit/render, tests/unit/io/test_video.py, tests/unit/commands/test_render.py,
+# the regression pictures) share one headless GL context (EGL, Mesa llvmpipe) per session. Imports are
+# made when a fixture is first used, so that a test session without them never loads moderngl.
+
+
+@pytest.fixture(scope="session")
+def gl_context():
+    """A headless moderngl context shared by the session's tests."""
+    from tumble.render import create_context
+
+    return create_context()
+
+
+@pytest.fixture(scope="session")
+def renderer(gl_context):
+    """A small renderer (160 x 120); tests resize it as they need."""
+    from tumble.render import Renderer
+
+    r = Renderer(gl_context, 160, 120)
+    yield r
+    r.release()
+
+
+@pytest.fixture
+def small_renderer(renderer):
+    """The session renderer reset to 160 x 120 with default settings."""
+    renderer.resize(160, 120)
+    renderer.shadows = True
+    renderer.ground_cell_size = 1.0
+    return renderer
+
+
+class GridCloth:
+    """Stand-in for a ClothSystem: a bent nx x ny grid with the views the renderer reads."""
+
+    def __init__(self, nx: int = 12, ny: int = 10, *, centre=(0.0, 0.0, 0.8), size=1.2):
+        import numpy as np
+
+        x, y = np.meshgrid(np.linspace(-0.5, 0.5, nx) * size, np.linspace(-0.5, 0.5, ny) * size)
+        z = 0.15 * np.sin(3.0 * x) * np.cos(2.0 * y)
+        self.particle_position = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1) + np.asarray(centre)
+        idx = np.arange(nx * ny).reshape(ny, nx)
+        a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+        self.triangles = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int32)
+        self.particle_count = nx * ny
+
+
+def world_with_cloth_class():
+    """`WorldWithCloth`: a World whose cloth is a stand-in (`GridCloth`); the renderer reads only
+    `has_cloth` and `cloth`. (Made on first use, so that importing this conftest does not import tumble.)"""
+    import tumble
+
+    class WorldWithCloth(tumble.World):
+        def __init__(self, cloth, **settings):
+            super().__init__(**settings)
+            self.stand_in = cloth
+
+        @property
+        def has_cloth(self) -> bool:
+            return True
+
+        @property
+        def cloth(self):
+            return self.stand_in
+
+    return WorldWithCloth
+
+
+@pytest.fixture
+def cloth_world():
+    """Factory of `WorldWithCloth`: cloth_world(make_cloth(...)) is an empty World showing that cloth."""
+    return world_with_cloth_class()
+
+
+def falling_world(n: int = 3):
+    """A ground plane and `n` spheres side by side, dropped from different heights."""
+    import tumble
+
+    world = tumble.World(dt=1.0 / 120.0)
+    world.add_plane()
+    for i in range(n):
+        world.add_sphere(position=(0.4 * (i - (n - 1) / 2), 0.0, 0.6 + 0.2 * i), radius=0.12, mass=1.0)
+    return world
+
+
+@pytest.fixture
+def make_falling_world():
+    """Factory of `falling_world` scenes."""
+    return falling_world
+
+
+@pytest.fixture
+def make_cloth():
+    """Factory of `GridCloth` stand-ins."""
+    return GridCloth
+
+
+def chroma(rgb):
+    """Chromaticity r, g, b / (r + g + b): colour without brightness, so shading does not change it."""
+    import numpy as np
+
+    c = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
+    return c / np.maximum(c.sum(axis=1, keepdims=True), 1e-9)
+
+
+@pytest.fixture
+def chromaticity():
+    return chroma
+
+
+# ------------------------------------------------------------------------------------------------ viewer
+# Viewer tests (tests/unit/viewer, tests/viewer) run on Qt's offscreen platform (no display, no GPU): the
+# window uses the EGL image view.
+
+
+@pytest.fixture
+def open_viewer(qtbot, tmp_path):
+    """open_viewer(factory): a paused 320x240 viewer (offscreen image view) saving into tmp_path."""
+    pytest.importorskip("PySide6")
+    from tumble.viewer import make_application
+    from tumble.viewer.window import ViewerWindow
+
+    make_application()
+    windows = []
+
+    def open_(factory):
+        win = ViewerWindow(factory=factory, size=(320, 240), paused=True, view="image", output_dir=tmp_path)
+        qtbot.addWidget(win)
+        win.show()
+        qtbot.waitExposed(win)
+        windows.append(win)
+        return win
+
+    yield open_
+    for win in windows:
+        win.close()

@@ -1,9 +1,9 @@
 """The test tree mirrors src/ (tests/README.md): every module has its test file, every unit test file its module.
 
 - `src/tumble/<package>/<module>.py` is tested in `tests/unit/<package>/test_<module>.py`, and a
-  module with several test files adds `test_<module>_<topic>.py` beside it;
-- the modules of the GUI, the renderer and the commands are tested by the cross-module suites
-  (tests/render, tests/viewer, tests/wedge and the CLI tests), listed in COVERED_ELSEWHERE;
+  module with several test files adds `test_<module>_<topic>.py` beside it; this holds for every
+  module, the renderer's, the viewer's and the commands' included (no module is left to a
+  cross-module suite alone);
 - test files in folders without `__init__.py` are imported by their basename, so those basenames
   must be unique (pytest's default "prepend" import mode).
 """
@@ -17,29 +17,6 @@ SRC = ROOT / "src" / "tumble"
 TESTS = ROOT / "tests"
 UNIT = TESTS / "unit"
 
-#: modules tested by a cross-module suite rather than a unit test file of their own
-COVERED_ELSEWHERE = {
-    "commands/check": "unit/test_cli.py",
-    "commands/run": "unit/test_cli.py",
-    "commands/export": "unit/io/test_usd.py",
-    "commands/plot": "render/test_render_plot.py",
-    "commands/render": "render/test_render_cli.py",
-    "commands/view": "viewer/test_parts.py",
-    "commands/wedge": "wedge/test_wedge_cli.py",
-    "io/video": "render/test_render_video.py",
-    "render/camera": "render/test_render_camera.py",
-    "render/colors": "render/test_render_renderer.py",
-    "render/renderer": "render/test_render_renderer.py",
-    "render/shaders": "render/test_render_renderer.py",  # compiled and drawn by every render
-    "render/solids": "render/test_render_solids.py",
-    "render/supports": "render/test_issue_14_pictures.py",
-    "viewer/controls": "viewer/test_cloth_controls.py",
-    "viewer/picking": "viewer/test_parts.py",
-    "viewer/recorder": "regression/test_issue_13_outputs.py",
-    "viewer/sim": "viewer/test_parts.py",
-    "viewer/views": "viewer/test_gl_window.py",
-    "viewer/window": "viewer/test_window.py",
-}
 #: unit test files that check the whole package rather than one module
 PACKAGE_WIDE = {"test_cuda_codegen.py"}  # every Warp kernel compiles for CUDA
 
@@ -54,26 +31,14 @@ def modules() -> list[str]:
 
 
 def test_every_module_has_its_test_file():
-    """tests/unit/<package>/test_<module>.py exists, or the suite named in COVERED_ELSEWHERE does."""
+    """tests/unit/<package>/test_<module>.py exists for every module of src/tumble."""
+    assert len(modules()) > 50, f"the modules of {SRC} were not found"
     missing = []
     for module in modules():
-        folder, name = UNIT.joinpath(module).parent, Path(module).name
-        if module in COVERED_ELSEWHERE:
-            if not (TESTS / COVERED_ELSEWHERE[module]).is_file():
-                missing.append(f"{module}: {COVERED_ELSEWHERE[module]} (listed in COVERED_ELSEWHERE) is gone")
-        elif not (folder / f"test_{name}.py").is_file():
-            missing.append(f"{module}: no {(folder / f'test_{name}.py').relative_to(ROOT)}")
+        path = UNIT.joinpath(module).parent / f"test_{Path(module).name}.py"
+        if not path.is_file():
+            missing.append(f"{module}: no {path.relative_to(ROOT)}")
     assert not missing, "\n".join(missing)
-
-
-def test_covered_elsewhere_lists_only_modules_without_a_unit_file():
-    """A module that gained its own unit test file leaves COVERED_ELSEWHERE; a removed module too."""
-    stale = [
-        m
-        for m in COVERED_ELSEWHERE
-        if m not in modules() or (UNIT / f"{Path(m).parent}/test_{Path(m).name}.py").is_file()
-    ]
-    assert not stale, f"remove from COVERED_ELSEWHERE: {stale}"
 
 
 def test_every_unit_test_file_names_its_module():

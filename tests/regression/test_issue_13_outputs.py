@@ -273,37 +273,3 @@ def test_the_probe_leaves_nothing_behind(tmp_path):
     """Checking a folder creates and removes its probe file."""
     atomic.check_folder(tmp_path, option="--out-dir")
     assert list(tmp_path.iterdir()) == []
-
-
-def test_viewer_screenshots_and_videos_are_written_atomically(tmp_path):
-    """The viewer's PNG and MP4 land whole: nothing at the target until the video is closed."""
-    from tumble.viewer.recorder import VideoRecorder, save_png
-
-    pixels = np.zeros((49, 65, 3), dtype=np.uint8)
-    pixels[10:20, 10:30] = 255
-    shot = save_png(pixels, tmp_path / "shot.png")
-    assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    video = VideoRecorder(tmp_path / "clip.mp4", fps=30)
-    for k in range(10):
-        video.add(np.roll(pixels, k, axis=1))
-    assert not (tmp_path / "clip.mp4").exists()  # still being written beside it
-    assert video.close() == tmp_path / "clip.mp4"
-    data = (tmp_path / "clip.mp4").read_bytes()
-    assert data[4:8] == b"ftyp" and video.frame_count == 10
-    assert _leftovers(tmp_path) == []
-
-
-def test_a_first_ctrl_c_waits_for_the_step_to_end_and_a_second_stops_at_once():
-    """run's SIGINT handler only asks the loop to stop between steps; a second Ctrl-C raises at once."""
-    from tumble.commands.run import interrupt_between_steps
-
-    before = signal.getsignal(signal.SIGINT)
-    with interrupt_between_steps() as interrupted:
-        assert not interrupted.is_set()
-        os.kill(os.getpid(), signal.SIGINT)  # handled in the main thread before the next bytecode
-        time.sleep(0.01)
-        assert interrupted.is_set()  # the request is recorded, nothing was raised mid-step
-        with pytest.raises(KeyboardInterrupt):
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.5)
-    assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back

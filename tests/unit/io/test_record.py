@@ -183,3 +183,17 @@ def test_load_refuses_files_without_time_and_newer_versions(tmp_path):
         load_recording(newer)
     with pytest.raises(RecordingError, match="no such recording"):
         load_recording(tmp_path / "absent.npz")
+
+
+def test_recorder_samples_at_the_nearest_step(write_scene):
+    """Record one frame per 1/fps of simulated time, at the step nearest to it, when dt does not divide it."""
+    from .scene import BALL
+
+    world = tumble.load_scene(write_scene("[world]\ndt = 0.01\n" + BALL))
+    recorder = Recorder(world, fps=30)
+    world.run(1.0, callback=recorder)
+    time = recorder.arrays()["time"]
+    assert len(time) == 31  # t = 0, 1/30, ..., 1
+    assert np.all(np.abs(time - np.arange(31) / 30) <= 0.5 * world.dt + 1e-12)
+    with pytest.raises(ValueError, match="fps"):
+        Recorder(world, fps=0)

@@ -1,4 +1,4 @@
-"""USD export (tumble.io.usd, `tumble export`): every stage is read back with pxr and compared with the recording."""
+"""USD export (tumble.io.usd): every stage is read back with pxr and compared with the recording."""
 
 from __future__ import annotations
 
@@ -11,9 +11,8 @@ import pytest
 from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
 import tumble
-from tumble.cli import main
 from tumble.io import usd
-from tumble.io.record import FORMAT_VERSION, Recorder, load_recording
+from tumble.io.record import Recorder, load_recording
 from tumble.npmath import quat_to_matrix
 
 FPS = 30.0
@@ -373,94 +372,3 @@ def test_world_export_simulates_the_frames(tmp_path):
     assert world.time == pytest.approx(0.25, abs=0.5 / 240)
     inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
     assert np.array(inst.GetPositionsAttr().Get(5))[0, 2] == np.float32(world.body_position[1, 2])
-
-
-# ---------------------------------------------------------------------------------------------- command line
-
-
-def test_cli_exports_a_scene_and_a_recording(write_scene, recording, tmp_path, capsys):
-    """`tumble export SCENE -o` and `tumble export RECORDING.npz -o` write stages and exit 0."""
-    scene = write_scene(SCENE)
-    assert main(["export", str(scene), "-o", str(tmp_path / "a.usda"), "--frames", "4", "--no-progress"]) == 0
-    assert _open(tmp_path / "a.usda").GetEndTimeCode() == 3
-    np.savez_compressed(tmp_path / "r.npz", **recording)
-    assert (
-        main(
-            [
-                "export",
-                str(tmp_path / "r.npz"),
-                "-o",
-                str(tmp_path / "r.usdz"),
-                "--fps",
-                "10",
-                "--bodies",
-                "xforms",
-                "--no-progress",
-            ]
-        )
-        == 0
-    )
-    assert _open(tmp_path / "r.usdz").GetTimeCodesPerSecond() == 10
-    assert "wrote" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize(
-    "out, message",
-    [
-        ("shot.abc", "must end in .usd, .usda, .usdc or .usdz"),
-        ("missing/shot.usd", "does not exist"),
-        ("file.txt/shot.usd", "does not exist"),
-    ],
-)
-def test_cli_bad_output_is_one_line(write_scene, tmp_path, capsys, monkeypatch, out, message):
-    """A wrong extension or a folder that is missing or a file: one line on stderr, exit 2, nothing written."""
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "file.txt").write_text("x", encoding="utf-8")
-    scene = write_scene(SCENE)
-    before = sorted(os.listdir(tmp_path))
-    assert main(["export", str(scene), "-o", out, "--no-progress"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and message in err and err.startswith("tumble export: error:")
-    assert sorted(os.listdir(tmp_path)) == before
-
-
-def test_cli_unwritable_folder_is_one_line(recording, tmp_path, capsys, monkeypatch):
-    """A folder the user may not write to: one line, exit 2 (os.access is faked, since root may write anywhere)."""
-    np.savez_compressed(tmp_path / "r.npz", **recording)
-    real = os.access
-    monkeypatch.setattr(usd.os, "access", lambda p, mode: False if str(p) == str(tmp_path / "ro") else real(p, mode))
-    (tmp_path / "ro").mkdir()
-    assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "ro" / "x.usd")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "permission denied" in err
-    assert os.listdir(tmp_path / "ro") == []
-
-
-def test_cli_newer_recording_is_one_line(recording, tmp_path, capsys):
-    """A recording from a newer format version: one line naming the versions, exit 2."""
-    newer = dict(recording, format_version=np.int32(FORMAT_VERSION + 1))
-    np.savez_compressed(tmp_path / "new.npz", **newer)
-    assert main(["export", str(tmp_path / "new.npz"), "-o", str(tmp_path / "x.usdc")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"format version {FORMAT_VERSION + 1} is newer" in err
-    assert not (tmp_path / "x.usdc").exists()
-
-
-def test_cli_broken_recording_is_one_line(tmp_path, capsys):
-    """A file that is not a recording: one line, exit 2."""
-    (tmp_path / "junk.npz").write_bytes(b"not a zip")
-    assert main(["export", str(tmp_path / "junk.npz"), "-o", str(tmp_path / "x.usdc")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "not a readable recording" in err
-
-
-def test_cli_missing_pxr_names_the_pip_command(write_scene, tmp_path, capsys, monkeypatch):
-    """Without pxr: one line naming `pip install 'tumble[usd]'`, exit 2."""
-    import sys
-
-    for name in [m for m in sys.modules if m == "pxr" or m.startswith("pxr.")]:
-        monkeypatch.setitem(sys.modules, name, None)
-    scene = write_scene(SCENE)
-    assert main(["export", str(scene), "-o", str(tmp_path / "x.usd")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "pip install 'tumble[usd]'" in err

@@ -1,4 +1,4 @@
-"""The renderer draws spheres, boxes, planes and cloth where the camera says they are."""
+"""The renderer (tumble.render.renderer) draws spheres, boxes, planes and cloth where the camera says they are."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 import tumble
 from tumble.errors import TumbleError
-from tumble.render import Camera, body_colors, scene_arrays, vertex_normals
+from tumble.render import Camera, body_colors, scene_arrays
 
 W, H = 160, 120
 
@@ -184,15 +184,6 @@ def test_scene_arrays_pack_each_shape():
     assert arrays.cloth_position is None
 
 
-def test_vertex_normals_of_a_flat_grid(make_cloth):
-    """A flat counter-clockwise grid has unit normals along +z at every vertex."""
-    cloth = make_cloth(5, 4)
-    p = cloth.particle_position.copy()
-    p[:, 2] = 0.0
-    n = vertex_normals(p, cloth.triangles)
-    assert np.allclose(n, [0.0, 0.0, 1.0])
-
-
 def test_cloth_triangles_out_of_range_are_refused(cloth_world, small_renderer, make_cloth):
     """Cloth triangles naming missing particles raise a clear error, not a GL crash."""
     cloth = make_cloth(3, 3)
@@ -201,18 +192,6 @@ def test_cloth_triangles_out_of_range_are_refused(cloth_world, small_renderer, m
     world = cloth_world(cloth)
     with pytest.raises(TumbleError, match="cloth triangles"):
         small_renderer.render(world, _camera())
-
-
-def test_body_colors_are_stable_and_varied():
-    """Colours depend only on the index, stay in [0, 1], and neighbours differ."""
-    a = body_colors(np.arange(200))
-    assert a.shape == (200, 3) and a.dtype == np.float32
-    assert np.array_equal(a, body_colors(np.arange(200)))
-    assert np.array_equal(a[57], body_colors([57])[0])
-    assert a.min() >= 0.0 and a.max() <= 1.0
-    same_as_next = np.all(np.abs(a[1:] - a[:-1]) < 1e-6, axis=1)
-    assert same_as_next.mean() < 0.15
-    assert len(np.unique(np.round(a, 3), axis=0)) > 50
 
 
 def test_no_context_is_a_clear_error(monkeypatch):

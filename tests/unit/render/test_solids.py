@@ -1,4 +1,5 @@
-"""The renderer draws capsules, convex hulls and static meshes with their real geometry, and joints on demand."""
+"""Solid geometry (tumble.render.solids): hull, mesh and joint vertex rows, and the renderer drawing capsules,
+convex hulls and static meshes with their real geometry, and joints on demand."""
 
 from __future__ import annotations
 
@@ -8,8 +9,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.render import Camera, body_colors, scene_arrays, solids
-from tumble.viewer import picking
+from tumble.render import Camera, body_colors, scene_arrays, solids, vertex_normals
 
 pytest.importorskip("scipy")  # convex hulls are taken with SciPy
 
@@ -86,6 +86,15 @@ def test_bodies_sharing_a_hull_prototype_are_one_batch():
     world.bodies.write("body_geometry", world.body_row(world.body(7)), int(hull_rows[0]))
     batches = [b for b in scene_arrays(world).solids if b.key[0] == "hull"]
     assert sorted(len(b.body) for b in batches) == [1, 2]
+
+
+def test_vertex_normals_of_a_flat_grid(make_cloth):
+    """A flat counter-clockwise grid has unit normals along +z at every vertex."""
+    cloth = make_cloth(5, 4)
+    p = cloth.particle_position.copy()
+    p[:, 2] = 0.0
+    n = vertex_normals(p, cloth.triangles)
+    assert np.allclose(n, [0.0, 0.0, 1.0])
 
 
 def test_hull_triangles_cover_each_face_with_its_normal():
@@ -232,25 +241,6 @@ def test_joints_are_drawn_only_when_asked(small_renderer):
     changed = np.abs(shown.astype(int) - plain.astype(int)).max(axis=2) > 20
     assert 5 < changed.sum() < 0.05 * W * H  # a thin line and two dots, not a smear
     np.testing.assert_array_equal(small_renderer.render(world, camera), plain)  # and off again
-
-
-def test_picking_hits_capsules_and_hulls_exactly():
-    """Rays that pass inside the bounding sphere but miss the shape pick nothing; rays on the shape pick it."""
-    world = tumble.World(gravity=(0, 0, 0))
-    q = (0.0, math.sin(math.pi / 4), 0.0, math.cos(math.pi / 4))  # capsule lying along x
-    capsule = world.add_capsule(position=(0.0, 0.0, 0.0), radius=0.1, half_height=0.4, orientation=q)
-    hull = world.add_convex(points=TETRA * 2, position=(0.0, 0.0, 2.0))
-    down = np.array([0.0, 0.0, -1.0])
-    grab = picking.pick(world, (0.45, 0.0, 1.0), down)  # over the capsule's cap: hits its top at z = r
-    assert grab is not None and grab.index == capsule
-    centre = np.asarray(world.body_position)[capsule]
-    assert grab.distance == pytest.approx(1.0 - (centre[2] + math.sqrt(0.1**2 - 0.05**2)), abs=1e-9)
-    assert picking.pick(world, (0.0, 0.3, 1.0), down) is None  # inside the bound (0.5), beside the capsule
-    # the hull (tetrahedron of edge 0.8 at the origin of its user frame, moved to z = 2)
-    along = np.array([0.0, 1.0, 0.0])
-    grab = picking.pick(world, (0.1, -5.0, 2.1), along)
-    assert grab is not None and grab.index == hull and grab.distance == pytest.approx(5.0, abs=1e-9)
-    assert picking.pick(world, (0.7, -5.0, 2.7), along) is None  # inside its bounding box, outside the hull
 
 
 def test_capsule_seen_from_inside_its_bounding_box(small_renderer, chromaticity):

@@ -1,5 +1,6 @@
 """Issue 14 (a new user's first hour), pictures: GIFs played 10 % fast, spheres stretched at the
-frame edges, banding in the sky, blotchy cloth, pinned cloth corners floating in mid-air."""
+frame edges, banding in the sky, blotchy cloth (pinned cloth corners floating in mid-air: the supports'
+tests are in tests/unit/render/test_supports.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ import pytest
 import tumble
 from tumble.io.video import export, gif_delays_ms
 from tumble.render import Camera
-from tumble.render.supports import cloth_supports, convex_hull_2d
 
 CAMERA = Camera(position=(0.0, -3.0, 0.8), target=(0.0, 0.0, 0.4), fov_deg=30)
 
@@ -182,56 +182,3 @@ def test_a_crumpled_cloth_is_shaded_without_dark_blotches(cloth_world, small_ren
     # seen from behind (its back, the sun on the other side) it is lit too, not black
     back = renderer.render(world, Camera(position=(-0.8, 3.5, 1.3), target=(0.0, 0.0, 1.0), fov_deg=30))
     assert back[red].mean() > 80
-
-
-def test_pinned_cloth_corners_stand_on_posts():
-    """A cloth pinned at its four corners gets four posts from the ground up to the pins."""
-    world = tumble.World()
-    world.add_plane()
-    world.add_cloth(size=(1.0, 1.0), resolution=(8, 8), position=(0.0, 0.0, 1.0), pins="corners")
-    boxes = cloth_supports(world)
-    assert len(boxes) == 4
-    pins = np.asarray(world.cloth.particle_position)[np.asarray(world.cloth.particle_inv_mass) == 0.0]
-    for pin in pins:
-        k = np.argmin(np.linalg.norm(boxes[:, :2] - pin[:2], axis=1))
-        assert np.allclose(boxes[k, :2], pin[:2], atol=1e-6)
-        # centre halfway up, half height up to the pin: from z = 0 to the pin's height
-        assert boxes[k, 2] - boxes[k, 9] == pytest.approx(0.0, abs=1e-6)
-        assert boxes[k, 2] + boxes[k, 9] == pytest.approx(pin[2], abs=1e-6)
-
-
-def test_a_pinned_border_gets_a_frame_and_corner_posts():
-    """Pins along the whole border: rails along its edges and four posts (not one per pin)."""
-    world = tumble.World()
-    world.add_plane()
-    n = 6
-    border = [[i, j] for i in range(n) for j in range(n) if i in (0, n - 1) or j in (0, n - 1)]
-    world.add_cloth(size=(1.0, 1.0), resolution=(n, n), position=(0.0, 0.0, 1.0), pins=border)
-    boxes = cloth_supports(world)
-    posts = boxes[np.isclose(boxes[:, 6], 1.0) & (boxes[:, 9] > 0.3)]
-    rails = len(boxes) - len(posts)
-    assert len(posts) == 4
-    assert rails == 4 * (n - 1)
-
-
-def test_pins_on_a_static_pole_get_no_post():
-    """Pins beside a static body (the flag's pole) are held by it: no post is drawn."""
-    world = tumble.World()
-    world.add_plane()
-    world.add_box(position=(-0.53, 0.0, 1.0), half_extents=(0.02, 0.02, 1.0), static=True)
-    world.add_cloth(
-        size=(1.0, 0.6),
-        resolution=(6, 4),
-        position=(0.0, 0.0, 1.5),
-        orientation=(0.7071067811865476, 0, 0, 0.7071067811865476),
-        pins=[[0, j] for j in range(4)],
-    )
-    boxes = cloth_supports(world)
-    assert len(boxes) == 0
-
-
-def test_convex_hull_corners():
-    """The hull of a square with points on its edges and inside is its four corners."""
-    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0], [0.5, 0.5], [1, 0.3], [0.2, 0.9]], dtype=float)
-    assert sorted(convex_hull_2d(pts).tolist()) == [0, 1, 2, 3]
-    assert sorted(convex_hull_2d(pts[[0, 4, 1]]).tolist()) == [0, 2]  # collinear: the two ends

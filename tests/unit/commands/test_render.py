@@ -1,20 +1,20 @@
-"""`tumble render` and `tumble plot` from the command line (in process)."""
+"""`tumble render` (tumble.commands.render) from the command line, in process: the files it writes, the
+camera it uses, its one-line errors."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import tumble
 import tumble.cli
+from tumble.io.scene import SAMPLES_DIR
 
 
 @pytest.fixture
 def cli(monkeypatch):
-    """tumble.cli.main limited to this part's commands (the others are built elsewhere)."""
-    monkeypatch.setattr(tumble.cli, "COMMANDS", {"render": "render", "plot": "plot"})
+    """tumble.cli.main with only the render command (the others' imports are not needed)."""
+    monkeypatch.setattr(tumble.cli, "COMMANDS", {"render": "render"})
     return tumble.cli.main
 
 
@@ -108,33 +108,6 @@ def test_render_rejects_an_unknown_format(tmp_path, cli, scene, capsys):
     assert scene == []
 
 
-def test_plot_command_writes_png(tmp_path, cli):
-    """tumble plot RECORD.npz -o OUT.png writes a PNG."""
-    t = np.linspace(0.0, 1.0, 11)
-    np.savez(
-        tmp_path / "r.npz",
-        time=t,
-        position=np.zeros((11, 1, 3)),
-        velocity=np.zeros((11, 1, 3)),
-        mass=np.ones(1),
-        gravity=np.array([0, 0, -9.81]),
-        contact_count=np.zeros(11),
-    )
-    rc = cli(["plot", str(tmp_path / "r.npz"), "-o", str(tmp_path / "p.png")])
-    assert rc == 0
-    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
-def test_plot_command_missing_file_exits_2(tmp_path, cli, capsys):
-    """A missing recording: exit status 2 and the path in the message."""
-    rc = cli(["plot", str(tmp_path / "nope.npz"), "-o", str(tmp_path / "p.png")])
-    assert rc == 2
-    assert "nope.npz" in capsys.readouterr().err
-
-
-SAMPLES = Path(__file__).resolve().parents[2] / "samples"
-
-
 def test_render_a_sample_scene_file(tmp_path, monkeypatch):
     """tumble render on a real sample file writes a GIF with the scene's camera."""
     from PIL import Image
@@ -144,7 +117,7 @@ def test_render_a_sample_scene_file(tmp_path, monkeypatch):
     rc = tumble.cli.main(
         [
             "render",
-            str(SAMPLES / "bouncing_ball.toml"),
+            str(SAMPLES_DIR / "bouncing_ball.toml"),
             "-o",
             str(out),
             "--duration",
@@ -159,25 +132,6 @@ def test_render_a_sample_scene_file(tmp_path, monkeypatch):
     assert rc == 0
     with Image.open(out) as im:
         assert im.size == (64, 48) and im.n_frames == 3
-
-
-def test_run_record_then_plot(tmp_path, monkeypatch):
-    """A recording from tumble run --record plots with every body panel filled in."""
-    from tumble.io.plot import build_figure
-    from tumble.io.record import load_recording
-
-    monkeypatch.setattr(tumble.cli, "COMMANDS", {"run": "run", "plot": "plot"})
-    record = tmp_path / "ball.npz"
-    assert (
-        tumble.cli.main(
-            ["run", str(SAMPLES / "bouncing_ball.toml"), "--duration", "0.25", "--record", str(record), "--fps", "20"]
-        )
-        == 0
-    )
-    assert tumble.cli.main(["plot", str(record), "-o", str(tmp_path / "ball.png")]) == 0
-    fig = build_figure(load_recording(record))
-    titles = [ax.get_title(loc="left") for ax in fig.axes]
-    assert titles == ["Kinetic energy", "Potential energy", "Linear momentum", "Contact count"]
 
 
 def test_render_joints_option_draws_the_joints(tmp_path, cli, monkeypatch):
@@ -217,3 +171,52 @@ def test_render_joints_option_draws_the_joints(tmp_path, cli, monkeypatch):
     # the rope runs up the middle of the image from the ball (below the centre) to its anchor (above)
     column = np.abs(frames[True] - frames[False]).max(axis=2)[:, 44:52]
     assert (column.max(axis=1) > 40).sum() >= 10  # ten or more rows of the rope
+
+
+def test_camera_options_leave_the_scene_camera_as_it_was(make_falling_world):
+    """camera_for: options override the [camera] table for this camera only; the world's metadata is unchanged."""
+    import argparse
+
+    from tumble.commands.render import camera_for
+
+    world = make_falling_world()
+    world.metadata["camera"] = {"position": [1.0, -4.0, 2.0], "target": [0.0, 0.0, 0.5], "fov": 30}
+    before = dict(world.metadata["camera"])
+    args = argparse.Namespace(camera_position=None, camera_target=(0.0, 0.0, 1.0), fov=None)
+    cam = camera_for(world, args, 4 / 3)
+    np.testing.assert_allclose(cam.position, [1.0, -4.0, 2.0])
+    np.testing.assert_allclose(cam.target, [0.0, 0.0, 1.0])
+    assert cam.fov_deg == 30
+    assert world.metadata["camera"] == before
+    bare = make_falling_world()  # no [camera]: framed automatically, and no [camera] is left behind
+    camera_for(bare, argparse.Namespace(camera_position=None, camera_target=None, fov=45.0), 1.0)
+    assert "camera" not in bare.metadata
+
+
+@pytest.mark.parametrize(
+    "option, value, fragment",
+    [("--camera-position", "1,2", "expected three numbers x,y,z"), ("--fps", "fast", "--fps")],
+)
+def test_bad_option_values_exit_2_with_one_line(tmp_path, cli, scene, capsys, option, value, fragment):
+    """A malformed option value: argparse's exit 2, one line naming it, nothing loaded."""
+    with pytest.raises(SystemExit) as exit_:
+        cli(["render", "s.toml", "-o", str(tmp_path / "x.mp4"), option, value])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tumble render: error:") and fragment in err[0]
+    assert scene == []
+
+
+def test_a_render_beyond_the_frame_limit_is_refused_before_its_first_frame(tmp_path, cli, scene, capsys):
+    """More frames than limits.MAX_FRAMES: exit 2, one line giving the count and the limit, no file."""
+    from tumble import limits
+
+    fps = 1000.0
+    duration = (limits.MAX_FRAMES + 10) / fps
+    rc = cli(["render", "s.toml", "-o", str(tmp_path / "x.mp4"), "--duration", str(duration), "--fps", str(fps)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert err[0].startswith("tumble render: error: --duration")  # (1,000,010 frames, 120,001 steps: under MAX_STEPS)
+    assert f"is {limits.MAX_FRAMES + 10:,} frames; the limit is {limits.MAX_FRAMES:,} frames" in err[0]
+    assert not (tmp_path / "x.mp4").exists()
+    assert scene[0].time == 0.0  # loaded, never stepped

@@ -1,0 +1,1 @@
+"""Unit tests of tumble.commands, one file per module."""

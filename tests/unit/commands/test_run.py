@@ -1,0 +1,153 @@
+"""`tumble run` (tumble.commands.run): the summary, the stage profile, recordings, exit codes on bad options."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.cli import main
+
+from ..io.scene import BALL
+
+# a ground plane, one sphere and an emitter releasing 4 spheres at 40 per second from t = 0
+EMITTING = (
+    BALL
+    + """
+[[emitter]]
+rate = 40
+count = 4
+position = [0, 0, 2]
+region = "box"
+extent = [0.5, 0.5, 0.1]
+radius = 0.05
+mass = 0.1
+seed = 3
+"""
+)
+
+
+def test_run_prints_a_summary(write_scene, capsys):
+    """Run a scene headless, exit 0 and print bodies, steps, speed, energy and contacts."""
+    assert main(["run", str(write_scene(BALL)), "--duration", "0.25"]) == 0
+    out = capsys.readouterr().out
+    for label in ("bodies", "steps", "steps/s", "kinetic energy", "contacts"):
+        assert label in out
+    assert "2 (1 plane, 1 sphere, 0 boxes)" in out
+    assert "60 (0.250 s simulated" in out  # 0.25 s at dt = 1/240
+
+
+def test_run_profile_lists_the_stages(write_scene, capsys):
+    """Print the time per stage with --profile."""
+    assert main(["run", str(write_scene(BALL)), "--duration", "0.05", "--profile"]) == 0
+    out = capsys.readouterr().out
+    assert "stage" in out and "ms/step" in out and "total" in out
+
+
+def test_record_writes_the_documented_arrays(write_scene, tmp_path, capsys):
+    """Write every documented array with its shape, and NaN rows for bodies not yet emitted."""
+    out = tmp_path / "rec.npz"
+    assert main(["run", str(write_scene(EMITTING)), "--duration", "0.5", "--record", str(out), "--fps", "30"]) == 0
+    rec = np.load(out)
+    f = 16  # frames at t = 0, 1/30, ..., 15/30 = 0.5 s
+    n = 2 + 4  # plane, sphere, 4 emitted spheres
+    expected = {
+        "time": (f,),
+        "position": (f, n, 3),
+        "velocity": (f, n, 3),
+        "orientation": (f, n, 4),
+        "angular_velocity": (f, n, 3),
+        "shape": (n,),
+        "shape_names": (len(tumble.ShapeType),),
+        "radius": (n,),
+        "half_extents": (n, 3),
+        "mass": (n,),
+        "gravity": (3,),
+        "dt": (),
+        "contact_count": (f,),
+        "kinetic_energy": (f,),
+    }
+    for name, shape in expected.items():
+        assert rec[name].shape == shape, name
+    np.testing.assert_allclose(rec["time"], np.arange(f) / 30.0, atol=0.5 / 240)
+    assert rec["shape"].dtype == np.int32
+    assert list(rec["shape_names"][rec["shape"]]) == ["plane", "sphere"] + ["sphere"] * 4
+    np.testing.assert_array_equal(rec["radius"], [0.0, 0.1] + [0.05] * 4)
+    # at t = 0 only the plane and the ball exist; at the end every body does
+    assert np.isfinite(rec["position"][0, :2]).all()
+    assert np.isnan(rec["position"][0, 2:]).all() and np.isnan(rec["orientation"][0, 2:]).all()
+    assert np.isfinite(rec["position"][-1]).all()
+    # once a body appears it stays: its NaN frames come first
+    present = np.isfinite(rec["position"][:, :, 0])
+    assert (np.diff(present.astype(int), axis=0) >= 0).all()
+    # the free ball falls as z0 - g t^2 / 2 until it reaches the ground (z0 = 1 m, it lands after ~0.43 s)
+    t = rec["time"][:6]
+    np.testing.assert_allclose(rec["position"][:6, 1, 2], 1.0 - 0.5 * 9.81 * t**2, atol=9.81 * t.max() / 240 + 1e-9)
+    assert "recorded" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["run", "missing.toml"], "no such scene file"),
+        (["run", "SCENE", "--duration", "-1"], "--duration"),
+        (["run", "SCENE", "--fps", "0"], "--fps"),
+        (["run", "SCENE", "--record", "out.csv"], ".npz"),
+        (["run", "SCENE", "--record", "no/such/dir/out.npz"], "no such directory"),
+    ],
+)
+def test_bad_arguments_exit_2(write_scene, capsys, argv, fragment):
+    """Reject a missing file or a bad option with exit status 2 and one line on stderr."""
+    path = str(write_scene(BALL))
+    assert main([path if a == "SCENE" else a for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and fragment in err
+
+
+CLOTH_READY = importlib.util.find_spec("tumble.cloth") is not None
+
+
+@pytest.mark.skipif(not CLOTH_READY, reason="the cloth engine (tumble.cloth) is not merged yet")
+def test_record_writes_cloth_arrays(write_scene, tmp_path):
+    """Add cloth_position, cloth_triangles, cloth_rest_position, cloth_mass and strain to cloth recordings."""
+    out = tmp_path / "cloth.npz"
+    scene = write_scene(
+        "[[plane]]\n[[cloth]]\nsize = [1, 0.5]\nresolution = [6, 4]\nposition = [0, 0, 1]\npins = 'top-edge'\n"
+    )
+    assert main(["run", str(scene), "--duration", "0.25", "--record", str(out)]) == 0
+    rec = np.load(out)
+    f, p = 16, 6 * 4
+    assert rec["cloth_position"].shape == (f, p, 3)
+    assert rec["cloth_triangles"].shape == (2 * 5 * 3, 3) and rec["cloth_triangles"].dtype == np.int32
+    np.testing.assert_allclose(rec["cloth_rest_position"], rec["cloth_position"][0])
+    # row-major, i fastest: particle j * nx + i sits at x = -0.5 + i * 0.2, y = -0.25 + j * 0.5 / 3 at rest
+    np.testing.assert_allclose(rec["cloth_rest_position"][7, :2], [-0.3, -0.25 + 0.5 / 3], atol=1e-12)
+    # the pinned top edge (j = 3) stays; the rest falls
+    np.testing.assert_allclose(rec["cloth_position"][-1, 18:, 2], 1.0, atol=1e-9)
+    assert rec["cloth_position"][-1, :6, 2].max() < 1.0
+    # masses add up to the cloth's; strain starts at zero and stays within the 10 % limit
+    assert rec["cloth_mass"].shape == (p,) and rec["cloth_mass"].sum() > 0
+    assert rec["cloth_max_strain"].shape == (f,)
+    assert rec["cloth_max_strain"][0] == 0.0
+    assert 0.0 < rec["cloth_max_strain"].max() <= 0.1 + 1e-6
+
+
+def test_a_first_ctrl_c_waits_for_the_step_to_end_and_a_second_stops_at_once():
+    """run's SIGINT handler only asks the loop to stop between steps; a second Ctrl-C raises at once."""
+    from tumble.commands.run import interrupt_between_steps
+
+    before = signal.getsignal(signal.SIGINT)
+    with interrupt_between_steps() as interrupted:
+        assert not interrupted.is_set()
+        os.kill(os.getpid(), signal.SIGINT)  # handled in the main thread before the next bytecode
+        time.sleep(0.01)
+        assert interrupted.is_set()  # the request is recorded, nothing was raised mid-step
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.5)
+    assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back

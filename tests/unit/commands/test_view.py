@@ -1,0 +1,82 @@
+"""`tumble view` (tumble.commands.view): its arguments and its one-line errors, before any window opens."""
+
+import argparse
+
+import pytest
+
+from tumble.commands.view import parse_size
+
+
+def _view_only(monkeypatch):
+    """The CLI with just the view command (the test needs no other command's imports)."""
+    from tumble import cli
+
+    monkeypatch.setattr(cli, "COMMANDS", {"view": "view"})
+    return cli.main
+
+
+def test_view_command_missing_scene_exits_2(capsys, tmp_path, monkeypatch):
+    """`tumble view` on a missing file exits 2 with one line naming it."""
+    pytest.importorskip("tumble.io.scene")  # the scene loader lives on its own branch until merged
+    main = _view_only(monkeypatch)
+
+    missing = tmp_path / "nope.toml"
+    assert main(["view", str(missing)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope.toml" in err[0] and "no such scene file" in err[0]
+
+
+def test_view_command_rejects_a_bad_size():
+    """--size must look like WxH."""
+    assert parse_size("320x240") == (320, 240)
+    with pytest.raises(argparse.ArgumentTypeError, match="1280x720"):
+        parse_size("big")
+    with pytest.raises(argparse.ArgumentTypeError):
+        parse_size("8x8")  # under 16 a side
+
+
+def test_view_command_broken_scene_exits_2(capsys, tmp_path, monkeypatch):
+    """`tumble view` on a malformed scene exits 2 with one line naming the file, before any window."""
+    pytest.importorskip("tumble.io.scene")  # the scene loader lives on its own branch until merged
+    main = _view_only(monkeypatch)
+
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[[sphere]]\nposition = [0, 0, 1]\nradius = 'big'\n")
+    assert main(["view", str(broken)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "broken.toml" in err[0]
+
+
+@pytest.mark.parametrize("argv", [["--size", "wide"], ["--view", "vulkan"]])
+def test_view_command_bad_options_exit_2_with_one_line(argv, capsys, monkeypatch):
+    """A bad --size or --view: exit 2 (argparse's) and one line naming the option, before the scene is loaded."""
+    main = _view_only(monkeypatch)
+    with pytest.raises(SystemExit) as exit_:
+        main(["view", "no_such_scene.toml", *argv])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tumble view: error:") and argv[0] in err[0]
+    assert "no_such_scene" not in err[0]
+
+
+def test_view_command_opens_the_viewer_on_the_loaded_scene(monkeypatch, tmp_path):
+    """A good scene is loaded once before any window, then handed to run_viewer with the options given."""
+    pytest.importorskip("PySide6")
+    import tumble.viewer
+
+    seen = {}
+
+    def run_viewer(world, **kwargs):
+        seen.update(kwargs, world=world, rebuilt=kwargs["factory"]())
+        return 0
+
+    monkeypatch.setattr(tumble.viewer, "run_viewer", run_viewer)
+    main = _view_only(monkeypatch)
+    assert (
+        main(["view", "bouncing_ball", "--size", "320x200", "--paused", "--view", "image", "--out-dir", str(tmp_path)])
+        == 0
+    )
+    assert seen["size"] == (320, 200) and seen["paused"] is True and seen["view"] == "image"
+    assert seen["title"] == "bouncing_ball" and str(seen["output_dir"]) == str(tmp_path)
+    assert seen["world"].body_count == seen["rebuilt"].body_count > 1  # the factory reloads the same scene
+    assert seen["rebuilt"] is not seen["world"]

@@ -1,0 +1,1 @@
+"""Unit tests of tumble.render, one file per module."""

@@ -1,0 +1,1 @@
+"""Unit tests of tumble.viewer, one file per module."""
