@@ -10,13 +10,12 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from pxr import Usd  # noqa: E402
 
-import tumble  # noqa: E402
 from tumble.cli import main  # noqa: E402
 from tumble.io import usd  # noqa: E402
-from tumble.io.record import FORMAT_VERSION, Recorder, load_recording  # noqa: E402
+from tumble.io.record import FORMAT_VERSION  # noqa: E402
 
+from ..io import open_stage, record_scene  # noqa: E402
 from ..io.scene import BALL  # noqa: E402
 
 FRAMES = 6
@@ -25,34 +24,14 @@ FRAMES = 6
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     """The ball scene recorded for FRAMES frames at 30 fps, as load_recording returns it."""
-    path = tmp_path_factory.mktemp("export") / "ball.toml"
-    path.write_text(BALL, encoding="utf-8")
-    world = tumble.load_scene(path)
-    recorder = Recorder(world, fps=30.0)
-    while recorder.frame_count < FRAMES:
-        world.step()
-        recorder(world)
-    npz = path.with_name("take.npz")
-    recorder.save(npz)
-    return load_recording(npz)
-
-
-#: stages opened by the tests, kept alive while their prims are in use (a prim dies with its stage)
-_OPEN: list = []
-
-
-def _open(path):
-    stage = Usd.Stage.Open(str(path))
-    assert stage is not None
-    _OPEN.append(stage)
-    return stage
+    return record_scene(tmp_path_factory.mktemp("export") / "ball.toml", BALL, FRAMES, 30.0)
 
 
 def test_cli_exports_a_scene_and_a_recording(write_scene, recording, tmp_path, capsys):
     """`tumble export SCENE -o` and `tumble export RECORDING.npz -o` write stages and exit 0."""
     scene = write_scene(BALL)
     assert main(["export", str(scene), "-o", str(tmp_path / "a.usda"), "--frames", "4", "--no-progress"]) == 0
-    assert _open(tmp_path / "a.usda").GetEndTimeCode() == 3
+    assert open_stage(tmp_path / "a.usda").GetEndTimeCode() == 3
     np.savez_compressed(tmp_path / "r.npz", **recording)
     assert (
         main(
@@ -70,7 +49,7 @@ def test_cli_exports_a_scene_and_a_recording(write_scene, recording, tmp_path, c
         )
         == 0
     )
-    assert _open(tmp_path / "r.usdz").GetTimeCodesPerSecond() == 10
+    assert open_stage(tmp_path / "r.usdz").GetTimeCodesPerSecond() == 10
     assert "wrote" in capsys.readouterr().err
 
 
@@ -158,6 +137,6 @@ def test_a_recording_exports_every_recorded_frame_by_default(recording, tmp_path
     """Without --fps or --duration a recording exports all its frames at the recorded rate."""
     np.savez_compressed(tmp_path / "r.npz", **recording)
     assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "all.usda"), "--no-progress"]) == 0
-    stage = _open(tmp_path / "all.usda")
+    stage = open_stage(tmp_path / "all.usda")
     assert stage.GetTimeCodesPerSecond() == 30
     assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == FRAMES - 1

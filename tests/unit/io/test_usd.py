@@ -12,8 +12,9 @@ from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
 import tumble
 from tumble.io import usd
-from tumble.io.record import Recorder, load_recording
 from tumble.npmath import quat_to_matrix
+
+from . import open_stage, record_scene
 
 FPS = 30.0
 FRAMES = 16  # 0.5 s
@@ -82,32 +83,12 @@ fov = 40
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     """The scene recorded for FRAMES frames at FPS, as load_recording returns it."""
-    path = tmp_path_factory.mktemp("usd") / "scene.toml"
-    path.write_text(SCENE, encoding="utf-8")
-    world = tumble.load_scene(path)
-    recorder = Recorder(world, fps=FPS)
-    while recorder.frame_count < FRAMES:
-        world.step()
-        recorder(world)
-    npz = path.with_name("take.npz")
-    recorder.save(npz)
-    return load_recording(npz)
+    return record_scene(tmp_path_factory.mktemp("usd") / "scene.toml", SCENE, FRAMES, FPS)
 
 
 @pytest.fixture(scope="module")
 def stage_path(recording, tmp_path_factory):
     return usd.export(recording, tmp_path_factory.mktemp("out") / "take.usdc")
-
-
-#: stages opened by the tests, kept alive while their prims are in use (a prim dies with its stage)
-_OPEN: list = []
-
-
-def _open(path):
-    stage = Usd.Stage.Open(str(path))
-    assert stage is not None
-    _OPEN.append(stage)
-    return stage
 
 
 def _moving(rec):
@@ -117,7 +98,7 @@ def _moving(rec):
 
 def test_stage_metadata_and_time_codes(stage_path):
     """Write Z up, metres, the fps as time codes per second, frames 0..F-1, and /Root as default prim."""
-    stage = _open(stage_path)
+    stage = open_stage(stage_path)
     assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
     assert stage.GetTimeCodesPerSecond() == FPS
@@ -131,7 +112,7 @@ def test_stage_metadata_and_time_codes(stage_path):
 
 def test_stage_opens_without_composition_errors(stage_path):
     """Open the stage with no composition errors, every prim valid and defined."""
-    stage = _open(stage_path)
+    stage = open_stage(stage_path)
     assert list(stage.GetCompositionErrors()) == []
     prims = list(stage.Traverse())
     assert len(prims) > 5 and all(p.IsValid() and p.IsDefined() for p in prims)
@@ -141,7 +122,7 @@ def test_positions_and_orientations_equal_the_recording(recording, stage_path):
     """At every frame each released body's position is the recording's in float32, its orientation in half."""
     rec = recording
     moving = _moving(rec)
-    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    inst = UsdGeom.PointInstancer(open_stage(stage_path).GetPrimAtPath("/Root/Bodies"))
     ids = np.array(inst.GetIdsAttr().Get())
     np.testing.assert_array_equal(ids, moving)
     for k in range(FRAMES):
@@ -158,7 +139,7 @@ def test_instance_transforms_match_the_bodies(recording, stage_path):
     """pxr's own instance transforms are the bodies' rotation matrices times their sizes, at their positions."""
     rec = recording
     moving = _moving(rec)
-    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    inst = UsdGeom.PointInstancer(open_stage(stage_path).GetPrimAtPath("/Root/Bodies"))
     k = FRAMES - 1
     xforms = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(k), Usd.TimeCode(k))
     m = np.array([np.array(x) for x in xforms])  # row-vector convention: rows are the local axes
@@ -177,7 +158,7 @@ def test_emitted_bodies_appear_at_their_birth_frame(recording, stage_path):
     exists = np.isfinite(rec["position"][:, moving, 0])
     birth = exists.argmax(axis=0)
     assert (birth > 0).sum() >= 3, "the scene should release bodies after the first frame"
-    inst = UsdGeom.PointInstancer(_open(stage_path).GetPrimAtPath("/Root/Bodies"))
+    inst = UsdGeom.PointInstancer(open_stage(stage_path).GetPrimAtPath("/Root/Bodies"))
     for k in range(FRAMES):
         hidden = set(np.array(inst.GetInvisibleIdsAttr().Get(k), dtype=np.int64).tolist())
         assert hidden == set(moving[~exists[k]].tolist()), k
@@ -193,7 +174,7 @@ def test_emitted_bodies_appear_at_their_birth_frame(recording, stage_path):
 def test_cloth_points_and_topology(recording, stage_path):
     """The cloth is one double-sided mesh: the recorded triangles, points in float32 at every frame, unit normals."""
     rec = recording
-    mesh = UsdGeom.Mesh(_open(stage_path).GetPrimAtPath("/Root/Cloth"))
+    mesh = UsdGeom.Mesh(open_stage(stage_path).GetPrimAtPath("/Root/Cloth"))
     assert mesh.GetDoubleSidedAttr().Get() is True
     tri = rec["cloth_triangles"]
     np.testing.assert_array_equal(np.array(mesh.GetFaceVertexCountsAttr().Get()), np.full(len(tri), 3))
@@ -217,7 +198,7 @@ def test_static_geometry_colors_and_camera(recording, stage_path):
         c = np.asarray(c, dtype=np.float64)
         return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
-    stage = _open(stage_path)
+    stage = open_stage(stage_path)
     rec = recording
     ground = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Static/plane_0"))
     wall = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Static/plane_1"))
@@ -252,7 +233,7 @@ def test_xforms_mode_animates_one_xform_per_body(recording, tmp_path):
     """--bodies xforms: each body's world transform sits at its recorded position and is invisible before release."""
     rec = recording
     path = usd.export(rec, tmp_path / "xf.usda", bodies="xforms")
-    stage = _open(path)
+    stage = open_stage(path)
     assert list(stage.GetCompositionErrors()) == []
     moving = _moving(rec)
     cache = UsdGeom.XformCache()
@@ -282,14 +263,14 @@ def test_every_extension_writes_its_format(recording, tmp_path, suffix, magic):
     assert path.read_bytes()[: len(magic)] == magic
     if suffix == ".usdz":
         assert zipfile.ZipFile(path).namelist()[0].endswith(".usdc")
-    stage = _open(path)
+    stage = open_stage(path)
     assert stage.GetEndTimeCode() == FRAMES - 1
     assert sorted(os.listdir(tmp_path)) == [path.name]
 
 
 def test_physics_schemas(recording, tmp_path):
     """physics=True: a PhysicsScene with the gravity, static colliders, rigid prototypes with density and materials."""
-    stage = _open(usd.export(recording, tmp_path / "phys.usda", physics=True))
+    stage = open_stage(usd.export(recording, tmp_path / "phys.usda", physics=True))
     scene = UsdPhysics.Scene(stage.GetPrimAtPath("/Root/PhysicsScene"))
     assert scene.GetGravityMagnitudeAttr().Get() == pytest.approx(9.81)
     np.testing.assert_allclose(np.array(scene.GetGravityDirectionAttr().Get()), (0, 0, -1))
@@ -307,7 +288,7 @@ def test_physics_schemas(recording, tmp_path):
         if p.HasAPI(UsdPhysics.MaterialAPI)
     )
     assert restitutions == [0.5]  # the spheres' prototype binds the first sphere's; 0.8 is per body in xforms
-    stage = _open(usd.export(recording, tmp_path / "phys_xf.usda", physics=True, bodies="xforms"))
+    stage = open_stage(usd.export(recording, tmp_path / "phys_xf.usda", physics=True, bodies="xforms"))
     light = int(np.flatnonzero(recording["mass"] == 0.5)[0])
     body = stage.GetPrimAtPath(f"/Root/Bodies/body_{light:06d}")
     assert UsdPhysics.MassAPI(body).GetMassAttr().Get() == pytest.approx(0.5)
@@ -321,7 +302,7 @@ def test_physics_schemas(recording, tmp_path):
 
 def test_lower_fps_takes_every_other_frame(recording, tmp_path):
     """fps 15 from a 30 fps recording writes frames 0, 2, 4, ... with 15 time codes per second."""
-    stage = _open(usd.export(recording, tmp_path / "half.usdc", fps=15))
+    stage = open_stage(usd.export(recording, tmp_path / "half.usdc", fps=15))
     assert stage.GetTimeCodesPerSecond() == 15
     assert stage.GetEndTimeCode() == (FRAMES - 1) // 2
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Cloth"))
@@ -340,7 +321,7 @@ def test_version_1_recording_still_exports(recording, tmp_path):
     old = {k: v for k, v in recording.items() if k not in ("restitution", "friction") and not k.startswith("camera")}
     old["format_version"] = np.int32(1)
     np.savez_compressed(tmp_path / "old.npz", **old)
-    stage = _open(usd.export(tmp_path / "old.npz", tmp_path / "old.usdc", physics=True))
+    stage = open_stage(usd.export(tmp_path / "old.npz", tmp_path / "old.usdc", physics=True))
     assert not stage.GetPrimAtPath("/Root/Camera")
     assert stage.GetEndTimeCode() == FRAMES - 1
 
@@ -367,7 +348,7 @@ def test_world_export_simulates_the_frames(tmp_path):
     world = tumble.World(dt=1 / 240)
     world.add_plane()
     world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
-    stage = _open(usd.export(world, tmp_path / "drop.usdc", duration=0.25, fps=20))
+    stage = open_stage(usd.export(world, tmp_path / "drop.usdc", duration=0.25, fps=20))
     assert stage.GetEndTimeCode() == 5
     assert world.time == pytest.approx(0.25, abs=0.5 / 240)
     inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))

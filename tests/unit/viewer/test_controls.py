@@ -10,6 +10,8 @@ pytest.importorskip("pytestqt")
 import tumble  # noqa: E402
 from tumble.viewer.controls import default_params, wind_state  # noqa: E402
 
+from . import make_cloth_world  # noqa: E402
+
 DT = 1.0 / 240.0
 
 
@@ -19,15 +21,6 @@ def make_world():
     world.add_plane(restitution=0.3, friction=0.5)
     for p in [(-0.4, 0.0, 0.3), (0.0, 0.0, 0.6), (0.4, 0.0, 0.3)]:
         world.add_sphere(position=p, radius=0.1, mass=1.0, restitution=0.3, friction=0.5)
-    return world
-
-
-def make_cloth_world():
-    """A 12 x 12 cloth hanging from two corners in a light wind."""
-    world = tumble.World(dt=1.0 / 240.0, substeps=2)
-    world.add_plane()
-    world.add_cloth(size=(1.0, 1.0), resolution=(12, 12), position=(0.0, 0.0, 1.0), mass=0.2, pins="top-corners")
-    world.set_wind(velocity=(1.0, 0.0, 0.0), turbulence=0.5, scale=0.5, seed=1, drag=1.0, lift=0.2)
     return world
 
 

@@ -14,6 +14,8 @@ import tumble  # noqa: E402
 from tumble.render import body_colors  # noqa: E402
 from tumble.viewer.views import ImageSceneView  # noqa: E402
 
+from . import make_cloth_world  # noqa: E402
+
 Qt = QtCore.Qt
 
 DT = 1.0 / 240.0
@@ -277,15 +279,6 @@ def test_no_gl_window_and_no_egl_is_one_clear_error(qtbot, monkeypatch):
     assert "\n" not in message
     assert 'no OpenGL window (the Qt platform "offscreen" has no OpenGL windows)' in message
     assert "eglGetDisplay failed" in message
-
-
-def make_cloth_world():
-    """A 12 x 12 cloth hanging from two corners in a light wind."""
-    world = tumble.World(dt=1.0 / 240.0, substeps=2)
-    world.add_plane()
-    world.add_cloth(size=(1.0, 1.0), resolution=(12, 12), position=(0.0, 0.0, 1.0), mass=0.2, pins="top-corners")
-    world.set_wind(velocity=(1.0, 0.0, 0.0), turbulence=0.5, scale=0.5, seed=1, drag=1.0, lift=0.2)
-    return world
 
 
 def test_drag_pulls_a_cloth_particle(open_viewer, qtbot):
