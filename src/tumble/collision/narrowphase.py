@@ -389,6 +389,22 @@ def _face_contacts(
 
 
 @wp.func
+def _lines_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3):
+    """(e, f, g, s) for the closest points pa + s ua, pb + t ub of two lines (unit directions):
+    e = ua.ub, f = ua.r, g = ub.r with r = pa - pb, and s the free optimum clamped to |s| <= ha
+    (0 for parallel lines); `_segment_closest` and the box edge pairs go on from there."""
+    r = pa - pb
+    e = wp.dot(ua, ub)
+    f = wp.dot(ua, r)
+    g = wp.dot(ub, r)
+    den = _ONE - e * e
+    s = _ZERO
+    if den > float_t(1e-12):
+        s = wp.clamp((e * g - f) / den, -ha, ha)
+    return e, f, g, s
+
+
+@wp.func
 def _edge_contact(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int, L: vec3, max_sep: float_t
 ):
@@ -411,15 +427,7 @@ def _edge_contact(
     da = _axis(A.q, i)
     db = _axis(B.q, j)
     # closest points of the lines pa + s da, pb + t db (|da| = |db| = 1), clamped to the edges
-    r = pa - pb
-    e = wp.dot(da, db)
-    f = wp.dot(da, r)
-    g = wp.dot(db, r)
-    den = _ONE - e * e
-    s = _ZERO
-    t = _ZERO
-    if den > float_t(1e-12):
-        s = wp.clamp((e * g - f) / den, -ha[i], ha[i])
+    e, f, g, s = _lines_closest(pa, da, ha[i], pb, db)
     t = wp.clamp(e * s + g, -hb[j], hb[j])
     s = wp.clamp(e * t - f, -ha[i], ha[i])
     emit(c, a, b, A, B, L, pa + da * s, pb + db * t, max_sep)
@@ -648,14 +656,7 @@ def _segment_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3, hb: fl
     s = e t - f, t = e s + g (e = ua.ub, f = ua.r, g = ub.r); clamp s, take the best t for it,
     and if t clamps, the best s for that t (Ericson, Real-Time Collision Detection, 5.1.9).
     """
-    r = pa - pb
-    e = wp.dot(ua, ub)
-    f = wp.dot(ua, r)
-    g = wp.dot(ub, r)
-    den = _ONE - e * e
-    s = _ZERO
-    if den > float_t(1e-12):
-        s = wp.clamp((e * g - f) / den, -ha, ha)
+    e, f, g, s = _lines_closest(pa, ua, ha, pb, ub)
     t = e * s + g
     if t < -hb:
         t = -hb
