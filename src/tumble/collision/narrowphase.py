@@ -840,6 +840,20 @@ def collide_sphere_hull(
 
 
 @wp.func
+def _clip_interval(lo: float_t, hi: float_t, c0: float_t, cu: float_t, eps: float_t):
+    """[lo, hi] cut to the t with c0 + t cu <= 0 (a segment's points p0 + t u inside a plane):
+    (lo, hi), empty (hi < lo) when the plane is parallel to the segment (|cu| <= eps) and c0 > 0."""
+    if wp.abs(cu) > eps:
+        if cu > _ZERO:
+            hi = wp.min(hi, -c0 / cu)
+        else:
+            lo = wp.max(lo, -c0 / cu)
+    elif c0 > _ZERO:
+        hi = lo - _ONE
+    return lo, hi
+
+
+@wp.func
 def collide_capsule_hull(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
 ):
@@ -868,15 +882,7 @@ def collide_capsule_hull(
             v1 = H.vertex[H.face_vertex[start + (k + 1) % count]]
             m = wp.cross(v1 - v0, nf)  # outward side normal (counter-clockwise face)
             # keep m . (p0 + t u - v0) <= 0
-            c0 = wp.dot(m, p0 - v0)
-            cu = wp.dot(m, u)
-            if wp.abs(cu) > float_t(1e-12):
-                if cu > _ZERO:
-                    hi = wp.min(hi, -c0 / cu)
-                else:
-                    lo = wp.max(lo, -c0 / cu)
-            elif c0 > _ZERO:
-                hi = lo - _ONE
+            lo, hi = _clip_interval(lo, hi, wp.dot(m, p0 - v0), wp.dot(m, u), float_t(1e-12))
         tol = float_t(1e-6) * (_ONE + hh)
         if hi - lo > float_t(1e-9) * (_ONE + hh):
             n = -wp.quat_rotate(B.q, nf)  # capsule (a) -> hull (b)
@@ -1407,16 +1413,7 @@ def _mesh_edges_into_solid(
             hi = _ONE
             for f in range(f0, f0 + nf):
                 n, d = _hull_face(H, f, sc)
-                g0 = wp.dot(n, s0) - d - max_sep
-                gu = wp.dot(n, u)
-                if wp.abs(gu) > float_t(1e-30):
-                    tc = -g0 / gu
-                    if gu > _ZERO:
-                        hi = wp.min(hi, tc)
-                    else:
-                        lo = wp.max(lo, tc)
-                elif g0 > _ZERO:
-                    hi = lo - _ONE
+                lo, hi = _clip_interval(lo, hi, wp.dot(n, s0) - d - max_sep, wp.dot(n, u), float_t(1e-30))
             if hi >= lo:
                 bound_lo = float_t(-1.0e30)
                 for f in range(f0, f0 + nf):
