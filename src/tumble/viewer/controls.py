@@ -227,6 +227,24 @@ def _wind_read(part: str) -> Callable:
     return read
 
 
+def _wind_param(
+    part: str, label: str, unit: str, maximum: float, decimals: int, *, note: str = "", tooltip: str = ""
+) -> Param:
+    """The panel's control of one part of the wind ("speed", "heading" or "turbulence"), from 0 to `maximum`."""
+    return Param(
+        f"wind_{part}",
+        label,
+        unit,
+        0.0,
+        maximum,
+        decimals,
+        _wind_read(part),
+        lambda w, v: _set_wind(w, **{part: v}),
+        note=note,
+        tooltip=tooltip,
+    )
+
+
 def _emitter_rate_read(world):
     emitters = getattr(world, "emitters", [])
     return float(emitters[0].rate) if emitters else None
@@ -280,37 +298,14 @@ def default_params() -> list[tuple[str, list[Param]]]:
         (
             "Wind",
             [
-                Param(
-                    "wind_speed",
-                    "Wind speed",
-                    "m/s",
-                    0.0,
-                    30.0,
-                    1,
-                    _wind_read("speed"),
-                    lambda w, v: _set_wind(w, speed=v),
-                    note="horizontal wind; acts on cloth only",
-                ),
-                Param(
-                    "wind_heading",
-                    "Wind direction",
-                    "°",
-                    0.0,
-                    360.0,
-                    0,
-                    _wind_read("heading"),
-                    lambda w, v: _set_wind(w, heading=v),
-                    tooltip="0° blows towards +x, 90° towards +y.",
-                ),
-                Param(
-                    "wind_turbulence",
+                _wind_param("speed", "Wind speed", "m/s", 30.0, 1, note="horizontal wind; acts on cloth only"),
+                _wind_param("heading", "Wind direction", "°", 360.0, 0, tooltip="0° blows towards +x, 90° towards +y."),
+                _wind_param(
+                    "turbulence",
                     "Turbulence",
                     "m/s",
-                    0.0,
                     10.0,
                     2,
-                    _wind_read("turbulence"),
-                    lambda w, v: _set_wind(w, turbulence=v),
                     tooltip="RMS speed of the gusts added to the mean wind, per component.",
                 ),
             ],
