@@ -121,21 +121,19 @@ class ParamControl(QtWidgets.QWidget):
             self._updating = False
 
     def _slider_moved(self, position: int) -> None:
-        if self._updating:
-            return
-        self._updating = True
-        try:
-            self.spin.setValue(self._from_slider(position))
-        finally:
-            self._updating = False
-        self._emit()
+        self._follow(self.spin, self._from_slider, position)
 
     def _spin_changed(self, value: float) -> None:
+        self._follow(self.slider, self._to_slider, value)
+
+    def _follow(self, other, convert: Callable, value) -> None:
+        """The user moved one widget to `value`: `other` shows `convert(value)` (its own change not
+        taken for the user's), then the change is signalled."""
         if self._updating:
             return
         self._updating = True
         try:
-            self.slider.setValue(self._to_slider(value))
+            other.setValue(convert(value))
         finally:
             self._updating = False
         self._emit()
