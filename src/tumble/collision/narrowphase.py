@@ -41,8 +41,6 @@ vec8 = wp.types.vector(length=8, dtype=float_t)
 
 _ZERO = wp.constant(float_t(0.0))
 _ONE = wp.constant(float_t(1.0))
-#: 1 / the golden ratio: golden-section search keeps this fraction of its bracket each step
-_GOLDEN = wp.constant(float_t(0.6180339887498949))
 
 
 @wp.struct
@@ -569,25 +567,6 @@ def _convex_distance(p: vec3, H: Hulls, h: int, one: vec3, hb: vec3):
 
 
 @wp.func
-def _golden_step(lo: float_t, hi: float_t, x1: float_t, x2: float_t, f1: float_t, f2: float_t):
-    """One step of golden-section search for the minimum of a convex f on [lo, hi], whose inner points
-    x1 < x2 have the values f1, f2: the step keeps the side of the smaller value and returns
-    (lo, hi, x1, x2, f1, f2, t, left), t the new inner point, whose value the caller puts in f1
-    (left = 1) or f2 (left = 0)."""
-    if f1 <= f2:
-        hi = x2
-        x2 = x1
-        f2 = f1
-        x1 = hi - _GOLDEN * (hi - lo)
-        return lo, hi, x1, x2, f1, f2, x1, 1
-    lo = x1
-    x1 = x2
-    f1 = f2
-    x2 = lo + _GOLDEN * (hi - lo)
-    return lo, hi, x1, x2, f1, f2, x2, 0
-
-
-@wp.func
 def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, one: vec3, hb: vec3):
     """Parameter t in [lo, hi] minimising the signed distance of p0 + t u from a box or a hull
     (`_convex_distance`).
@@ -595,18 +574,24 @@ def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, o
     The signed distance from a convex set is a convex function, and so is its restriction to a
     line, so golden-section search finds the minimum: 40 steps shrink [lo, hi] by 0.618^40 ~ 4e-9.
     """
-    g = _GOLDEN
+    g = float_t(0.6180339887498949)
     x1 = hi - g * (hi - lo)
     x2 = lo + g * (hi - lo)
     f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
     f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
     for _it in range(40):
-        lo, hi, x1, x2, f1, f2, t, left = _golden_step(lo, hi, x1, x2, f1, f2)
-        ft = _convex_distance(p0 + u * t, H, h, one, hb)
-        if left != 0:
-            f1 = ft
+        if f1 <= f2:
+            hi = x2
+            x2 = x1
+            f2 = f1
+            x1 = hi - g * (hi - lo)
+            f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
         else:
-            f2 = ft
+            lo = x1
+            x1 = x2
+            f1 = f2
+            x2 = lo + g * (hi - lo)
+            f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
     return (lo + hi) * float_t(0.5)
 
 
@@ -1421,18 +1406,24 @@ def _mesh_edges_into_solid(
                     bound_lo = wp.max(bound_lo, wp.min(wp.dot(n, s0 + u * lo), wp.dot(n, s0 + u * hi)) - d)
                 if bound_lo < best:
                     # golden-section search of f(t) (convex, piecewise linear)
-                    gr = _GOLDEN
+                    gr = float_t(0.6180339887498949)
                     x1 = hi - gr * (hi - lo)
                     x2 = lo + gr * (hi - lo)
                     v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
                     v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
                     for _it in range(30):
-                        lo, hi, x1, x2, v1, v2, t, left = _golden_step(lo, hi, x1, x2, v1, v2)
-                        vt, _nt = _face_depth(H, f0, nf, sc, s0 + u * t)
-                        if left != 0:
-                            v1 = vt
+                        if v1 <= v2:
+                            hi = x2
+                            x2 = x1
+                            v2 = v1
+                            x1 = hi - gr * (hi - lo)
+                            v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
                         else:
-                            v2 = vt
+                            lo = x1
+                            x1 = x2
+                            v1 = v2
+                            x2 = lo + gr * (hi - lo)
+                            v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
                     pt = s0 + u * ((lo + hi) * float_t(0.5))
                     depth, normal = _face_depth(H, f0, nf, sc, pt)
                     if depth < best:
