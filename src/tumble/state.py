@@ -339,6 +339,13 @@ class Handle(int):
         return str(int(self))
 
 
+def _body_state(field: str, doc: str) -> property:
+    """A `BodyId` property: reads `world.body_state(body).<field>`, sets by `world.set_body_state(body, <field>=...)`."""
+    return property(
+        lambda self: self._get(field), lambda self, v: self.world.set_body_state(self, **{field: v}), doc=doc
+    )
+
+
 class BodyId(Handle):
     """Handle to one body (planes, spheres and boxes share the index space).
 
@@ -355,26 +362,10 @@ class BodyId(Handle):
     def _get(self, field: str) -> np.ndarray:
         return getattr(self.world.body_state(self), field)
 
-    position = property(
-        lambda self: self._get("position"),
-        lambda self, v: self.world.set_body_state(self, position=v),
-        doc="Centre of mass [m], shape (3,).",
-    )
-    orientation = property(
-        lambda self: self._get("orientation"),
-        lambda self, v: self.world.set_body_state(self, orientation=v),
-        doc="Body-to-world rotation, unit quaternion (x, y, z, w), shape (4,).",
-    )
-    velocity = property(
-        lambda self: self._get("velocity"),
-        lambda self, v: self.world.set_body_state(self, velocity=v),
-        doc="Linear velocity [m/s], shape (3,).",
-    )
-    angular_velocity = property(
-        lambda self: self._get("angular_velocity"),
-        lambda self, v: self.world.set_body_state(self, angular_velocity=v),
-        doc="Angular velocity, world frame [rad/s], shape (3,).",
-    )
+    position = _body_state("position", "Centre of mass [m], shape (3,).")
+    orientation = _body_state("orientation", "Body-to-world rotation, unit quaternion (x, y, z, w), shape (4,).")
+    velocity = _body_state("velocity", "Linear velocity [m/s], shape (3,).")
+    angular_velocity = _body_state("angular_velocity", "Angular velocity, world frame [rad/s], shape (3,).")
 
     @property
     def kind(self) -> BodyKind:

@@ -389,6 +389,22 @@ def _face_contacts(
 
 
 @wp.func
+def _lines_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3):
+    """(e, f, g, s) for the closest points pa + s ua, pb + t ub of two lines (unit directions):
+    e = ua.ub, f = ua.r, g = ub.r with r = pa - pb, and s the free optimum clamped to |s| <= ha
+    (0 for parallel lines); `_segment_closest` and the box edge pairs go on from there."""
+    r = pa - pb
+    e = wp.dot(ua, ub)
+    f = wp.dot(ua, r)
+    g = wp.dot(ub, r)
+    den = _ONE - e * e
+    s = _ZERO
+    if den > float_t(1e-12):
+        s = wp.clamp((e * g - f) / den, -ha, ha)
+    return e, f, g, s
+
+
+@wp.func
 def _edge_contact(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int, L: vec3, max_sep: float_t
 ):
@@ -411,15 +427,7 @@ def _edge_contact(
     da = _axis(A.q, i)
     db = _axis(B.q, j)
     # closest points of the lines pa + s da, pb + t db (|da| = |db| = 1), clamped to the edges
-    r = pa - pb
-    e = wp.dot(da, db)
-    f = wp.dot(da, r)
-    g = wp.dot(db, r)
-    den = _ONE - e * e
-    s = _ZERO
-    t = _ZERO
-    if den > float_t(1e-12):
-        s = wp.clamp((e * g - f) / den, -ha[i], ha[i])
+    e, f, g, s = _lines_closest(pa, da, ha[i], pb, db)
     t = wp.clamp(e * s + g, -hb[j], hb[j])
     s = wp.clamp(e * t - f, -ha[i], ha[i])
     emit(c, a, b, A, B, L, pa + da * s, pb + db * t, max_sep)
@@ -648,14 +656,7 @@ def _segment_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3, hb: fl
     s = e t - f, t = e s + g (e = ua.ub, f = ua.r, g = ub.r); clamp s, take the best t for it,
     and if t clamps, the best s for that t (Ericson, Real-Time Collision Detection, 5.1.9).
     """
-    r = pa - pb
-    e = wp.dot(ua, ub)
-    f = wp.dot(ua, r)
-    g = wp.dot(ub, r)
-    den = _ONE - e * e
-    s = _ZERO
-    if den > float_t(1e-12):
-        s = wp.clamp((e * g - f) / den, -ha, ha)
+    e, f, g, s = _lines_closest(pa, ua, ha, pb, ub)
     t = e * s + g
     if t < -hb:
         t = -hb
@@ -824,6 +825,20 @@ def collide_sphere_hull(
 
 
 @wp.func
+def _clip_interval(lo: float_t, hi: float_t, c0: float_t, cu: float_t, eps: float_t):
+    """[lo, hi] cut to the t with c0 + t cu <= 0 (a segment's points p0 + t u inside a plane):
+    (lo, hi), empty (hi < lo) when the plane is parallel to the segment (|cu| <= eps) and c0 > 0."""
+    if wp.abs(cu) > eps:
+        if cu > _ZERO:
+            hi = wp.min(hi, -c0 / cu)
+        else:
+            lo = wp.max(lo, -c0 / cu)
+    elif c0 > _ZERO:
+        hi = lo - _ONE
+    return lo, hi
+
+
+@wp.func
 def collide_capsule_hull(
     c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
 ):
@@ -852,15 +867,7 @@ def collide_capsule_hull(
             v1 = H.vertex[H.face_vertex[start + (k + 1) % count]]
             m = wp.cross(v1 - v0, nf)  # outward side normal (counter-clockwise face)
             # keep m . (p0 + t u - v0) <= 0
-            c0 = wp.dot(m, p0 - v0)
-            cu = wp.dot(m, u)
-            if wp.abs(cu) > float_t(1e-12):
-                if cu > _ZERO:
-                    hi = wp.min(hi, -c0 / cu)
-                else:
-                    lo = wp.max(lo, -c0 / cu)
-            elif c0 > _ZERO:
-                hi = lo - _ONE
+            lo, hi = _clip_interval(lo, hi, wp.dot(m, p0 - v0), wp.dot(m, u), float_t(1e-12))
         tol = float_t(1e-6) * (_ONE + hh)
         if hi - lo > float_t(1e-9) * (_ONE + hh):
             n = -wp.quat_rotate(B.q, nf)  # capsule (a) -> hull (b)
@@ -1391,16 +1398,7 @@ def _mesh_edges_into_solid(
             hi = _ONE
             for f in range(f0, f0 + nf):
                 n, d = _hull_face(H, f, sc)
-                g0 = wp.dot(n, s0) - d - max_sep
-                gu = wp.dot(n, u)
-                if wp.abs(gu) > float_t(1e-30):
-                    tc = -g0 / gu
-                    if gu > _ZERO:
-                        hi = wp.min(hi, tc)
-                    else:
-                        lo = wp.max(lo, tc)
-                elif g0 > _ZERO:
-                    hi = lo - _ONE
+                lo, hi = _clip_interval(lo, hi, wp.dot(n, s0) - d - max_sep, wp.dot(n, u), float_t(1e-30))
             if hi >= lo:
                 bound_lo = float_t(-1.0e30)
                 for f in range(f0, f0 + nf):

@@ -121,21 +121,19 @@ class ParamControl(QtWidgets.QWidget):
             self._updating = False
 
     def _slider_moved(self, position: int) -> None:
-        if self._updating:
-            return
-        self._updating = True
-        try:
-            self.spin.setValue(self._from_slider(position))
-        finally:
-            self._updating = False
-        self._emit()
+        self._follow(self.spin, self._from_slider, position)
 
     def _spin_changed(self, value: float) -> None:
+        self._follow(self.slider, self._to_slider, value)
+
+    def _follow(self, other, convert: Callable, value) -> None:
+        """The user moved one widget to `value`: `other` shows `convert(value)` (its own change not
+        taken for the user's), then the change is signalled."""
         if self._updating:
             return
         self._updating = True
         try:
-            self.slider.setValue(self._to_slider(value))
+            other.setValue(convert(value))
         finally:
             self._updating = False
         self._emit()
@@ -227,6 +225,24 @@ def _wind_read(part: str) -> Callable:
     return read
 
 
+def _wind_param(
+    part: str, label: str, unit: str, maximum: float, decimals: int, *, note: str = "", tooltip: str = ""
+) -> Param:
+    """The panel's control of one part of the wind ("speed", "heading" or "turbulence"), from 0 to `maximum`."""
+    return Param(
+        f"wind_{part}",
+        label,
+        unit,
+        0.0,
+        maximum,
+        decimals,
+        _wind_read(part),
+        lambda w, v: _set_wind(w, **{part: v}),
+        note=note,
+        tooltip=tooltip,
+    )
+
+
 def _emitter_rate_read(world):
     emitters = getattr(world, "emitters", [])
     return float(emitters[0].rate) if emitters else None
@@ -280,37 +296,14 @@ def default_params() -> list[tuple[str, list[Param]]]:
         (
             "Wind",
             [
-                Param(
-                    "wind_speed",
-                    "Wind speed",
-                    "m/s",
-                    0.0,
-                    30.0,
-                    1,
-                    _wind_read("speed"),
-                    lambda w, v: _set_wind(w, speed=v),
-                    note="horizontal wind; acts on cloth only",
-                ),
-                Param(
-                    "wind_heading",
-                    "Wind direction",
-                    "°",
-                    0.0,
-                    360.0,
-                    0,
-                    _wind_read("heading"),
-                    lambda w, v: _set_wind(w, heading=v),
-                    tooltip="0° blows towards +x, 90° towards +y.",
-                ),
-                Param(
-                    "wind_turbulence",
+                _wind_param("speed", "Wind speed", "m/s", 30.0, 1, note="horizontal wind; acts on cloth only"),
+                _wind_param("heading", "Wind direction", "°", 360.0, 0, tooltip="0° blows towards +x, 90° towards +y."),
+                _wind_param(
+                    "turbulence",
                     "Turbulence",
                     "m/s",
-                    0.0,
                     10.0,
                     2,
-                    _wind_read("turbulence"),
-                    lambda w, v: _set_wind(w, turbulence=v),
                     tooltip="RMS speed of the gusts added to the mean wind, per component.",
                 ),
             ],

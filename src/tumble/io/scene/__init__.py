@@ -34,30 +34,9 @@ One module per job, each importing only from those before it:
 
 from __future__ import annotations
 
+from . import checks  # the value checks (`checks.vector`, ...) and cross-key rules
 from .build import WORLD_OVERRIDES, WorldOverrides, build_world, load_scene, load_snapshot
-from .checks import (
-    PIN_NAMES,
-    SPRING_KINDS,
-    Bad,
-    Check,
-    KeyBad,
-    boolean,
-    choice,
-    extent,
-    file_name,
-    integer,
-    number,
-    per_spring,
-    pins,
-    point_list,
-    quaternion,
-    resolution,
-    scale_factor,
-    shape_list,
-    size_or_range,
-    value_or_range,
-    vector,
-)
+from .checks import PIN_NAMES, SPRING_KINDS, Bad, Check, KeyBad
 from .docs import reference_markdown
 from .parse import (
     SAMPLES_DIR,
@@ -90,32 +69,17 @@ __all__ = [
     "TableSpec",
     "WorldOverrides",
     "body_ref",
-    "boolean",
     "build_world",
     "check_limits",
     "check_world",
-    "choice",
+    "checks",
     "copy_default",
-    "extent",
-    "file_name",
-    "integer",
     "list_samples",
     "load_scene",
     "load_snapshot",
-    "number",
     "parse_scene",
-    "per_spring",
-    "pins",
-    "point_list",
-    "quaternion",
     "read_scene",
     "reference_markdown",
-    "resolution",
     "resolve_scene_path",
-    "scale_factor",
-    "shape_list",
-    "size_or_range",
     "validate_scene",
-    "value_or_range",
-    "vector",
 ]
