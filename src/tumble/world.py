@@ -707,13 +707,31 @@ class World:
         Returns:
             The new joint's `JointId`; `joint_force[id.index]` is its force on b [N].
         """
-        options = arguments(locals())
         ends = [
             joint_solver.JointBody.world() if body is None else self._joint_body(body, key)
             for key, body in (("body_a", body_a), ("body_b", body_b))
         ]
-        del options["kind"], options["body_a"], options["body_b"]
-        rows = joint_solver.joint_rows(kind, *ends, **options)
+        rows = joint_solver.joint_rows(
+            kind,
+            *ends,
+            anchor=anchor,
+            anchor_a=anchor_a,
+            anchor_b=anchor_b,
+            axis=axis,
+            frame=frame,
+            lower=lower,
+            upper=upper,
+            motor_speed=motor_speed,
+            max_torque=max_torque,
+            max_force=max_force,
+            length=length,
+            min_length=min_length,
+            max_length=max_length,
+            stiffness=stiffness,
+            damping=damping,
+            break_force=break_force,
+            collide=collide,
+        )
         return JointId(self.joints.add(rows)[0], 0, self._key)
 
     def _joint_body(self, body, key: str):
