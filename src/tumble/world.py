@@ -28,13 +28,13 @@ from numpy.typing import ArrayLike
 from . import limits, snapshot, validate
 from . import shapes as _shapes
 from .cloth.system import ClothSystem
+from .cloth.wind import AIR_DENSITY
 from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
 from .collision.hulls import HullSet
 from .collision.meshes import MeshSet
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
-from .forward import arguments, keywords_of
 from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_row_group
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
@@ -318,7 +318,19 @@ class World:
             The sphere's `BodyId`.
         """
         validate.positive(radius, "radius")
-        return self._add_one(self.add_spheres, arguments(locals()))
+        return self.add_spheres(
+            position=validate.vector(position, "position")[None],
+            radius=radius,
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
+        )[0]
 
     def add_box(
         self,
@@ -336,7 +348,19 @@ class World:
         kinematic: bool = False,
     ) -> BodyId:
         """Add a solid box. Arguments as `add_sphere`, with half extents [m], shape (3,), all > 0."""
-        return self._add_one(self.add_boxes, arguments(locals()), "half_extents")
+        return self.add_boxes(
+            position=validate.vector(position, "position")[None],
+            half_extents=validate.vector(half_extents, "half_extents"),
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
+        )[0]
 
     def add_spheres(
         self,
@@ -365,7 +389,6 @@ class World:
         Returns:
             The new bodies' ids, in order.
         """
-        motion = arguments(locals())
         x = validate.rows(position, "position", 3)
         r = validate.positive_rows(radius, "radius", len(x))
         m = self._masses(mass, density, _shapes.sphere_volume(r))
@@ -373,11 +396,17 @@ class World:
         return self._add_solids(
             ShapeType.SPHERE,
             x,
-            motion,
+            velocity,
+            orientation,
+            angular_velocity,
             radius=r,
             half_extents=np.zeros((len(x), 3)),
             mass=m,
             inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
         )
 
     def add_boxes(
@@ -396,7 +425,6 @@ class World:
         kinematic: bool = False,
     ) -> list[BodyId]:
         """Add n boxes in one call; arguments as `add_spheres`, with half extents [m], shape (3,) or (n, 3)."""
-        motion = arguments(locals())
         x = validate.rows(position, "position", 3)
         h = validate.rows(half_extents, "half_extents", 3, len(x))
         if np.any(h <= 0.0):
@@ -406,11 +434,17 @@ class World:
         return self._add_solids(
             ShapeType.BOX,
             x,
-            motion,
+            velocity,
+            orientation,
+            angular_velocity,
             radius=np.zeros(len(x)),
             half_extents=h,
             mass=m,
             inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+            kinematic=kinematic,
         )
 
     def add_capsule(
@@ -436,7 +470,19 @@ class World:
                 2 (half_height + radius) long).
             Others as `add_sphere`.
         """
-        return self._add_one(self.add_capsules, arguments(locals()))
+        return self.add_capsules(
+            position=validate.vector(position, "position")[None],
+            radius=radius,
+            half_height=half_height,
+            mass=mass,
+            density=density,
+            velocity=velocity,
+            orientation=orientation,
+            angular_velocity=angular_velocity,
+            restitution=restitution,
+            friction=friction,
+            static=static,
+        )[0]
 
     def add_capsules(
         self,
@@ -454,7 +500,6 @@ class World:
         static: bool = False,
     ) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
-        motion = arguments(locals())
         x = validate.rows(position, "position", 3)
         r = validate.positive_rows(radius, "radius", len(x))
         a = validate.positive_rows(half_height, "half_height", len(x))
@@ -465,11 +510,16 @@ class World:
         return self._add_solids(
             ShapeType.CAPSULE,
             x,
-            motion,
+            velocity,
+            orientation,
+            angular_velocity,
             radius=r,
             half_extents=h,
             mass=m,
             inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
         )
 
     def add_convex(
@@ -504,7 +554,6 @@ class World:
             position, orientation: the user frame's pose (x, y, z, w).
             Others as `add_sphere`.
         """
-        motion = arguments(locals())
         from .collision.hulls import hull_from_points
         from .io.meshfile import hull_points
 
@@ -522,11 +571,16 @@ class World:
         ids = self._add_solids(
             ShapeType.CONVEX,
             x[None],
-            {**motion, "orientation": q},
+            velocity,
+            q,
+            angular_velocity,
             radius=np.zeros(1),
             half_extents=np.abs(proto.vertex).max(axis=0)[None],
             mass=m,
             inertia=inertia,
+            restitution=restitution,
+            friction=friction,
+            static=static,
             bound=np.array([proto.bound_radius]),
         )
         self.bodies.write("body_geometry", self._row(ids[0]), index)
@@ -592,14 +646,61 @@ class World:
         }
         return adders[kind](**kwargs)
 
-    @keywords_of(Emitter.__init__)
-    def add_emitter(self, **keywords: Any) -> Emitter:
+    def add_emitter(
+        self,
+        *,
+        shape: str | Sequence[str] = "sphere",
+        rate: float = 100.0,
+        count: int = 100,
+        position: Sequence[float] | np.ndarray = (0.0, 0.0, 1.0),
+        region: str = "point",
+        extent: float | Sequence[float] = 0.0,
+        direction: Sequence[float] | np.ndarray = (0.0, 0.0, -1.0),
+        cone_angle: float = 0.0,
+        speed: float | Sequence[float] = 0.0,
+        radius: float | Sequence[float] = 0.05,
+        half_extents: float | Sequence = 0.05,
+        half_height: float | Sequence[float] = 0.05,
+        points: ArrayLike | None = None,
+        file: str | os.PathLike[str] | None = None,
+        scale: float | Sequence[float] = 1.0,
+        mass: float | Sequence[float] | None = None,
+        density: float | Sequence[float] | None = None,
+        restitution: float = DEFAULT_RESTITUTION,
+        friction: float = DEFAULT_FRICTION,
+        random_orientation: bool = False,
+        angular_speed: float | Sequence[float] = 0.0,
+        seed: int | None = None,
+    ) -> Emitter:
         """Add an emitter that releases bodies over time; the keywords are `tumble.Emitter`'s.
 
         Returns:
             The `Emitter` (the emitter's handle), whose `rate` may be changed while the world runs.
         """
-        emitter = Emitter(**keywords)
+        emitter = Emitter(
+            shape=shape,
+            rate=rate,
+            count=count,
+            position=position,
+            region=region,
+            extent=extent,
+            direction=direction,
+            cone_angle=cone_angle,
+            speed=speed,
+            radius=radius,
+            half_extents=half_extents,
+            half_height=half_height,
+            points=points,
+            file=file,
+            scale=scale,
+            mass=mass,
+            density=density,
+            restitution=restitution,
+            friction=friction,
+            random_orientation=random_orientation,
+            angular_speed=angular_speed,
+            seed=seed,
+        )
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
@@ -617,15 +718,42 @@ class World:
         self.emitters = [e for e in self.emitters if e is not emitter]
         emitter.world_key = None
 
-    @keywords_of(ClothSystem.add_cloth)
-    def add_cloth(self, **keywords: Any) -> ClothId:
+    def add_cloth(
+        self,
+        *,
+        size: Sequence[float] = (1.0, 1.0),
+        resolution: Sequence[int] = (32, 32),
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+        mass: float | None = None,
+        areal_density: float | None = None,
+        stiffness: float | dict[str, float] | None = None,
+        damping: float | dict[str, float] | None = None,
+        max_stretch: float | None = 0.1,
+        pins: str | Sequence[Sequence[int]] | None = None,
+        thickness: float = 0.01,
+        friction: float = 0.3,
+    ) -> ClothId:
         """Add a rectangular mass-spring cloth; the keywords are `ClothSystem.add_cloth`'s.
 
         Returns:
             The cloth's `ClothId` (an int, its index in creation order); `world.cloth` holds the
             particles of every cloth.
         """
-        index = self.cloth.add_cloth(**keywords)
+        index = self.cloth.add_cloth(
+            size=size,
+            resolution=resolution,
+            position=position,
+            orientation=orientation,
+            mass=mass,
+            areal_density=areal_density,
+            stiffness=stiffness,
+            damping=damping,
+            max_stretch=max_stretch,
+            pins=pins,
+            thickness=thickness,
+            friction=friction,
+        )
         return ClothId(index, 0, self._key)
 
     @property
@@ -649,10 +777,27 @@ class World:
         b = self.bodies
         self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
 
-    @keywords_of(ClothSystem.set_wind)
-    def set_wind(self, **keywords: Any) -> None:
+    def set_wind(
+        self,
+        *,
+        velocity: Sequence[float] = (0.0, 0.0, 0.0),
+        turbulence: float = 0.0,
+        scale: float = 1.0,
+        seed: int = 0,
+        drag: float = 1.2,
+        lift: float = 0.3,
+        air_density: float = AIR_DENSITY,
+    ) -> None:
         """Set the wind acting on cloth; the keywords are `ClothSystem.set_wind`'s (model: `tumble.Wind`)."""
-        self.cloth.set_wind(**keywords)
+        self.cloth.set_wind(
+            velocity=velocity,
+            turbulence=turbulence,
+            scale=scale,
+            seed=seed,
+            drag=drag,
+            lift=lift,
+            air_density=air_density,
+        )
 
     def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
         """Set restitution and/or friction of every body (planes included), effective at once."""
@@ -999,16 +1144,6 @@ class World:
             raise HandleError(f"body {int(ids[np.argmax(rows < 0)])} was removed from this World")
         return ids, rows
 
-    @staticmethod
-    def _add_one(adder: Callable[..., list[BodyId]], keywords: dict[str, Any], *vectors: str) -> BodyId:
-        """Add one body by a batch method (`add_spheres`, ...) with a single-body method's arguments:
-        the position (then each of `vectors`) checked as a 3-vector, the position given as one row."""
-        keywords = dict(keywords)
-        for name in ("position", *vectors):
-            keywords[name] = validate.vector(keywords[name], name)
-        keywords["position"] = keywords["position"][None]
-        return adder(**keywords)[0]
-
     def _masses(self, mass, density, volume: np.ndarray) -> np.ndarray:
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
@@ -1021,22 +1156,22 @@ class World:
 
     def _add_solids(
         self,
-        shape: ShapeType,
-        position: np.ndarray,
-        motion: dict[str, Any],
+        shape,
+        position,
+        velocity,
+        orientation,
+        angular_velocity,
         *,
-        radius: np.ndarray,
-        half_extents: np.ndarray,
-        mass: np.ndarray,
-        inertia: np.ndarray,
-        bound: np.ndarray | None = None,
+        radius,
+        half_extents,
+        mass,
+        inertia,
+        restitution,
+        friction,
+        static,
+        kinematic=False,
+        bound=None,
     ) -> list[BodyId]:
-        """Add solids whose geometry and mass are given here; `motion`, the adding method's arguments
-        (`arguments(locals())`), gives the velocities, orientation, material and kind (`kinematic`
-        False where it has none)."""
-        velocity, orientation, angular_velocity = (motion[k] for k in ("velocity", "orientation", "angular_velocity"))
-        restitution, friction, static = (motion[k] for k in ("restitution", "friction", "static"))
-        kinematic = motion.get("kinematic", False)
         n = len(position)
         q = validate.quaternion(orientation, "orientation", n)
         v = validate.rows(velocity, "velocity", 3, n)
