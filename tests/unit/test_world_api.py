@@ -406,15 +406,15 @@ def test_settings_are_checked_when_changed():
 
 
 def test_forwarding_calls_have_the_real_signatures():
-    """add_emitter, add_cloth and set_wind list the same keywords and defaults as what they build."""
+    """add_emitter, add_cloth and set_wind list the same keywords, types and defaults as what they build."""
     pairs = [
         (tumble.World.add_emitter, tumble.Emitter.__init__),
         (tumble.World.add_cloth, ClothSystem.add_cloth),
         (tumble.World.set_wind, ClothSystem.set_wind),
     ]
     for front, back in pairs:
-        a = [(p.name, p.default, p.kind) for p in inspect.signature(front).parameters.values()]
-        b = [(p.name, p.default, p.kind) for p in inspect.signature(back).parameters.values()]
+        a = [(p.name, p.default, p.kind, p.annotation) for p in inspect.signature(front).parameters.values()]
+        b = [(p.name, p.default, p.kind, p.annotation) for p in inspect.signature(back).parameters.values()]
         assert a == b, front.__name__
         assert all(p.kind != p.VAR_KEYWORD for p in inspect.signature(front).parameters.values())
 
