@@ -115,6 +115,62 @@ def test_sphere_rolling_on_the_level_keeps_rolling():
     assert w.body_position[ball, 0] == pytest.approx(2 * w.time, rel=ROUNDING)
 
 
+@pytest.mark.parametrize("theta_deg, mu", [(20.0, 0.5), (30.0, 0.3)])
+def test_box_launched_up_an_incline_stops_then_holds_or_slides_back(theta_deg, mu):
+    """A box sent up a ramp at 2 m/s climbs v0^2 / (2 g (sin + mu cos)), then stays (tan < mu) or slides back at g (sin - mu cos).
+
+    Constant decelerations: the scheme stops v0 h / 2 short of the closed form, to within a h^2 (the
+    highest point is sampled once per step: within a dt^2 / 8 more), and the speed coming back is
+    exact to within one substep's acceleration per phase.
+    """
+    theta = math.radians(theta_deg)
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    up = np.array([0.0, math.cos(theta), math.sin(theta)])
+    half, v0 = 0.1, 2.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(normal=normal, friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=normal * half, half_extents=(half,) * 3, orientation=quat_axis_angle((1, 0, 0), theta), mass=1.0,
+        friction=mu, restitution=0.0, velocity=v0 * up,
+    )  # fmt: skip
+    a_up = G * (math.sin(theta) + mu * math.cos(theta))
+    climbed = []
+    w.run(2.0, callback=lambda world: climbed.append(float(np.dot(world.body_position[box] - normal * half, up))))
+    assert abs(max(climbed) - (v0**2 / (2 * a_up) - v0 * h / 2)) <= a_up * (h * h + w.dt**2 / 8)
+    speed = float(np.dot(w.body_velocity[box], up))
+    if math.tan(theta) < mu:  # static friction holds it where it stopped
+        assert climbed[-1] == pytest.approx(max(climbed), abs=contacts.LINEAR_SLOP)
+        assert abs(speed) < 1e-9
+    else:
+        a_down = G * (math.sin(theta) - mu * math.cos(theta))
+        assert -speed == pytest.approx(a_down * (w.time - v0 / a_up), abs=(a_up + a_down) * h)
+
+
+@pytest.mark.parametrize("yaw_deg, heading_deg", [(0.0, 45.0), (30.0, 0.0), (17.0, 80.0)])
+def test_sliding_friction_is_isotropic(yaw_deg, heading_deg):
+    """A cube sliding at 2 m/s in any direction relative to its edges stops after v^2 / (2 mu g), on a straight line, unturned.
+
+    The scheme stops v h / 2 short of the closed form, to within mu g h^2.
+    """
+    mu, v0 = 0.5, 2.0
+    heading = np.array([math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg)), 0.0])
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, 0.1), half_extents=(0.1,) * 3, mass=1.0, friction=mu, restitution=0.0,
+        orientation=quat_axis_angle((0, 0, 1), math.radians(yaw_deg)), velocity=v0 * heading,
+    )  # fmt: skip
+    w.run(1.0)  # stops after v0 / (mu g) = 0.41 s
+    x = w.body_position[box]
+    assert abs(float(np.dot(x, heading)) - (v0**2 / (2 * mu * G) - v0 * h / 2)) <= mu * G * h * h
+    assert np.linalg.norm(x[:2] - np.dot(x, heading) * heading[:2]) < contacts.LINEAR_SLOP
+    R = quat_to_matrix(w.body_orientation[box])
+    assert math.degrees(math.atan2(R[1, 0], R[0, 0])) == pytest.approx(yaw_deg, abs=1e-6)
+    assert np.linalg.norm(w.body_velocity[box]) < 1e-9
+
+
 def test_box_spinning_flat_on_the_floor_stops_at_the_four_corner_friction_torque():
     """A cube spun about the vertical decelerates at mu m g sqrt(2) a / I (its load on its four corners).
 
@@ -278,6 +334,26 @@ def test_ball_bouncing_on_a_static_box_rises_to_e_squared(e):
         assert abs(measured - expected) <= 3 * math.sqrt(2 * G * expected) * h, (k, measured, expected)
 
 
+def test_elastic_ball_keeps_its_bounce_height_to_first_order():
+    """e = 1 on a plane: each apex is the last within g h per impact in speed, v h in height (v = sqrt(2 g h0)).
+
+    That is the scheme's first-order loss: one substep's gravity g h of the rebound speed. The apex is
+    sampled once per step, within g dt^2 / 8 of the true one (two of them in a difference).
+    """
+    dt, substeps, r = 1 / 240, 16, 0.1
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    w.add_plane(restitution=1.0)
+    ball = w.add_sphere(position=(0, 0, 1 + r), radius=r, mass=1.0, restitution=1.0)
+    z = []
+    w.run(8.0, callback=lambda world: z.append(world.body_position[ball, 2] - r))
+    apex = np.array([z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1] and z[i] > 1e-3])
+    assert len(apex) >= 7
+    v = math.sqrt(2 * G * 1.0)
+    assert np.all(np.abs(np.diff(np.r_[1.0, apex])) <= v * h + G * dt * dt / 4)
+    assert np.all(apex <= 1.0)  # and never gains
+
+
 # ---------------------------------------------------------------------------- resting and stacks
 
 
@@ -421,6 +497,37 @@ def test_symmetric_top_precesses_at_the_euler_rates():
     tol = (h * np.linalg.norm(w0)) ** 2
     assert rate_space == pytest.approx(np.linalg.norm(L) / i1, rel=tol)
     assert rate_body == pytest.approx((i3 - i1) / i1 * w0[2], rel=tol)
+
+
+@pytest.mark.parametrize("spin", [50.0, 200.0])
+def test_gyroscope_on_a_ball_joint_precesses_at_m_g_l_over_i3_w3(spin):
+    """A spinning disc held horizontal on a ball joint at l from its centre precesses steadily at m g l / (I3 w3).
+
+    At 90 deg from the vertical the steady precession of a heavy symmetric top is exactly
+    Omega = m g l / (I3 w3) (the Omega^2 cos(theta) term vanishes), whatever the spin; started on
+    it, the disc keeps it to the splitting's O((h w3)^2) and stays level to first order, O(h w3).
+    """
+    m, hx, hy, arm = 1.0, 0.02, 0.1, 0.2  # a square plate, its symmetry axis along x
+    i3 = m / 3 * (2 * hy**2)
+    omega = m * G * arm / (i3 * spin)
+    w = tumble.World()
+    h = w.dt / w.substeps
+    disc = w.add_box(
+        position=(arm, 0, 1), half_extents=(hx, hy, hy), mass=m, angular_velocity=(spin, 0, omega),
+        velocity=(0, omega * arm, 0),
+    )  # fmt: skip
+    w.add_joint("ball", None, disc, anchor=(0, 0, 1))
+    t, azimuth, elevation = [], [], []
+    for _ in range(round(4.0 / w.dt)):
+        w.step()
+        axis = quat_to_matrix(w.body_orientation[disc])[:, 0]
+        t.append(w.time)
+        azimuth.append(math.atan2(axis[1], axis[0]))
+        elevation.append(axis[2])
+    assert np.unwrap(azimuth)[-1] > 5.0  # nearly a turn at 200 rad/s, three at 50
+    rate = np.polyfit(t, np.unwrap(azimuth), 1)[0]
+    assert rate == pytest.approx(omega, rel=(h * spin) ** 2)
+    assert np.abs(elevation).max() <= h * spin
 
 
 # ---------------------------------------------------------------------------- scale invariance
