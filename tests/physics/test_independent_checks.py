@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
 import tumble
@@ -169,6 +170,51 @@ def test_sliding_friction_is_isotropic(yaw_deg, heading_deg):
     R = quat_to_matrix(w.body_orientation[box])
     assert math.degrees(math.atan2(R[1, 0], R[0, 0])) == pytest.approx(yaw_deg, abs=1e-6)
     assert np.linalg.norm(w.body_velocity[box]) < 1e-9
+
+
+def test_friction_of_a_moving_kinematic_slab_drags_a_box_up_to_its_speed():
+    """A box set on a slab moving at 1 m/s is accelerated at mu g (v = mu g t, within g h) until it rides along."""
+    mu, speed = 0.4, 1.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_box(position=(0, 0, 0.05), half_extents=(5, 1, 0.05), kinematic=True, velocity=(speed, 0, 0), friction=mu)
+    box = w.add_box(position=(0, 0, 0.2), half_extents=(0.1,) * 3, mass=1.0, friction=mu, restitution=0.0)
+    catch_up = speed / (mu * G)  # 0.25 s
+    for _ in range(round(0.5 * catch_up / w.dt)):
+        w.step()
+    assert w.body_velocity[box, 0] == pytest.approx(mu * G * w.time, abs=G * h)
+    w.run(catch_up)
+    assert w.body_velocity[box, 0] == pytest.approx(speed, abs=1e-9)
+    assert abs(w.body_velocity[box, 1]) + abs(w.body_angular_velocity[box]).max() < 1e-9
+
+
+@pytest.mark.parametrize("yaw_deg", [20.0, 45.0])
+def test_a_box_turned_on_an_incline_slides_straight_down(yaw_deg):
+    """A cube turned about the ramp's normal slides down the fall line at g (sin - mu cos), without turning."""
+    theta, mu = math.radians(30.0), 0.3
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    down = np.array([0.0, -math.cos(theta), -math.sin(theta)])
+    # the orientation: tilt onto the ramp (about x), then turn about the ramp's normal
+    yaw = Rotation.from_rotvec(normal * math.radians(yaw_deg)) * Rotation.from_rotvec([theta, 0, 0])
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(normal=normal, friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=normal * 0.1, half_extents=(0.1,) * 3, orientation=yaw.as_quat(), mass=1.0, friction=mu,
+        restitution=0.0,
+    )  # fmt: skip
+    q0 = w.body_orientation[box].copy()
+    w.run(1.0)
+    a = G * (math.sin(theta) - mu * math.cos(theta))
+    v = w.body_velocity[box]
+    assert float(np.dot(v, down)) == pytest.approx(a * w.time, abs=a * h)
+    assert abs(float(np.dot(v, np.cross(normal, down)))) < 1e-6 * a * w.time
+    # no turn about the normal; the friction's tipping moment mu m g cos(theta) a shifts mu m g cos / 2 from the
+    # back corners to the front ones, leaning it by mu g cos / (2 a k), k = (2 omega)^2 (bounded at four times that)
+    turn = (Rotation.from_quat(w.body_orientation[box]) * Rotation.from_quat(q0).inv()).as_rotvec()
+    assert abs(float(np.dot(turn, normal))) < 1e-9
+    omega = contact_omega(h)
+    assert np.linalg.norm(turn) < 2 * mu * G / ((2 * omega) ** 2 * 0.1)
 
 
 def test_box_spinning_flat_on_the_floor_stops_at_the_four_corner_friction_torque():
