@@ -217,6 +217,66 @@ def test_a_box_turned_on_an_incline_slides_straight_down(yaw_deg):
     assert np.linalg.norm(turn) < 2 * mu * G / ((2 * omega) ** 2 * 0.1)
 
 
+@pytest.mark.parametrize("spin", [-10.0, -40.0])
+def test_a_ball_with_backspin_ends_rolling_at_5v0_minus_2_r_w0_over_7(spin):
+    """A ball sliding at 3 m/s with backspin w0 ends rolling at (5 v0 + 2 r w0) / 7 (angular momentum about the contact)."""
+    r, v0 = 0.1, 3.0
+    w = tumble.World()
+    w.add_plane(friction=0.3, restitution=0.0)
+    ball = w.add_sphere(
+        position=(0, 0, r), radius=r, mass=1.0, friction=0.3, restitution=0.0, velocity=(v0, 0, 0),
+        angular_velocity=(0, spin, 0),
+    )  # fmt: skip
+    w.run(2.0)  # rolling after 2 (v0 - r w0) / (7 mu g) < 1.1 s
+    expected = (5 * v0 + 2 * r * spin) / 7
+    # once rolling, friction stops; till then v is exact to one substep's mu g h
+    assert w.body_velocity[ball, 0] == pytest.approx(expected, abs=0.3 * G * w.dt / w.substeps)
+    assert w.body_angular_velocity[ball, 1] * r == pytest.approx(w.body_velocity[ball, 0], abs=ROUNDING * 10)
+
+
+@pytest.mark.parametrize("theta_deg, tips", [(10.0, False), (20.0, True)])
+def test_a_tall_box_on_a_grippy_ramp_tips_when_tan_theta_exceeds_width_over_height(theta_deg, tips):
+    """A 0.1 x 0.1 x 0.4 m box on a ramp with mu = 0.9 (> tan theta: no sliding) stands if tan(theta) < 1/4, else topples."""
+    theta = math.radians(theta_deg)
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    w = tumble.World()
+    w.add_plane(normal=normal, friction=0.9, restitution=0.0)
+    box = w.add_box(
+        position=normal * 0.2, half_extents=(0.05, 0.05, 0.2), orientation=quat_axis_angle((1, 0, 0), theta),
+        mass=1.0, friction=0.9, restitution=0.0,
+    )  # fmt: skip
+    w.run(2.0)
+    axis = quat_to_matrix(w.body_orientation[box])[:, 2]
+    if tips:
+        assert float(np.dot(axis, normal)) < 0.5  # over on its side (the top at 60 deg or more from the normal)
+    else:
+        assert float(np.dot(axis, normal)) > 1 - 1e-9
+        np.testing.assert_allclose(w.body_position[box], normal * 0.2, atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("mine, other", [(0.2, 0.8), (0.8, 0.2)])
+def test_materials_combine_as_documented(mine, other):
+    """A pair bounces with e = max(e_a, e_b) and slides with mu = sqrt(mu_a mu_b) (docs/scenes.md)."""
+    dt, substeps = 1 / 240, 16
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    w.add_plane(restitution=other)
+    ball = w.add_sphere(position=(0, 0, 1.1), radius=0.1, mass=1.0, restitution=mine)
+    z = []
+    w.run(1.5, callback=lambda world: z.append(world.body_position[ball, 2] - 0.1))
+    apex = next(z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1])
+    e = max(mine, other)
+    assert abs(apex - e * e) <= 3 * math.sqrt(2 * G * e * e) * h
+    w = tumble.World()
+    w.add_plane(friction=other, restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, 0.1), half_extents=(0.1,) * 3, mass=1.0, friction=mine, restitution=0.0, velocity=(2, 0, 0)
+    )
+    w.run(2.0)
+    mu, h = math.sqrt(mine * other), w.dt / w.substeps
+    assert abs(w.body_position[box, 0] - (4 / (2 * mu * G) - 2 * h / 2)) <= mu * G * h * h
+
+
 def test_box_spinning_flat_on_the_floor_stops_at_the_four_corner_friction_torque():
     """A cube spun about the vertical decelerates at mu m g sqrt(2) a / I (its load on its four corners).
 
