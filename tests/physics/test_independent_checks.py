@@ -681,6 +681,39 @@ def test_undamped_spring_loses_no_more_energy_than_one_backward_euler_step_per_s
     assert e0 * math.exp(-k * h * w.time) <= energy <= e0
 
 
+def _total_angular_momentum(w) -> np.ndarray:
+    """Sum of m x cross v + I w over all bodies, about the origin."""
+    x, v, m = w.body_position, w.body_velocity, w.body_mass
+    spin = np.einsum("nij,nj->ni", w.body_inertia_world, w.body_angular_velocity)
+    return np.sum(m[:, None] * np.cross(x, v) + spin, axis=0)
+
+
+@pytest.mark.parametrize("kind", ["fixed", "ball", "hinge", "slider", "distance"])
+def test_two_jointed_boxes_tumbling_in_space_keep_momentum_and_angular_momentum(kind):
+    """Two boxes (1 and 2 kg) joined and tumbling as one, no gravity: joint forces are internal, so p and L stay.
+
+    p to rounding; L to O((h |w|)^2) of |L| (the impulse pair acts at two anchor points that part by
+    the joint's own error).
+    """
+    w = tumble.World(gravity=(0, 0, 0))
+    h = w.dt / w.substeps
+    spin = np.array([0.5, 1.0, 2.0])
+    v0 = np.array([0.3, 0.0, 0.1])
+    a = w.add_box(position=(0, 0, 0), half_extents=(0.2, 0.1, 0.05), mass=1.0, velocity=v0, angular_velocity=spin)
+    b = w.add_box(
+        position=(0.45, 0, 0), half_extents=(0.2, 0.1, 0.05), mass=2.0, velocity=v0 + np.cross(spin, [0.45, 0, 0]),
+        angular_velocity=spin,
+    )  # fmt: skip
+    if kind == "distance":
+        w.add_joint("distance", a, b)
+    else:
+        w.add_joint(kind, a, b, anchor=(0.225, 0, 0), axis=(1, 0, 0) if kind == "slider" else (0, 0, 1))
+    p0, L0 = w.momentum(), _total_angular_momentum(w)
+    w.run(3.0)
+    np.testing.assert_allclose(w.momentum(), p0, atol=ROUNDING * 10, rtol=0)
+    assert np.linalg.norm(_total_angular_momentum(w) - L0) <= (h * np.linalg.norm(spin)) ** 2 * np.linalg.norm(L0)
+
+
 @pytest.mark.parametrize("kick", [(3.0, 0.0, 0.0), (3.0, 2.0, 1.0)])
 def test_hinge_keeps_its_axis(kick):
     """A door on a world hinge along y, kicked about x and z: its y axis stays within |w_perp| h, its anchor within |v| h."""
