@@ -282,6 +282,26 @@ def test_materials_combine_as_documented(mine, other):
     assert abs(w.body_position[box, 0] - (4 / (2 * mu * G) - 2 * h / 2)) <= mu * G * h * h
 
 
+@pytest.mark.parametrize("mu", [0.05, 0.1, 0.5])
+def test_a_ball_hitting_the_floor_obliquely_takes_a_coulomb_impulse(mu):
+    """A ball striking the floor at (3, 0, -2) m/s, e = 0.5: v_n' = e v_n; friction mu (1 + e) v_n slows and spins it,
+    unless that would pass rolling, where it ends rolling at 5/7 v_t (no gravity: one impact, nothing else)."""
+    r, vt, vn, e = 0.1, 3.0, 2.0, 0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    w.add_plane(restitution=e, friction=mu)
+    ball = w.add_sphere(
+        position=(0, 0, r + 0.05), radius=r, mass=1.0, restitution=e, friction=mu, velocity=(vt, 0, -vn)
+    )
+    w.run(0.3)
+    jn = (1 + e) * vn  # normal impulse per unit mass
+    if mu * jn < 2 / 7 * vt:  # slides all through the impact
+        vt_after, spin = vt - mu * jn, 2.5 * mu * jn / r
+    else:  # the contact point stops: rolling
+        vt_after, spin = 5 / 7 * vt, 5 / 7 * vt / r
+    np.testing.assert_allclose(w.body_velocity[ball], [vt_after, 0, e * vn], atol=ROUNDING * 10, rtol=0)
+    np.testing.assert_allclose(w.body_angular_velocity[ball], [0, spin, 0], atol=ROUNDING * 100, rtol=0)
+
+
 def test_box_spinning_flat_on_the_floor_stops_at_the_four_corner_friction_torque():
     """A cube spun about the vertical decelerates at mu m g sqrt(2) a / I (its load on its four corners).
 
