@@ -30,7 +30,8 @@ Rows, with C the position error and J the velocity Jacobian (Cdot = J v):
   (as contacts: it may close the gap in one substep, no more), soft when violated; a distance
   spring of stiffness k [N/m] and damping c [N s/m] is soft with bias rate k / (c + h k) and
   mass scale a / (1 + a), a = h (c + h k) / m_eff (the implicit spring, Box2D's b2MakeSoft
-  with omega^2 = k / m_eff, 2 zeta omega = c / m_eff).
+  with omega^2 = k / m_eff, 2 zeta omega = c / m_eff), solved in the pass with bias only (one
+  backward-Euler step a substep: numerical damping omega^2 h / 2).
 
 Soft coefficients (as contacts): omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1,
 a3 = 1 / (1 + a2); impulse = -m_eff a2 a3 (Cdot + (omega / a1) C) - a3 * accumulated.
@@ -583,8 +584,12 @@ def _make_solve(kind: int):
                     wp.static(kind == _DISTANCE)
                     and j.lower[k] < j.upper[k]
                     and (j.stiffness[k] > zero or j.damping[k] > zero)
+                    and use_bias != 0
                 ):
-                    # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in both passes
+                    # implicit spring: soft row with bias rate k / (c + h k), a = h (c + h k) / m_eff, in the
+                    # pass with bias only: solved again in the relax pass, at the positions already moved by
+                    # h v, it took a second backward-Euler step, an extra damping k h (an undamped spring lost
+                    # its energy at w^2 h, twice backward Euler's w^2 h / 2; tests/physics/test_independent_checks.py)
                     meff = _axial_mass(g)
                     if meff > zero:
                         kc = j.damping[k] + h * j.stiffness[k]

@@ -1,0 +1,925 @@
+"""Independent checks through the public API, against analytic results and conservation laws.
+
+Written as a grader would, without reading the other physics tests: projectiles, inclines (rolling,
+sliding, tipping, launched up), friction (isotropy, twist, a conveyor, backspin, combine rules),
+collisions of unequal bodies, oblique ones, flat landings, a free gas, bounces off a static box
+and a mesh, resting heights, a 1000:1 stack, large-amplitude pendulums, springs, joined bodies
+tumbling in space, torque-free and gravity-driven precession, a hinge's axis, scale invariance,
+free cloth, seeds and snapshots. Only the solver's documented constants (contact stiffness,
+slop, manifold tolerance, joint stiffness) are read from the package besides the API.
+The strict xfails are known failures (see their reasons); each turns red when fixed.
+
+Integrator: semi-implicit Euler per substep h = dt / substeps (v += a h, then x += v h), so under a
+constant acceleration a the velocity is exact, v_n = v0 + a n h, and the position is
+x_n = x0 + v0 n h + a h^2 n (n + 1) / 2: a h t / 2 ahead of the parabola. Tolerances below are
+derived from h, dt and the solver's documented constants (contact stiffness, slop, manifold
+tolerance); "rounding" means a few hundred float64 ulps of the quantity compared.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from scipy.special import ellipk
+
+import tumble
+from tumble.npmath import quat_to_matrix
+from tumble.solver import contacts, joints
+
+G = 9.81
+ROUNDING = 1e-12  # relative: float64 rounding accumulated over ~10^4 substeps
+
+
+def quat_axis_angle(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return np.r_[axis * np.sin(angle / 2), np.cos(angle / 2)]
+
+
+def contact_omega(h: float) -> float:
+    """Angular frequency of a soft contact row at substep h (twice it against a static body)."""
+    return 2.0 * math.pi * contacts.CONTACT_HERTZ_PER_SUBSTEP_RATE / h
+
+
+# ---------------------------------------------------------------------------- ballistics
+
+
+def test_projectile_with_spin_follows_the_discrete_parabola():
+    """A spinning ball thrown at (3, 1, 4) m/s: x, y = v0 t exactly, z the scheme's parabola, the spin untouched."""
+    dt, substeps = 1 / 240, 8
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    v0, w0 = np.array([3.0, 1.0, 4.0]), np.array([5.0, -7.0, 11.0])
+    ball = w.add_sphere(position=(0, 0, 5), radius=0.1, mass=1.0, velocity=v0, angular_velocity=w0)
+    steps = w.run(1.0)
+    n, t = steps * substeps, w.time
+    x, v = w.body_position[ball], w.body_velocity[ball]
+    assert x[:2] == pytest.approx(v0[:2] * t, rel=ROUNDING)
+    assert x[2] == pytest.approx(5 + v0[2] * t - G * h * h * n * (n + 1) / 2, rel=ROUNDING)
+    assert abs(x[2] - (5 + v0[2] * t - G * t * t / 2)) <= G * h * t / 2 * (1 + 1e-9)
+    np.testing.assert_allclose(v, [3.0, 1.0, 4.0 - G * t], rtol=ROUNDING)
+    # a free sphere has isotropic inertia: its spin never changes
+    np.testing.assert_allclose(w.body_angular_velocity[ball], w0, rtol=ROUNDING)
+
+
+# ---------------------------------------------------------------------------- inclines
+
+
+@pytest.mark.parametrize("theta_deg, mu", [(20.0, 0.5), (30.0, 0.3), (30.0, 0.1), (45.0, 0.1)])
+def test_sphere_on_an_incline_rolls_or_slides(theta_deg, mu):
+    """A ball released on a tilted plane rolls at a = 5/7 g sin(theta) if mu >= 2/7 tan(theta), else slides.
+
+    Rolling: the spin keeps w r = v. Sliding: a = g (sin - mu cos) and the friction torque spins it
+    up at alpha = 5/2 mu g cos(theta) / r. Both are constant, so the velocity after 1 s is exact to
+    within one substep's acceleration, and the distance is the scheme's a h^2 n (n + 1) / 2.
+    """
+    theta, r = math.radians(theta_deg), 0.1
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    down = np.array([0.0, -math.cos(theta), -math.sin(theta)])
+    spin_axis = np.cross(normal, down)  # rolling down the slope turns about n x down
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(normal=normal, offset=0.0, friction=mu, restitution=0.0)
+    ball = w.add_sphere(position=normal * r, radius=r, mass=1.0, friction=mu, restitution=0.0)
+    steps = w.run(1.0)
+    n, t = steps * w.substeps, w.time
+    rolls = mu >= 2.0 / 7.0 * math.tan(theta)
+    assert rolls == ((theta_deg, mu) in [(20.0, 0.5), (30.0, 0.3)])
+    if rolls:
+        a = 5.0 / 7.0 * G * math.sin(theta)
+        alpha = a / r
+    else:
+        a = G * (math.sin(theta) - mu * math.cos(theta))
+        alpha = 2.5 * mu * G * math.cos(theta) / r
+    speed = float(np.dot(w.body_velocity[ball], down))
+    spin = float(np.dot(w.body_angular_velocity[ball], spin_axis))
+    travelled = float(np.dot(w.body_position[ball] - normal * r, down))
+    assert abs(speed - a * t) <= a * h
+    assert abs(spin - alpha * t) <= alpha * h
+    assert abs(travelled - a * h * h * n * (n + 1) / 2) <= a * h * t
+    # it stays on the plane, within the contact slop
+    assert abs(np.dot(w.body_position[ball], normal) - r) <= contacts.LINEAR_SLOP
+    if not rolls:  # and really slides: the contact point moves down the slope
+        assert speed - spin * r > 0.5 * (a - alpha * r) * t
+
+
+def test_sphere_rolling_on_the_level_keeps_rolling():
+    """No rolling resistance: a ball rolling at 2 m/s (w r = v) keeps v, w and its energy for 3 s."""
+    w = tumble.World()
+    w.add_plane(friction=0.5, restitution=0.0)
+    ball = w.add_sphere(
+        position=(0, 0, 0.1), radius=0.1, mass=1.0, friction=0.5, restitution=0.0, velocity=(2, 0, 0),
+        angular_velocity=(0, 20, 0),
+    )  # fmt: skip
+    e0 = w.kinetic_energy()
+    w.run(3.0)
+    np.testing.assert_allclose(w.body_velocity[ball], [2, 0, 0], atol=ROUNDING * 2, rtol=0)
+    np.testing.assert_allclose(w.body_angular_velocity[ball], [0, 20, 0], atol=ROUNDING * 20, rtol=0)
+    assert w.kinetic_energy() == pytest.approx(e0, rel=ROUNDING)
+    assert w.body_position[ball, 0] == pytest.approx(2 * w.time, rel=ROUNDING)
+
+
+@pytest.mark.parametrize("theta_deg, mu", [(20.0, 0.5), (30.0, 0.3)])
+def test_box_launched_up_an_incline_stops_then_holds_or_slides_back(theta_deg, mu):
+    """A box sent up a ramp at 2 m/s climbs v0^2 / (2 g (sin + mu cos)), then stays (tan < mu) or slides back at g (sin - mu cos).
+
+    Constant decelerations: the scheme stops v0 h / 2 short of the closed form, to within a h^2 (the
+    highest point is sampled once per step: within a dt^2 / 8 more), and the speed coming back is
+    exact to within one substep's acceleration per phase.
+    """
+    theta = math.radians(theta_deg)
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    up = np.array([0.0, math.cos(theta), math.sin(theta)])
+    half, v0 = 0.1, 2.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(normal=normal, friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=normal * half, half_extents=(half,) * 3, orientation=quat_axis_angle((1, 0, 0), theta), mass=1.0,
+        friction=mu, restitution=0.0, velocity=v0 * up,
+    )  # fmt: skip
+    a_up = G * (math.sin(theta) + mu * math.cos(theta))
+    climbed = []
+    w.run(2.0, callback=lambda world: climbed.append(float(np.dot(world.body_position[box] - normal * half, up))))
+    assert abs(max(climbed) - (v0**2 / (2 * a_up) - v0 * h / 2)) <= a_up * (h * h + w.dt**2 / 8)
+    speed = float(np.dot(w.body_velocity[box], up))
+    if math.tan(theta) < mu:  # static friction holds it where it stopped
+        assert climbed[-1] == pytest.approx(max(climbed), abs=contacts.LINEAR_SLOP)
+        assert abs(speed) < 1e-9
+    else:
+        a_down = G * (math.sin(theta) - mu * math.cos(theta))
+        assert -speed == pytest.approx(a_down * (w.time - v0 / a_up), abs=(a_up + a_down) * h)
+
+
+@pytest.mark.parametrize("yaw_deg, heading_deg", [(0.0, 45.0), (30.0, 0.0), (17.0, 80.0)])
+def test_sliding_friction_is_isotropic(yaw_deg, heading_deg):
+    """A cube sliding at 2 m/s in any direction relative to its edges stops after v^2 / (2 mu g), on a straight line, unturned.
+
+    The scheme stops v h / 2 short of the closed form, to within mu g h^2.
+    """
+    mu, v0 = 0.5, 2.0
+    heading = np.array([math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg)), 0.0])
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, 0.1), half_extents=(0.1,) * 3, mass=1.0, friction=mu, restitution=0.0,
+        orientation=quat_axis_angle((0, 0, 1), math.radians(yaw_deg)), velocity=v0 * heading,
+    )  # fmt: skip
+    w.run(1.0)  # stops after v0 / (mu g) = 0.41 s
+    x = w.body_position[box]
+    assert abs(float(np.dot(x, heading)) - (v0**2 / (2 * mu * G) - v0 * h / 2)) <= mu * G * h * h
+    assert np.linalg.norm(x[:2] - np.dot(x, heading) * heading[:2]) < contacts.LINEAR_SLOP
+    R = quat_to_matrix(w.body_orientation[box])
+    assert math.degrees(math.atan2(R[1, 0], R[0, 0])) == pytest.approx(yaw_deg, abs=1e-6)
+    assert np.linalg.norm(w.body_velocity[box]) < 1e-9
+
+
+def test_friction_of_a_moving_kinematic_slab_drags_a_box_up_to_its_speed():
+    """A box set on a slab moving at 1 m/s is accelerated at mu g (v = mu g t, within g h) until it rides along."""
+    mu, speed = 0.4, 1.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_box(position=(0, 0, 0.05), half_extents=(5, 1, 0.05), kinematic=True, velocity=(speed, 0, 0), friction=mu)
+    box = w.add_box(position=(0, 0, 0.2), half_extents=(0.1,) * 3, mass=1.0, friction=mu, restitution=0.0)
+    catch_up = speed / (mu * G)  # 0.25 s
+    for _ in range(round(0.5 * catch_up / w.dt)):
+        w.step()
+    assert w.body_velocity[box, 0] == pytest.approx(mu * G * w.time, abs=G * h)
+    w.run(catch_up)
+    assert w.body_velocity[box, 0] == pytest.approx(speed, abs=1e-9)
+    assert abs(w.body_velocity[box, 1]) + abs(w.body_angular_velocity[box]).max() < 1e-9
+
+
+@pytest.mark.parametrize("yaw_deg", [20.0, 45.0])
+def test_a_box_turned_on_an_incline_slides_straight_down(yaw_deg):
+    """A cube turned about the ramp's normal slides down the fall line at g (sin - mu cos), without turning."""
+    theta, mu = math.radians(30.0), 0.3
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    down = np.array([0.0, -math.cos(theta), -math.sin(theta)])
+    # the orientation: tilt onto the ramp (about x), then turn about the ramp's normal
+    yaw = Rotation.from_rotvec(normal * math.radians(yaw_deg)) * Rotation.from_rotvec([theta, 0, 0])
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(normal=normal, friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=normal * 0.1, half_extents=(0.1,) * 3, orientation=yaw.as_quat(), mass=1.0, friction=mu,
+        restitution=0.0,
+    )  # fmt: skip
+    q0 = w.body_orientation[box].copy()
+    w.run(1.0)
+    a = G * (math.sin(theta) - mu * math.cos(theta))
+    v = w.body_velocity[box]
+    assert float(np.dot(v, down)) == pytest.approx(a * w.time, abs=a * h)
+    assert abs(float(np.dot(v, np.cross(normal, down)))) < 1e-6 * a * w.time
+    # no turn about the normal; the friction's tipping moment mu m g cos(theta) a shifts mu m g cos / 2 from the
+    # back corners to the front ones, leaning it by mu g cos / (2 a k), k = (2 omega)^2 (bounded at four times that)
+    turn = (Rotation.from_quat(w.body_orientation[box]) * Rotation.from_quat(q0).inv()).as_rotvec()
+    assert abs(float(np.dot(turn, normal))) < 1e-9
+    omega = contact_omega(h)
+    assert np.linalg.norm(turn) < 2 * mu * G / ((2 * omega) ** 2 * 0.1)
+
+
+@pytest.mark.parametrize("spin", [-10.0, -40.0])
+def test_a_ball_with_backspin_ends_rolling_at_5v0_minus_2_r_w0_over_7(spin):
+    """A ball sliding at 3 m/s with backspin w0 ends rolling at (5 v0 + 2 r w0) / 7 (angular momentum about the contact)."""
+    r, v0 = 0.1, 3.0
+    w = tumble.World()
+    w.add_plane(friction=0.3, restitution=0.0)
+    ball = w.add_sphere(
+        position=(0, 0, r), radius=r, mass=1.0, friction=0.3, restitution=0.0, velocity=(v0, 0, 0),
+        angular_velocity=(0, spin, 0),
+    )  # fmt: skip
+    w.run(2.0)  # rolling after 2 (v0 - r w0) / (7 mu g) < 1.1 s
+    expected = (5 * v0 + 2 * r * spin) / 7
+    # once rolling, friction stops; till then v is exact to one substep's mu g h
+    assert w.body_velocity[ball, 0] == pytest.approx(expected, abs=0.3 * G * w.dt / w.substeps)
+    assert w.body_angular_velocity[ball, 1] * r == pytest.approx(w.body_velocity[ball, 0], abs=ROUNDING * 10)
+
+
+@pytest.mark.parametrize("theta_deg, tips", [(10.0, False), (20.0, True)])
+def test_a_tall_box_on_a_grippy_ramp_tips_when_tan_theta_exceeds_width_over_height(theta_deg, tips):
+    """A 0.1 x 0.1 x 0.4 m box on a ramp with mu = 0.9 (> tan theta: no sliding) stands if tan(theta) < 1/4, else topples."""
+    theta = math.radians(theta_deg)
+    normal = np.array([0.0, -math.sin(theta), math.cos(theta)])
+    w = tumble.World()
+    w.add_plane(normal=normal, friction=0.9, restitution=0.0)
+    box = w.add_box(
+        position=normal * 0.2, half_extents=(0.05, 0.05, 0.2), orientation=quat_axis_angle((1, 0, 0), theta),
+        mass=1.0, friction=0.9, restitution=0.0,
+    )  # fmt: skip
+    w.run(2.0)
+    axis = quat_to_matrix(w.body_orientation[box])[:, 2]
+    if tips:
+        assert float(np.dot(axis, normal)) < 0.5  # over on its side (the top at 60 deg or more from the normal)
+    else:
+        assert float(np.dot(axis, normal)) > 1 - 1e-9
+        np.testing.assert_allclose(w.body_position[box], normal * 0.2, atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("mine, other", [(0.2, 0.8), (0.8, 0.2)])
+def test_materials_combine_as_documented(mine, other):
+    """A pair bounces with e = max(e_a, e_b) and slides with mu = sqrt(mu_a mu_b) (docs/scenes.md)."""
+    dt, substeps = 1 / 240, 16
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    w.add_plane(restitution=other)
+    ball = w.add_sphere(position=(0, 0, 1.1), radius=0.1, mass=1.0, restitution=mine)
+    z = []
+    w.run(1.5, callback=lambda world: z.append(world.body_position[ball, 2] - 0.1))
+    apex = next(z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1])
+    e = max(mine, other)
+    assert abs(apex - e * e) <= 3 * math.sqrt(2 * G * e * e) * h
+    w = tumble.World()
+    w.add_plane(friction=other, restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, 0.1), half_extents=(0.1,) * 3, mass=1.0, friction=mine, restitution=0.0, velocity=(2, 0, 0)
+    )
+    w.run(2.0)
+    mu, h = math.sqrt(mine * other), w.dt / w.substeps
+    assert abs(w.body_position[box, 0] - (4 / (2 * mu * G) - 2 * h / 2)) <= mu * G * h * h
+
+
+@pytest.mark.parametrize("mu", [0.05, 0.1, 0.5])
+def test_a_ball_hitting_the_floor_obliquely_takes_a_coulomb_impulse(mu):
+    """A ball striking the floor at (3, 0, -2) m/s, e = 0.5: v_n' = e v_n; friction mu (1 + e) v_n slows and spins it,
+    unless that would pass rolling, where it ends rolling at 5/7 v_t (no gravity: one impact, nothing else)."""
+    r, vt, vn, e = 0.1, 3.0, 2.0, 0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    w.add_plane(restitution=e, friction=mu)
+    ball = w.add_sphere(
+        position=(0, 0, r + 0.05), radius=r, mass=1.0, restitution=e, friction=mu, velocity=(vt, 0, -vn)
+    )
+    w.run(0.3)
+    jn = (1 + e) * vn  # normal impulse per unit mass
+    if mu * jn < 2 / 7 * vt:  # slides all through the impact
+        vt_after, spin = vt - mu * jn, 2.5 * mu * jn / r
+    else:  # the contact point stops: rolling
+        vt_after, spin = 5 / 7 * vt, 5 / 7 * vt / r
+    np.testing.assert_allclose(w.body_velocity[ball], [vt_after, 0, e * vn], atol=ROUNDING * 10, rtol=0)
+    np.testing.assert_allclose(w.body_angular_velocity[ball], [0, spin, 0], atol=ROUNDING * 100, rtol=0)
+
+
+def test_box_spinning_flat_on_the_floor_stops_at_the_four_corner_friction_torque():
+    """A cube spun about the vertical decelerates at mu m g sqrt(2) a / I (its load on its four corners).
+
+    Tumble's box-plane contact is its four corners (as Bullet's and Rapier's manifolds), each at the
+    arm sqrt(2) a from the centre; a uniformly pressed square would give 0.765 a instead of 1.414 a.
+    The deceleration is constant, so the spin falls linearly to within one substep's change.
+    """
+    a, m, mu, w0 = 0.1, 1.0, 0.5, 10.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    w.add_plane(friction=mu, restitution=0.0)
+    box = w.add_box(
+        position=(0, 0, a), half_extents=(a, a, a), mass=m, friction=mu, restitution=0.0, angular_velocity=(0, 0, w0)
+    )
+    inertia = m * (2 * a) ** 2 / 6
+    alpha = mu * m * G * math.sqrt(2) * a / inertia
+    t_stop = w0 / alpha  # 0.096 s
+    for _ in range(round(0.9 * t_stop / w.dt)):  # late, where a 1 % change of alpha moves w by 1.7 alpha h
+        w.step()
+    assert w.body_angular_velocity[box, 2] == pytest.approx(w0 - alpha * w.time, abs=alpha * h)
+    w.run(2 * t_stop)
+    assert abs(w.body_angular_velocity[box, 2]) < alpha * h
+    # it spun in place
+    assert np.hypot(*w.body_position[box, :2]) < contacts.LINEAR_SLOP
+
+
+# ---------------------------------------------------------------------------- collisions
+
+
+@pytest.mark.parametrize("m1, m2", [(1.0, 3.0), (5.0, 1.0), (1.0, 100.0)])
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+def test_unequal_spheres_head_on_follow_newtons_law(m1, m2, e):
+    """Head-on: v1' = vc - e m2 (u1 - u2) / M, v2' = vc + e m1 (u1 - u2) / M; momentum exact."""
+    u1, u2 = 2.0, -0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    a = w.add_sphere(position=(-0.5, 0, 0), radius=0.1, mass=m1, velocity=(u1, 0, 0), restitution=e, friction=0)
+    b = w.add_sphere(position=(0.5, 0, 0), radius=0.1, mass=m2, velocity=(u2, 0, 0), restitution=e, friction=0)
+    p0 = w.momentum()
+    w.run(1.0)
+    vc = (m1 * u1 + m2 * u2) / (m1 + m2)
+    expected_a = vc - e * m2 * (u1 - u2) / (m1 + m2)
+    expected_b = vc + e * m1 * (u1 - u2) / (m1 + m2)
+    scale = abs(u1) + abs(u2)
+    np.testing.assert_allclose(w.body_velocity[a], [expected_a, 0, 0], atol=ROUNDING * scale, rtol=0)
+    np.testing.assert_allclose(w.body_velocity[b], [expected_b, 0, 0], atol=ROUNDING * scale, rtol=0)
+    np.testing.assert_allclose(w.momentum(), p0, atol=ROUNDING * (m1 * abs(u1) + m2 * abs(u2)), rtol=0)
+    assert np.abs(w.body_angular_velocity[[a, b]]).max() == 0.0
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+def test_aligned_boxes_head_on_follow_newtons_law(e):
+    """Two cubes (1 and 3 kg) meeting face to face: 1D Newton's law to the manifold solve's tolerance."""
+    m1, m2, u1, u2 = 1.0, 3.0, 2.0, -0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    a = w.add_box(
+        position=(-0.5, 0, 0), half_extents=(0.1, 0.1, 0.1), mass=m1, velocity=(u1, 0, 0), restitution=e, friction=0
+    )
+    b = w.add_box(
+        position=(0.5, 0, 0), half_extents=(0.1, 0.1, 0.1), mass=m2, velocity=(u2, 0, 0), restitution=e, friction=0
+    )
+    p0, e0 = w.momentum(), w.kinetic_energy()
+    w.run(1.0)
+    vc = (m1 * u1 + m2 * u2) / (m1 + m2)
+    tol = float(contacts.MANIFOLD_TOLERANCE)  # the collision sweeps stop when no row changes by more [m/s]
+    assert w.body_velocity[a, 0] == pytest.approx(vc - e * m2 * (u1 - u2) / (m1 + m2), abs=tol)
+    assert w.body_velocity[b, 0] == pytest.approx(vc + e * m1 * (u1 - u2) / (m1 + m2), abs=tol)
+    np.testing.assert_allclose(w.momentum(), p0, atol=ROUNDING * (m1 * abs(u1) + m2 * abs(u2)), rtol=0)
+    if e == 1.0:
+        assert abs(w.kinetic_energy() - e0) <= tol * (m1 * abs(u1) + m2 * abs(u2))
+
+
+def _oblique(e: float, mu: float, dt: float = 1 / 240):
+    """Spheres of 1 and 2 kg, centres offset (0.1, 0.05) m across a 3 m/s approach along x."""
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0, dt=dt)
+    a = w.add_sphere(position=(-0.5, 0, 0), radius=0.1, mass=1.0, velocity=(2, 0, 0), restitution=e, friction=mu)
+    b = w.add_sphere(position=(0.5, 0.1, 0.05), radius=0.1, mass=2.0, velocity=(-1, 0, 0), restitution=e, friction=mu)
+    return w, a, b
+
+
+@pytest.mark.parametrize("e, mu", [(1.0, 0.0), (0.5, 0.0), (0.8, 0.3)])
+def test_oblique_sphere_collision_conserves_momentum_and_elastic_energy(e, mu):
+    """An off-centre collision keeps the momentum exactly, and the energy when e = 1 and mu = 0."""
+    w, a, b = _oblique(e, mu)
+    p0, e0 = w.momentum(), w.kinetic_energy()
+    w.run(1.0)
+    assert np.linalg.norm(w.body_velocity[a] - [2, 0, 0]) > 0.5  # they did collide
+    np.testing.assert_allclose(w.momentum(), p0, atol=ROUNDING * 4.0, rtol=0)
+    if e == 1.0 and mu == 0.0:
+        assert w.kinetic_energy() == pytest.approx(e0, rel=ROUNDING)
+    else:
+        assert w.kinetic_energy() < e0
+    if mu == 0.0:  # frictionless: no spin
+        assert np.abs(w.body_angular_velocity[[a, b]]).max() < ROUNDING
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the contact normal is the start-of-step line of centres (collision/narrowphase.py "
+    "collide_sphere_sphere), held for every substep (solver/contacts.py): at 3 m/s and dt = 1/240 s "
+    "it is 0.025 rad off the line of centres at impact",
+)
+def test_oblique_sphere_impulse_is_along_the_line_of_centres_at_impact():
+    """The impulse of a frictionless oblique collision lies along the line of centres at the moment of impact.
+
+    With the normal taken at the substep of impact its direction is off by at most the relative
+    travel of one substep over the centre distance, v_rel h / (ra + rb); angular momentum about
+    any fixed point is then kept to the same order.
+    """
+    w, a, b = _oblique(1.0, 0.0)
+    h = w.dt / w.substeps
+    w.run(1.0)
+    # impact: |d0 + v_rel t| = ra + rb with d0 = (1, 0.1, 0.05), v_rel = (-3, 0, 0)
+    at_impact = np.array([math.sqrt(0.2**2 - 0.1**2 - 0.05**2), 0.1, 0.05]) / 0.2
+    dv = w.body_velocity[b] - np.array([-1.0, 0, 0])
+    angle = math.acos(min(1.0, float(np.dot(dv, at_impact) / np.linalg.norm(dv))))
+    assert angle <= 3.0 * h / 0.2
+
+
+def test_free_gas_of_boxes_and_spheres_keeps_momentum_and_energy():
+    """27 tumbling boxes and balls, e = 1, mu = 0, no gravity, no walls: p exact, KE to the manifold tolerance."""
+    rng = np.random.default_rng(5)
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    for i in range(27):
+        p = 0.35 * np.array([i % 3, (i // 3) % 3, i // 9]) + rng.uniform(-0.03, 0.03, 3)
+        v = rng.normal(0, 1, 3)
+        m = rng.uniform(0.5, 2)
+        if i % 2:
+            q = rng.normal(size=4)
+            w.add_box(
+                position=p, half_extents=(0.1, 0.07, 0.05), mass=m, orientation=q / np.linalg.norm(q), velocity=v,
+                angular_velocity=rng.normal(0, 2, 3), restitution=1, friction=0,
+            )  # fmt: skip
+        else:
+            w.add_sphere(position=p, radius=0.08, mass=m, velocity=v, restitution=1, friction=0)
+    p0, e0 = w.momentum(), w.kinetic_energy()
+    scale = float(np.sum(w.body_mass * np.linalg.norm(w.body_velocity, axis=1)))  # sum m |v| [kg m/s]
+    contacts_seen = 0
+    for _ in range(480):
+        w.step()
+        contacts_seen += w.contact_count
+    assert contacts_seen > 20
+    assert np.linalg.norm(w.momentum() - p0) <= ROUNDING * scale
+    # each box-box collision sweep stops within MANIFOLD_TOLERANCE [m/s] per row: energy within that times sum m|v|
+    assert abs(w.kinetic_energy() - e0) <= float(contacts.MANIFOLD_TOLERANCE) * scale
+
+
+@pytest.mark.parametrize("e", [0.3, 0.6, 0.9])
+def test_ball_bouncing_on_a_static_box_rises_to_e_squared(e):
+    """A ball dropped 1 m onto a static box's top face rises to e^2, e^4, e^6 m (within 3 v h per bounce)."""
+    dt, substeps, r = 1 / 240, 16, 0.1
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    w.add_box(position=(0, 0, -0.5), half_extents=(1.0, 1.0, 0.5), static=True, restitution=e)
+    ball = w.add_sphere(position=(0, 0, 1 + r), radius=r, mass=1.0, restitution=e)
+    z = []
+    w.run(4.0, callback=lambda world: z.append(world.body_position[ball, 2] - r))
+    apex = [z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1] and z[i] > 1e-3]
+    assert len(apex) >= 2
+    for k, measured in enumerate(apex[:3], start=1):
+        expected = e ** (2 * k)
+        assert abs(measured - expected) <= 3 * math.sqrt(2 * G * expected) * h, (k, measured, expected)
+
+
+def test_elastic_ball_keeps_its_bounce_height_to_first_order():
+    """e = 1 on a plane: each apex is the last within g h per impact in speed, v h in height (v = sqrt(2 g h0)).
+
+    That is the scheme's first-order loss: one substep's gravity g h of the rebound speed. The apex is
+    sampled once per step, within g dt^2 / 8 of the true one (two of them in a difference).
+    """
+    dt, substeps, r = 1 / 240, 16, 0.1
+    h = dt / substeps
+    w = tumble.World(dt=dt, substeps=substeps)
+    w.add_plane(restitution=1.0)
+    ball = w.add_sphere(position=(0, 0, 1 + r), radius=r, mass=1.0, restitution=1.0)
+    z = []
+    w.run(8.0, callback=lambda world: z.append(world.body_position[ball, 2] - r))
+    apex = np.array([z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1] and z[i] > 1e-3])
+    assert len(apex) >= 7
+    v = math.sqrt(2 * G * 1.0)
+    assert np.all(np.abs(np.diff(np.r_[1.0, apex])) <= v * h + G * dt * dt / 4)
+    assert np.all(apex <= 1.0)  # and never gains
+
+
+FLOOR = (np.array([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], float), np.array([[0, 1, 2], [0, 2, 3]]))
+CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * 0.1
+
+
+def _flat_drop(shape: str, floor: str, e: float):
+    """A body of 1 kg dropped 1 m flat (a capsule lying along x) onto a plane or a two-triangle mesh floor."""
+    w = tumble.World(dt=1 / 240, substeps=16)
+    if floor == "plane":
+        w.add_plane(restitution=e)
+    else:
+        w.add_mesh(vertices=FLOOR[0], triangles=FLOOR[1], restitution=e)
+    at = (0.05, 0.03)
+    if shape == "box":
+        body, rest = w.add_box(position=(*at, 1.1), half_extents=(0.1,) * 3, mass=1.0, restitution=e), 0.1
+    elif shape == "hull":
+        body, rest = w.add_convex(points=CUBE, position=(*at, 1.1), mass=1.0, restitution=e), 0.1
+    elif shape == "sphere":
+        body, rest = w.add_sphere(position=(*at, 1.1), radius=0.1, mass=1.0, restitution=e), 0.1
+    else:
+        flat = quat_axis_angle((0, 1, 0), math.pi / 2)
+        body = w.add_capsule(
+            position=(*at, 1.05), radius=0.05, half_height=0.2, orientation=flat, mass=1.0, restitution=e
+        )
+        rest = 0.05
+    z, spin = [], []
+    w.run(
+        1.2,
+        callback=lambda world: (
+            z.append(world.body_position[body, 2] - rest),
+            spin.append(np.abs(world.body_angular_velocity[body]).max()),
+        ),
+    )
+    apex = [z[i] for i in range(1, len(z) - 1) if z[i - 1] < z[i] >= z[i + 1] and z[i] > 1e-3]
+    return apex[0], max(spin), w.dt / w.substeps
+
+
+@pytest.mark.parametrize("floor", ["plane", "mesh"])
+@pytest.mark.parametrize("shape", ["box", "hull", "sphere"])
+def test_a_body_dropped_flat_bounces_to_e_squared_without_turning(shape, floor):
+    """Box, convex cube and ball landing flat (e = 0.5) on a plane or a mesh floor rise to e^2 m, unturned.
+
+    A face's corners collide together, swept until no row changes by MANIFOLD_TOLERANCE [m/s]: the
+    spin left is below that over the corners' 0.1 m arm.
+    """
+    apex, spin, h = _flat_drop(shape, floor, 0.5)
+    assert abs(apex - 0.25) <= 3 * math.sqrt(2 * G * 0.25) * h
+    assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.1
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="solver/contacts.py keeps a capsule's two end contacts lone rows (prepare: rows = 1 for capsules), so the "
+    "collision pass (_impact) collides them one after the other: the first end takes the whole impact and spins the "
+    "capsule (5 rad/s, apex 0.086 m instead of 0.25 on a plane)",
+)
+@pytest.mark.parametrize("floor", ["plane", "mesh"])
+def test_a_capsule_dropped_flat_bounces_to_e_squared_without_turning(floor):
+    """A capsule landing flat has two simultaneous end contacts: by symmetry it bounces to e^2 m and does not turn."""
+    apex, spin, h = _flat_drop("capsule", floor, 0.5)
+    assert abs(apex - 0.25) <= 3 * math.sqrt(2 * G * 0.25) * h
+    assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.2
+
+
+@pytest.mark.xfail(strict=True, reason="as the capsule dropped flat: the line contact's two rows collide one at a time")
+def test_parallel_capsules_head_on_follow_newtons_law():
+    """Two upright capsules (1 and 3 kg) meeting side on along x: 1D Newton's law at e = 0.5, no spin."""
+    e, m1, m2, u1, u2 = 0.5, 1.0, 3.0, 2.0, -0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    a = w.add_capsule(
+        position=(-0.5, 0, 0), radius=0.05, half_height=0.2, mass=m1, velocity=(u1, 0, 0), restitution=e, friction=0
+    )
+    b = w.add_capsule(
+        position=(0.5, 0, 0), radius=0.05, half_height=0.2, mass=m2, velocity=(u2, 0, 0), restitution=e, friction=0
+    )
+    w.run(1.0)
+    vc = (m1 * u1 + m2 * u2) / (m1 + m2)
+    tol = float(contacts.MANIFOLD_TOLERANCE)
+    assert w.body_velocity[a, 0] == pytest.approx(vc - e * m2 * (u1 - u2) / (m1 + m2), abs=tol)
+    assert w.body_velocity[b, 0] == pytest.approx(vc + e * m1 * (u1 - u2) / (m1 + m2), abs=tol)
+    assert np.abs(w.body_angular_velocity[[a, b]]).max() < tol / 0.2
+
+
+# ---------------------------------------------------------------------------- resting and stacks
+
+
+def test_sphere_and_lying_capsule_rest_at_their_radius():
+    """A ball and a capsule lying flat rest at height r, within the slop plus m g / (m_n (2 omega)^2)."""
+    w = tumble.World()
+    h = w.dt / w.substeps
+    stiffness = (2 * contact_omega(h)) ** 2  # against the static plane
+    w.add_plane(restitution=0.0)
+    ball = w.add_sphere(position=(0, 0, 0.1), radius=0.1, mass=1.0, restitution=0.0)
+    flat = quat_axis_angle((0, 1, 0), math.pi / 2)  # the capsule's axis along x
+    cap = w.add_capsule(
+        position=(1, 0, 0.05), radius=0.05, half_height=0.2, mass=1.0, orientation=flat, restitution=0.0
+    )
+    w.run(2.0)
+    assert abs(w.body_position[ball, 2] - 0.1) <= contacts.LINEAR_SLOP + G / stiffness
+    # the capsule's weight is on its two end contacts, each of effective mass 1 / (1/m + hh^2 / I)
+    inertia = w.body_inertia_world[cap]
+    m_n = 1.0 / (1.0 + 0.2**2 / inertia[2, 2])
+    assert abs(w.body_position[cap, 2] - 0.05) <= contacts.LINEAR_SLOP + G / (m_n * stiffness)
+    axis = quat_to_matrix(w.body_orientation[cap])[:, 2]
+    assert abs(axis[2]) < 2 * (contacts.LINEAR_SLOP + G / (m_n * stiffness)) / 0.4  # flat: ends level
+    assert w.kinetic_energy() < 1e-9
+
+
+def test_heavy_box_on_a_light_box_stands_with_the_compliance_sag():
+    """A 1000 kg cube on a 1 kg cube on the ground: each joint overlaps F / (4 m_n k), the pair stays upright.
+
+    A corner row's effective mass is 1 / (4 (1/m_a + 1/m_b)) (I = m a^2 / 6, |r x n|^2 = a^2 / 2),
+    k = omega^2 between the cubes and (2 omega)^2 against the ground; a face's four corners share F.
+    """
+    half, light, heavy = 0.1, 1.0, 1000.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    omega = contact_omega(h)
+    w.add_plane(restitution=0.0)
+    lo = w.add_box(position=(0, 0, half), half_extents=(half,) * 3, mass=light, restitution=0.0)
+    hi = w.add_box(position=(0, 0, 3 * half), half_extents=(half,) * 3, mass=heavy, restitution=0.0)
+    w.run(3.0)
+    ground = (light + heavy) * G / (4 * (light / 4) * 4 * omega**2)
+    between = heavy * G / (4 * (1 / (4 * (1 / light + 1 / heavy))) * omega**2)
+    z_lo, z_hi = w.body_position[lo, 2], w.body_position[hi, 2]
+    assert half - z_lo == pytest.approx(ground, rel=2e-3)  # 1.1 mm
+    assert 2 * half - (z_hi - z_lo) == pytest.approx(between, rel=2e-3)  # 4.3 mm
+    for body in (lo, hi):
+        assert np.hypot(*w.body_position[body, :2]) < 0.1 * between  # no lean, no slide
+        assert abs(quat_to_matrix(w.body_orientation[body])[2, 2] - 1.0) < 1e-6
+    assert w.kinetic_energy() < 1e-6
+
+
+# ---------------------------------------------------------------------------- joints
+
+
+@pytest.mark.parametrize("theta0", [2.0, 2.8])
+def test_large_amplitude_pendulum_period_is_the_elliptic_integral(theta0):
+    """A bob on a 1 m rod released at theta0 swings with T = 4 sqrt(L/g) K(sin^2(theta0/2)), energy within m g v h.
+
+    The scheme is symplectic: the period is off by O((omega dt)^2), the energy oscillates by
+    at most about the work of gravity over one substep, m g v_max h.
+    """
+    L, m = 1.0, 1.0
+    w = tumble.World()
+    h = w.dt / w.substeps
+    bob = w.add_sphere(position=(L * math.sin(theta0), 0, 2 - L * math.cos(theta0)), radius=0.02, mass=m)
+    w.add_joint("distance", None, bob, anchor_a=(0, 0, 2))
+    period = 4 * math.sqrt(L / G) * ellipk(math.sin(theta0 / 2) ** 2)  # scipy's K takes m = k^2
+    v_max = math.sqrt(2 * G * L * (1 - math.cos(theta0)))
+    e0 = w.kinetic_energy() + w.potential_energy()
+    t, x, worst = [], [], 0.0
+    for _ in range(round(2.2 * period / w.dt)):
+        w.step()
+        t.append(w.time)
+        x.append(w.body_position[bob, 0])
+        worst = max(worst, abs(w.kinetic_energy() + w.potential_energy() - e0))
+    t, x = np.array(t), np.array(x)
+    i = np.nonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
+    crossings = t[i] - x[i] * (t[i + 1] - t[i]) / (x[i + 1] - x[i])
+    assert len(crossings) == 2
+    measured = float(np.diff(crossings)[0])
+    assert measured == pytest.approx(period, rel=(2 * math.pi / period * w.dt) ** 2)
+    assert worst <= m * G * v_max * h
+    assert w.body_position[bob, 1] == 0.0
+
+
+def _spring(k: float, c: float, *, gravity=(0.0, 0.0, -G), stretch: float = 0.0):
+    """A 1 kg ball on a distance spring (rest length 0.5 m) hung from the world at z = 2, pulled down by `stretch`."""
+    w = tumble.World(gravity=gravity)
+    ball = w.add_sphere(position=(0, 0, 1.5 - stretch), radius=0.02, mass=1.0)
+    spring = w.add_joint("distance", None, ball, anchor_a=(0, 0, 2), length=0.5, stiffness=k, damping=c)
+    return w, ball, spring
+
+
+def test_spring_holds_its_load_at_m_g_over_k():
+    """A damped spring settles at the static stretch m g / k, its force m g."""
+    k = 100.0
+    w, ball, spring = _spring(k, 20.0)
+    w.run(3.0)  # decays at about k / c = 5 /s
+    assert w.body_position[ball, 2] == pytest.approx(1.5 - G / k, abs=1e-9)
+    np.testing.assert_allclose(w.joint_force[spring.index], [0, 0, G], atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("k, c", [(100.0, 0.0), (400.0, 0.0), (100.0, 2.0)])
+def test_spring_oscillates_at_its_natural_frequency_and_decays_no_faster_than_implicitly(k, c):
+    """A ball on a spring pulled 5 cm (no gravity) swings at w_d = sqrt(k/m - (c/2m)^2), decaying at least at c/2m.
+
+    The period is within (w dt)^2; the implicit spring adds numerical damping, never removes any.
+    """
+    w, ball, _ = _spring(k, c, gravity=(0.0, 0.0, 0.0), stretch=0.05)
+    t, x = [], []
+    for _ in range(round(4.0 / w.dt)):
+        w.step()
+        t.append(w.time)
+        x.append(w.body_position[ball, 2] - 1.5)
+    t, x = np.array(t), np.array(x)
+    i = np.nonzero((x[:-1] < 0) & (x[1:] >= 0))[0]
+    crossings = t[i] - x[i] * (t[i + 1] - t[i]) / (x[i + 1] - x[i])
+    omega_d = math.sqrt(k - (c / 2) ** 2)
+    assert float(np.diff(crossings).mean()) == pytest.approx(2 * math.pi / omega_d, rel=(omega_d * w.dt) ** 2)
+    # decay rate between the first and the last 0.7 s (each holds a full swing)
+    span = round(0.7 / w.dt)
+    gamma = math.log(np.abs(x[:span]).max() / np.abs(x[-span:]).max()) / (t[-1] - t[span - 1])
+    assert gamma >= c / 2
+
+
+@pytest.mark.parametrize("k", [100.0, 400.0])
+def test_undamped_spring_loses_no_more_energy_than_one_backward_euler_step_per_substep(k):
+    """An undamped implicit spring (backward Euler per substep, amplitude rate w^2 h / 2) keeps E0 exp(-w^2 h t) <= E <= E0.
+
+    Applied in the relax pass too it lost energy at twice that rate (81 % in 4 s at k = 400 N/m).
+    """
+    w, ball, _ = _spring(k, 0.0, gravity=(0.0, 0.0, 0.0), stretch=0.05)
+    h = w.dt / w.substeps
+    e0 = 0.5 * k * 0.05**2
+    w.run(4.0)
+    x = w.body_position[ball, 2] - 1.5
+    energy = 0.5 * k * x * x + 0.5 * float(np.dot(w.body_velocity[ball], w.body_velocity[ball]))
+    assert e0 * math.exp(-k * h * w.time) <= energy <= e0
+
+
+def _total_angular_momentum(w) -> np.ndarray:
+    """Sum of m x cross v + I w over all bodies, about the origin."""
+    x, v, m = w.body_position, w.body_velocity, w.body_mass
+    spin = np.einsum("nij,nj->ni", w.body_inertia_world, w.body_angular_velocity)
+    return np.sum(m[:, None] * np.cross(x, v) + spin, axis=0)
+
+
+@pytest.mark.parametrize("kind", ["fixed", "ball", "hinge", "slider", "distance"])
+def test_two_jointed_boxes_tumbling_in_space_keep_momentum_and_angular_momentum(kind):
+    """Two boxes (1 and 2 kg) joined and tumbling as one, no gravity: joint forces are internal, so p and L stay.
+
+    p to rounding; L to O((h |w|)^2) of |L| (the impulse pair acts at two anchor points that part by
+    the joint's own error).
+    """
+    w = tumble.World(gravity=(0, 0, 0))
+    h = w.dt / w.substeps
+    spin = np.array([0.5, 1.0, 2.0])
+    v0 = np.array([0.3, 0.0, 0.1])
+    a = w.add_box(position=(0, 0, 0), half_extents=(0.2, 0.1, 0.05), mass=1.0, velocity=v0, angular_velocity=spin)
+    b = w.add_box(
+        position=(0.45, 0, 0), half_extents=(0.2, 0.1, 0.05), mass=2.0, velocity=v0 + np.cross(spin, [0.45, 0, 0]),
+        angular_velocity=spin,
+    )  # fmt: skip
+    if kind == "distance":
+        w.add_joint("distance", a, b)
+    else:
+        w.add_joint(kind, a, b, anchor=(0.225, 0, 0), axis=(1, 0, 0) if kind == "slider" else (0, 0, 1))
+    p0, L0 = w.momentum(), _total_angular_momentum(w)
+    w.run(3.0)
+    np.testing.assert_allclose(w.momentum(), p0, atol=ROUNDING * 10, rtol=0)
+    assert np.linalg.norm(_total_angular_momentum(w) - L0) <= (h * np.linalg.norm(spin)) ** 2 * np.linalg.norm(L0)
+
+
+@pytest.mark.parametrize("kick", [(3.0, 0.0, 0.0), (3.0, 2.0, 1.0)])
+def test_hinge_keeps_its_axis(kick):
+    """A door on a world hinge along y, kicked about x and z: its y axis stays within |w_perp| h, its anchor within |v| h."""
+    w = tumble.World()
+    h = w.dt / w.substeps
+    v0 = np.array([0.0, 0.5, 0.3])
+    door = w.add_box(position=(0.5, 0, 1), half_extents=(0.5, 0.05, 0.3), mass=5.0, angular_velocity=kick, velocity=v0)
+    w.add_joint("hinge", None, door, anchor=(0, 0, 1), axis=(0, 1, 0))
+    w_perp = math.hypot(kick[0], kick[2])
+    hinge_point = np.array([-0.5, 0.0, 0.0])  # body frame
+    v_anchor = np.linalg.norm(v0 + np.cross(kick, hinge_point))
+    worst_angle = worst_anchor = 0.0
+    for _ in range(round(3.0 / w.dt)):
+        w.step()
+        R = quat_to_matrix(w.body_orientation[door])
+        worst_angle = max(worst_angle, math.acos(min(1.0, abs(R[1, 1]))))
+        anchor = w.body_position[door] + R @ hinge_point
+        worst_anchor = max(worst_anchor, float(np.linalg.norm(anchor - [0, 0, 1])))
+    assert worst_angle <= w_perp * h
+    # the soft point rows: the kick's travel in one substep, plus the weight's sag g / omega_joint^2
+    omega_joint = 2.0 * math.pi * joints.JOINT_HERTZ_PER_SUBSTEP_RATE / h
+    assert worst_anchor <= v_anchor * h + G / omega_joint**2
+    # it swings about y and only about y
+    wx, wy, wz = w.body_angular_velocity[door]
+    assert abs(wx) + abs(wz) < 1e-9 * max(1.0, abs(wy))
+
+
+# ---------------------------------------------------------------------------- rotation
+
+
+def test_symmetric_top_precesses_at_the_euler_rates():
+    """A flat square box (I1 = I2) spun 15 deg off its axis: the axis circles L at |L| / I1, w circles the axis at (I3 - I1) w3 / I1."""
+    m, half = 1.0, (0.2, 0.2, 0.05)
+    i1, i3 = m / 3 * (0.2**2 + 0.05**2), m / 3 * (2 * 0.2**2)
+    tilt = math.radians(15.0)
+    w0 = np.array([math.sin(tilt) / i1, 0.0, math.cos(tilt) / i3]) * 0.5
+    w = tumble.World(gravity=(0, 0, 0))
+    h = w.dt / w.substeps
+    box = w.add_box(position=(0, 0, 0), half_extents=half, mass=m, angular_velocity=w0)
+    L = w.body_inertia_world[box] @ w.body_angular_velocity[box]
+    u = L / np.linalg.norm(L)
+    e1 = np.cross(u, [0, 1, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    t, space, body = [], [], []
+    for _ in range(round(3.0 / w.dt)):
+        w.step()
+        R = quat_to_matrix(w.body_orientation[box])
+        axis = R[:, 2]
+        wb = R.T @ w.body_angular_velocity[box]
+        t.append(w.time)
+        space.append(math.atan2(axis @ e2, axis @ e1))
+        body.append(math.atan2(wb[1], wb[0]))
+    rate_space = np.polyfit(t, np.unwrap(space), 1)[0]
+    rate_body = np.polyfit(t, np.unwrap(body), 1)[0]
+    # the splitting is second order: rates within O((h |w|)^2)
+    tol = (h * np.linalg.norm(w0)) ** 2
+    assert rate_space == pytest.approx(np.linalg.norm(L) / i1, rel=tol)
+    assert rate_body == pytest.approx((i3 - i1) / i1 * w0[2], rel=tol)
+
+
+@pytest.mark.parametrize("spin", [50.0, 200.0])
+def test_gyroscope_on_a_ball_joint_precesses_at_m_g_l_over_i3_w3(spin):
+    """A spinning disc held horizontal on a ball joint at l from its centre precesses steadily at m g l / (I3 w3).
+
+    At 90 deg from the vertical the steady precession of a heavy symmetric top is exactly
+    Omega = m g l / (I3 w3) (the Omega^2 cos(theta) term vanishes), whatever the spin; started on
+    it, the disc keeps it to the splitting's O((h w3)^2) and stays level to first order, O(h w3).
+    """
+    m, hx, hy, arm = 1.0, 0.02, 0.1, 0.2  # a square plate, its symmetry axis along x
+    i3 = m / 3 * (2 * hy**2)
+    omega = m * G * arm / (i3 * spin)
+    w = tumble.World()
+    h = w.dt / w.substeps
+    disc = w.add_box(
+        position=(arm, 0, 1), half_extents=(hx, hy, hy), mass=m, angular_velocity=(spin, 0, omega),
+        velocity=(0, omega * arm, 0),
+    )  # fmt: skip
+    w.add_joint("ball", None, disc, anchor=(0, 0, 1))
+    t, azimuth, elevation = [], [], []
+    for _ in range(round(4.0 / w.dt)):
+        w.step()
+        axis = quat_to_matrix(w.body_orientation[disc])[:, 0]
+        t.append(w.time)
+        azimuth.append(math.atan2(axis[1], axis[0]))
+        elevation.append(axis[2])
+    assert np.unwrap(azimuth)[-1] > 5.0  # nearly a turn at 200 rad/s, three at 50
+    rate = np.polyfit(t, np.unwrap(azimuth), 1)[0]
+    assert rate == pytest.approx(omega, rel=(h * spin) ** 2)
+    assert np.abs(elevation).max() <= h * spin
+
+
+# ---------------------------------------------------------------------------- scale invariance
+
+
+def _scaled_scene(s: float) -> tumble.World:
+    """A bouncing ball and a sliding box, lengths and gravity times s (times unchanged, speeds times s)."""
+    w = tumble.World(gravity=(0, 0, -G * s), restitution_threshold=0.5 * s)
+    w.add_plane(restitution=0.5, friction=0.4)
+    w.add_sphere(position=(0, 0, s), radius=0.1 * s, mass=1.0, restitution=0.5, friction=0.4, velocity=(0.5 * s, 0, 0))
+    w.add_box(
+        position=(2 * s, 0, 0.1 * s), half_extents=(0.1 * s,) * 3, mass=1.0, restitution=0.0, friction=0.4,
+        velocity=(2 * s, 0, 0),
+    )  # fmt: skip
+    return w
+
+
+def test_scaled_scene_matches_in_dimensionless_terms():
+    """Lengths x10 and g x10 keep sqrt(L/g): the ball's bounces and the box's slide match x/s to rounding."""
+    runs = {}
+    for s in (1.0, 10.0):
+        w = _scaled_scene(s)
+        path = []
+        w.run(2.0, callback=lambda world, s=s, path=path: path.append(world.body_position[1:] / s))
+        runs[s] = np.array(path)
+    assert runs[1.0][-1, 1, 0] == pytest.approx(2.0 + 2.0**2 / (2 * 0.4 * G), rel=0.02)  # it slid and stopped
+    np.testing.assert_allclose(runs[10.0], runs[1.0], atol=ROUNDING * 3.0, rtol=0)
+
+
+# ---------------------------------------------------------------------------- cloth
+
+
+@pytest.mark.parametrize("gravity", [(0.0, 0.0, 0.0), (0.0, 0.0, -G)])
+def test_free_cloth_keeps_its_momentum_and_its_centre_falls_freely(gravity):
+    """Unpinned cloth, random particle velocities: p(t) = p0 + M g t exactly, the centre on the scheme's parabola."""
+    mass = 0.5
+    w = tumble.World(gravity=gravity)
+    cloth = w.add_cloth(size=(1, 1), resolution=(12, 12), position=(0, 0, 1), mass=mass)
+    n = cloth.particle_count
+    v0 = np.random.default_rng(0).normal(0, 0.5, (n, 3))
+    w.cloth.set_state(velocity=v0)
+    x0 = cloth.particle_position.mean(axis=0)
+    steps = w.run(1.0)
+    t, g = w.time, np.asarray(gravity)
+    h = w.dt / w.cloth.substeps_for(w.dt)
+    k = round(t / h)
+    p0 = mass * v0.mean(axis=0)
+    momentum = mass * cloth.particle_velocity.mean(axis=0)
+    np.testing.assert_allclose(momentum, p0 + mass * g * t, atol=ROUNDING * (1 + G * t) * mass, rtol=0)
+    centre = x0 + p0 / mass * t + g * h * h * k * (k + 1) / 2
+    np.testing.assert_allclose(cloth.particle_position.mean(axis=0), centre, atol=ROUNDING * (1 + G * t * t), rtol=0)
+    assert steps > 0 and w.kinetic_energy() > 0
+
+
+# ---------------------------------------------------------------------------- determinism
+
+
+def _mixed(seed: int) -> tumble.World:
+    w = tumble.World(seed=seed)
+    w.add_plane()
+    w.add_box(position=(0, 0, 1), half_extents=(0.1, 0.2, 0.05), mass=1.0, angular_velocity=(1, 2, 3))
+    ball = w.add_sphere(position=(0.3, 0, 1.5), radius=0.1, mass=1.0)
+    w.add_capsule(position=(-0.3, 0, 1.2), radius=0.05, half_height=0.1, mass=1.0, angular_velocity=(0, 3, 0))
+    w.add_joint("ball", None, ball, anchor=(0.3, 0, 2.0))
+    w.add_cloth(size=(0.5, 0.5), resolution=(8, 8), position=(0, 0.8, 0.8), pins="top-corners")
+    w.add_emitter(
+        shape=["sphere", "box"], rate=50, count=20, position=(0, 0, 2), region="disc", extent=0.3, speed=(0, 1),
+        cone_angle=20, radius=(0.03, 0.05),
+    )  # fmt: skip
+    w.set_wind(velocity=(1, 0, 0), turbulence=0.5)
+    return w
+
+
+def test_same_seed_same_hash_and_snapshot_resumes_bit_for_bit():
+    """Bodies, a joint, cloth in turbulent wind and an emitter: equal seeds, equal hashes; a restore repeats the run."""
+    first = _mixed(7)
+    first.run(0.5)
+    snap = first.snapshot()
+    first.run(0.5)
+    reference = first.state_hash()
+    assert first.body_count > 4  # the emitter emitted
+    again = _mixed(7)
+    again.run(1.0)
+    assert again.state_hash() == reference
+    resumed = _mixed(7)
+    resumed.restore(snap)
+    resumed.run(0.5)
+    assert resumed.state_hash() == reference
+    first.restore(snap)  # back in time in the same world
+    first.run(0.5)
+    assert first.state_hash() == reference
+    other = _mixed(8)
+    other.run(1.0)
+    assert other.state_hash() != reference
