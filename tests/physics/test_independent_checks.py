@@ -534,12 +534,6 @@ def test_a_body_dropped_flat_bounces_to_e_squared_without_turning(shape, floor):
     assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.1
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="solver/contacts.py keeps a capsule's two end contacts lone rows (prepare: rows = 1 for capsules), so the "
-    "collision pass (_impact) collides them one after the other: the first end takes the whole impact and spins the "
-    "capsule (5 rad/s, apex 0.086 m instead of 0.25 on a plane)",
-)
 @pytest.mark.parametrize("floor", ["plane", "mesh"])
 def test_a_capsule_dropped_flat_bounces_to_e_squared_without_turning(floor):
     """A capsule landing flat has two simultaneous end contacts: by symmetry it bounces to e^2 m and does not turn."""
@@ -548,7 +542,6 @@ def test_a_capsule_dropped_flat_bounces_to_e_squared_without_turning(floor):
     assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.2
 
 
-@pytest.mark.xfail(strict=True, reason="as the capsule dropped flat: the line contact's two rows collide one at a time")
 def test_parallel_capsules_head_on_follow_newtons_law():
     """Two upright capsules (1 and 3 kg) meeting side on along x: 1D Newton's law at e = 0.5, no spin."""
     e, m1, m2, u1, u2 = 0.5, 1.0, 3.0, 2.0, -0.5

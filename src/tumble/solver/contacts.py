@@ -63,7 +63,6 @@ import warp as wp
 from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
 from ..model import BodyArrays, body_arrays
-from ..shapes import ShapeType
 from ..state import ArraySet, float_t, host_view, vec3
 from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
@@ -94,7 +93,7 @@ MANIFOLD_ROWS = wp.constant(4)
 #: stack do after one. In the collision pass, sweeps until no row changes its velocity by
 #: MANIFOLD_TOLERANCE [m/s] (at most IMPACT_SWEEPS)
 MANIFOLD_SWEEPS = wp.constant(6)
-MANIFOLD_SWEEP_TOLERANCE = wp.constant(float_t(1.0e-4))
+MANIFOLD_SWEEP_TOLERANCE = wp.constant(float_t(1.0e-6))
 MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
 
 CONTACT_FIELDS = {
@@ -349,10 +348,6 @@ def _prepare(
     patch = int(0)
     fa = ra
     fb = rb
-    # a capsule's rows lie along its segment (two rows, two degrees of freedom: not rank-deficient),
-    # so capsule pairs stay lone contacts
-    if b.shape[ia] == int(ShapeType.CAPSULE) or b.shape[ib] == int(ShapeType.CAPSULE):
-        rows = int(1)
     if rows > 1:
         patch = int(1)
         fa = vec3()
