@@ -7,7 +7,6 @@ and a mesh, resting heights, a 1000:1 stack, large-amplitude pendulums, springs,
 tumbling in space, torque-free and gravity-driven precession, a hinge's axis, scale invariance,
 free cloth, seeds and snapshots. Only the solver's documented constants (contact stiffness,
 slop, manifold tolerance, joint stiffness) are read from the package besides the API.
-The strict xfails are known failures (see their reasons); each turns red when fixed.
 
 Integrator: semi-implicit Euler per substep h = dt / substeps (v += a h, then x += v h), so under a
 constant acceleration a the velocity is exact, v_n = v0 + a n h, and the position is
@@ -397,12 +396,6 @@ def test_oblique_sphere_collision_conserves_momentum_and_elastic_energy(e, mu):
         assert np.abs(w.body_angular_velocity[[a, b]]).max() < ROUNDING
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the contact normal is the start-of-step line of centres (collision/narrowphase.py "
-    "collide_sphere_sphere), held for every substep (solver/contacts.py): at 3 m/s and dt = 1/240 s "
-    "it is 0.025 rad off the line of centres at impact",
-)
 def test_oblique_sphere_impulse_is_along_the_line_of_centres_at_impact():
     """The impulse of a frictionless oblique collision lies along the line of centres at the moment of impact.
 

@@ -133,13 +133,44 @@ def collide_plane_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, h: vec
 
 @wp.func
 def collide_sphere_sphere(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, max_sep: float_t
+    c: ContactWriter,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    ra: float_t,
+    rb: float_t,
+    dv: vec3,
+    dt: float_t,
+    max_sep: float_t,
 ):
+    """Two spheres; `dv` = v_b - v_a [m/s], the relative velocity over the step of `dt` [s].
+
+    The normal is the line of centres at the moment of impact when the spheres, apart now, meet
+    within the step: with dv held (gravity moves both alike), the centres are ra + rb apart at the
+    first root t* of |d + dv t| = ra + rb. The contact keeps its normal for every substep, so the
+    line of centres now would push an oblique hit off its true direction by about the angle the
+    pair turns until impact (0.025 rad at 3 m/s, dt = 1/240 s, r = 0.1 m). Its gap along that
+    normal is then t* times the closing speed, so the speculative contact lets them meet at t*.
+    """
     d = B.x - A.x
     dist = wp.length(d)
     n = vec3(_ZERO, _ZERO, _ONE)
     if dist > float_t(1e-12):
         n = d / dist
+    reach = ra + rb
+    closing = wp.dot(d, dv)
+    speed2 = wp.dot(dv, dv)
+    if dist > reach and closing < _ZERO:
+        # |d + dv t|^2 = reach^2: speed2 t^2 + 2 closing t + (dist^2 - reach^2) = 0, first root
+        disc = closing * closing - speed2 * (dist * dist - reach * reach)
+        if disc >= _ZERO:
+            t = (dist * dist - reach * reach) / (-closing + wp.sqrt(disc))  # the smaller root, stably
+            if t <= dt:
+                hit = d + dv * t
+                length = wp.length(hit)
+                if length > float_t(1e-12):
+                    n = hit / length
     emit(c, a, b, A, B, n, A.x + n * ra, B.x - n * rb, max_sep)
 
 
@@ -1565,7 +1596,7 @@ def _collide_pairs(
             collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep)
     elif sa == int(ShapeType.SPHERE):
         if sb == int(ShapeType.SPHERE):
-            collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], max_sep)
+            collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], body.velocity[b] - body.velocity[a], dt, max_sep)
         elif sb == int(ShapeType.BOX):
             collide_sphere_box(c, a, b, A, B, radius[a], half_extents[b], max_sep)
         elif sb == int(ShapeType.CAPSULE):
