@@ -11,6 +11,11 @@ from tumble.render import Camera
 CAMERA = Camera(position=(0.0, -3.0, 0.8), target=(0.0, 0.0, 0.4), fov_deg=45)
 
 
+def _export(make_falling_world, renderer, path, *, progress=False, **options):
+    """`export` of a new falling world through CAMERA with the shared renderer."""
+    return export(make_falling_world(), path, camera=CAMERA, progress=progress, renderer=renderer, **options)
+
+
 def test_frames_step_the_world_at_the_frame_rate(make_falling_world, renderer):
     """Frame k shows the world at time k / fps; frames are not blank and change as bodies fall."""
     world = make_falling_world()
@@ -31,16 +36,7 @@ def test_mp4_has_n_frames_of_the_given_size(tmp_path, make_falling_world, render
     """An MP4 of N frames at W x H reads back with N frames of W x H."""
     import imageio.v3 as iio
 
-    out = export(
-        make_falling_world(),
-        tmp_path / "drop.mp4",
-        duration=0.4,
-        fps=15,
-        size=(160, 120),
-        camera=CAMERA,
-        progress=False,
-        renderer=renderer,
-    )
+    out = _export(make_falling_world, renderer, tmp_path / "drop.mp4", duration=0.4, fps=15, size=(160, 120))
     frames = iio.imread(out)
     assert frames.shape == (6, 120, 160, 3)
     assert frames[0].std() > 10
@@ -50,16 +46,7 @@ def test_odd_sizes_are_kept_in_mp4(tmp_path, make_falling_world, renderer):
     """A 161 x 121 MP4 is padded to even size only, never to multiples of 16."""
     import imageio.v3 as iio
 
-    out = export(
-        make_falling_world(),
-        tmp_path / "odd.mp4",
-        duration=0.1,
-        fps=20,
-        size=(161, 121),
-        camera=CAMERA,
-        progress=False,
-        renderer=renderer,
-    )
+    out = _export(make_falling_world, renderer, tmp_path / "odd.mp4", duration=0.1, fps=20, size=(161, 121))
     frames = iio.imread(out)
     assert frames.shape[0] == 2
     assert frames.shape[1:3] in ((121, 161), (122, 162))
@@ -81,29 +68,11 @@ def test_gif_and_png_folder_are_written(tmp_path, make_falling_world, renderer):
     """A .gif path gives a looping GIF; a path with no suffix gives a folder of PNGs."""
     from PIL import Image
 
-    gif = export(
-        make_falling_world(),
-        tmp_path / "drop.gif",
-        duration=0.3,
-        fps=10,
-        size=(80, 60),
-        camera=CAMERA,
-        progress=False,
-        renderer=renderer,
-    )
+    gif = _export(make_falling_world, renderer, tmp_path / "drop.gif", duration=0.3, fps=10, size=(80, 60))
     with Image.open(gif) as im:
         assert im.format == "GIF" and im.size == (80, 60)
         assert im.n_frames == 3
-    folder = export(
-        make_falling_world(),
-        tmp_path / "frames",
-        duration=0.2,
-        fps=10,
-        size=(80, 60),
-        camera=CAMERA,
-        progress=False,
-        renderer=renderer,
-    )
+    folder = _export(make_falling_world, renderer, tmp_path / "frames", duration=0.2, fps=10, size=(80, 60))
     pngs = sorted(folder.glob("*.png"))
     assert len(pngs) == 2
     with Image.open(pngs[0]) as im:
@@ -112,16 +81,7 @@ def test_gif_and_png_folder_are_written(tmp_path, make_falling_world, renderer):
 
 def test_progress_bar_reports_frames(tmp_path, make_falling_world, renderer, capsys):
     """With progress on, the bar on stderr counts frames."""
-    export(
-        make_falling_world(),
-        tmp_path / "p",
-        duration=0.2,
-        fps=10,
-        size=(32, 24),
-        camera=CAMERA,
-        progress=True,
-        renderer=renderer,
-    )
+    _export(make_falling_world, renderer, tmp_path / "p", duration=0.2, fps=10, size=(32, 24), progress=True)
     assert "2/2" in capsys.readouterr().err
 
 
