@@ -162,10 +162,11 @@ def collide_sphere_sphere(
     closing = wp.dot(d, dv)
     speed2 = wp.dot(dv, dv)
     if dist > reach and closing < _ZERO:
-        # |d + dv t|^2 = reach^2: speed2 t^2 + 2 closing t + (dist^2 - reach^2) = 0, first root
-        disc = closing * closing - speed2 * (dist * dist - reach * reach)
+        # |d + dv t|^2 = reach^2: speed2 t^2 + 2 closing t + excess = 0, first root
+        excess = dist * dist - reach * reach
+        disc = closing * closing - speed2 * excess
         if disc >= _ZERO:
-            t = (dist * dist - reach * reach) / (-closing + wp.sqrt(disc))  # the smaller root, stably
+            t = excess / (-closing + wp.sqrt(disc))  # the smaller root, stably
             if t <= dt:
                 hit = d + dv * t
                 length = wp.length(hit)

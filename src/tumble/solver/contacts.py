@@ -666,6 +666,17 @@ def _normal_row(
     return out
 
 
+@wp.func
+def _block_load(k: int, rows: int, c_jn: wp.array(dtype=float_t), c_twist_arm: wp.array(dtype=float_t)):
+    """A manifold block's load sum_i jn_i [N s] and its twist limit's sum_i jn_i arm_i [N m s]."""
+    load = float_t(0.0)
+    torque = float_t(0.0)
+    for i in range(rows):
+        load += c_jn[k + i]
+        torque += c_jn[k + i] * c_twist_arm[k + i]
+    return load, torque
+
+
 @wp.kernel
 def _solve(
     # contacts (plain arrays, not a struct: Warp's CPU code indexes them as contiguous)
@@ -801,11 +812,7 @@ def _solve(
         # order of corners enters it either.
         patch = c_mass_twist[k] > float_t(0.0)
         mu = c_friction[k]
-        load = float_t(0.0)  # the block's load sum_i jn_i [N s] and the twist's sum_i jn_i arm_i [N m s]
-        torque = float_t(0.0)
-        for i in range(rows):
-            load += c_jn[k + i]
-            torque += c_jn[k + i] * c_twist_arm[k + i]
+        load, torque = _block_load(k, rows, c_jn, c_twist_arm)
         sweep = int(0)
         while sweep < MANIFOLD_SWEEPS:
             change = float_t(0.0)  # the largest impulse change of this sweep [N s]
@@ -847,11 +854,7 @@ def _solve(
                 )  # fmt: skip
                 change = wp.max(change, wp.abs(c_jn[kk] - jn_before))
             sweep += 1
-            load = float_t(0.0)
-            torque = float_t(0.0)
-            for i in range(rows):
-                load += c_jn[k + i]
-                torque += c_jn[k + i] * c_twist_arm[k + i]
+            load, torque = _block_load(k, rows, c_jn, c_twist_arm)
             if change <= MANIFOLD_SWEEP_TOLERANCE * load and change_twist <= MANIFOLD_SWEEP_TOLERANCE * torque:
                 break  # converged: another sweep would change no impulse by more
     dva = dv.va
