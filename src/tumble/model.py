@@ -20,14 +20,16 @@ read-only views (`World.body_position`, ...) and their documentation all derive 
 from __future__ import annotations
 
 import enum
+import importlib
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import warp as wp
 
+from .precision import DEFAULT_PRECISION, PACKAGE
 from .state import ArraySet, RowGroup, float_t, numpy_dtype, quat, vec3
-from .structs import array_struct, fill_struct
+from .structs import fill_struct
 
 if TYPE_CHECKING:
     from .cloth.system import ClothControl, ClothModel, ClothState
@@ -51,7 +53,8 @@ class Field:
 
     Attributes:
         name: the array's name (entity first: "body_position").
-        dtype: Warp type of one row (float_t, vec3, quat, wp.int32, ...).
+        dtype: Warp type of one row (float_t, vec3, quat, wp.int32, ...); float types are declared
+            in float64 and allocated in the world's precision (`tumble.precision.specialize`).
         role: the part of the world it belongs to.
         unit: SI unit of its values ("" for counts, flags and ratios).
         doc: what it holds.
@@ -125,22 +128,25 @@ BODY_FIELDS: tuple[Field, ...] = (
 BODY_FIELD = {f.name: f for f in BODY_FIELDS}
 
 
-_KERNEL_FIELDS = tuple(f for f in BODY_FIELDS if f.kernel)
-#: the body arrays the kernels read and write, as one struct (contacts, joints, cloth coupling and pins alike):
-#: `body_position` is `b.position`
-BodyArrays = array_struct("BodyArrays", {f.name: f.dtype for f in _KERNEL_FIELDS}, "body_", __name__)
+#: the fields the kernels' struct of body arrays has (`tumble.real.BodyArrays`, one per precision)
+KERNEL_FIELDS = tuple(f for f in BODY_FIELDS if f.kernel)
+
+
+def body_arrays_struct(precision: str) -> Any:
+    """The Warp struct of body arrays (`BodyArrays`) of the kernels of `precision`."""
+    return importlib.import_module(f"{PACKAGE[precision]}.real").BodyArrays
 
 
 def body_arrays(bodies, cached: tuple | None = None) -> tuple:
-    """The `BodyArrays` struct over a body row group's arrays, as (struct, arrays).
+    """The `BodyArrays` struct (of the group's precision) over a body row group's arrays, as (struct, arrays).
 
     `cached` (a previous return) comes back while the arrays are the same ones, so that a
     recorded launch re-packs nothing; callers keep it as a cache, rebuilt on demand.
     """
-    arrays = [bodies.arrays[f.name] for f in _KERNEL_FIELDS]
+    arrays = [bodies.arrays[f.name] for f in KERNEL_FIELDS]
     if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
         return cached
-    return fill_struct(BodyArrays, bodies.arrays, "body_"), arrays
+    return fill_struct(body_arrays_struct(bodies.precision), bodies.arrays, "body_"), arrays
 
 
 #: body row group -> its last `body_arrays` (dropped with the group)
@@ -170,8 +176,17 @@ class Model:
             until the first cloth.
     """
 
-    def __init__(self, device: str, arrays: dict, hulls: HullSet, meshes: MeshSet, *, joints: ArraySet | None = None):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.MODEL), device=device, arrays=arrays)
+    def __init__(
+        self,
+        device: str,
+        arrays: dict,
+        hulls: HullSet,
+        meshes: MeshSet,
+        *,
+        joints: ArraySet | None = None,
+        precision: str = DEFAULT_PRECISION,
+    ):
+        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.MODEL), device=device, arrays=arrays, precision=precision)
         self.hulls = hulls
         self.meshes = meshes
         self.joints = joints
@@ -192,8 +207,16 @@ class State:
         step_count: steps taken.
     """
 
-    def __init__(self, device: str, arrays: dict, contacts: ArraySet, *, joints: ArraySet | None = None):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.STATE), device=device, arrays=arrays)
+    def __init__(
+        self,
+        device: str,
+        arrays: dict,
+        contacts: ArraySet,
+        *,
+        joints: ArraySet | None = None,
+        precision: str = DEFAULT_PRECISION,
+    ):
+        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.STATE), device=device, arrays=arrays, precision=precision)
         self.contacts = contacts
         self.joints = joints
         self.cloth: ClothState | None = None  # set with the first cloth
@@ -209,8 +232,8 @@ class Control:
             until the first cloth.
     """
 
-    def __init__(self, device: str, arrays: dict):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.CONTROL), device=device, arrays=arrays)
+    def __init__(self, device: str, arrays: dict, *, precision: str = DEFAULT_PRECISION):
+        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.CONTROL), device=device, arrays=arrays, precision=precision)
         self.cloth: ClothControl | None = None
 
     @property
@@ -221,19 +244,22 @@ class Control:
 
 def body_row_group(device: str, arrays: dict, model: Model, state: State, control: Control) -> RowGroup:
     """The row group over the parts' body arrays and the solver's scratch rows, in one arrays dict."""
-    scratch = ArraySet(fields_of(BODY_FIELDS, Role.SCRATCH), device=device, arrays=arrays)
+    scratch = ArraySet(
+        fields_of(BODY_FIELDS, Role.SCRATCH), device=device, arrays=arrays, precision=model.bodies.precision
+    )
     return RowGroup(model.bodies, state.bodies, control.bodies, scratch)
 
 
 __all__ = [
     "BODY_FIELDS",
-    "BodyArrays",
+    "KERNEL_FIELDS",
     "Control",
     "Field",
     "Model",
     "Role",
     "State",
     "body_arrays",
+    "body_arrays_struct",
     "body_struct",
     "fields_of",
 ]

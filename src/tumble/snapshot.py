@@ -38,16 +38,22 @@ from .errors import TumbleError
 if TYPE_CHECKING:
     from .world import World
 from .launch import LaunchCache
+from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 5  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
-# 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state
+FORMAT = 6  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+# 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state;
+# 6: the world's precision (a format 5 file is float64)
+_READS = {5: "float64", 6: None}  # formats read, and the precision of those that did not save one
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
 # and the stages' table of the body rows, whose sets the model, state and control parts hold
 # (the solver's scratch rows are reset every step)
-_WORLD_SKIP = frozenset({"_key", "metadata", "profile", "_stage_timers", "device", "_launch_sizes", "bodies"})
+# and the precision (saved as `Snapshot.precision`) with its kernel modules
+_WORLD_SKIP = frozenset(
+    {"_key", "metadata", "profile", "_stage_timers", "device", "_launch_sizes", "bodies", "_precision", "_k"}
+)
 
 
 # the World's parts (tumble.model), walked first in this order
@@ -78,6 +84,7 @@ class Snapshot:
         scene: the scene file's text, when the world was built from one.
         scene_path: that file's path (meshes and other files named in it are found beside it).
         overrides: keyword overrides the scene was loaded with (seed, device, ...).
+        precision: the world's precision, "float32" or "float64"; it restores only into a world of it.
     """
 
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
@@ -87,6 +94,7 @@ class Snapshot:
     scene: str | None = None
     scene_path: str | None = None
     overrides: dict = field(default_factory=dict)
+    precision: str = "float64"
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, Snapshot):
@@ -120,6 +128,7 @@ class Snapshot:
             self.scene,
             self.scene_path,
             dict(self.overrides),
+            self.precision,
         )
 
 
@@ -137,7 +146,7 @@ def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
 
 def take(world: World, *, arrays: bool = True) -> Snapshot:
     """Capture `world`'s state (see `World.snapshot`); with `arrays=False` only its layout (no array is copied)."""
-    snap = Snapshot(step_count=world.step_count, time=world.time)
+    snap = Snapshot(step_count=world.step_count, time=world.time, precision=world.precision)
     seen: set[int] = {id(world)}
     for name, value in _world_order(world):
         if name not in _WORLD_SKIP:
@@ -297,6 +306,11 @@ def restore(world: World, snap: Snapshot) -> None:
 
     Raises `SnapshotError` when they do not match.
     """
+    if snap.precision != world.precision:
+        raise SnapshotError(
+            f"the snapshot is of a {snap.precision} world and this world is {world.precision}: "
+            f"restore it into a World(precision={snap.precision!r})"
+        )
     _check_layout(world, snap)
     children: dict[str, set[str]] = {}
     for p in snap.values.keys() | snap.arrays.keys():
@@ -461,6 +475,7 @@ def save(snap: Snapshot, path: str | os.PathLike[str]) -> Path:
         "scene": snap.scene,
         "scene_path": snap.scene_path,
         "overrides": snap.overrides,
+        "precision": snap.precision,
         "arrays": sorted(snap.arrays),
     }
     payload = {f"a{i}": a for i, a in enumerate(snap.arrays[k] for k in manifest["arrays"])}
@@ -479,7 +494,7 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
             manifest = json.loads(bytes(data["manifest"]).decode())
             if not isinstance(manifest, dict) or "format" not in manifest:
                 raise ValueError("no manifest")
-            if manifest["format"] != FORMAT:
+            if manifest["format"] not in _READS:
                 raise SnapshotError(
                     f"{path}: snapshot format {manifest['format']} is not the format {FORMAT} "
                     "this version of Tumble reads"
@@ -511,4 +526,12 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         manifest.get("scene"),
         manifest.get("scene_path"),
         dict(manifest.get("overrides") or {}),
+        _READS[manifest["format"]] or _saved_precision(manifest, path),
     )
+
+
+def _saved_precision(manifest: dict, path: Path) -> str:
+    precision = manifest.get("precision")
+    if precision not in PRECISIONS:
+        raise SnapshotError(f"{path}: not a Tumble snapshot file (precision {precision!r})")
+    return precision

@@ -1,4 +1,4 @@
-"""Struct-of-arrays storage: one float type, entity-first names, growable capacity.
+"""Struct-of-arrays storage: one float type a set, entity-first names, growable capacity.
 
 All engine state lives in Warp arrays with the entity index on the first axis
 (`body_position (n, 3)`, `contact_normal (k, 3)`, ...). An `ArraySet` owns a group of such
@@ -16,15 +16,14 @@ import weakref
 import numpy as np
 import warp as wp
 
-# the one float type of the engine: float64, so that momentum and energy bookkeeping is exact
-# to ~1e-15 rather than ~1e-7
-float_t = wp.float64
-vec3 = wp.vec3d
-quat = wp.quatd
-mat33 = wp.mat33d
+from .precision import FLOAT, MAT33, QUAT, TYPES, VEC3, precision_of_dtype, specialize
 
-_NUMPY_DTYPE: dict[type, type] = {float_t: np.float64, wp.int32: np.int32, wp.uint32: np.uint32, wp.int64: np.int64}
-_WIDTH = {vec3: 3, quat: 4, mat33: 9}
+# the declared float types (float64): tables outside the kernel modules name these, and an
+# `ArraySet` allocates them in its precision. Kernel modules take theirs from `tumble.real`, of
+# which each precision's copy of them has its own.
+float_t, vec3, quat, mat33 = FLOAT, VEC3, QUAT, MAT33
+
+_NUMPY_DTYPE: dict[type, type] = {wp.int32: np.int32, wp.uint32: np.uint32, wp.int64: np.int64}
 
 
 def host_view(arr: wp.array) -> np.ndarray:
@@ -40,10 +39,13 @@ def host_view(arr: wp.array) -> np.ndarray:
 
 
 def numpy_dtype(dtype: type) -> tuple[type, tuple[int, ...]]:
-    """NumPy scalar type and trailing shape of one element of a Warp `dtype`."""
-    if dtype in _WIDTH:
-        return np.float64, ((3, 3) if dtype is mat33 else (_WIDTH[dtype],))
-    return _NUMPY_DTYPE[dtype], ()
+    """NumPy scalar type and trailing shape of one element of a Warp `dtype` (either precision)."""
+    precision = precision_of_dtype(dtype)
+    if precision is None:
+        return _NUMPY_DTYPE[dtype], ()
+    t = TYPES[precision]
+    shape: tuple[int, ...] = {t.float_t: (), t.vec3: (3,), t.quat: (4,), t.mat33: (3, 3)}[dtype]
+    return t.numpy, shape
 
 
 class ArraySet:
@@ -54,12 +56,29 @@ class ArraySet:
         device: Warp device the arrays live on.
         capacity: initial number of rows allocated.
         arrays: a dict to keep the arrays in, shared with the other sets of a `RowGroup` (default: its own).
+        precision: "float32" or "float64": the declared (float64) float types of `fields` are
+            allocated in it (`tumble.precision.specialize`); None: the types as given.
+
+    Attributes:
+        precision: the precision of its float arrays ("float64" for a set without any).
     """
 
     def __init__(
-        self, fields: dict[str, type], *, device: str, capacity: int = 16, arrays: dict[str, wp.array] | None = None
+        self,
+        fields: dict[str, type],
+        *,
+        device: str,
+        capacity: int = 16,
+        arrays: dict[str, wp.array] | None = None,
+        precision: str | None = None,
     ):
-        self.fields = dict(fields)
+        self.fields = {
+            name: dtype if precision is None else specialize(dtype, precision) for name, dtype in fields.items()
+        }
+        found = sorted({p for p in map(precision_of_dtype, self.fields.values()) if p is not None})
+        if len(found) > 1:
+            raise ValueError(f"an ArraySet holds one precision, got {found}")
+        self.precision: str = found[0] if found else (precision or "float64")
         self.device = device
         self.count = 0
         self.capacity = 0
@@ -183,6 +202,9 @@ class RowGroup:
         self.fields = {name: dtype for p in parts for name, dtype in p.fields.items()}
         self._part = {name: p for p in parts for name in p.fields}
         self.device = parts[0].device
+        self.precision = parts[0].precision
+        if any(p.precision != self.precision for p in parts):
+            raise ValueError("the sets of a RowGroup must share one precision")
         self.sync()
 
     def __getattr__(self, name: str) -> wp.array:

@@ -19,7 +19,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple, overload
+from typing import TYPE_CHECKING, Any, NamedTuple, overload
 
 import numpy as np
 import warp as wp
@@ -27,22 +27,18 @@ from numpy.typing import ArrayLike
 
 from . import limits, snapshot, validate
 from . import shapes as _shapes
-from .cloth.system import ClothSystem
 from .cloth.wind import AIR_DENSITY
-from .collision import broadphase, narrowphase
 from .collision.hashgrid import spatial_order
-from .collision.hulls import HullSet
-from .collision.meshes import MeshSet
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
 from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_row_group
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
+from .precision import DEFAULT_PRECISION, Precision, kernels
+from .precision import check as check_precision
 from .runtime import init_warp
 from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, ShapeType
 from .snapshot import Snapshot
-from .solver import contacts as contact_solver
-from .solver import integrate
 from .solver import joints as joint_solver
 from .state import (
     BodyId,
@@ -54,6 +50,14 @@ from .state import (
     readonly,
     register_world,
 )
+
+if TYPE_CHECKING:  # the classes of the float64 copy; each world's come from `kernels(precision)`
+    from .cloth.system import ClothSystem
+    from .collision.broadphase import BroadPhase
+    from .collision.hulls import HullSet
+    from .collision.meshes import MeshSet
+    from .solver.contacts import ContactSet
+    from .solver.joints import JointSet
 
 #: worlds with fewer bodies keep their rows in id order (their state fits in cache anyway)
 SORT_MIN_BODIES = 8192
@@ -113,6 +117,9 @@ class World:
         restitution_threshold: impact speed [m/s] below which contacts that carry load do not
             bounce, so that resting bodies stay at rest (a contact carrying none bounces down to
             2 |g| h, h = dt / substeps; >= 0).
+        precision: "float32" or "float64" (`tumble.precision.DEFAULT_PRECISION` when None): the
+            float type of every array and kernel of the world. float64 keeps momentum and energy
+            bookkeeping to ~1e-15 of their size; float32 halves the memory traffic (docs/performance.md).
 
     Raises:
         TypeError, ValueError: naming the argument and the value, for a bad argument.
@@ -130,7 +137,11 @@ class World:
         seed: int = 0,
         device: str = "cpu",
         restitution_threshold: float = 0.5,
+        precision: Precision | None = None,
     ):
+        self._precision: Precision = DEFAULT_PRECISION if precision is None else check_precision(precision)
+        #: the kernel modules of this world's precision (`tumble.precision.kernels`)
+        self._k = k = kernels(self._precision)
         self.gravity = gravity
         self.dt = dt
         self.substeps = substeps
@@ -157,17 +168,21 @@ class World:
         # the parts (tumble.model): one dict holds the body arrays of all four, which share their rows
         # (the joint solver's rows are split the same way: definitions to the model, impulses to the state)
         shared: dict[str, wp.array] = {}
-        self.joints = joint_solver.JointSet(self.device)
+        self.joints: JointSet = k.joints.JointSet(self.device)
+        hulls: HullSet = k.hulls.HullSet(self.device)
+        meshes: MeshSet = k.meshes.MeshSet(self.device)
         self.model = Model(
-            self.device, shared, HullSet(self.device), MeshSet(self.device), joints=self.joints.definitions
+            self.device, shared, hulls, meshes, joints=self.joints.definitions, precision=self._precision
         )
-        self.contacts = contact_solver.ContactSet(self.device)
-        self.state = State(self.device, shared, self.contacts.previous, joints=self.joints.impulses)
-        self.control = Control(self.device, shared)
+        self.contacts: ContactSet = k.contacts.ContactSet(self.device)
+        self.state = State(
+            self.device, shared, self.contacts.previous, joints=self.joints.impulses, precision=self._precision
+        )
+        self.control = Control(self.device, shared, precision=self._precision)
         # every body array as one table, for the stages (model, state, control and the solver's scratch)
         self.bodies = body_row_group(self.device, shared, self.model, self.state, self.control)
         self.emitters: list[Emitter] = []
-        self.broadphase = broadphase.BroadPhase(self.device)
+        self.broadphase: BroadPhase = k.broadphase.BroadPhase(self.device)
         self._cloth: ClothSystem | None = None  # created on the first add_cloth
         self._launches = LaunchCache()
         self._launch_sizes: tuple[int, int] | None = None
@@ -180,6 +195,11 @@ class World:
         self._sorted_at = -SORT_INTERVAL
 
     # ------------------------------------------------------------------ settings
+
+    @property
+    def precision(self) -> Precision:
+        """ "float32" or "float64": the float type of the world's arrays and kernels, fixed at creation."""
+        return self._precision
 
     @property
     def gravity(self) -> np.ndarray:
@@ -765,7 +785,7 @@ class World:
     def cloth(self) -> ClothSystem:
         """The world's `ClothSystem` (created on first use)."""
         if self._cloth is None:
-            self._cloth = ClothSystem(self.device, world_key=self._key, gravity=self.gravity)
+            self._cloth = self._k.cloth.ClothSystem(self.device, world_key=self._key, gravity=self.gravity)
             # the cloth's parts are the world's: topology and pins, particles, drags and wind
             self.model.cloth, self.state.cloth, self.control.cloth = self._cloth.parts
         return self._cloth
@@ -1317,6 +1337,8 @@ class World:
         h = dt / self.substeps
         bodies, contacts = self.bodies, self.contacts
 
+        narrowphase = self._k.narrowphase
+
         # validate: finite state, so a NaN is reported where it appeared rather than spreading
         with self._timer("validate"):
             self._validate()
@@ -1367,6 +1389,7 @@ class World:
     def _solve(self, dt: float, h: float, launches: LaunchCache | None) -> None:
         """The solver stages of one step, after the narrow phase (all launches, no host decisions)."""
         bodies, contacts, cloth = self.bodies, self.contacts, self._cloth
+        contact_solver, integrate = self._k.contacts, self._k.integrate  # this world's precision
 
         # contact prepare: match last step's contacts for warm starting, effective masses
         with self._timer("solver"):
@@ -1475,7 +1498,7 @@ class World:
             key,
             lambda: (  # a tuple only to run both launches in one lambda; its value is unused
                 bp.launch(bodies, dt),  # type: ignore[func-returns-value]
-                narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),  # type: ignore[func-returns-value]
+                self._k.narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),
             ),
             lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls],
             self.device,
@@ -1508,7 +1531,7 @@ class World:
         """
         dt = self.dt if dt is None else validate.positive(dt, "dt")
         pairs = self.broadphase.find_pairs(self.bodies, dt)
-        narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
+        self._k.narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
         return self.contacts.count
 
     def _launch_cache(self) -> LaunchCache:
@@ -1620,7 +1643,7 @@ class World:
         doc="Torque of each joint on its body b, world [N m], shape (j, 3).",
     )
     joint_error = property(
-        lambda self: readonly(joint_solver.joint_error(self.joints, self.bodies)),
+        lambda self: readonly(self._k.joints.joint_error(self.joints, self.bodies)),
         doc="Position error (drift) of each joint [m], shape (j,).",
     )
     joint_broken = property(

@@ -6,7 +6,18 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.model import BODY_FIELDS, BodyArrays, Control, Model, Role, State, body_arrays, body_struct, fields_of
+from tumble.model import (
+    BODY_FIELDS,
+    Control,
+    Model,
+    Role,
+    State,
+    body_arrays,
+    body_arrays_struct,
+    body_struct,
+    fields_of,
+)
+from tumble.precision import specialize
 
 
 @pytest.fixture
@@ -66,11 +77,20 @@ def test_control_is_cleared_after_the_step_that_used_it(world):
     np.testing.assert_array_equal(world.control.bodies.numpy("body_force"), 0.0)
 
 
-def test_kernel_struct_derives_from_the_declaration(world):
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_kernel_struct_derives_from_the_declaration(precision):
+    world = tumble.World(precision=precision)
+    world.add_plane(normal=(0, 0, 1))
+    world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
     kernel = [f for f in BODY_FIELDS if f.kernel]
     short = [f.name.removeprefix("body_") for f in kernel]
-    assert list(BodyArrays.vars) == short  # type: ignore[attr-defined]
+    struct = body_arrays_struct(precision)
+    assert list(struct.vars) == short
+    # each array field in the precision's types: float64 as declared, float32 specialised
+    for f, name in zip(kernel, short):
+        assert struct.vars[name].type.dtype is specialize(f.dtype, precision)
     s, arrays = body_arrays(world.bodies)
+    assert isinstance(s, struct.cls)
     for f, name, a in zip(kernel, short, arrays):
         assert getattr(s, name) is world.bodies.arrays[f.name] is a
     # cached while the arrays are the same, rebuilt when they were reallocated

@@ -21,10 +21,10 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays, body_arrays
+from ..model import body_arrays
+from ..real import BodyArrays, float_t, vec3
 from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times
-from ..state import float_t, vec3
 
 
 @wp.kernel

@@ -48,10 +48,9 @@ from ..collision.hulls import Hulls
 from ..collision.meshes import Meshes, edge_table
 from ..collision.narrowphase import box_closest, hull_closest, segment_closest
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays
+from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
-from ..state import float_t, quat, vec3
 from .springs import Limits, Tethers
 
 PLANE = wp.constant(int(ShapeType.PLANE))

@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..state import float_t, vec3
+from ..real import float_t, vec3
 
 
 @wp.struct

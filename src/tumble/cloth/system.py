@@ -45,8 +45,9 @@ from .. import validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Field, Role, body_arrays, fields_of
+from ..real import float_t, vec3
 from ..shapes import ShapeType
-from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, float_t, host_view, numpy_dtype, readonly, vec3
+from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, host_view, numpy_dtype, readonly
 from . import attach, collide, grid, springs
 from .attach import BodyPins
 from .wind import Wind, accumulate_air_forces, sample_wind

@@ -32,7 +32,10 @@ import warp as wp
 
 from .. import validate
 from ..launch import LaunchCache, launch
-from ..state import float_t, vec3
+from ..real import float_t, vec3
+
+#: classes without kernels that the float32 copy of this module shares (tumble.precision)
+__shared__ = ("Wind",)
 
 AIR_DENSITY = 1.2  # [kg/m^3] at sea level, 20 C
 

@@ -27,8 +27,9 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
+from ..real import float_t, quat, vec3
 from ..shapes import ShapeType
-from ..state import float_t, host_view, vec3
+from ..state import host_view
 from .hashgrid import HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
@@ -110,7 +111,7 @@ def _query_large(
     point_cell: wp.array(dtype=wp.int32),
     shape: wp.array(dtype=wp.int32),
     x: wp.array(dtype=vec3),
-    q: wp.array(dtype=wp.quatd),
+    q: wp.array(dtype=quat),
     radius: wp.array(dtype=float_t),
     inv_mass: wp.array(dtype=float_t),
     body_id: wp.array(dtype=wp.int32),

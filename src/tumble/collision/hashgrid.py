@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..state import float_t, vec3
+from ..real import float_t, vec3
 
 #: hash table slots per point (a power of two): flat point sets fill a quarter of each block's slots
 TABLE_LOAD = 4

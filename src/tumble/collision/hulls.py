@@ -27,7 +27,7 @@ import numpy as np
 import warp as wp
 
 from ..npmath import matrix_to_quat
-from ..state import float_t, vec3
+from ..real import float_t, vec3
 
 #: most vertices a hull may keep (more make every contact query against it slow)
 MAX_HULL_VERTICES = 256

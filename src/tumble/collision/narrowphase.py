@@ -24,9 +24,10 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays, body_struct
+from ..model import body_struct
+from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
-from ..state import float_t, host_view, quat, vec3
+from ..state import host_view
 from .hulls import Hulls, HullSet
 from .meshes import MeshSet
 

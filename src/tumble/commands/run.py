@@ -13,6 +13,7 @@ import time
 from .. import limits, snapshot
 from ..errors import TumbleError
 from ..io.atomic import check_output
+from ..precision import DEFAULT_PRECISION, PRECISIONS
 from ..progress import progress_bar
 from ..runtime import init_warp, prepare_kernels
 
@@ -69,6 +70,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device to run the kernels on (default cpu)"
     )
+    parser.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default=None,
+        help=f"replace the scene's [world] precision, the float type of the arrays and kernels (default {DEFAULT_PRECISION})",
+    )
 
 
 def _check_arguments(args: argparse.Namespace) -> None:
@@ -82,6 +89,8 @@ def _check_arguments(args: argparse.Namespace) -> None:
         raise TumbleError("give a SCENE to run, or --resume FILE.npz to continue a saved run (not both)")
     if args.resume is not None and args.seed is not None:
         raise TumbleError("--seed cannot change a resumed run: its random state is in the saved file")
+    if args.resume is not None and args.precision is not None:
+        raise TumbleError("--precision cannot change a resumed run: it continues in the precision it was saved in")
     if args.record is not None:
         # before anything is simulated: a run is never lost to an unwritable output
         check_output(args.record, suffixes=(".npz",), option="--record")
@@ -104,7 +113,7 @@ def main(args: argparse.Namespace) -> int:
         world = load_snapshot(args.resume, device=args.device)
         args.scene = str(world.metadata.get("path") or args.resume)
     else:
-        world = load_scene(args.scene, seed=args.seed, device=args.device)
+        world = load_scene(args.scene, seed=args.seed, device=args.device, precision=args.precision)
     steps = limits.check_steps("--duration", args.duration, world.dt)
     if args.record:
         _check_record_memory(args, world, steps)

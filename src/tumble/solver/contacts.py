@@ -62,8 +62,9 @@ import warp as wp
 
 from ..collision.narrowphase import ContactWriter
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays, body_arrays
-from ..state import ArraySet, float_t, host_view, vec3
+from ..model import body_arrays
+from ..real import BodyArrays, float_t, vec3
+from ..state import ArraySet, host_view
 from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..state import float_t, quat, vec3
+from ..real import float_t, quat, vec3
 from .rigid import inv_inertia_times
 
 

@@ -110,8 +110,9 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..model import BodyArrays, Field, Role, body_arrays, fields_of
-from ..state import ArraySet, RowGroup, float_t, quat, readonly, vec3
+from ..model import Field, Role, body_arrays, fields_of
+from ..real import BodyArrays, float_t, mat22, mat33, quat, vec2, vec3
+from ..state import ArraySet, RowGroup, readonly
 from ..structs import array_struct, fill_struct
 from .rigid import inv_inertia_world, safe_inverse
 
@@ -207,8 +208,8 @@ class _Geometry:
     ja: vec3  # axial row: angular Jacobian of a (Cdot = n.(v_b - v_a) + jb.w_b - ja.w_a)
     jb: vec3
     value: float_t  # axial coordinate: hinge angle [rad], slider translation [m], distance [m]
-    Ia: wp.mat33d  # world inverse inertias
-    Ib: wp.mat33d
+    Ia: mat33  # world inverse inertias
+    Ib: mat33
     ma: float_t  # inverse masses
     mb: float_t
 
@@ -309,22 +310,22 @@ def _total(g: _Geometry, s: _Velocities, linear: vec3, angular: vec3, axial: flo
 
 
 @wp.func
-def _perp_block(I: wp.mat33d, e1: vec3, e2: vec3):
+def _perp_block(I: mat33, e1: vec3, e2: vec3):
     """The 2 x 2 block [e_i . I e_j] of a symmetric 3 x 3 matrix."""
-    return wp.mat22d(wp.dot(e1, I * e1), wp.dot(e1, I * e2), wp.dot(e2, I * e1), wp.dot(e2, I * e2))
+    return mat22(wp.dot(e1, I * e1), wp.dot(e1, I * e2), wp.dot(e2, I * e1), wp.dot(e2, I * e2))
 
 
 @wp.func
-def _solve22(K: wp.mat22d, r: wp.vec2d):
+def _solve22(K: mat22, r: vec2):
     det = K[0, 0] * K[1, 1] - K[0, 1] * K[1, 0]
     if det == float_t(0.0):
-        return wp.vec2d()
+        return vec2()
     inv = float_t(1.0) / det
-    return wp.vec2d((K[1, 1] * r[0] - K[0, 1] * r[1]) * inv, (K[0, 0] * r[1] - K[1, 0] * r[0]) * inv)
+    return vec2((K[1, 1] * r[0] - K[0, 1] * r[1]) * inv, (K[0, 0] * r[1] - K[1, 0] * r[0]) * inv)
 
 
 @wp.func
-def _solve33(K: wp.mat33d, r: vec3):
+def _solve33(K: mat33, r: vec3):
     if wp.determinant(K) == float_t(0.0):
         return vec3()
     return wp.inverse(K) * r
@@ -350,7 +351,7 @@ class _Body:
     v: vec3
     w: vec3
     m: float_t
-    I: wp.mat33d
+    I: mat33
 
 
 @wp.func
@@ -409,8 +410,8 @@ def _make_solve(kind: int):
         frame_b: quat,
         ma: float_t,
         mb: float_t,
-        Ia: wp.mat33d,
-        Ib: wp.mat33d,
+        Ia: mat33,
+        Ib: mat33,
     ):
         g = _Geometry()
         ra = wp.quat_rotate(qa, local_a)
@@ -640,11 +641,11 @@ def _make_solve(kind: int):
                     L0 = j.impulse_angular[k]
                     e1 = g.perp1
                     e2 = g.perp2
-                    cdot2 = wp.vec2d(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
-                    bias2 = wp.vec2d()
+                    cdot2 = vec2(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
+                    bias2 = vec2()
                     if use_bias != 0:
-                        bias2 = wp.vec2d(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
-                    acc = wp.vec2d(wp.dot(e1, L0), wp.dot(e2, L0))
+                        bias2 = vec2(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
+                    acc = vec2(wp.dot(e1, L0), wp.dot(e2, L0))
                     lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
                     lam = lam * relax
                     L = e1 * lam[0] + e2 * lam[1]
@@ -674,21 +675,21 @@ def _make_solve(kind: int):
                     jb1 = wp.cross(g.rb, e1)
                     jb2 = wp.cross(g.rb, e2)
                     m = g.ma + g.mb
-                    K2 = wp.mat22d(
+                    K2 = mat22(
                         m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
                         wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
                         wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
                         m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2),
                     )
                     dv = s.vb - s.va
-                    cdot2 = wp.vec2d(
+                    cdot2 = vec2(
                         wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
                         wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa),
                     )
-                    bias2 = wp.vec2d()
+                    bias2 = vec2()
                     if use_bias != 0:
-                        bias2 = wp.vec2d(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
-                    acc = wp.vec2d(wp.dot(e1, P0), wp.dot(e2, P0))
+                        bias2 = vec2(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
+                    acc = vec2(wp.dot(e1, P0), wp.dot(e2, P0))
                     lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
                     s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
                     j.impulse_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
@@ -724,8 +725,8 @@ class _Ball:
     rb: vec3
     ma: float_t
     mb: float_t
-    Ia: wp.mat33d
-    Ib: wp.mat33d
+    Ia: mat33
+    Ib: mat33
     C: vec3  # p_b - p_a
     cdot: vec3  # its rate
     on: int  # 0 = broken: the row does nothing
@@ -770,7 +771,7 @@ def _ball_mass(g: _Ball):
 def _coupling(g: _Ball, f: _Ball):
     """Change of g's Cdot per impulse of f through the bodies they share:
     sum over shared c of s_g s_f (1/m_c - [r_g]x I_c^-1 [r_f]x) (s = +1 on the joint's b, -1 on its a)."""
-    out = wp.mat33d()
+    out = mat33()
     if g.on == 0 or f.on == 0:
         return out
     for side in range(2):
@@ -797,13 +798,13 @@ def _coupling(g: _Ball, f: _Ball):
 class _ChainScratch:
     """Scratch of the chains' elimination, one entry per chain slot (`JointSet.refresh` sizes it)."""
 
-    inv_d: wp.array(dtype=wp.mat33d)  # the eliminated diagonal block, inverted
-    lower: wp.array(dtype=wp.mat33d)  # its coupling to the previous slot, A[t, t - 1]
+    inv_d: wp.array(dtype=mat33)  # the eliminated diagonal block, inverted
+    lower: wp.array(dtype=mat33)  # its coupling to the previous slot, A[t, t - 1]
     rhs: wp.array(dtype=vec3)  # the eliminated right-hand side, then the slot's impulse
     arm_a: wp.array(dtype=vec3)  # and the joint's world arms and (loaded) inverse inertias
     arm_b: wp.array(dtype=vec3)
-    inertia_a: wp.array(dtype=wp.mat33d)
-    inertia_b: wp.array(dtype=wp.mat33d)
+    inertia_a: wp.array(dtype=mat33)
+    inertia_b: wp.array(dtype=mat33)
 
 
 @wp.kernel
@@ -836,7 +837,7 @@ def _solve_ball_chains(
         g = _ball(k, j, b, load, h)
         r = -(g.cdot + g.C * bias_rate)
         D = _ball_mass(g)
-        B = wp.mat33d()
+        B = mat33()
         if t > s:
             # the previous joint as stored: its bodies and arms (the coupling takes the shared bodies' masses from g)
             f = _Ball()
@@ -852,7 +853,7 @@ def _solve_ball_chains(
         if g.on == 0:
             D = one
             r = vec3()
-        Dinv = wp.mat33d()
+        Dinv = mat33()
         if wp.determinant(D) != float_t(0.0):
             Dinv = wp.inverse(D)
         scratch.inv_d[t] = Dinv
@@ -1118,13 +1119,13 @@ class JointSet(RowGroup):
         self._chain_start = self._ints(np.concatenate([[0], np.cumsum(size[size > 1])]))
         self._chain_joints = self._ints(chain)
         slots = max(len(chain), 1)
-        self._chain_inv_d = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
-        self._chain_lower = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        self._chain_inv_d = wp.zeros(slots, dtype=mat33, device=self.device)
+        self._chain_lower = wp.zeros(slots, dtype=mat33, device=self.device)
         self._chain_rhs = wp.zeros(slots, dtype=vec3, device=self.device)
         self._chain_arm_a = wp.zeros(slots, dtype=vec3, device=self.device)
         self._chain_arm_b = wp.zeros(slots, dtype=vec3, device=self.device)
-        self._chain_inertia_a = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
-        self._chain_inertia_b = wp.zeros(slots, dtype=wp.mat33d, device=self.device)
+        self._chain_inertia_a = wp.zeros(slots, dtype=mat33, device=self.device)
+        self._chain_inertia_b = wp.zeros(slots, dtype=mat33, device=self.device)
         # (the arrays stay attributes too, so that a recorded graph's key names them)
         self._chain_scratch = fill_struct(_ChainScratch, vars(self), "_chain_")
         self._lone_count = len(lone)

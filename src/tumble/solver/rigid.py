@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..state import float_t, quat, vec3
+from ..real import float_t, quat, vec3
 
 
 @wp.func

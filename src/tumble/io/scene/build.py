@@ -36,6 +36,7 @@ class WorldOverrides(TypedDict, total=False):
     seed: int | None
     restitution_threshold: float | None
     device: str | None
+    precision: str | None
 
 
 WORLD_OVERRIDES = tuple(WorldOverrides.__annotations__)
@@ -47,7 +48,7 @@ def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
     Args:
         scene: from `parse_scene` / `read_scene`.
         **overrides: World settings replacing the file's [world] values
-            (gravity, dt, substeps, seed, restitution_threshold, device).
+            (gravity, dt, substeps, seed, restitution_threshold, device, precision).
 
     Raises:
         SceneError: when the World API rejects a value (named by table).
@@ -169,7 +170,9 @@ def load_snapshot(path: str | os.PathLike[str], **overrides: Unpack[WorldOverrid
             f"{path}: this snapshot was taken from a world built in Python, not from a scene file; "
             "build the same world and call world.restore(tumble.snapshot.read(path))"
         )
-    world = build_world(parse_scene(snap.scene, snap.scene_path), **{**snap.overrides, **overrides})
+    world = build_world(
+        parse_scene(snap.scene, snap.scene_path), **{"precision": snap.precision, **snap.overrides, **overrides}
+    )
     world.restore(snap)
     return world
 

@@ -15,6 +15,7 @@ from typing import Any
 
 from ... import limits
 from ...cloth import system as _cloth
+from ...precision import DEFAULT_PRECISION, PRECISIONS
 from ...render.camera import DEFAULT_FOV
 from ...shapes import DEFAULT_DENSITY
 from ...world import World
@@ -189,6 +190,13 @@ SCHEMA: dict[str, TableSpec] = {
                     _world("restitution_threshold"),
                     "m/s",
                     "impact speed below which contacts that carry load do not bounce (others bounce down to 2 g h)",
+                ),
+                "precision": Field(
+                    choice(*PRECISIONS),
+                    None,
+                    "",
+                    "float type of every array and kernel: float32 or float64",
+                    DEFAULT_PRECISION,
                 ),
             },
         ),
