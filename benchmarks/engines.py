@@ -72,6 +72,8 @@ class TumbleAdapter:
     """
 
     name = "tumble"
+    #: the World's precision (None: Tumble's default, `tumble.precision.DEFAULT_PRECISION`)
+    precision: str | None = None
 
     #: substeps for quality: past this count benchmarks/curve.py finds no gain worth the time
     QUALITY_SUBSTEPS = 16
@@ -79,7 +81,7 @@ class TumbleAdapter:
     def settings(self) -> str:
         """The solver settings this adapter runs with, for the results table."""
         w = self.world
-        return f"dt 1/{round(1 / w.dt)}, {w.substeps} substeps"
+        return f"dt 1/{round(1 / w.dt)}, {w.substeps} substeps, {w.precision}"
 
     def __init__(self, scene: Scene, device: str = "cpu", *, quality: bool = False):
         import warp as wp
@@ -90,7 +92,9 @@ class TumbleAdapter:
         self.scene = scene
         substeps = {} if scene.substeps is None else {"substeps": scene.substeps}
         gravity = (0.0, 0.0, -scene.gravity)
-        self.world = world = tumble.World(gravity=gravity, dt=scene.dt, device=device, **substeps)
+        self.world = world = tumble.World(
+            gravity=gravity, dt=scene.dt, device=device, precision=self.precision, **substeps
+        )
         if quality:
             world.substeps = self.QUALITY_SUBSTEPS
         self.device = world.device
@@ -143,6 +147,14 @@ class TumbleAdapter:
 
     def close(self) -> None:
         self.world = None
+
+
+class TumbleFloat64Adapter(TumbleAdapter):
+    """Tumble in float64 (`World(precision="float64")`), beside the default's row: its "Tumble x" column
+    is then the default precision's speed over float64's."""
+
+    name = "tumble_f64"
+    precision = "float64"
 
 
 class PyBulletAdapter:
@@ -488,4 +500,4 @@ class RapierAdapter:
         self.world = None
 
 
-ADAPTERS = {a.name: a for a in (TumbleAdapter, PyBulletAdapter, MuJoCoAdapter, RapierAdapter)}
+ADAPTERS = {a.name: a for a in (TumbleAdapter, TumbleFloat64Adapter, PyBulletAdapter, MuJoCoAdapter, RapierAdapter)}

@@ -283,14 +283,14 @@ def run_scene(
     """
     adapters, results, targets = {}, {}, {}
     for engine in engines:
-        if engine != "tumble" and not scene.peers:
+        if not engine.startswith("tumble") and not scene.peers:
             continue
         reason = dict(scene.skip).get(engine)
         if reason and not all_peers:
             log(f"  {engine}: left out: {reason} (--all-peers runs it)")
             continue
         result = results[engine] = Result(scene, engine)
-        targets[engine] = scene.steps if engine == "tumble" else scene.peer_steps
+        targets[engine] = scene.steps if engine.startswith("tumble") else scene.peer_steps
         try:
             warm_up(engine, scene, device, quality)
             start = time.perf_counter()
@@ -717,7 +717,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default="all",
         help=f"comma-separated scene names or groups (all, pile, cloth); scenes: {', '.join(SCENES)}",
     )
-    parser.add_argument("--engines", default="tumble,pybullet,mujoco,rapier", help="comma-separated engines")
+    parser.add_argument(
+        "--engines",
+        default="tumble,tumble_f64,pybullet,mujoco,rapier",
+        help="comma-separated engines (tumble_f64: Tumble in float64, beside the default precision)",
+    )
     parser.add_argument("--device", default="cpu", help="Warp device for Tumble: cpu (default) or cuda")
     parser.add_argument("--quick", action="store_true", help=f"simulate at most {QUICK_DURATION} s per scene")
     parser.add_argument("--duration", type=float, default=None, help="simulate at most this many seconds per scene")
