@@ -12,6 +12,19 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
+@pytest.fixture(autouse=True)
+def _float64_marker(request, monkeypatch):
+    """`@pytest.mark.float64("why")`: the test's worlds default to float64, for bookkeeping that float32
+    cannot keep (momentum or energy to ~1e-12). Every other test runs in Tumble's default precision."""
+    marker = request.node.get_closest_marker("float64")
+    if marker is not None:
+        if not (marker.args and isinstance(marker.args[0], str) and marker.args[0]):
+            raise pytest.UsageError(f"{request.node.nodeid}: @pytest.mark.float64 needs a reason")
+        import tumble.precision
+
+        monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", "float64")
+
+
 @pytest.fixture
 def write_scene(tmp_path):
     """Write TOML text to a file under tmp_path and return its path: write_scene(text, name="scene.toml")."""

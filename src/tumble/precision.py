@@ -37,7 +37,8 @@ Precision = Literal["float32", "float64"]
 
 #: the precisions a world can run in
 PRECISIONS: tuple[Precision, ...] = ("float32", "float64")
-#: what `World()` uses when no precision is given
+#: what `World()` and scene files use when they name no precision; read at each `World()`, so a
+#: program may set it once (`tumble.precision.DEFAULT_PRECISION = "float64"`) for all its worlds
 DEFAULT_PRECISION: Precision = "float64"
 
 

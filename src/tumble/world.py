@@ -26,6 +26,7 @@ import warp as wp
 from numpy.typing import ArrayLike
 
 from . import limits, snapshot, validate
+from . import precision as precisions
 from . import shapes as _shapes
 from .cloth.wind import AIR_DENSITY
 from .collision.hashgrid import spatial_order
@@ -34,8 +35,7 @@ from .errors import HandleError, SimulationError
 from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_row_group
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
-from .precision import DEFAULT_PRECISION, Precision, kernels
-from .precision import check as check_precision
+from .precision import Precision
 from .runtime import init_warp
 from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, ShapeType
 from .snapshot import Snapshot
@@ -139,9 +139,10 @@ class World:
         restitution_threshold: float = 0.5,
         precision: Precision | None = None,
     ):
-        self._precision: Precision = DEFAULT_PRECISION if precision is None else check_precision(precision)
+        # the default is read at each call, so that a program (or a test) may set it once for all its worlds
+        self._precision: Precision = precisions.DEFAULT_PRECISION if precision is None else precisions.check(precision)
         #: the kernel modules of this world's precision (`tumble.precision.kernels`)
-        self._k = k = kernels(self._precision)
+        self._k = k = precisions.kernels(self._precision)
         self.gravity = gravity
         self.dt = dt
         self.substeps = substeps

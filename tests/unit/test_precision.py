@@ -178,3 +178,15 @@ def test_a_snapshot_restores_only_into_a_world_of_its_precision():
         w32.restore(w64.snapshot())
     with pytest.raises(snapshot.SnapshotError, match="float32 world and this world is float64"):
         w64.restore(w32.snapshot())
+
+
+def test_the_default_is_read_at_each_world(monkeypatch):
+    for p in precision.PRECISIONS:
+        monkeypatch.setattr(precision, "DEFAULT_PRECISION", p)
+        assert tumble.World().precision == p
+        assert build_world(parse_scene("[world]\n")).precision == p
+
+
+@pytest.mark.float64("checks the marker itself")
+def test_the_float64_marker_makes_worlds_float64():
+    assert tumble.World().precision == "float64"
