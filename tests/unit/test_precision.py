@@ -173,7 +173,7 @@ def test_a_float32_snapshot_resumes_bit_for_bit(tmp_path):
 
 
 def test_a_snapshot_restores_only_into_a_world_of_its_precision():
-    w32, w64 = load_scene("bouncing_ball", precision="float32"), load_scene("bouncing_ball")
+    w32, w64 = load_scene("bouncing_ball", precision="float32"), load_scene("bouncing_ball", precision="float64")
     with pytest.raises(snapshot.SnapshotError, match="float64 world and this world is float32"):
         w32.restore(w64.snapshot())
     with pytest.raises(snapshot.SnapshotError, match="float32 world and this world is float64"):
