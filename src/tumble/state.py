@@ -48,6 +48,23 @@ def numpy_dtype(dtype: type) -> tuple[type, tuple[int, ...]]:
     return t.numpy, shape
 
 
+def cast(values, np_type: type, name: str) -> np.ndarray:
+    """`values` as an array of `np_type`; ValueError naming `name` for a finite value the type cannot
+    hold (beyond float32's 3.4e38, or a nonzero one below its 1.2e-38, which would become 0 or inf)."""
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        out: np.ndarray = np.asarray(values, dtype=np_type)
+    if np_type is np.float32:
+        given = np.asarray(values, dtype=np.float64)
+        lost = (np.isfinite(given) & ~np.isfinite(out)) | ((given != 0) & (np.abs(out) < np.finfo(np.float32).tiny))
+        if lost.any():
+            bad = float(given[lost].flat[0])
+            raise ValueError(
+                f"{name}: {bad:g} does not fit a float32 world (its floats hold magnitudes from 1.2e-38 to "
+                "3.4e38); use World(precision='float64') or [world] precision = \"float64\""
+            )
+    return out
+
+
 class ArraySet:
     """Named Warp arrays sharing a row count, grown by doubling.
 
@@ -120,10 +137,12 @@ class ArraySet:
             for name, dtype in self.fields.items()
             if name not in rows
         }
+        converted = {}  # every field first, so that a value the precision cannot hold changes nothing
         for name, values in {**rows, **zeros}.items():
+            np_type, tail = numpy_dtype(self.fields[name])
+            converted[name] = cast(values, np_type, name).reshape((k,) + tail)
+        for name, src in converted.items():
             dtype = self.fields[name]
-            np_type, tail = numpy_dtype(dtype)
-            src: np.ndarray = np.asarray(values, dtype=np_type).reshape((k,) + tail)
             if self.device == "cpu":
                 self.arrays[name].numpy()[start : start + k] = src  # the host view is the array
             else:
@@ -164,7 +183,7 @@ class ArraySet:
     def write(self, name: str, rows, values) -> None:
         """Overwrite the rows `rows` (an index array or slice) of one array from host values."""
         host = self.arrays[name].numpy()
-        host[rows] = values
+        host[rows] = cast(values, host.dtype.type, name)
         if self.device != "cpu":
             self.arrays[name].assign(host)
 
@@ -239,6 +258,8 @@ class RowGroup:
     def append(self, rows: dict[str, np.ndarray]) -> range:
         """Append rows given as NumPy arrays (first axis = rows) to every part; missing fields are zero."""
         k = len(next(iter(rows.values())))
+        for name, values in rows.items():  # before any part changes: a value its precision cannot hold
+            cast(values, numpy_dtype(self.fields[name])[0], name)
         self.reserve(self.count + k)
         added = [p.append({name: v for name, v in rows.items() if name in p.fields}, count=k) for p in self.parts]
         return added[0]

@@ -190,3 +190,10 @@ def test_the_default_is_read_at_each_world(monkeypatch):
 @pytest.mark.float64("checks the marker itself")
 def test_the_float64_marker_makes_worlds_float64():
     assert tumble.World().precision == "float64"
+
+
+def test_a_scene_whose_sizes_do_not_fit_float32_is_refused_by_table():
+    text = '[world]\nprecision = "float32"\n[[box]]\nposition = [0, 0, 1]\nhalf_extents = [1e-20, 1e-20, 1e-20]\nmass = 1e-30\n'
+    with pytest.raises(SceneError, match=r"box\[0\].*does not fit a float32 world"):
+        build_world(parse_scene(text))
+    assert build_world(parse_scene(text.replace("float32", "float64"))).body_count == 1

@@ -239,3 +239,27 @@ def test_joint_handles_carry_their_world():
     a = w.add_sphere(position=(0, 0, 1), radius=0.1)
     joint = w.add_joint("ball", a, None, anchor=(0, 0, 1.2))
     assert isinstance(joint, JointId) and joint.index == 0 and joint.world is w
+
+
+def test_a_value_a_float32_set_cannot_hold_is_refused_and_changes_nothing():
+    """Cast to float32, 1e39 would become inf and 1e-40 zero: the set refuses both, naming the field,
+    before it writes any row."""
+    import pytest
+
+    from tumble.state import ArraySet, float_t, vec3
+
+    s = ArraySet({"a_x": float_t, "a_v": vec3}, device="cpu", precision="float32")
+    s.append({"a_x": np.array([1.0]), "a_v": np.zeros((1, 3))})
+    for bad in (1e39, 1e-40, -1e39):
+        with pytest.raises(ValueError, match="a_v: .* does not fit a float32 world"):
+            s.append({"a_x": np.array([2.0]), "a_v": np.array([[0.0, bad, 0.0]])})
+        with pytest.raises(ValueError, match="a_x: .* does not fit a float32 world"):
+            s.write("a_x", slice(0, 1), [bad])
+    assert s.count == 1 and s.numpy("a_x")[0] == 1.0
+    # inf and nan are not "lost" (they are the same in float32) and zero stays zero
+    s.append({"a_x": np.array([np.inf]), "a_v": np.zeros((1, 3))})
+    assert s.count == 2
+    # float64 holds them
+    d = ArraySet({"a_x": float_t}, device="cpu")
+    d.append({"a_x": np.array([1e39, 1e-40])})
+    assert d.numpy("a_x").tolist() == [1e39, 1e-40]
