@@ -23,7 +23,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..real import float_t, quat, vec3
+from ..real import float_t, quat, quatw, vec3, vec3w, wide_t
 from .rigid import inv_inertia_times
 
 
@@ -62,14 +62,14 @@ def _integrate_velocities(
 
 
 @wp.func
-def _turn(axis: vec3, angle: float_t):
+def _turn(axis: vec3w, angle: wide_t):
     """The unit quaternion of a rotation by `angle` about the unit `axis`."""
-    s = wp.sin(float_t(0.5) * angle)
-    return quat(axis[0] * s, axis[1] * s, axis[2] * s, wp.cos(float_t(0.5) * angle))
+    s = wp.sin(wide_t(0.5) * angle)
+    return quatw(axis[0] * s, axis[1] * s, axis[2] * s, wp.cos(wide_t(0.5) * angle))
 
 
 @wp.func
-def _spin_about(q: quat, p: vec3, e: vec3, inv_i: float_t, t: float_t):
+def _spin_about(q: quatw, p: vec3w, e: vec3w, inv_i: wide_t, t: wide_t):
     """Exact flow over t of the energy term P_k^2 / (2 I_k) alone (k the body axis e).
 
     The body turns about its axis e at the rate P_k / I_k: q' = q exp(theta e / 2) with
@@ -99,31 +99,37 @@ def _integrate_positions(
         return  # static (a kinematic body, inverse mass 0 too, moves with the velocity it was given)
     x[i] = x[i] + v[i] * h
     dx[i] = dx[i] + v[i] * h
-    wi = w[i]
-    dtheta[i] = dtheta[i] + wi * h
-    ii = inv_inertia[i]
+    dtheta[i] = dtheta[i] + w[i] * h
+    # The rotation is worked in float64 whatever the precision (a no-op in the float64 copy): in
+    # float32 each substep's w -> P -> w round trip through a unit quaternion that rounding leaves
+    # at |q|^2 = 1 + delta, with cos(theta / 2) near 1 rounded the same way at every substep of a
+    # steady spin, grew |L| by 0.6 % and the energy by 1.2 % in 10 s (19,200 substeps); rounded
+    # once per substep at the store, the error is unbiased instead.
+    wi = vec3w(w[i])
+    qi = quatw(q[i])
+    ii = vec3w(inv_inertia[i])
+    hw = wide_t(h)
     if ii[0] == ii[1] and ii[1] == ii[2]:
         # equal moments: q' = exp(w h / 2) q, a rotation by |w| h about w / |w|
         speed = wp.length(wi)
-        if speed > float_t(0.0):
-            q[i] = wp.normalize(_turn(wi / speed, speed * h) * q[i])
+        if speed > wide_t(0.0):
+            q[i] = quat(wp.normalize(_turn(wi / speed, speed * hw) * qi))
         return
     # body-frame angular momentum P = I w_body, then the splitting x(h/2) y(h/2) z(h) y(h/2) x(h/2)
-    q0 = q[i]
-    wb = wp.quat_rotate_inv(q0, wi)
-    p = vec3(wb[0] / ii[0], wb[1] / ii[1], wb[2] / ii[2])
-    half = float_t(0.5) * h
-    ex = vec3(float_t(1.0), float_t(0.0), float_t(0.0))
-    ey = vec3(float_t(0.0), float_t(1.0), float_t(0.0))
-    ez = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
-    qa, p = _spin_about(q0, p, ex, ii[0], half)
+    wb = wp.quat_rotate_inv(qi, wi)
+    p = vec3w(wb[0] / ii[0], wb[1] / ii[1], wb[2] / ii[2])
+    half = wide_t(0.5) * hw
+    ex = vec3w(wide_t(1.0), wide_t(0.0), wide_t(0.0))
+    ey = vec3w(wide_t(0.0), wide_t(1.0), wide_t(0.0))
+    ez = vec3w(wide_t(0.0), wide_t(0.0), wide_t(1.0))
+    qa, p = _spin_about(qi, p, ex, ii[0], half)
     qa, p = _spin_about(qa, p, ey, ii[1], half)
-    qa, p = _spin_about(qa, p, ez, ii[2], h)
+    qa, p = _spin_about(qa, p, ez, ii[2], hw)
     qa, p = _spin_about(qa, p, ey, ii[1], half)
     qa, p = _spin_about(qa, p, ex, ii[0], half)
     q1 = wp.normalize(qa)
-    q[i] = q1
-    w[i] = wp.quat_rotate(q1, vec3(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2]))
+    q[i] = quat(q1)
+    w[i] = vec3(wp.quat_rotate(q1, vec3w(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2])))
 
 
 @wp.kernel
