@@ -41,10 +41,11 @@ from .launch import LaunchCache
 from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 6  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+FORMAT = 7  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
 # 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state;
-# 6: the world's precision (a format 5 file is float64)
-_READS = {5: "float64", 6: None}  # formats read, and the precision of those that did not save one
+# 6: the world's precision (a format 5 file is float64); 7: the contact solver's per-step quantities are
+# scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade` reads formats 5 and 6)
+_READS = {5: "float64", 6: None, 7: None}  # formats read, and the precision of those that did not save one
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
@@ -518,6 +519,8 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
     ) as exc:
         raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
     time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
+    if manifest["format"] < 7:
+        _upgrade_contacts(manifest["values"], arrays)
     return Snapshot(
         arrays,
         manifest["values"],
@@ -528,6 +531,28 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         dict(manifest.get("overrides") or {}),
         _READS[manifest["format"]] or _saved_precision(manifest, path),
     )
+
+
+def _upgrade_contacts(values: dict, arrays: dict[str, np.ndarray]) -> None:
+    """A format 5 or 6 file as format 7 reads it: its contacts held the solver's per-step quantities
+    (anchors, effective masses, impulses, ...) as contact arrays, which `prepare` now writes to the
+    scratch rows every step; they are dropped, and the rows and the matched normal impulses are added
+    as a step leaves them (rebuilt by the next step, as in a format 7 file)."""
+    from .solver.contacts import CONTACT_FIELDS
+
+    fields = values.get("contacts/:fields")
+    if not isinstance(fields, list):
+        return
+    for name in fields:
+        if name not in CONTACT_FIELDS:
+            arrays.pop(f"contacts/{name}", None)
+    values["contacts/:fields"] = [name for name in fields if name in CONTACT_FIELDS]
+    values["contacts/rows/:derived"] = True
+    values["contacts/_passes/:derived"] = True
+    jt = arrays.get("contacts/jt_world")
+    if jt is not None:
+        arrays["contacts/jn_warm"] = np.zeros(len(jt), dtype=jt.dtype)
+        values["contacts/jn_warm/:dtype"] = "float32" if jt.dtype == np.float32 else "float64"
 
 
 def _saved_precision(manifest: dict, path: Path) -> str:

@@ -1395,7 +1395,7 @@ class World:
         # contact prepare: match last step's contacts for warm starting, effective masses
         with self._timer("solver"):
             contacts.match_previous(bodies)
-            contact_solver.prepare(bodies, contacts, self.gravity)
+            contact_solver.prepare(bodies, contacts)
             integrate.begin_step(bodies)
 
         # cloth, step start: its substeps, user forces, wind, the bodies that can reach it

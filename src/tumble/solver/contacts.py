@@ -43,10 +43,14 @@ Soft constraint coefficients for stiffness f [Hz] and damping ratio zeta at subs
 omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1, a3 = 1 / (1 + a2);
 bias rate = omega / a1, mass scale = a2 a3, impulse scale = a3.
 
-On the CPU, Warp runs a kernel's threads in order, so each pass is a true Gauss-Seidel sweep
-and the result is deterministic. On CUDA the sweep becomes a Jacobi iteration; each contact's
-impulse is then scaled by 1 / (largest contact count of its two bodies) so that a body touched
-by many contacts is not over-corrected.
+Layout: the narrow phase's contacts are arrays (`CONTACT_FIELDS`); `prepare` turns each into a
+`ContactRow` record (`ContactSet.rows`), which every pass reads and updates in place, field by
+field. On the CPU each pass is one thread looping over the rows in order (`_make_solve`,
+`_make_impacts`): a true Gauss-Seidel sweep, deterministic, with no per-thread start-up for
+each contact. Records and the loop made the passes of a 5,000-sphere pile 1.6 to 1.9 times
+faster in float32 than thirty arrays read by one thread per contact. On CUDA a pass is one
+thread per contact, a Jacobi iteration; each contact's impulse is then scaled by 1 / (largest
+contact count of its two bodies) so that a body touched by many contacts is not over-corrected.
 
 Warm starting: contacts are matched to the previous step's by body pair and by the distance
 between their anchors on the pair's first dynamic body (the "owner"); previous contacts are
@@ -102,7 +106,7 @@ MANIFOLD_SWEEP_TOLERANCE = wp.constant(float_t(max(1.0e-6, 8192.0 * TYPES.eps)))
 MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
 
 CONTACT_FIELDS = {
-    # from the narrow phase
+    # from the narrow phase: what the views show and the next step's matching reads
     "contact_body_a": wp.int32,
     "contact_body_b": wp.int32,
     "contact_normal": vec3,  # unit, a -> b
@@ -110,43 +114,58 @@ CONTACT_FIELDS = {
     "contact_separation": float_t,  # [m], negative when overlapping
     "contact_local_a": vec3,  # surface point on a, body frame [m]
     "contact_local_b": vec3,
-    # from prepare
-    "contact_r_a": vec3,  # anchor offsets from the centres, world frame at step start [m]
-    "contact_r_b": vec3,
-    "contact_tangent1": vec3,
-    "contact_tangent2": vec3,
-    # angular velocity change per unit impulse along n, t1, t2: I^-1 (r x d), world frame
-    "contact_angular_a_n": vec3,
-    "contact_angular_b_n": vec3,
-    "contact_angular_a_t1": vec3,
-    "contact_angular_b_t1": vec3,
-    "contact_angular_a_t2": vec3,
-    "contact_angular_b_t2": vec3,
-    "contact_mass_n": float_t,  # effective masses [kg]
-    "contact_mass_t1": float_t,
-    "contact_mass_t2": float_t,
-    "contact_friction": float_t,
-    "contact_restitution": float_t,
-    "contact_relative_velocity": float_t,  # normal speed at this step's last impact [m/s] (< 0), else 0
-    "contact_scale": float_t,  # 1 on the CPU; Jacobi relaxation on CUDA
+}
+
+
+@wp.struct
+class ContactRow:
+    """One contact as the solver's passes read it: prepared once per step (`_prepare`) from the
+    narrow phase's contact and last step's impulses, then read and updated by every pass.
+
+    Solver scratch, one record per contact (`ContactSet.rows`): a pass reads a contact's data
+    from one contiguous record rather than from a row of thirty arrays (on the CPU the contact
+    passes ran 1.6 to 1.9 times faster so, pile_5k in float32).
+    """
+
+    body_a: wp.int32
+    body_b: wp.int32
     # rows of the manifold that starts here (its pair's next contacts, up to MANIFOLD_ROWS), 0 inside one
-    "contact_manifold": wp.int32,
+    manifold: wp.int32
+    normal: vec3  # unit, a -> b
+    separation: float_t  # [m] at the step's start, negative when overlapping
+    r_a: vec3  # anchor offsets from the centres, world frame at step start [m]
+    r_b: vec3
+    tangent1: vec3
+    tangent2: vec3
+    # angular velocity change per unit impulse along n, t1, t2: I^-1 (r x d), world frame
+    angular_a_n: vec3
+    angular_b_n: vec3
+    angular_a_t1: vec3
+    angular_b_t1: vec3
+    angular_a_t2: vec3
+    angular_b_t2: vec3
+    mass_n: float_t  # effective masses [kg]
+    mass_t1: float_t
+    mass_t2: float_t
+    friction: float_t
+    restitution: float_t
+    scale: float_t  # 1 on the CPU; Jacobi relaxation on CUDA
+    # accumulated impulses of one substep [N s]
+    impulse_n: float_t
+    impulse_t1: float_t
+    impulse_t2: float_t
+    impulse_twist: float_t  # [N m s]
+    relative_velocity: float_t  # normal speed at this step's last impact [m/s] (< 0), else 0
     # a patch (a manifold whose rows share the normal) has its friction at its centre: anchors of
     # the centre (world frame, from the centres [m]), the twist row about n on its first row
     # (I^-1 n, effective mass [kg m^2]), each point's arm [m] from the centre across n
-    "contact_centre_a": vec3,
-    "contact_centre_b": vec3,
-    "contact_angular_a_twist": vec3,
-    "contact_angular_b_twist": vec3,
-    "contact_mass_twist": float_t,
-    "contact_twist_arm": float_t,
-    # accumulated impulses of one substep [N s]
-    "contact_impulse_n": float_t,
-    "contact_impulse_t1": float_t,
-    "contact_impulse_t2": float_t,
-    "contact_impulse_twist": float_t,  # [N m s]
-    "contact_max_impulse_n": float_t,
-}
+    centre_a: vec3
+    centre_b: vec3
+    angular_a_twist: vec3
+    angular_b_twist: vec3
+    mass_twist: float_t
+    twist_arm: float_t
+
 
 PREVIOUS_FIELDS = {
     "previous_body_a": wp.int32,
@@ -252,6 +271,7 @@ def _match(
     owner_count: wp.array(dtype=wp.int32),
     owner_entries: wp.array(dtype=wp.int32),
     p: Previous,
+    jn_warm: wp.array(dtype=float_t),
     jt_world: wp.array(dtype=vec3),
     counts: wp.array(dtype=wp.int32),
 ):
@@ -276,35 +296,37 @@ def _match(
                 best_d = d
                 best = j
     if best >= 0:
-        c.impulse_n[k] = p.impulse_n[best]
+        jn_warm[k] = p.impulse_n[best]
         jt_world[k] = p.impulse_t[best]
     else:
-        c.impulse_n[k] = float_t(0.0)
+        jn_warm[k] = float_t(0.0)
         jt_world[k] = vec3()
 
 
 @wp.kernel
-def _store(c: Contacts, b: BodyArrays, p: Previous, counts: wp.array(dtype=wp.int32)):
+def _store(c: Contacts, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: Previous, counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
     if k >= counts[0]:
         return
-    p.body_a[k] = c.body_a[k]
-    p.body_b[k] = c.body_b[k]
-    if b.inv_mass[c.body_a[k]] == float_t(0.0):
+    r = rows[k]
+    p.body_a[k] = r.body_a
+    p.body_b[k] = r.body_b
+    if b.inv_mass[r.body_a] == float_t(0.0):
         p.local_owner[k] = c.local_b[k]
     else:
         p.local_owner[k] = c.local_a[k]
-    p.impulse_n[k] = c.impulse_n[k]
+    p.impulse_n[k] = r.impulse_n
     # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
-    f = k
+    first = k
+    while rows[first].manifold == 0:
+        first -= 1
+    f = r
     share = float_t(1.0)
-    first = _manifold_first(c, k)
-    if c.mass_twist[first] > float_t(0.0):
-        f = first
-        share = float_t(1.0) / float_t(c.manifold[first])
-    p.impulse_t[k] = (
-        c.tangent1[f] * c.impulse_t1[f] + c.tangent2[f] * c.impulse_t2[f] + c.normal[f] * c.impulse_twist[f]
-    ) * share
+    head = rows[first]
+    if head.mass_twist > float_t(0.0):
+        f = head
+        share = float_t(1.0) / float_t(head.manifold)
+    p.impulse_t[k] = (f.tangent1 * f.impulse_t1 + f.tangent2 * f.impulse_t2 + f.normal * f.impulse_twist) * share
 
 
 # ---------------------------------------------------------------------------- prepare / solve
@@ -323,68 +345,74 @@ def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp
 def _prepare(
     c: Contacts,
     b: BodyArrays,
+    jn_warm: wp.array(dtype=float_t),
     jt_world: wp.array(dtype=vec3),
-    gravity: vec3,
     jacobi: int,
     body_count: wp.array(dtype=wp.int32),
     counts: wp.array(dtype=wp.int32),
+    rows: wp.array(dtype=ContactRow),
 ):
     k = wp.tid()
     if k >= counts[0]:
         return
+    r = ContactRow()
     ia = c.body_a[k]
     ib = c.body_b[k]
     n = c.normal[k]
+    r.body_a = ia
+    r.body_b = ib
+    r.normal = n
+    r.separation = c.separation[k]
     qa = b.orientation[ia]
     qb = b.orientation[ib]
     ra = wp.quat_rotate(qa, c.local_a[k])
     rb = wp.quat_rotate(qb, c.local_b[k])
-    c.r_a[k] = ra
-    c.r_b[k] = rb
+    r.r_a = ra
+    r.r_b = rb
     # manifold: the first row holds its row count, the others 0. It is a patch when its rows
     # share one normal (a face on a plane or a face: up to 4 points, one normal); a patch takes
     # its friction at its centre (the mean of its anchors), as two tangent rows and a twist row
-    # about n held on its first row, instead of one friction row per point (see `_solve`)
+    # about n held on its first row, instead of one friction row per point (see `_solve_manifold`)
     first = _manifold_first(c, k)
-    rows = _manifold_rows(c, first, counts[0])
-    c.manifold[k] = int(0)
+    size = _manifold_rows(c, first, counts[0])
+    r.manifold = wp.int32(0)
     if first == k:
-        c.manifold[k] = rows
+        r.manifold = wp.int32(size)
     patch = int(0)
     fa = ra
     fb = rb
-    if rows > 1:
+    if size > 1:
         patch = int(1)
         fa = vec3()
         fb = vec3()
-        for i in range(rows):
+        for i in range(size):
             kk = first + i
             if wp.dot(c.normal[kk], c.normal[first]) < float_t(1.0) - float_t(1.0e-12):
                 patch = int(0)
             fa = fa + wp.quat_rotate(qa, c.local_a[kk])
             fb = fb + wp.quat_rotate(qb, c.local_b[kk])
-        fa = fa / float_t(rows)
-        fb = fb / float_t(rows)
+        fa = fa / float_t(size)
+        fb = fb / float_t(size)
     if patch == 0:
         # rows with differing normals (a box or hull on a mesh, a capsule) are not coupled by a
         # shared face: each is its own manifold of one row, as a lone contact
         fa = ra
         fb = rb
-        c.manifold[k] = int(1)
+        r.manifold = wp.int32(1)
     # twist arm: the point's distance from the patch centre across n (the twist row's limit is
     # mu sum_i jn_i arm_i, the most torque the points' friction can give)
     arm = ra - fa
-    c.twist_arm[k] = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
-    c.centre_a[k] = fa
-    c.centre_b[k] = fb
+    r.twist_arm = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
+    r.centre_a = fa
+    r.centre_b = fb
     # tangent basis orthogonal to n
     t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
     if wp.length_sq(t1) < float_t(0.01):
         t1 = wp.cross(n, vec3(float_t(0.0), float_t(1.0), float_t(0.0)))
     t1 = wp.normalize(t1)
     t2 = wp.cross(n, t1)
-    c.tangent1[k] = t1
-    c.tangent2[k] = t2
+    r.tangent1 = t1
+    r.tangent2 = t2
     # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
     # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
     Ia = inv_inertia_world(qa, b.inv_inertia[ia])
@@ -392,50 +420,51 @@ def _prepare(
     im = b.inv_mass[ia] + b.inv_mass[ib]
     ca = wp.cross(ra, n)
     cb = wp.cross(rb, n)
-    c.angular_a_n[k] = Ia * ca
-    c.angular_b_n[k] = Ib * cb
-    c.mass_n[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+    r.angular_a_n = Ia * ca
+    r.angular_b_n = Ib * cb
+    r.mass_n = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
     # friction rows at the anchors (the patch centre for a patch); a patch's other rows have none
     on = float_t(1.0)
     if patch != 0 and first != k:
         on = float_t(0.0)
     ca = wp.cross(fa, t1)
     cb = wp.cross(fb, t1)
-    c.angular_a_t1[k] = Ia * ca * on
-    c.angular_b_t1[k] = Ib * cb * on
-    c.mass_t1[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+    r.angular_a_t1 = Ia * ca * on
+    r.angular_b_t1 = Ib * cb * on
+    r.mass_t1 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
     ca = wp.cross(fa, t2)
     cb = wp.cross(fb, t2)
-    c.angular_a_t2[k] = Ia * ca * on
-    c.angular_b_t2[k] = Ib * cb * on
-    c.mass_t2[k] = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+    r.angular_a_t2 = Ia * ca * on
+    r.angular_b_t2 = Ib * cb * on
+    r.mass_t2 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
     # twist about n: angular response I^-1 n, effective mass 1 / (n . I_a^-1 n + n . I_b^-1 n)
     tw = float_t(0.0)
     if patch != 0 and first == k:
         tw = float_t(1.0)
-    c.angular_a_twist[k] = Ia * n * tw
-    c.angular_b_twist[k] = Ib * n * tw
-    c.mass_twist[k] = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
+    r.angular_a_twist = Ia * n * tw
+    r.angular_b_twist = Ib * n * tw
+    r.mass_twist = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
     # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
-    c.friction[k] = wp.sqrt(b.friction[ia] * b.friction[ib])
-    c.restitution[k] = wp.max(b.restitution[ia], b.restitution[ib])
-    c.relative_velocity[k] = float_t(0.0)  # set by _impact when the contact collides
+    r.friction = wp.sqrt(b.friction[ia] * b.friction[ib])
+    r.restitution = wp.max(b.restitution[ia], b.restitution[ib])
+    r.relative_velocity = float_t(0.0)  # set by _impact when the contact collides
     # warm start values arrive as a world friction vector (tangent) plus the twist impulse along
     # n; project on the new tangents. A patch's friction was stored spread over its rows (so it
     # survives a change of which row comes first): its first row sums its rows' shares
+    r.impulse_n = jn_warm[k]
     jt = jt_world[k]
     if patch != 0:
         jt = vec3()
         if first == k:
-            for i in range(rows):
+            for i in range(size):
                 jt = jt + jt_world[k + i]
-    c.impulse_t1[k] = wp.dot(jt, t1)
-    c.impulse_t2[k] = wp.dot(jt, t2)
-    c.impulse_twist[k] = wp.dot(jt, n) * tw
-    c.max_impulse_n[k] = float_t(0.0)
-    c.scale[k] = float_t(1.0)
+    r.impulse_t1 = wp.dot(jt, t1)
+    r.impulse_t2 = wp.dot(jt, t2)
+    r.impulse_twist = wp.dot(jt, n) * tw
+    r.scale = float_t(1.0)
     if jacobi != 0:
-        c.scale[k] = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
+        r.scale = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
+    rows[k] = r
 
 
 @wp.func
@@ -472,28 +501,19 @@ def _add_pair(
 
 
 @wp.kernel
-def _warm_start(c: Contacts, b: BodyArrays, serial: int, counts: wp.array(dtype=wp.int32)):
+def _warm_start(rows: wp.array(dtype=ContactRow), b: BodyArrays, serial: int, counts: wp.array(dtype=wp.int32)):
     k = wp.tid()
     if k >= counts[0]:
         return
-    jn = c.impulse_n[k]
-    j1 = c.impulse_t1[k]
-    j2 = c.impulse_t2[k]
-    P = c.normal[k] * jn + c.tangent1[k] * j1 + c.tangent2[k] * j2
-    dwa = (
-        c.angular_a_n[k] * jn
-        + c.angular_a_t1[k] * j1
-        + c.angular_a_t2[k] * j2
-        + c.angular_a_twist[k] * c.impulse_twist[k]
-    )
-    dwb = (
-        c.angular_b_n[k] * jn
-        + c.angular_b_t1[k] * j1
-        + c.angular_b_t2[k] * j2
-        + c.angular_b_twist[k] * c.impulse_twist[k]
-    )
-    ia = c.body_a[k]
-    ib = c.body_b[k]
+    r = rows[k]
+    jn = r.impulse_n
+    j1 = r.impulse_t1
+    j2 = r.impulse_t2
+    P = r.normal * jn + r.tangent1 * j1 + r.tangent2 * j2
+    dwa = r.angular_a_n * jn + r.angular_a_t1 * j1 + r.angular_a_t2 * j2 + r.angular_a_twist * r.impulse_twist
+    dwb = r.angular_b_n * jn + r.angular_b_t1 * j1 + r.angular_b_t2 * j2 + r.angular_b_twist * r.impulse_twist
+    ia = r.body_a
+    ib = r.body_b
     _add_pair(
         b.velocity, b.angular_velocity, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial
     )
@@ -522,51 +542,38 @@ class Pair:
 
 
 @wp.func
-def _friction_row(
-    k: int,
-    ra: vec3,
-    rb: vec3,
-    c_t1: wp.array(dtype=vec3),
-    c_t2: wp.array(dtype=vec3),
-    c_ang_a_t1: wp.array(dtype=vec3),
-    c_ang_b_t1: wp.array(dtype=vec3),
-    c_ang_a_t2: wp.array(dtype=vec3),
-    c_ang_b_t2: wp.array(dtype=vec3),
-    c_mass_t1: wp.array(dtype=float_t),
-    c_mass_t2: wp.array(dtype=float_t),
-    limit: float_t,
-    relax: float_t,
-    c_jt1: wp.array(dtype=float_t),
-    c_jt2: wp.array(dtype=float_t),
-    pair: Pair,
-    dv: Delta,
-):
-    """Coulomb friction of contact k at the anchors ra, rb: |jt| <= limit, clamped on the disc."""
-    t1 = c_t1[k]
-    t2 = c_t2[k]
+def _friction_row(rows: wp.array(dtype=ContactRow), k: int, ra: vec3, rb: vec3, limit: float_t, pair: Pair, dv: Delta):
+    """Coulomb friction of row k at the anchors ra, rb: |jt| <= limit, clamped on the disc.
+
+    Updates the row's impulses; returns the pair's changes and the largest change of an impulse.
+    (Rows are read field by field: a whole record copied to a local costs more than the fields used.)
+    """
+    t1 = rows[k].tangent1
+    t2 = rows[k].tangent2
+    relax = rows[k].scale
+    j1_old = rows[k].impulse_t1
+    j2_old = rows[k].impulse_t2
     v = pair.vb + dv.vb - pair.va - dv.va
-    j1_old = c_jt1[k]
-    j2_old = c_jt2[k]
     vt1 = wp.dot(v, t1) + wp.dot(pair.wb + dv.wb, wp.cross(rb, t1)) - wp.dot(pair.wa + dv.wa, wp.cross(ra, t1))
     vt2 = wp.dot(v, t2) + wp.dot(pair.wb + dv.wb, wp.cross(rb, t2)) - wp.dot(pair.wa + dv.wa, wp.cross(ra, t2))
-    j1 = j1_old - c_mass_t1[k] * vt1 * relax
-    j2 = j2_old - c_mass_t2[k] * vt2 * relax
+    j1 = j1_old - rows[k].mass_t1 * vt1 * relax
+    j2 = j2_old - rows[k].mass_t2 * vt2 * relax
     norm = wp.sqrt(j1 * j1 + j2 * j2)
     if norm > limit:
         f = limit / norm
         j1 = j1 * f
         j2 = j2 * f
-    c_jt1[k] = j1
-    c_jt2[k] = j2
+    rows[k].impulse_t1 = j1
+    rows[k].impulse_t2 = j2
     d1 = j1 - j1_old
     d2 = j2 - j2_old
     P = t1 * d1 + t2 * d2
     out = Delta()
     out.va = dv.va - P * pair.ima
     out.vb = dv.vb + P * pair.imb
-    out.wa = dv.wa - c_ang_a_t1[k] * d1 - c_ang_a_t2[k] * d2
-    out.wb = dv.wb + c_ang_b_t1[k] * d1 + c_ang_b_t2[k] * d2
-    return out
+    out.wa = dv.wa - rows[k].angular_a_t1 * d1 - rows[k].angular_a_t2 * d2
+    out.wb = dv.wb + rows[k].angular_b_t1 * d1 + rows[k].angular_b_t2 * d2
+    return out, wp.max(wp.abs(d1), wp.abs(d2))
 
 
 @wp.struct
@@ -634,165 +641,83 @@ def _normal_target(
 
 @wp.func
 def _normal_row(
-    k: int,
-    c_normal: wp.array(dtype=vec3),
-    c_r_a: wp.array(dtype=vec3),
-    c_r_b: wp.array(dtype=vec3),
-    c_ang_a_n: wp.array(dtype=vec3),
-    c_ang_b_n: wp.array(dtype=vec3),
-    c_mass_n: wp.array(dtype=float_t),
-    bias: float_t,
-    ms: float_t,
-    isc: float_t,
-    relax: float_t,
-    c_jn: wp.array(dtype=float_t),
-    c_jn_max: wp.array(dtype=float_t),
-    pair: Pair,
-    dv: Delta,
+    rows: wp.array(dtype=ContactRow), k: int, bias: float_t, ms: float_t, isc: float_t, pair: Pair, dv: Delta
 ):
-    """The normal row of contact k, the soft step dj = -m_n ms (v_n + bias) - isc j, clamped to j >= 0.
+    """The normal row k, the soft step dj = -m_n ms (v_n + bias) - isc j, clamped to j >= 0.
 
-    Its fixed point is v_n + bias + (isc / ms) j / m_n = 0, so sweeping it again solves the same soft row.
+    Updates the row's impulse; returns the pair's changes and |dj|. Its fixed point is
+    v_n + bias + (isc / ms) j / m_n = 0, so sweeping it again solves the same soft row.
     """
-    n = c_normal[k]
-    vn = wp.dot(pair.vb + dv.vb - pair.va - dv.va, n) + wp.dot(pair.wb + dv.wb, wp.cross(c_r_b[k], n))
-    vn = vn - wp.dot(pair.wa + dv.wa, wp.cross(c_r_a[k], n))
-    jn_old = c_jn[k]
-    mn = c_mass_n[k]
-    jn = wp.max(jn_old + (-mn * ms * (vn + bias) - isc * jn_old) * relax, float_t(0.0))
-    c_jn[k] = jn
-    c_jn_max[k] = wp.max(c_jn_max[k], jn)
+    n = rows[k].normal
+    vn = wp.dot(pair.vb + dv.vb - pair.va - dv.va, n) + wp.dot(pair.wb + dv.wb, wp.cross(rows[k].r_b, n))
+    vn = vn - wp.dot(pair.wa + dv.wa, wp.cross(rows[k].r_a, n))
+    jn_old = rows[k].impulse_n
+    jn = wp.max(jn_old + (-rows[k].mass_n * ms * (vn + bias) - isc * jn_old) * rows[k].scale, float_t(0.0))
+    rows[k].impulse_n = jn
     dj = jn - jn_old
     out = Delta()
     out.va = dv.va - n * (dj * pair.ima)
     out.vb = dv.vb + n * (dj * pair.imb)
-    out.wa = dv.wa - c_ang_a_n[k] * dj
-    out.wb = dv.wb + c_ang_b_n[k] * dj
-    return out
+    out.wa = dv.wa - rows[k].angular_a_n * dj
+    out.wb = dv.wb + rows[k].angular_b_n * dj
+    return out, wp.abs(dj)
 
 
 @wp.func
-def _block_load(k: int, rows: int, c_jn: wp.array(dtype=float_t), c_twist_arm: wp.array(dtype=float_t)):
-    """A manifold block's load sum_i jn_i [N s] and its twist limit's sum_i jn_i arm_i [N m s]."""
+def _block_load(rows: wp.array(dtype=ContactRow), k: int, size: int):
+    """The load sum_i jn_i [N s] of the manifold block of `size` rows at k, and its twist limit's sum_i jn_i arm_i [N m s]."""
     load = float_t(0.0)
     torque = float_t(0.0)
-    for i in range(rows):
-        load += c_jn[k + i]
-        torque += c_jn[k + i] * c_twist_arm[k + i]
+    for i in range(size):
+        load += rows[k + i].impulse_n
+        torque += rows[k + i].impulse_n * rows[k + i].twist_arm
     return load, torque
 
 
-@wp.kernel
-def _solve(
-    # contacts (plain arrays, not a struct: Warp's CPU code indexes them as contiguous)
-    c_body_a: wp.array(dtype=wp.int32),
-    c_body_b: wp.array(dtype=wp.int32),
-    c_normal: wp.array(dtype=vec3),
-    c_separation: wp.array(dtype=float_t),
-    c_r_a: wp.array(dtype=vec3),
-    c_r_b: wp.array(dtype=vec3),
-    c_t1: wp.array(dtype=vec3),
-    c_t2: wp.array(dtype=vec3),
-    c_ang_a_n: wp.array(dtype=vec3),
-    c_ang_b_n: wp.array(dtype=vec3),
-    c_ang_a_t1: wp.array(dtype=vec3),
-    c_ang_b_t1: wp.array(dtype=vec3),
-    c_ang_a_t2: wp.array(dtype=vec3),
-    c_ang_b_t2: wp.array(dtype=vec3),
-    c_mass_n: wp.array(dtype=float_t),
-    c_mass_t1: wp.array(dtype=float_t),
-    c_mass_t2: wp.array(dtype=float_t),
-    c_friction: wp.array(dtype=float_t),
-    c_scale: wp.array(dtype=float_t),
-    c_manifold: wp.array(dtype=wp.int32),
-    c_centre_a: wp.array(dtype=vec3),
-    c_centre_b: wp.array(dtype=vec3),
-    c_ang_a_twist: wp.array(dtype=vec3),
-    c_ang_b_twist: wp.array(dtype=vec3),
-    c_mass_twist: wp.array(dtype=float_t),
-    c_twist_arm: wp.array(dtype=float_t),
-    c_jn: wp.array(dtype=float_t),
-    c_jt1: wp.array(dtype=float_t),
-    c_jt2: wp.array(dtype=float_t),
-    c_jtw: wp.array(dtype=float_t),
-    c_jn_max: wp.array(dtype=float_t),
-    # bodies
-    b_v: wp.array(dtype=vec3),
-    b_w: wp.array(dtype=vec3),
-    b_inv_mass: wp.array(dtype=float_t),
-    b_dx: wp.array(dtype=vec3),
-    b_dtheta: wp.array(dtype=vec3),
-    b_warm_v: wp.array(dtype=vec3),
-    b_warm_w: wp.array(dtype=vec3),
-    # parameters (taken one by one, and gathered in a local struct: values the compiler keeps in registers)
-    inv_h: float_t,
-    use_bias: int,
-    bias_rate: float_t,
-    mass_scale: float_t,
-    impulse_scale: float_t,
-    static_bias_rate: float_t,
-    static_mass_scale: float_t,
-    static_impulse_scale: float_t,
-    max_push: float_t,
-    slop: float_t,
-    serial: int,
-    counts: wp.array(dtype=wp.int32),
-):
-    k = wp.tid()
-    if k >= counts[0]:
-        return  # launched over the capacity, the count on the device: the recorded launch survives a new count
-    p = SolvePass()
-    p.inv_h = inv_h
-    p.use_bias = use_bias
-    p.bias_rate = bias_rate
-    p.mass_scale = mass_scale
-    p.impulse_scale = impulse_scale
-    p.static_bias_rate = static_bias_rate
-    p.static_mass_scale = static_mass_scale
-    p.static_impulse_scale = static_impulse_scale
-    p.max_push = max_push
-    p.slop = slop
-    rows = c_manifold[k]
-    if rows == 0:
+@wp.func
+def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: SolvePass, serial: int):
+    """One pass over the manifold that starts at row k (nothing at a row inside one): friction then
+    normal rows, with bias or without (`p.use_bias`); the relax pass also sums the rows' final
+    impulses per body for the next substep's warm start."""
+    size = rows[k].manifold
+    if size == 0:
         return  # solved with the first row of its manifold
-    ia = c_body_a[k]
-    ib = c_body_b[k]
+    ia = rows[k].body_a
+    ib = rows[k].body_b
     # the two bodies' velocities and this manifold's changes to them, accumulated locally, stored once
     pair = Pair()
-    pair.va = b_v[ia]
-    pair.wa = b_w[ia]
-    pair.vb = b_v[ib]
-    pair.wb = b_w[ib]
-    pair.ima = b_inv_mass[ia]
-    pair.imb = b_inv_mass[ib]
+    pair.va = b.velocity[ia]
+    pair.wa = b.angular_velocity[ia]
+    pair.vb = b.velocity[ib]
+    pair.wb = b.angular_velocity[ib]
+    pair.ima = b.inv_mass[ia]
+    pair.imb = b.inv_mass[ib]
+    dxa = b.delta_position[ia]
+    dtha = b.delta_rotation[ia]
+    dxb = b.delta_position[ib]
+    dthb = b.delta_rotation[ib]
     dv = Delta()
     static = pair.ima == float_t(0.0) or pair.imb == float_t(0.0)
 
-    if rows == 1:
+    if size == 1:
         # a lone contact: its friction row, then its normal row (non-penetration matters more)
-        dv = _friction_row(
-            k, c_r_a[k], c_r_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2, c_mass_t1, c_mass_t2,
-            c_friction[k] * c_jn[k], c_scale[k], c_jt1, c_jt2, pair, dv,
-        )  # fmt: skip
+        ra = rows[k].r_a
+        rb = rows[k].r_b
+        dv, _ = _friction_row(rows, k, ra, rb, rows[k].friction * rows[k].impulse_n, pair, dv)
         bias, ms, isc = _normal_target(
-            c_separation[k], c_normal[k], c_r_a[k], c_r_b[k], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-            p, static, False,
-        )  # fmt: skip
-        dv = _normal_row(
-            k, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias, ms, isc, c_scale[k], c_jn, c_jn_max,
-            pair, dv,
-        )  # fmt: skip
+            rows[k].separation, rows[k].normal, ra, rb, dxa, dtha, dxb, dthb, p, static, False
+        )
+        dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
     else:
         # each normal row's target, fixed for the pass
         bias4 = vec4()
         ms4 = vec4()
         isc4 = vec4()
-        for i in range(rows):
+        for i in range(size):
             kk = k + i
             bias, ms, isc = _normal_target(
-                c_separation[kk], c_normal[kk], c_r_a[kk], c_r_b[kk], b_dx[ia], b_dtheta[ia], b_dx[ib], b_dtheta[ib],
-                p, static, True,
-            )  # fmt: skip
+                rows[kk].separation, rows[kk].normal, rows[kk].r_a, rows[kk].r_b, dxa, dtha, dxb, dthb, p, static, True
+            )
             bias4[i] = bias
             ms4[i] = ms
             isc4[i] = isc
@@ -815,73 +740,81 @@ def _solve(
         # A patch (rows sharing the normal) has its friction at its centre, on the disc
         # |jt| <= mu sum_i jn_i, and a twist row about n, |j_twist| <= mu sum_i jn_i arm_i, so no
         # order of corners enters it either.
-        patch = c_mass_twist[k] > float_t(0.0)
-        mu = c_friction[k]
-        load, torque = _block_load(k, rows, c_jn, c_twist_arm)
+        patch = rows[k].mass_twist > float_t(0.0)
+        mu = rows[k].friction
+        load, torque = _block_load(rows, k, size)
         sweep = int(0)
         while sweep < MANIFOLD_SWEEPS:
             change = float_t(0.0)  # the largest impulse change of this sweep [N s]
             change_twist = float_t(0.0)  # the twist row's [N m s]
             if patch:
-                j1_before = c_jt1[k]
-                j2_before = c_jt2[k]
-                dv = _friction_row(
-                    k, c_centre_a[k], c_centre_b[k], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
-                    c_mass_t1, c_mass_t2, mu * load, c_scale[k], c_jt1, c_jt2, pair, dv,
-                )  # fmt: skip
-                change = wp.max(wp.abs(c_jt1[k] - j1_before), wp.abs(c_jt2[k] - j2_before))
-                n = c_normal[k]
-                jw_old = c_jtw[k]
-                wn = wp.dot(pair.wb + dv.wb - pair.wa - dv.wa, n)
-                jw = wp.clamp(jw_old - c_mass_twist[k] * wn * c_scale[k], -mu * torque, mu * torque)
-                c_jtw[k] = jw
+                dv, change = _friction_row(rows, k, rows[k].centre_a, rows[k].centre_b, mu * load, pair, dv)
+                jw_old = rows[k].impulse_twist
+                wn = wp.dot(pair.wb + dv.wb - pair.wa - dv.wa, rows[k].normal)
+                jw = wp.clamp(jw_old - rows[k].mass_twist * wn * rows[k].scale, -mu * torque, mu * torque)
+                rows[k].impulse_twist = jw
                 dw = jw - jw_old
                 change_twist = wp.abs(dw)
-                dv.wa = dv.wa - c_ang_a_twist[k] * dw
-                dv.wb = dv.wb + c_ang_b_twist[k] * dw
-            for r in range(rows):
-                i = r
+                dv.wa = dv.wa - rows[k].angular_a_twist * dw
+                dv.wb = dv.wb + rows[k].angular_b_twist * dw
+            for j in range(size):
+                i = j
                 if sweep % 2 == 1:
-                    i = rows - 1 - r
+                    i = size - 1 - j
                 kk = k + i
                 if not patch:
-                    j1_before = c_jt1[kk]
-                    j2_before = c_jt2[kk]
-                    dv = _friction_row(
-                        kk, c_r_a[kk], c_r_b[kk], c_t1, c_t2, c_ang_a_t1, c_ang_b_t1, c_ang_a_t2, c_ang_b_t2,
-                        c_mass_t1, c_mass_t2, mu * c_jn[kk], c_scale[kk], c_jt1, c_jt2, pair, dv,
-                    )  # fmt: skip
-                    change = wp.max(change, wp.max(wp.abs(c_jt1[kk] - j1_before), wp.abs(c_jt2[kk] - j2_before)))
-                jn_before = c_jn[kk]
-                dv = _normal_row(
-                    kk, c_normal, c_r_a, c_r_b, c_ang_a_n, c_ang_b_n, c_mass_n, bias4[i], ms4[i], isc4[i], c_scale[kk],
-                    c_jn, c_jn_max, pair, dv,
-                )  # fmt: skip
-                change = wp.max(change, wp.abs(c_jn[kk] - jn_before))
+                    dv, moved = _friction_row(rows, kk, rows[kk].r_a, rows[kk].r_b, mu * rows[kk].impulse_n, pair, dv)
+                    change = wp.max(change, moved)
+                dv, moved = _normal_row(rows, kk, bias4[i], ms4[i], isc4[i], pair, dv)
+                change = wp.max(change, moved)
             sweep += 1
-            load, torque = _block_load(k, rows, c_jn, c_twist_arm)
+            load, torque = _block_load(rows, k, size)
             if change <= MANIFOLD_SWEEP_TOLERANCE * load and change_twist <= MANIFOLD_SWEEP_TOLERANCE * torque:
                 break  # converged: another sweep would change no impulse by more
-    dva = dv.va
-    dwa = dv.wa
-    dvb = dv.vb
-    dwb = dv.wb
-    _add_pair(b_v, b_w, b_inv_mass, ia, ib, dva, dwa, dvb, dwb, serial)
+    _add_pair(b.velocity, b.angular_velocity, b.inv_mass, ia, ib, dv.va, dv.wa, dv.vb, dv.wb, serial)
     if p.use_bias == 0:
         # relax: these impulses are final for this substep, and the next substep starts from them
         # (warm start), so sum their velocity changes per body now instead of in another pass
         P = vec3()
         wa_ = vec3()
         wb_ = vec3()
-        for i in range(rows):
+        for i in range(size):
             kk = k + i
-            jn = c_jn[kk]
-            j1 = c_jt1[kk]
-            j2 = c_jt2[kk]
-            P = P + c_normal[kk] * jn + c_t1[kk] * j1 + c_t2[kk] * j2
-            wa_ = wa_ + c_ang_a_n[kk] * jn + c_ang_a_t1[kk] * j1 + c_ang_a_t2[kk] * j2 + c_ang_a_twist[kk] * c_jtw[kk]
-            wb_ = wb_ + c_ang_b_n[kk] * jn + c_ang_b_t1[kk] * j1 + c_ang_b_t2[kk] * j2 + c_ang_b_twist[kk] * c_jtw[kk]
-        _add_pair(b_warm_v, b_warm_w, b_inv_mass, ia, ib, -P * pair.ima, -wa_, P * pair.imb, wb_, serial)
+            jn = rows[kk].impulse_n
+            j1 = rows[kk].impulse_t1
+            j2 = rows[kk].impulse_t2
+            jw = rows[kk].impulse_twist
+            P = P + rows[kk].normal * jn + rows[kk].tangent1 * j1 + rows[kk].tangent2 * j2
+            wa_ = wa_ + rows[kk].angular_a_n * jn + rows[kk].angular_a_t1 * j1 + rows[kk].angular_a_t2 * j2
+            wa_ = wa_ + rows[kk].angular_a_twist * jw
+            wb_ = wb_ + rows[kk].angular_b_n * jn + rows[kk].angular_b_t1 * j1 + rows[kk].angular_b_t2 * j2
+            wb_ = wb_ + rows[kk].angular_b_twist * jw
+        _add_pair(
+            b.warm_velocity, b.warm_angular_velocity, b.inv_mass, ia, ib, -P * pair.ima, -wa_, P * pair.imb, wb_, serial
+        )
+
+
+def _make_solve(serial: int):
+    """The solve pass's kernel: one thread sweeping every contact in order (`serial`, the CPU: a
+    Gauss-Seidel sweep, and no per-thread start-up for each contact), or one thread per contact
+    (CUDA: a Jacobi iteration with atomics); the other branch is left out when Warp compiles it."""
+
+    # a name of its own: a recorded CPU graph finds a kernel by its name
+    @wp.kernel(name="_solve_serial" if serial else "_solve_parallel")
+    def solve(rows: wp.array(dtype=ContactRow), b: BodyArrays, p: SolvePass, counts: wp.array(dtype=wp.int32)):
+        if wp.static(serial == 0):
+            k = wp.tid()
+            if k < counts[0]:  # launched over the capacity, the count on the device
+                _solve_manifold(k, rows, b, p, 0)
+        else:
+            for k in range(counts[0]):
+                _solve_manifold(k, rows, b, p, 1)
+
+    return solve
+
+
+#: the solve pass, by `_serial`
+_SOLVES = {serial: _make_solve(serial) for serial in (0, 1)}
 
 
 @wp.struct
@@ -896,21 +829,21 @@ class ImpactPass:
 
 
 @wp.func
-def _rebound(k: int, c: Contacts, b: BodyArrays, p: ImpactPass):
+def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass):
     """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
     substep faster than `threshold` [m/s]; else -1 (no collision).
 
     `ahead`: the velocities are those of the next substep but for its gravity kick (the pass
     before the relax, whose speculative clamp would otherwise land the contact inelastically).
     """
-    e = c.restitution[k]
+    e = rows[k].restitution
     if e == float_t(0.0):
         return float_t(-1.0)
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    n = c.normal[k]
-    ra = c.r_a[k]
-    rb = c.r_b[k]
+    ia = rows[k].body_a
+    ib = rows[k].body_b
+    n = rows[k].normal
+    ra = rows[k].r_a
+    rb = rows[k].r_b
     vn = _speed_along(b, ia, ib, ra, rb, n)
     if vn >= float_t(0.0):
         return float_t(-1.0)
@@ -928,7 +861,7 @@ def _rebound(k: int, c: Contacts, b: BodyArrays, p: ImpactPass):
     # contact that carries none is a fresh impact and bounces down to `floor`, the approach
     # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
     limit = p.threshold
-    if c.impulse_n[k] == float_t(0.0):
+    if rows[k].impulse_n == float_t(0.0):
         limit = wp.min(p.threshold, p.floor)
     # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
     # s), and a contact that collides has s <= -(v_n + ahead g_n h) h (the closing test), so a
@@ -938,7 +871,7 @@ def _rebound(k: int, c: Contacts, b: BodyArrays, p: ImpactPass):
     if vp * vp - float_t(2.0) * gn * gap + gn * p.h * vp < float_t(0.5) * limit * limit:
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
-    s = c.separation[k] + wp.dot(
+    s = rows[k].separation + wp.dot(
         n,
         b.delta_position[ib]
         + wp.cross(b.delta_rotation[ib], rb)
@@ -967,13 +900,13 @@ def _rebound(k: int, c: Contacts, b: BodyArrays, p: ImpactPass):
         gh = gn * p.h
         u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)) + kick
     u = wp.min(wp.max(u, float_t(0.0)), -vn)
-    c.relative_velocity[k] = -wp.sqrt(vi2)
+    rows[k].relative_velocity = -wp.sqrt(vi2)
     return u
 
 
 @wp.func
-def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial: int):
-    """Collide the rows of the manifold at k (`rows` contacts) that close within the substep
+def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass, serial: int):
+    """Collide the rows of the manifold at k (`size` contacts) that close within the substep
     faster than `threshold` [m/s]; 1 if any did.
 
     One collision of the two bodies at every such row at once: normal impulses j_i >= 0 that
@@ -989,14 +922,14 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
     """
     u4 = vec4()
     hits = int(0)
-    for i in range(rows):
-        u4[i] = _rebound(k + i, c, b, p)
+    for i in range(size):
+        u4[i] = _rebound(k + i, rows, b, p)
         if u4[i] >= float_t(0.0):
             hits += 1
     if hits == 0:
         return 0
-    ia = c.body_a[k]
-    ib = c.body_b[k]
+    ia = rows[k].body_a
+    ib = rows[k].body_b
     ima = b.inv_mass[ia]
     imb = b.inv_mass[ib]
     # normal: v_n -> u, j = m_n (u - v_n), 1 / m_n = 1/m_a + 1/m_b + (r_a x n) . I_a^-1 (r_a x n) + ...,
@@ -1009,15 +942,15 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
     moving = int(1)
     while moving != 0 and sweep < IMPACT_SWEEPS:
         moving = int(0)
-        for r in range(rows):
-            i = r
+        for m in range(size):
+            i = m
             if sweep % 2 == 1:
-                i = rows - 1 - r
+                i = size - 1 - m
             if u4[i] >= float_t(0.0):
                 kk = k + i
-                n = c.normal[kk]
-                ra = c.r_a[kk]
-                rb = c.r_b[kk]
+                n = rows[kk].normal
+                ra = rows[kk].r_a
+                rb = rows[kk].r_b
                 vn = _speed_along(b, ia, ib, ra, rb, n)
                 ca = wp.cross(ra, n)
                 cb = wp.cross(rb, n)
@@ -1025,7 +958,7 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
                 dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
                 kn = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
                 j_old = j4[i]
-                j = wp.max(j_old + (u4[i] - vn) / kn * c.scale[kk], float_t(0.0))
+                j = wp.max(j_old + (u4[i] - vn) / kn * rows[kk].scale, float_t(0.0))
                 dj = j - j_old
                 j4[i] = j
                 _add_pair(
@@ -1049,27 +982,27 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
     # impulse m_d |v_t| that stops the sliding, 1 / m_d = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...;
     # a patch's at its centre (j = sum_i j_i), then its twist about n, at most mu sum_i j_i arm_i
     # and at most the impulse that stops the relative spin about n
-    patch = c.mass_twist[k] > float_t(0.0)
+    patch = rows[k].mass_twist > float_t(0.0)
     load = float_t(0.0)
     torque = float_t(0.0)
-    for i in range(rows):
+    for i in range(size):
         load += j4[i]
-        torque += j4[i] * c.twist_arm[k + i]
-    for i in range(rows):
+        torque += j4[i] * rows[k + i].twist_arm
+    for i in range(size):
         kk = k + i
         j = j4[i]
-        ra = c.r_a[kk]
-        rb = c.r_b[kk]
+        ra = rows[kk].r_a
+        rb = rows[kk].r_b
         if patch:
             j = float_t(0.0)
             if i == 0:
                 j = load
-                ra = c.centre_a[k]
-                rb = c.centre_b[k]
-        if j > float_t(0.0) and c.friction[kk] > float_t(0.0):
-            relax = c.scale[kk]
-            t1 = c.tangent1[kk]
-            t2 = c.tangent2[kk]
+                ra = rows[k].centre_a
+                rb = rows[k].centre_b
+        if j > float_t(0.0) and rows[kk].friction > float_t(0.0):
+            relax = rows[kk].scale
+            t1 = rows[kk].tangent1
+            t2 = rows[kk].tangent2
             v1 = _speed_along(b, ia, ib, ra, rb, t1)
             v2 = _speed_along(b, ia, ib, ra, rb, t2)
             vt = wp.sqrt(v1 * v1 + v2 * v2)
@@ -1082,7 +1015,7 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
                 dwa = inv_inertia_times(qa, b.inv_inertia[ia], ca)
                 dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
                 k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
-                jt = wp.min(vt / k_d, c.friction[kk] * j / relax) * relax
+                jt = wp.min(vt / k_d, rows[kk].friction * j / relax) * relax
                 _add_pair(
                     b.velocity,
                     b.angular_velocity,
@@ -1095,16 +1028,16 @@ def _impact(k: int, rows: int, c: Contacts, b: BodyArrays, p: ImpactPass, serial
                     dwb * jt,
                     serial,
                 )
-    if patch and torque > float_t(0.0) and c.friction[k] > float_t(0.0):
-        n = c.normal[k]
+    if patch and torque > float_t(0.0) and rows[k].friction > float_t(0.0):
+        n = rows[k].normal
         wn = wp.dot(b.angular_velocity[ib] - b.angular_velocity[ia], n)
         if wn != float_t(0.0):
             d = -n * wp.sign(wn)
             dwa = inv_inertia_times(qa, b.inv_inertia[ia], d)
             dwb = inv_inertia_times(qb, b.inv_inertia[ib], d)
             k_w = wp.dot(d, dwa) + wp.dot(d, dwb)
-            relax = c.scale[k]
-            jw = wp.min(wp.abs(wn) / k_w, c.friction[k] * torque / relax) * relax
+            relax = rows[k].scale
+            jw = wp.min(wp.abs(wn) / k_w, rows[k].friction * torque / relax) * relax
             _add_pair(b.velocity, b.angular_velocity, b.inv_mass, ia, ib, vec3(), -dwa * jw, vec3(), dwb * jw, serial)
     return 1
 
@@ -1116,7 +1049,7 @@ def _make_impacts(serial: int):
     # a name of its own: a recorded CPU graph finds a kernel by its name
     @wp.kernel(name="_impacts_serial" if serial else "_impacts_parallel")
     def impacts(
-        c: Contacts,
+        rows: wp.array(dtype=ContactRow),
         b: BodyArrays,
         gravity: vec3,
         h: float_t,
@@ -1139,8 +1072,9 @@ def _make_impacts(serial: int):
             # one thread per contact (CUDA): atomics and the Jacobi scale
             thread = wp.tid()
             if thread < counts[0]:
-                if c.manifold[thread] > 0:
-                    _impact(thread, c.manifold[thread], c, b, p, 0)
+                size = rows[thread].manifold
+                if size > 0:
+                    _impact(thread, size, rows, b, p, 0)
         else:
             # one thread: Gauss-Seidel sweeps, forward and backward in turn, until one collides nothing
             # (a collision passes along a chain of touching bodies in either direction within a sweep;
@@ -1161,18 +1095,18 @@ def _make_impacts(serial: int):
                     k = i
                     if sweep % 2 == 1:
                         k = count - 1 - i
-                    rows = c.manifold[k]
-                    if rows == 0:
+                    size = rows[k].manifold
+                    if size == 0:
                         continue  # collided with the first row of its manifold
-                    ia = c.body_a[k]
-                    ib = c.body_b[k]
+                    ia = rows[k].body_a
+                    ib = rows[k].body_b
                     if sweep > 0:
                         last = tested[k]
                         if changed[ia] < last and changed[ib] < last:
                             continue
                     t = t + one
                     tested[k] = t
-                    hit = _impact(k, rows, c, b, p, 1)
+                    hit = _impact(k, size, rows, b, p, 1)
                     if hit > 0:
                         t = t + one
                         if b.inv_mass[ia] > float_t(0.0):
@@ -1194,30 +1128,36 @@ _IMPACTS = {serial: _make_impacts(serial) for serial in (0, 1)}
 
 
 class ContactSet(ArraySet):
-    """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting."""
+    """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting, and the
+    solver's rows (`rows`, one `ContactRow` per contact, scratch prepared every step)."""
 
     #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
-    #: solver structs were built from, so it differs in a restored world while meaning the same
-    SNAPSHOT_CACHES = frozenset({"_sized"})
+    #: solver structs were built from, so it differs in a restored world while meaning the same;
+    #: `rows` and `_passes` are solver scratch and parameters, made anew by every step
+    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes"})
 
     def __init__(self, device: str):
         super().__init__(CONTACT_FIELDS, device=device, capacity=64)
         self.count_array = wp.zeros(1, dtype=wp.int32, device=device)
         self.pair_count_array = wp.zeros(1, dtype=wp.int32, device=device)  # of pairs that carry no count of their own
         self.previous = ArraySet(PREVIOUS_FIELDS, device=device, capacity=64)
-        self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=device)
+        # per contact: last step's impulses matched to it (normal; friction as a world vector plus the twist),
+        # and the rows the solver's passes read
+        self.jn_warm = wp.zeros(0, dtype=float_t, device=device)
+        self.jt_world = wp.zeros(0, dtype=vec3, device=device)
+        self.rows = wp.zeros(0, dtype=ContactRow, device=device)
         # this step's and last step's contact counts, on the device, for kernels launched over the capacity
         self.counts = wp.zeros(2, dtype=wp.int32, device=device)
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
         self._structs: tuple[Contacts, BodyArrays, Previous] | None = None
+        self._passes: dict[tuple[float, bool], SolvePass] = {}
         self._writer: ContactWriter | None = None
 
     def grow(self, count: int) -> None:
         self.count = 0
         self.reserve(count)
-        self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=self.device)
 
     def begin_step(self) -> None:
         self.count_array.zero_()
@@ -1235,6 +1175,10 @@ class ContactSet(ArraySet):
             w.local_a, w.local_b = a["contact_local_a"], a["contact_local_b"]
         return w
 
+    def row_values(self, field: str) -> np.ndarray:
+        """One field of the solver's rows (`ContactRow`, filled by `prepare`) for this step's contacts, a host copy."""
+        return self.rows.numpy()[field][: self.count].copy()
+
     def struct(self) -> Contacts:
         """The contact arrays as the kernels take them (`begin_solve` keeps one per set of arrays)."""
         return fill_struct(Contacts, self.arrays, "contact_")
@@ -1247,6 +1191,11 @@ class ContactSet(ArraySet):
         """
         p = self.previous
         p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
+        dev = self.device
+        if self.rows.shape[0] != self.capacity:
+            self.jn_warm = wp.zeros(self.capacity, dtype=float_t, device=dev)
+            self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=dev)
+            self.rows = wp.zeros(self.capacity, dtype=ContactRow, device=dev)
         sized = (
             bodies.capacity,
             self.capacity,
@@ -1255,9 +1204,9 @@ class ContactSet(ArraySet):
             id(self.arrays["contact_normal"]),
             id(p.arrays["previous_body_a"]),
             id(self.jt_world),
+            id(self.rows),
         )
         if sized != self._sized[: len(sized)] or self._structs is None:
-            dev = self.device
             if bodies.capacity != self._owner_capacity:
                 self._owner_capacity = bodies.capacity
                 self.owner_count = wp.zeros(bodies.capacity, dtype=wp.int32, device=dev)
@@ -1295,7 +1244,7 @@ class ContactSet(ArraySet):
         owners = [self.owner_start, self.owner_fill, self.owner_entries]
         wp.launch(_owner_scatter, dim=cap, device=dev, inputs=[*pair, inv_mass, *owners, self.counts])
         owners = [self.owner_start, self.owner_count, self.owner_entries]
-        args = [c, b, MATCH_TOLERANCE, *owners, p, self.jt_world, self.counts]
+        args = [c, b, MATCH_TOLERANCE, *owners, p, self.jn_warm, self.jt_world, self.counts]
         wp.launch(_match, dim=self.capacity, device=dev, inputs=args)
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
@@ -1322,7 +1271,8 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        wp.launch(_store, dim=self.capacity, device=self.device, inputs=[*self._structs, self.counts])
+        c, b, p = self._structs
+        wp.launch(_store, dim=self.capacity, device=self.device, inputs=[c, self.rows, b, p, self.counts])
 
     def end_solve(self) -> None:
         """Host side after the solver stages: the contacts stored for warm starting are this step's."""
@@ -1348,8 +1298,8 @@ def softness(h: float, *, stiffness: float = 1.0) -> tuple[float, float, float]:
     return omega / a1, a2 * a3, a3
 
 
-def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
-    """Anchors, tangents, effective masses and combined materials, once per step."""
+def prepare(bodies, contacts: ContactSet) -> None:
+    """Anchors, tangents, effective masses and combined materials, once per step: the solver's rows."""
     if contacts.count == 0:
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
@@ -1370,11 +1320,12 @@ def prepare(bodies, contacts: ContactSet, gravity: np.ndarray) -> None:
         inputs=[
             c,
             b,
+            contacts.jn_warm,
             contacts.jt_world,
-            vec3(*gravity),
             jacobi,
             contacts.body_count,
             contacts.counts,
+            contacts.rows,
         ],
     )
 
@@ -1388,7 +1339,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
             _warm_start,
             dim=contacts.capacity,
             device=contacts.device,
-            inputs=[*contacts._structs[:2], _serial(contacts), contacts.counts],
+            inputs=[contacts.rows, contacts._structs[1], _serial(contacts), contacts.counts],
         )
 
 
@@ -1396,70 +1347,28 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
     """One sweep of normal and friction impulses over all contacts at substep `h`."""
     if contacts.count == 0:
         return
-    c, b = contacts.arrays, bodies.arrays
-    launch(
-        _solve,
-        contacts.capacity,
-        [
-            *(c[name] for name in _SOLVE_CONTACT_ARRAYS),
-            *(b[name] for name in _SOLVE_BODY_ARRAYS),
-            1.0 / h,
-            int(use_bias),
-            *softness(h),
-            *softness(h, stiffness=2.0),
-            MAX_PUSH_VELOCITY,
-            LINEAR_SLOP,
-            _serial(contacts),
-            contacts.counts,
-        ],
-        contacts.device,
-        cache,
-    )
+    assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
+    serial = _serial(contacts)
+    args = [contacts.rows, contacts._structs[1], _solve_pass(contacts, h, use_bias), contacts.counts]
+    launch(_SOLVES[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
 
 
-#: the arrays `_solve` takes, in its argument order
-_SOLVE_CONTACT_ARRAYS = (
-    "contact_body_a",
-    "contact_body_b",
-    "contact_normal",
-    "contact_separation",
-    "contact_r_a",
-    "contact_r_b",
-    "contact_tangent1",
-    "contact_tangent2",
-    "contact_angular_a_n",
-    "contact_angular_b_n",
-    "contact_angular_a_t1",
-    "contact_angular_b_t1",
-    "contact_angular_a_t2",
-    "contact_angular_b_t2",
-    "contact_mass_n",
-    "contact_mass_t1",
-    "contact_mass_t2",
-    "contact_friction",
-    "contact_scale",
-    "contact_manifold",
-    "contact_centre_a",
-    "contact_centre_b",
-    "contact_angular_a_twist",
-    "contact_angular_b_twist",
-    "contact_mass_twist",
-    "contact_twist_arm",
-    "contact_impulse_n",
-    "contact_impulse_t1",
-    "contact_impulse_t2",
-    "contact_impulse_twist",
-    "contact_max_impulse_n",
-)
-_SOLVE_BODY_ARRAYS = (
-    "body_velocity",
-    "body_angular_velocity",
-    "body_inv_mass",
-    "body_delta_position",
-    "body_delta_rotation",
-    "body_warm_velocity",
-    "body_warm_angular_velocity",
-)
+def _solve_pass(contacts: ContactSet, h: float, use_bias: bool) -> SolvePass:
+    """The parameters of a solve pass at substep h, one struct per (h, use_bias) kept by the contact set
+    (a recorded launch re-packs a struct argument only when it is another one)."""
+    key = (h, use_bias)
+    p = contacts._passes.get(key)
+    if p is None:
+        if len(contacts._passes) >= 8:
+            contacts._passes.clear()  # dt or substeps changed many times: keep only the passes in use
+        p = contacts._passes[key] = SolvePass()
+        p.inv_h = float_t(1.0 / h)
+        p.use_bias = int(use_bias)
+        p.bias_rate, p.mass_scale, p.impulse_scale = map(float_t, softness(h))
+        p.static_bias_rate, p.static_mass_scale, p.static_impulse_scale = map(float_t, softness(h, stiffness=2.0))
+        p.max_push = float_t(MAX_PUSH_VELOCITY)
+        p.slop = float_t(LINEAR_SLOP)
+    return p
 
 
 def impacts(
@@ -1487,7 +1396,8 @@ def impacts(
     serial = _serial(contacts)
     floor = 2.0 * float(np.linalg.norm(gravity)) * h  # the approach speed gravity gives in two substeps
     args = [
-        *contacts._structs[:2],
+        contacts.rows,
+        contacts._structs[1],
         vec3(*gravity),
         h,
         threshold,

@@ -36,7 +36,7 @@ def prepared(world: tumble.World):
     bodies, contacts = world.bodies, world.contacts
     contacts.begin_solve(bodies)
     integrate.begin_step(bodies)
-    solver.prepare(bodies, contacts, world.gravity)
+    solver.prepare(bodies, contacts)
     return bodies, contacts
 
 
@@ -67,36 +67,36 @@ def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
     assert k >= 2  # the lowest edge of the box
     inv_i_world = R @ np.diag(1.0 / shapes.box_inertia(mass, half)) @ R.T
     n = contacts.numpy("contact_normal")
-    r_b = contacts.numpy("contact_r_b")
+    r_b = contacts.row_values("r_b")
     np.testing.assert_allclose(r_b, contacts.numpy("contact_local_b") @ R.T, atol=1e-12)  # anchors in the world frame
     # the contacts share the normal, so they are one patch: its friction rows sit on its first row,
     # anchored at the patch centre (the mean anchor), the other rows have none (solver/contacts.py)
     centre = np.zeros_like(r_b)
     centre[0] = r_b.mean(axis=0)
-    np.testing.assert_allclose(contacts.numpy("contact_centre_b")[0], centre[0], atol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("centre_b")[0], centre[0], atol=1e-12)
     first = (np.arange(k) == 0).astype(float)
     for name, d, at, on in (
         ("n", n, r_b, np.ones(k)),
-        ("t1", contacts.numpy("contact_tangent1"), centre, first),
-        ("t2", contacts.numpy("contact_tangent2"), centre, first),
+        ("t1", contacts.row_values("tangent1"), centre, first),
+        ("t2", contacts.row_values("tangent2"), centre, first),
     ):
         c = np.cross(at, d)
         expected = 1.0 / (1.0 / mass + np.einsum("ki,ij,kj->k", c, inv_i_world, c)) * on
-        np.testing.assert_allclose(contacts.numpy(f"contact_mass_{name}"), expected, rtol=1e-12)
+        np.testing.assert_allclose(contacts.row_values(f"mass_{name}"), expected, rtol=1e-12)
         np.testing.assert_allclose(
-            contacts.numpy(f"contact_angular_b_{name}"), (c @ inv_i_world.T) * on[:, None], atol=1e-12
+            contacts.row_values(f"angular_b_{name}"), (c @ inv_i_world.T) * on[:, None], atol=1e-12
         )
     # and its twist row about n: effective mass 1 / (n . I^-1 n)
     twist = 1.0 / np.einsum("i,ij,j->", n[0], inv_i_world, n[0])
-    np.testing.assert_allclose(contacts.numpy("contact_mass_twist"), twist * first, rtol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("mass_twist"), twist * first, rtol=1e-12)
     # the tangents complete the normal to a right-handed orthonormal basis
-    t1, t2 = contacts.numpy("contact_tangent1"), contacts.numpy("contact_tangent2")
+    t1, t2 = contacts.row_values("tangent1"), contacts.row_values("tangent2")
     np.testing.assert_allclose(np.einsum("ki,ki->k", t1, n), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.cross(n, t1), t2, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(t1, axis=1), 1.0, atol=1e-12)
     # materials: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
-    np.testing.assert_allclose(contacts.numpy("contact_friction"), math.sqrt(0.8 * 0.2), rtol=1e-12)
-    np.testing.assert_allclose(contacts.numpy("contact_restitution"), 0.6)
+    np.testing.assert_allclose(contacts.row_values("friction"), math.sqrt(0.8 * 0.2), rtol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("restitution"), 0.6)
 
 
 def test_normal_impulse_stops_the_approach():
@@ -105,7 +105,7 @@ def test_normal_impulse_stops_the_approach():
     bodies, contacts = prepared(world)
     assert contacts.count == 1
     solver.solve(bodies, contacts, DT, use_bias=False)
-    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(2.0 * 0.7, rel=1e-12)
+    assert contacts.row_values("impulse_n")[0] == pytest.approx(2.0 * 0.7, rel=1e-12)
     np.testing.assert_allclose(ball.velocity, [0.3, 0.0, 0.0], atol=1e-12)
     np.testing.assert_allclose(ball.angular_velocity, 0.0, atol=1e-12)
 
@@ -116,7 +116,7 @@ def test_normal_impulse_never_pulls():
     bodies, contacts = prepared(world)
     for use_bias in (True, False):
         solver.solve(bodies, contacts, DT, use_bias=use_bias)
-    assert contacts.numpy("contact_impulse_n")[0] == 0.0
+    assert contacts.row_values("impulse_n")[0] == 0.0
     np.testing.assert_allclose(ball.velocity, [0.0, 0.0, 0.4], atol=0)
 
 
@@ -129,7 +129,7 @@ def test_speculative_contact_lets_the_gap_close_in_one_substep(speed):
     assert contacts.numpy("contact_separation")[0] == pytest.approx(gap, rel=1e-12)
     solver.solve(bodies, contacts, DT, use_bias=False)
     jn = 2.0 * (speed - gap / DT)
-    assert jn > 0.0 and contacts.numpy("contact_impulse_n")[0] == pytest.approx(jn, rel=1e-12)
+    assert jn > 0.0 and contacts.row_values("impulse_n")[0] == pytest.approx(jn, rel=1e-12)
     assert ball.velocity[2] == pytest.approx(-gap / DT, rel=1e-12)
 
 
@@ -140,18 +140,18 @@ def test_friction_is_clamped_to_the_disc_against_the_slip():
     world, ball = ball_on_plane(velocity=(slip[0], slip[1], -1.0), friction=mu, mass=mass)
     bodies, contacts = prepared(world)
     solver.solve(bodies, contacts, DT, use_bias=False)  # normal only: friction saw jn = 0
-    jn = contacts.numpy("contact_impulse_n")[0]
+    jn = contacts.row_values("impulse_n")[0]
     assert jn == pytest.approx(mass * 1.0, rel=1e-12)
     solver.solve(bodies, contacts, DT, use_bias=False)  # friction with jn, at the cone
-    jt = contacts.numpy("contact_impulse_t1")[0] * contacts.numpy("contact_tangent1")[0]
-    jt = jt + contacts.numpy("contact_impulse_t2")[0] * contacts.numpy("contact_tangent2")[0]
+    jt = contacts.row_values("impulse_t1")[0] * contacts.row_values("tangent1")[0]
+    jt = jt + contacts.row_values("impulse_t2")[0] * contacts.row_values("tangent2")[0]
     direction = slip / np.linalg.norm(slip)
     np.testing.assert_allclose(jt, -mu * jn * direction, atol=1e-12)
     np.testing.assert_allclose(ball.velocity, slip - mu * jn / mass * direction, atol=1e-12)
     r = np.array([0.0, 0.0, -radius])
     inertia = 0.4 * mass * radius**2
     np.testing.assert_allclose(ball.angular_velocity, np.cross(r, jt) / inertia, atol=1e-12)
-    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(jn, rel=1e-12)  # the normal row is done
+    assert contacts.row_values("impulse_n")[0] == pytest.approx(jn, rel=1e-12)  # the normal row is done
 
 
 def test_a_sticking_ball_rolls_on_at_five_sevenths_of_its_speed():
@@ -159,7 +159,7 @@ def test_a_sticking_ball_rolls_on_at_five_sevenths_of_its_speed():
     mass, radius = 2.0, 0.5
     world, ball = ball_on_plane(velocity=(0.05, 0.0, -2.0), friction=1.0, mass=mass)
     bodies, contacts = prepared(world)
-    np.testing.assert_allclose(contacts.numpy("contact_mass_t1"), 2.0 * mass / 7.0, rtol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("mass_t1"), 2.0 * mass / 7.0, rtol=1e-12)
     for _ in range(2):
         solver.solve(bodies, contacts, DT, use_bias=False)
     v, w = ball.velocity, ball.angular_velocity
@@ -185,7 +185,7 @@ def test_overlap_is_pushed_out_softly_and_the_relax_pass_removes_the_push():
     assert ball.velocity[2] == pytest.approx(push, rel=1e-9)
     solver.solve(bodies, contacts, DT, use_bias=False)
     assert ball.velocity[2] == pytest.approx(0.0, abs=1e-12)
-    assert contacts.numpy("contact_impulse_n")[0] == pytest.approx(0.0, abs=1e-12)
+    assert contacts.row_values("impulse_n")[0] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_overlap_within_the_slop_is_held_without_push():
@@ -213,7 +213,7 @@ def test_impact_of_two_spheres_is_the_one_dimensional_collision(e):
     assert a.velocity[0] == pytest.approx(u1, rel=1e-12)
     assert b.velocity[0] == pytest.approx(u2, rel=1e-12)
     assert m1 * a.velocity[0] + m2 * b.velocity[0] == pytest.approx(m1 * v1 + m2 * v2, rel=1e-12)
-    assert contacts.numpy("contact_relative_velocity")[0] == pytest.approx(v2 - v1, rel=1e-12)
+    assert contacts.row_values("relative_velocity")[0] == pytest.approx(v2 - v1, rel=1e-12)
 
 
 def test_impact_slower_than_the_threshold_of_a_loaded_contact_does_not_bounce():
