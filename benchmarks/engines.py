@@ -157,6 +157,14 @@ class TumbleFloat64Adapter(TumbleAdapter):
     precision = "float64"
 
 
+class TumbleFloat32Adapter(TumbleAdapter):
+    """Tumble in float32 (`World(precision="float32")`), beside the default's row: its "Tumble x" column
+    is then the default precision's speed over float32's."""
+
+    name = "tumble_f32"
+    precision = "float32"
+
+
 class PyBulletAdapter:
     """PyBullet in DIRECT mode with its default solver; damping set to 0 (Tumble has none).
 
@@ -500,4 +508,7 @@ class RapierAdapter:
         self.world = None
 
 
-ADAPTERS = {a.name: a for a in (TumbleAdapter, TumbleFloat64Adapter, PyBulletAdapter, MuJoCoAdapter, RapierAdapter)}
+ADAPTERS = {
+    a.name: a
+    for a in (TumbleAdapter, TumbleFloat64Adapter, TumbleFloat32Adapter, PyBulletAdapter, MuJoCoAdapter, RapierAdapter)
+}

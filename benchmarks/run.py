@@ -72,6 +72,15 @@ GROUPS = {
     "cloth": ["cloth_64", "cloth_128"],
 }
 QUICK_DURATION = 0.5  # [s] simulated per scene with --quick
+
+
+def other_precision() -> str:
+    """The engine that runs Tumble in the precision other than its default, for the row beside the default's."""
+    from tumble.precision import DEFAULT_PRECISION
+
+    return "tumble_f32" if DEFAULT_PRECISION == "float64" else "tumble_f64"
+
+
 CHUNK_DURATION = 0.1  # [s] simulated per turn when alternating engines
 MAX_WALL = 180.0  # [s] of stepping per engine and scene before it stops early
 
@@ -719,8 +728,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--engines",
-        default="tumble,tumble_f64,pybullet,mujoco,rapier",
-        help="comma-separated engines (tumble_f64: Tumble in float64, beside the default precision)",
+        default=f"tumble,{other_precision()},pybullet,mujoco,rapier",
+        help="comma-separated engines (tumble_f32, tumble_f64: Tumble in that precision, beside the default's row)",
     )
     parser.add_argument("--device", default="cpu", help="Warp device for Tumble: cpu (default) or cuda")
     parser.add_argument("--quick", action="store_true", help=f"simulate at most {QUICK_DURATION} s per scene")

@@ -127,14 +127,24 @@ class ContactRow:
     passes ran 1.6 to 1.9 times faster so, pile_5k in float32).
     """
 
+    # (fields in the order the passes read them: the collision pass's test reads the first line or two)
     body_a: wp.int32
     body_b: wp.int32
     # rows of the manifold that starts here (its pair's next contacts, up to MANIFOLD_ROWS), 0 inside one
     manifold: wp.int32
-    normal: vec3  # unit, a -> b
+    restitution: float_t
+    impulse_n: float_t  # accumulated impulses of one substep [N s]
     separation: float_t  # [m] at the step's start, negative when overlapping
+    normal: vec3  # unit, a -> b
     r_a: vec3  # anchor offsets from the centres, world frame at step start [m]
     r_b: vec3
+    impulse_t1: float_t
+    impulse_t2: float_t
+    friction: float_t
+    scale: float_t  # 1 on the CPU; Jacobi relaxation on CUDA
+    mass_n: float_t  # effective masses [kg]
+    mass_t1: float_t
+    mass_t2: float_t
     tangent1: vec3
     tangent2: vec3
     # angular velocity change per unit impulse along n, t1, t2: I^-1 (r x d), world frame
@@ -144,27 +154,17 @@ class ContactRow:
     angular_b_t1: vec3
     angular_a_t2: vec3
     angular_b_t2: vec3
-    mass_n: float_t  # effective masses [kg]
-    mass_t1: float_t
-    mass_t2: float_t
-    friction: float_t
-    restitution: float_t
-    scale: float_t  # 1 on the CPU; Jacobi relaxation on CUDA
-    # accumulated impulses of one substep [N s]
-    impulse_n: float_t
-    impulse_t1: float_t
-    impulse_t2: float_t
-    impulse_twist: float_t  # [N m s]
     relative_velocity: float_t  # normal speed at this step's last impact [m/s] (< 0), else 0
     # a patch (a manifold whose rows share the normal) has its friction at its centre: anchors of
     # the centre (world frame, from the centres [m]), the twist row about n on its first row
     # (I^-1 n, effective mass [kg m^2]), each point's arm [m] from the centre across n
+    impulse_twist: float_t  # [N m s]
+    mass_twist: float_t
+    twist_arm: float_t
     centre_a: vec3
     centre_b: vec3
     angular_a_twist: vec3
     angular_b_twist: vec3
-    mass_twist: float_t
-    twist_arm: float_t
 
 
 PREVIOUS_FIELDS = {
@@ -182,7 +182,7 @@ Contacts = array_struct("Contacts", CONTACT_FIELDS, "contact_", __name__)
 Previous = array_struct("Previous", PREVIOUS_FIELDS, "previous_", __name__)
 
 
-@wp.func
+@wp.func(inline=True)
 def _speed_along(b: BodyArrays, ia: int, ib: int, ra: vec3, rb: vec3, d: vec3):
     """Relative velocity of the anchors along d: d . (v_b + w_b x r_b - v_a - w_a x r_a)."""
     return (
@@ -828,7 +828,7 @@ class ImpactPass:
     ahead: int  # 1: the velocities are the next substep's but for its gravity kick
 
 
-@wp.func
+@wp.func(inline=True)
 def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass):
     """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
     substep faster than `threshold` [m/s]; else -1 (no collision).
@@ -904,7 +904,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     return u
 
 
-@wp.func
+@wp.func(inline=True)
 def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass, serial: int):
     """Collide the rows of the manifold at k (`size` contacts) that close within the substep
     faster than `threshold` [m/s]; 1 if any did.
