@@ -23,42 +23,27 @@ from __future__ import annotations
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..real import float_t, quat, quatw, vec3, vec3w, wide_t
+from ..model import body_struct
+from ..real import BodyArrays, float_t, quat, quatw, vec3, vec3w, wide_t
 from .rigid import inv_inertia_times
 
 
-@wp.kernel
-def _integrate_velocities(
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    force: wp.array(dtype=vec3),
-    torque: wp.array(dtype=vec3),
-    gravity: vec3,
-    h: float_t,
-    use_warm: int,
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    warm_v: wp.array(dtype=vec3),
-    warm_w: wp.array(dtype=vec3),
-    count: int,
-):
-    i = wp.tid()
-    if i >= count:
-        return  # launched over the capacity (see tumble.launch)
-    im = inv_mass[i]
+@wp.func
+def _velocity(i: int, b: BodyArrays, gravity: vec3, h: float_t, use_warm: int):
+    """Body i's velocities over the substep: v += (g + F / m) h, w += I^-1 tau h (dynamic bodies only)."""
+    im = b.inv_mass[i]
     if im == float_t(0.0):
         return
     if use_warm != 0:
         # warm start: the contact impulses of the previous substep, summed by its relax pass
-        v[i] = v[i] + warm_v[i]
-        w[i] = w[i] + warm_w[i]
-    warm_v[i] = vec3()
-    warm_w[i] = vec3()
-    v[i] = v[i] + (gravity + force[i] * im) * h
-    tau = torque[i]
+        b.velocity[i] = b.velocity[i] + b.warm_velocity[i]
+        b.angular_velocity[i] = b.angular_velocity[i] + b.warm_angular_velocity[i]
+    b.warm_velocity[i] = vec3()
+    b.warm_angular_velocity[i] = vec3()
+    b.velocity[i] = b.velocity[i] + (gravity + b.force[i] * im) * h
+    tau = b.torque[i]
     if tau[0] != float_t(0.0) or tau[1] != float_t(0.0) or tau[2] != float_t(0.0):
-        w[i] = w[i] + inv_inertia_times(q[i], inv_inertia[i], tau) * h
+        b.angular_velocity[i] = b.angular_velocity[i] + inv_inertia_times(b.orientation[i], b.inv_inertia[i], tau) * h
 
 
 @wp.func
@@ -79,41 +64,30 @@ def _spin_about(q: quatw, p: vec3w, e: vec3w, inv_i: wide_t, t: wide_t):
     return q * dq, wp.quat_rotate_inv(dq, p)
 
 
-@wp.kernel
-def _integrate_positions(
-    inv_mass: wp.array(dtype=float_t),
-    inv_inertia: wp.array(dtype=vec3),
-    h: float_t,
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    dx: wp.array(dtype=vec3),
-    dtheta: wp.array(dtype=vec3),
-    count: int,
-):
-    i = wp.tid()
-    if i >= count:
-        return
-    if inv_mass[i] == float_t(0.0) and wp.length_sq(v[i]) == float_t(0.0) and wp.length_sq(w[i]) == float_t(0.0):
+@wp.func
+def _position(i: int, b: BodyArrays, h: float_t):
+    """Body i's pose over the substep: x += v h, and the torque-free rotation over h."""
+    v = b.velocity[i]
+    w = b.angular_velocity[i]
+    if b.inv_mass[i] == float_t(0.0) and wp.length_sq(v) == float_t(0.0) and wp.length_sq(w) == float_t(0.0):
         return  # static (a kinematic body, inverse mass 0 too, moves with the velocity it was given)
-    x[i] = x[i] + v[i] * h
-    dx[i] = dx[i] + v[i] * h
-    dtheta[i] = dtheta[i] + w[i] * h
+    b.position[i] = b.position[i] + v * h
+    b.delta_position[i] = b.delta_position[i] + v * h
+    b.delta_rotation[i] = b.delta_rotation[i] + w * h
     # The rotation is worked in float64 whatever the precision (a no-op in the float64 copy): in
     # float32 each substep's w -> P -> w round trip through a unit quaternion that rounding leaves
     # at |q|^2 = 1 + delta, with cos(theta / 2) near 1 rounded the same way at every substep of a
     # steady spin, grew |L| by 0.6 % and the energy by 1.2 % in 10 s (19,200 substeps); rounded
     # once per substep at the store, the error is unbiased instead.
-    wi = vec3w(w[i])
-    qi = quatw(q[i])
-    ii = vec3w(inv_inertia[i])
+    wi = vec3w(w)
+    qi = quatw(b.orientation[i])
+    ii = vec3w(b.inv_inertia[i])
     hw = wide_t(h)
     if ii[0] == ii[1] and ii[1] == ii[2]:
         # equal moments: q' = exp(w h / 2) q, a rotation by |w| h about w / |w|
         speed = wp.length(wi)
         if speed > wide_t(0.0):
-            q[i] = quat(wp.normalize(_turn(wi / speed, speed * hw) * qi))
+            b.orientation[i] = quat(wp.normalize(_turn(wi / speed, speed * hw) * qi))
         return
     # body-frame angular momentum P = I w_body, then the splitting x(h/2) y(h/2) z(h) y(h/2) x(h/2)
     wb = wp.quat_rotate_inv(qi, wi)
@@ -128,8 +102,40 @@ def _integrate_positions(
     qa, p = _spin_about(qa, p, ey, ii[1], half)
     qa, p = _spin_about(qa, p, ex, ii[0], half)
     q1 = wp.normalize(qa)
-    q[i] = quat(q1)
-    w[i] = vec3(wp.quat_rotate(q1, vec3w(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2])))
+    b.orientation[i] = quat(q1)
+    b.angular_velocity[i] = vec3(wp.quat_rotate(q1, vec3w(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2])))
+
+
+def _make_integrators(serial: int):
+    """The two integration kernels: one thread looping over the bodies (`serial`, the CPU: no per-thread
+    start-up for each body), or one thread per body (CUDA); the other branch is left out when Warp compiles it."""
+
+    # names of their own: a recorded CPU graph finds a kernel by its name
+    @wp.kernel(name="_integrate_velocities_serial" if serial else "_integrate_velocities_parallel")
+    def integrate_velocities(b: BodyArrays, gravity: vec3, h: float_t, use_warm: int, count: int):
+        if wp.static(serial == 0):
+            i = wp.tid()
+            if i < count:  # launched over the capacity (see tumble.launch)
+                _velocity(i, b, gravity, h, use_warm)
+        else:
+            for i in range(count):
+                _velocity(i, b, gravity, h, use_warm)
+
+    @wp.kernel(name="_integrate_positions_serial" if serial else "_integrate_positions_parallel")
+    def integrate_positions(b: BodyArrays, h: float_t, count: int):
+        if wp.static(serial == 0):
+            i = wp.tid()
+            if i < count:
+                _position(i, b, h)
+        else:
+            for i in range(count):
+                _position(i, b, h)
+
+    return integrate_velocities, integrate_positions
+
+
+#: (integrate_velocities, integrate_positions) by serial (1 on the CPU)
+_INTEGRATORS = {serial: _make_integrators(serial) for serial in (0, 1)}
 
 
 @wp.kernel
@@ -146,28 +152,9 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
     """
     if bodies.count == 0:
         return  # a cloth-only world: no launch over an empty capacity
-    a = bodies.arrays
-    launch(
-        _integrate_velocities,
-        bodies.capacity,
-        [
-            a["body_inv_mass"],
-            a["body_inv_inertia"],
-            a["body_orientation"],
-            a["body_force"],
-            a["body_torque"],
-            vec3(*gravity),
-            h,
-            int(warm),
-            a["body_velocity"],
-            a["body_angular_velocity"],
-            a["body_warm_velocity"],
-            a["body_warm_angular_velocity"],
-            bodies.count,
-        ],
-        bodies.device,
-        cache,
-    )
+    serial = int(bodies.device == "cpu")
+    args = [body_struct(bodies), vec3(*gravity), h, int(warm), bodies.count]
+    launch(_INTEGRATORS[serial][0], 1 if serial else bodies.capacity, args, bodies.device, cache)
 
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
@@ -175,25 +162,9 @@ def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -
     kinematic body."""
     if bodies.count == 0:
         return
-    a = bodies.arrays
-    launch(
-        _integrate_positions,
-        bodies.capacity,
-        [
-            a["body_inv_mass"],
-            a["body_inv_inertia"],
-            h,
-            a["body_position"],
-            a["body_orientation"],
-            a["body_velocity"],
-            a["body_angular_velocity"],
-            a["body_delta_position"],
-            a["body_delta_rotation"],
-            bodies.count,
-        ],
-        bodies.device,
-        cache,
-    )
+    serial = int(bodies.device == "cpu")
+    args = [body_struct(bodies), h, bodies.count]
+    launch(_INTEGRATORS[serial][1], 1 if serial else bodies.capacity, args, bodies.device, cache)
 
 
 def begin_step(bodies) -> None:

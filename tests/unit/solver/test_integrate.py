@@ -12,26 +12,14 @@ import numpy as np
 import pytest
 import warp as wp
 
+from tumble.model import BODY_FIELDS, fields_of
 from tumble.solver import integrate
-from tumble.state import ArraySet, float_t, quat, vec3
+from tumble.state import ArraySet
 
 from ..reference import quat_axis_angle, quat_matrix
 
-#: the body arrays the integrator reads and writes
-FIELDS = {
-    "body_position": vec3,
-    "body_orientation": quat,
-    "body_velocity": vec3,
-    "body_angular_velocity": vec3,
-    "body_inv_mass": float_t,
-    "body_inv_inertia": vec3,
-    "body_force": vec3,
-    "body_torque": vec3,
-    "body_warm_velocity": vec3,
-    "body_warm_angular_velocity": vec3,
-    "body_delta_position": vec3,
-    "body_delta_rotation": vec3,
-}
+#: the body arrays (all of them: the integrator takes the kernels' struct of body arrays)
+FIELDS = fields_of(BODY_FIELDS)
 G = np.array([0.0, 0.0, -9.81])
 H = 2.0**-10
 
