@@ -60,6 +60,7 @@ bucketed per owner by counting sort, so matching costs O(contacts x contacts per
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import warp as wp
@@ -231,35 +232,32 @@ def _owner(a: int, b: int, inv_mass: wp.array(dtype=float_t)):
     return a
 
 
+@wp.struct
+class Owners:
+    """Last step's contacts bucketed by owner (counting sort): the contacts of body o are
+    `entries[start[o] : start[o] + count[o]]`; `fill` counts them in while scattering."""
+
+    start: wp.array(dtype=wp.int32)
+    count: wp.array(dtype=wp.int32)
+    fill: wp.array(dtype=wp.int32)
+    entries: wp.array(dtype=wp.int32)
+
+
 @wp.kernel
-def _owner_count(
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    inv_mass: wp.array(dtype=float_t),
-    owner_count: wp.array(dtype=wp.int32),
-    counts: wp.array(dtype=wp.int32),
-):
+def _owner_count(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32)):
     c = wp.tid()
     if c >= counts[1]:
         return  # launched over the capacity: last step's contact count is on the device
-    wp.atomic_add(owner_count, _owner(body_a[c], body_b[c], inv_mass), 1)
+    wp.atomic_add(o.count, _owner(p.body_a[c], p.body_b[c], b.inv_mass), 1)
 
 
 @wp.kernel
-def _owner_scatter(
-    body_a: wp.array(dtype=wp.int32),
-    body_b: wp.array(dtype=wp.int32),
-    inv_mass: wp.array(dtype=float_t),
-    owner_start: wp.array(dtype=wp.int32),
-    owner_fill: wp.array(dtype=wp.int32),
-    owner_entries: wp.array(dtype=wp.int32),
-    counts: wp.array(dtype=wp.int32),
-):
+def _owner_scatter(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32)):
     c = wp.tid()
     if c >= counts[1]:
         return
-    o = _owner(body_a[c], body_b[c], inv_mass)
-    owner_entries[owner_start[o] + wp.atomic_add(owner_fill, o, 1)] = c
+    owner = _owner(p.body_a[c], p.body_b[c], b.inv_mass)
+    o.entries[o.start[owner] + wp.atomic_add(o.fill, owner, 1)] = c
 
 
 @wp.kernel
@@ -267,9 +265,7 @@ def _match(
     c: Contacts,
     b: BodyArrays,
     tolerance: float_t,
-    owner_start: wp.array(dtype=wp.int32),
-    owner_count: wp.array(dtype=wp.int32),
-    owner_entries: wp.array(dtype=wp.int32),
+    owners: Owners,
     p: Previous,
     jn_warm: wp.array(dtype=float_t),
     jt_world: wp.array(dtype=vec3),
@@ -287,9 +283,9 @@ def _match(
         local = c.local_b[k]
     best = int(-1)
     best_d = (tolerance * b.bound_radius[o]) * (tolerance * b.bound_radius[o])
-    start = owner_start[o]
-    for e in range(start, start + owner_count[o]):
-        j = owner_entries[e]
+    start = owners.start[o]
+    for e in range(start, start + owners.count[o]):
+        j = owners.entries[e]
         if p.body_a[j] == ia and p.body_b[j] == ib:
             d = wp.length_sq(p.local_owner[j] - local)
             if d < best_d:
@@ -467,37 +463,46 @@ def _prepare(
     rows[k] = r
 
 
-@wp.func
-def _add_pair(
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    inv_mass: wp.array(dtype=float_t),
-    ia: int,
-    ib: int,
-    dva: vec3,
-    dwa: vec3,
-    dvb: vec3,
-    dwb: vec3,
-    serial: int,
-):
-    """Add one contact's changes to the rows of its two bodies (static bodies never change).
+@wp.struct
+class Delta:
+    """A contact's velocity changes to its two bodies, accumulated over its rows."""
 
-    `serial` (CPU): plain updates, one contact after another (Gauss-Seidel); else atomics (CUDA).
-    """
+    va: vec3
+    wa: vec3
+    vb: vec3
+    wb: vec3
+
+
+@wp.func
+def _delta(va: vec3, wa: vec3, vb: vec3, wb: vec3):
+    """A Delta of the given changes."""
+    d = Delta()
+    d.va = va
+    d.wa = wa
+    d.vb = vb
+    d.wb = wb
+    return d
+
+
+@wp.func
+def _add(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), i: int, dv: vec3, dw: vec3, serial: int):
+    """Add dv, dw to body i's velocities v, w: `serial` (CPU) plain updates, one contact after another
+    (Gauss-Seidel); else atomics (CUDA)."""
     if serial != 0:
-        if inv_mass[ia] > float_t(0.0):
-            v[ia] = v[ia] + dva
-            w[ia] = w[ia] + dwa
-        if inv_mass[ib] > float_t(0.0):
-            v[ib] = v[ib] + dvb
-            w[ib] = w[ib] + dwb
+        v[i] = v[i] + dv
+        w[i] = w[i] + dw
     else:
-        if inv_mass[ia] > float_t(0.0):
-            wp.atomic_add(v, ia, dva)
-            wp.atomic_add(w, ia, dwa)
-        if inv_mass[ib] > float_t(0.0):
-            wp.atomic_add(v, ib, dvb)
-            wp.atomic_add(w, ib, dwb)
+        wp.atomic_add(v, i, dv)
+        wp.atomic_add(w, i, dw)
+
+
+@wp.func
+def _add_pair(b: BodyArrays, ia: int, ib: int, d: Delta, serial: int):
+    """Add one contact's changes d to the velocities of its two bodies (static bodies never change)."""
+    if b.inv_mass[ia] > float_t(0.0):
+        _add(b.velocity, b.angular_velocity, ia, d.va, d.wa, serial)
+    if b.inv_mass[ib] > float_t(0.0):
+        _add(b.velocity, b.angular_velocity, ib, d.vb, d.wb, serial)
 
 
 @wp.kernel
@@ -514,19 +519,7 @@ def _warm_start(rows: wp.array(dtype=ContactRow), b: BodyArrays, serial: int, co
     dwb = r.angular_b_n * jn + r.angular_b_t1 * j1 + r.angular_b_t2 * j2 + r.angular_b_twist * r.impulse_twist
     ia = r.body_a
     ib = r.body_b
-    _add_pair(
-        b.velocity, b.angular_velocity, b.inv_mass, ia, ib, -P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb, serial
-    )
-
-
-@wp.struct
-class Delta:
-    """A contact's velocity changes to its two bodies, accumulated over its rows."""
-
-    va: vec3
-    wa: vec3
-    vb: vec3
-    wb: vec3
+    _add_pair(b, ia, ib, _delta(-P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb), serial)
 
 
 @wp.struct
@@ -771,7 +764,7 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
             load, torque = _block_load(rows, k, size)
             if change <= MANIFOLD_SWEEP_TOLERANCE * load and change_twist <= MANIFOLD_SWEEP_TOLERANCE * torque:
                 break  # converged: another sweep would change no impulse by more
-    _add_pair(b.velocity, b.angular_velocity, b.inv_mass, ia, ib, dv.va, dv.wa, dv.vb, dv.wb, serial)
+    _add_pair(b, ia, ib, dv, serial)
     if p.use_bias == 0:
         # relax: these impulses are final for this substep, and the next substep starts from them
         # (warm start), so sum their velocity changes per body now instead of in another pass
@@ -789,9 +782,10 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
             wa_ = wa_ + rows[kk].angular_a_twist * jw
             wb_ = wb_ + rows[kk].angular_b_n * jn + rows[kk].angular_b_t1 * j1 + rows[kk].angular_b_t2 * j2
             wb_ = wb_ + rows[kk].angular_b_twist * jw
-        _add_pair(
-            b.warm_velocity, b.warm_angular_velocity, b.inv_mass, ia, ib, -P * pair.ima, -wa_, P * pair.imb, wb_, serial
-        )
+        if pair.ima > float_t(0.0):
+            _add(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
+        if pair.imb > float_t(0.0):
+            _add(b.warm_velocity, b.warm_angular_velocity, ib, P * pair.imb, wb_, serial)
 
 
 def _make_solve(serial: int):
@@ -961,18 +955,7 @@ def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, 
                 j = wp.max(j_old + (u4[i] - vn) / kn * rows[kk].scale, float_t(0.0))
                 dj = j - j_old
                 j4[i] = j
-                _add_pair(
-                    b.velocity,
-                    b.angular_velocity,
-                    b.inv_mass,
-                    ia,
-                    ib,
-                    -n * (dj * ima),
-                    -dwa * dj,
-                    n * (dj * imb),
-                    dwb * dj,
-                    serial,
-                )
+                _add_pair(b, ia, ib, _delta(-n * (dj * ima), -dwa * dj, n * (dj * imb), dwb * dj), serial)
                 if wp.abs(dj) * kn > MANIFOLD_TOLERANCE:
                     moving = int(1)
         sweep += 1
@@ -1016,18 +999,7 @@ def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, 
                 dwb = inv_inertia_times(qb, b.inv_inertia[ib], cb)
                 k_d = ima + imb + wp.dot(ca, dwa) + wp.dot(cb, dwb)
                 jt = wp.min(vt / k_d, rows[kk].friction * j / relax) * relax
-                _add_pair(
-                    b.velocity,
-                    b.angular_velocity,
-                    b.inv_mass,
-                    ia,
-                    ib,
-                    -d * (jt * ima),
-                    -dwa * jt,
-                    d * (jt * imb),
-                    dwb * jt,
-                    serial,
-                )
+                _add_pair(b, ia, ib, _delta(-d * (jt * ima), -dwa * jt, d * (jt * imb), dwb * jt), serial)
     if patch and torque > float_t(0.0) and rows[k].friction > float_t(0.0):
         n = rows[k].normal
         wn = wp.dot(b.angular_velocity[ib] - b.angular_velocity[ia], n)
@@ -1038,7 +1010,7 @@ def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, 
             k_w = wp.dot(d, dwa) + wp.dot(d, dwb)
             relax = rows[k].scale
             jw = wp.min(wp.abs(wn) / k_w, rows[k].friction * torque / relax) * relax
-            _add_pair(b.velocity, b.angular_velocity, b.inv_mass, ia, ib, vec3(), -dwa * jw, vec3(), dwb * jw, serial)
+            _add_pair(b, ia, ib, _delta(vec3(), -dwa * jw, vec3(), dwb * jw), serial)
     return 1
 
 
@@ -1127,6 +1099,15 @@ _IMPACTS = {serial: _make_impacts(serial) for serial in (0, 1)}
 # ---------------------------------------------------------------------------- host side
 
 
+class SolverStructs(NamedTuple):
+    """The structs the solver's kernels take, built once per set of arrays (`ContactSet.begin_solve`)."""
+
+    contacts: Contacts
+    bodies: BodyArrays
+    previous: Previous
+    owners: Owners
+
+
 class ContactSet(ArraySet):
     """Contact arrays (see CONTACT_FIELDS) plus last step's contacts for warm starting, and the
     solver's rows (`rows`, one `ContactRow` per contact, scratch prepared every step)."""
@@ -1151,7 +1132,7 @@ class ContactSet(ArraySet):
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
-        self._structs: tuple[Contacts, BodyArrays, Previous] | None = None
+        self._structs: SolverStructs | None = None
         self._passes: dict[tuple[float, bool], SolvePass] = {}
         self._writer: ContactWriter | None = None
 
@@ -1216,7 +1197,11 @@ class ContactSet(ArraySet):
                 self.impact_changed = wp.zeros(bodies.capacity, dtype=wp.int64, device=dev)
             self.owner_entries = wp.zeros(p.capacity, dtype=wp.int32, device=dev)
             self.impact_tested = wp.zeros(self.capacity, dtype=wp.int64, device=dev)
-            self._structs = (self.struct(), body_arrays(bodies)[0], fill_struct(Previous, p.arrays, "previous_"))
+            owners = Owners()
+            owners.start, owners.count = self.owner_start, self.owner_count
+            owners.fill, owners.entries = self.owner_fill, self.owner_entries
+            previous = fill_struct(Previous, p.arrays, "previous_")
+            self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners)
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
         counts = (self.count, p.count)
         if self.device == "cpu":
@@ -1230,21 +1215,16 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        c, b, p = self._structs
+        c, b, p, owners = self._structs
         dev = self.device
         self.owner_count.zero_()
         self.owner_fill.zero_()
         # last step's contacts bucketed by owner (counting sort), launched over their capacity
         cap = self.previous.capacity
-        # (plain arrays: for so light a kernel, copying a struct argument per thread costs more than its work)
-        prev = self.previous.arrays
-        pair, inv_mass = [prev["previous_body_a"], prev["previous_body_b"]], bodies.arrays["body_inv_mass"]
-        wp.launch(_owner_count, dim=cap, device=dev, inputs=[*pair, inv_mass, self.owner_count, self.counts])
+        wp.launch(_owner_count, dim=cap, device=dev, inputs=[p, b, owners, self.counts])
         wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
-        owners = [self.owner_start, self.owner_fill, self.owner_entries]
-        wp.launch(_owner_scatter, dim=cap, device=dev, inputs=[*pair, inv_mass, *owners, self.counts])
-        owners = [self.owner_start, self.owner_count, self.owner_entries]
-        args = [c, b, MATCH_TOLERANCE, *owners, p, self.jn_warm, self.jt_world, self.counts]
+        wp.launch(_owner_scatter, dim=cap, device=dev, inputs=[p, b, owners, self.counts])
+        args = [c, b, MATCH_TOLERANCE, owners, p, self.jn_warm, self.jt_world, self.counts]
         wp.launch(_match, dim=self.capacity, device=dev, inputs=args)
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
@@ -1271,7 +1251,7 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        c, b, p = self._structs
+        c, b, p, _ = self._structs
         wp.launch(_store, dim=self.capacity, device=self.device, inputs=[c, self.rows, b, p, self.counts])
 
     def end_solve(self) -> None:
@@ -1304,7 +1284,7 @@ def prepare(bodies, contacts: ContactSet) -> None:
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     jacobi = 0 if contacts.device == "cpu" else 1
-    c, b, _ = contacts._structs
+    c, b = contacts._structs.contacts, contacts._structs.bodies
     if jacobi:
         contacts.body_count.zero_()
         wp.launch(
@@ -1339,7 +1319,7 @@ def warm_start(bodies, contacts: ContactSet) -> None:
             _warm_start,
             dim=contacts.capacity,
             device=contacts.device,
-            inputs=[contacts.rows, contacts._structs[1], _serial(contacts), contacts.counts],
+            inputs=[contacts.rows, contacts._structs.bodies, _serial(contacts), contacts.counts],
         )
 
 
@@ -1349,7 +1329,7 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     serial = _serial(contacts)
-    args = [contacts.rows, contacts._structs[1], _solve_pass(contacts, h, use_bias), contacts.counts]
+    args = [contacts.rows, contacts._structs.bodies, _solve_pass(contacts, h, use_bias), contacts.counts]
     launch(_SOLVES[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
 
 
@@ -1397,7 +1377,7 @@ def impacts(
     floor = 2.0 * float(np.linalg.norm(gravity)) * h  # the approach speed gravity gives in two substeps
     args = [
         contacts.rows,
-        contacts._structs[1],
+        contacts._structs.bodies,
         vec3(*gravity),
         h,
         threshold,
