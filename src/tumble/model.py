@@ -90,7 +90,7 @@ _M, _S, _C, _X = Role.MODEL, Role.STATE, Role.CONTROL, Role.SCRATCH
 
 #: every per-body array: one row per body, rows reordered in space for large worlds (`World._sort_bodies`)
 BODY_FIELDS: tuple[Field, ...] = (
-    Field("body_id", wp.int32, _M, "", "the id given at creation (rows are reordered in space; ids stay)"),
+    Field("body_id", wp.int32, _M, "", "the id given at creation (rows are reordered in space; ids stay)", kernel=True),
     Field("body_shape", wp.int32, _M, "", "shape type (ShapeType)", kernel=True),
     Field("body_kind", wp.int32, _M, "", "how the body moves (BodyKind: dynamic, static, kinematic)"),
     Field("body_radius", float_t, _M, "m", "sphere and capsule radius (0 for other shapes)", kernel=True),

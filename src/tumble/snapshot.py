@@ -369,6 +369,8 @@ class _Restore:
                 continue
             if name in saved:
                 self.value(obj, name, value, prefix + name)
+            elif name in getattr(type(obj), "SNAPSHOT_CACHES", ()):
+                _assign(obj, name, None)  # a cache the snapshot's version had not: rebuilt on first use
             elif _is_plain(value) or isinstance(value, (np.ndarray, wp.array)):
                 delattr(obj, name)  # made after the snapshot was taken (a lazily sized buffer)
         for name in sorted(saved - set(vars(obj))):

@@ -27,10 +27,11 @@ import numpy as np
 import warp as wp
 
 from ..launch import LaunchCache, launch
-from ..real import float_t, quat, vec3
+from ..model import body_struct
+from ..real import BodyArrays, float_t, vec3
 from ..shapes import ShapeType
 from ..state import host_view
-from .hashgrid import HashGrid, cell_hash, cell_of
+from .hashgrid import Grid, HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
 MARGIN = 0.002
@@ -40,20 +41,13 @@ _HALF_RANGE = wp.constant(float_t(0.5 * MAX_RANGE))
 
 
 @wp.kernel
-def _swept_radius(
-    shape: wp.array(dtype=wp.int32),
-    bound: wp.array(dtype=float_t),
-    v: wp.array(dtype=vec3),
-    w: wp.array(dtype=vec3),
-    dt: float_t,
-    margin: float_t,
-    radius: wp.array(dtype=float_t),
-):
+def _swept_radius(b: BodyArrays, dt: float_t, margin: float_t, radius: wp.array(dtype=float_t)):
     i = wp.tid()
-    if shape[i] == int(ShapeType.PLANE):
-        radius[i] = bound[i]  # inf
+    if b.shape[i] == int(ShapeType.PLANE):
+        radius[i] = b.bound_radius[i]  # inf
     else:
-        radius[i] = bound[i] + dt * (wp.length(v[i]) + wp.length(w[i]) * bound[i]) + margin
+        bound = b.bound_radius[i]
+        radius[i] = bound + dt * (wp.length(b.velocity[i]) + wp.length(b.angular_velocity[i]) * bound) + margin
 
 
 @wp.kernel
@@ -84,87 +78,61 @@ def _emits(i: int, j: int, ri: float_t, rj: float_t, inv_mass: wp.array(dtype=fl
     return rj < ri or (rj == ri and j > i)
 
 
+@wp.struct
+class PairList:
+    """The candidate pairs as kernels write them: `count[0]` pairs (body rows `a[k]`, `b[k]`); a
+    query counts past the capacity when it overflows, and the host grows the buffers."""
+
+    count: wp.array(dtype=wp.int32)
+    a: wp.array(dtype=wp.int32)
+    b: wp.array(dtype=wp.int32)
+
+
 @wp.func
-def _push_pair(
-    i: int,
-    j: int,
-    body_id: wp.array(dtype=wp.int32),
-    pair_count: wp.array(dtype=wp.int32),
-    pair_a: wp.array(dtype=wp.int32),
-    pair_b: wp.array(dtype=wp.int32),
-):
+def _push_pair(i: int, j: int, body_id: wp.array(dtype=wp.int32), pairs: PairList):
     # stored lower id first, so a pair keeps its order (and its warm start) from step to step,
     # even when the world renumbers its body rows
-    k = wp.atomic_add(pair_count, 0, 1)
-    if k < pair_a.shape[0]:
+    k = wp.atomic_add(pairs.count, 0, 1)
+    if k < pairs.a.shape[0]:
         if body_id[i] < body_id[j]:
-            pair_a[k] = i
-            pair_b[k] = j
+            pairs.a[k] = i
+            pairs.b[k] = j
         else:
-            pair_a[k] = j
-            pair_b[k] = i
+            pairs.a[k] = j
+            pairs.b[k] = i
 
 
 @wp.kernel
-def _query_large(
-    n: int,
-    point_cell: wp.array(dtype=wp.int32),
-    shape: wp.array(dtype=wp.int32),
-    x: wp.array(dtype=vec3),
-    q: wp.array(dtype=quat),
-    radius: wp.array(dtype=float_t),
-    inv_mass: wp.array(dtype=float_t),
-    body_id: wp.array(dtype=wp.int32),
-    pair_count: wp.array(dtype=wp.int32),
-    pair_a: wp.array(dtype=wp.int32),
-    pair_b: wp.array(dtype=wp.int32),
-):
+def _query_large(n: int, b: BodyArrays, radius: wp.array(dtype=float_t), g: Grid, pairs: PairList):
     # bodies too big for the grid (planes, huge static boxes, very fast bodies) test every body
     i = wp.tid()
-    if point_cell[i] >= 0:
+    if g.point_cell[i] >= 0:
         return
     ri = radius[i]
-    xi = x[i]
-    nrm = wp.quat_rotate(q[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
+    xi = b.position[i]
+    nrm = wp.quat_rotate(b.orientation[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
     for j in range(n):
-        if j != i and _emits(i, j, ri, radius[j], inv_mass):
+        if j != i and _emits(i, j, ri, radius[j], b.inv_mass):
             near = False
-            if shape[i] == int(ShapeType.PLANE):
-                near = wp.dot(nrm, x[j] - xi) < radius[j]  # signed distance to the plane
+            if b.shape[i] == int(ShapeType.PLANE):
+                near = wp.dot(nrm, b.position[j] - xi) < radius[j]  # signed distance to the plane
             else:
-                near = wp.length(x[j] - xi) < ri + radius[j]
+                near = wp.length(b.position[j] - xi) < ri + radius[j]
             if near:
-                _push_pair(i, j, body_id, pair_count, pair_a, pair_b)
+                _push_pair(i, j, b.id, pairs)
 
 
 @wp.kernel
-def _query_grid(
-    x: wp.array(dtype=vec3),
-    radius: wp.array(dtype=float_t),
-    point_cell: wp.array(dtype=wp.int32),
-    inv_mass: wp.array(dtype=float_t),
-    params: wp.array(dtype=float_t),  # (cell edge, its inverse, largest radius in the grid)
-    mask: int,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_count: wp.array(dtype=wp.int32),
-    entries: wp.array(dtype=wp.int32),
-    sorted_x: wp.array(dtype=vec3),
-    sorted_radius: wp.array(dtype=float_t),
-    sorted_coord: wp.array(dtype=wp.vec3i),
-    body_id: wp.array(dtype=wp.int32),
-    pair_count: wp.array(dtype=wp.int32),
-    pair_a: wp.array(dtype=wp.int32),
-    pair_b: wp.array(dtype=wp.int32),
-):
+def _query_grid(b: BodyArrays, radius: wp.array(dtype=float_t), g: Grid, pairs: PairList):
     # one thread per body, in index order, so that pairs (and the contacts made from them) come
     # out sorted by their emitting body: the solver then walks body memory nearly in order
     # (cell order, being hashed, would send it all over the body arrays: 3x slower at 100k)
     i = wp.tid()
-    if point_cell[i] < 0:
+    if g.point_cell[i] < 0:
         return
-    inv_cell = params[1]
+    inv_cell = g.params[1]
     ri = radius[i]
-    xi = x[i]
+    xi = b.position[i]
     # partners have R_j <= R_i, so they lie within 2 R_i along each axis
     reach = vec3(float_t(2.0) * ri, float_t(2.0) * ri, float_t(2.0) * ri)
     lo = cell_of(xi - reach, inv_cell)
@@ -172,18 +140,18 @@ def _query_grid(
     for cz in range(lo[2], hi[2] + 1):
         for cy in range(lo[1], hi[1] + 1):
             for cx in range(lo[0], hi[0] + 1):
-                h = cell_hash(wp.vec3i(cx, cy, cz), mask)
-                start = cell_start[h]
-                for e in range(start, start + cell_count[h]):
-                    rj = sorted_radius[e]
+                h = cell_hash(wp.vec3i(cx, cy, cz), g.mask)
+                start = g.cell_start[h]
+                for e in range(start, start + g.cell_count[h]):
+                    rj = g.sorted_radius[e]
                     reach_ij = ri + rj
-                    if wp.length_sq(sorted_x[e] - xi) < reach_ij * reach_ij:
+                    if wp.length_sq(g.sorted_x[e] - xi) < reach_ij * reach_ij:
                         # hash collisions: only take j from the cell it really lives in
-                        cj = sorted_coord[e]
+                        cj = g.sorted_coord[e]
                         if cj[0] == cx and cj[1] == cy and cj[2] == cz:
-                            j = entries[e]
-                            if j != i and _emits(i, j, ri, rj, inv_mass):
-                                _push_pair(i, j, body_id, pair_count, pair_a, pair_b)
+                            j = g.entries[e]
+                            if j != i and _emits(i, j, ri, rj, b.inv_mass):
+                                _push_pair(i, j, b.id, pairs)
 
 
 class BroadPhase:
@@ -194,6 +162,9 @@ class BroadPhase:
         cell_size: grid cell edge [m] used by the last call.
     """
 
+    #: a cache that snapshots keep by name only: the pair buffers as the queries take them
+    SNAPSHOT_CACHES = frozenset({"_pair_list"})
+
     def __init__(self, device: str):
         self.device = device
         self.grid = HashGrid(device)
@@ -201,6 +172,7 @@ class BroadPhase:
         self.pair_a = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=device)
         self.pair_count_array = wp.zeros(1, dtype=wp.int32, device=device)
+        self._pair_list: PairList | None = None
         self.pair_count = 0
         self.cell_size = 1.0
         self.cell_params = wp.zeros(3, dtype=float_t, device=device)  # cell edge, its inverse, max radius
@@ -272,72 +244,28 @@ class BroadPhase:
     def launch(self, bodies, dt: float, cache: LaunchCache | None = None) -> None:
         """Every launch of the pair search, with no host decision between them (so it can be recorded)."""
         n = bodies.count
-        b = bodies.arrays
         dev = self.device
-        launch(
-            _swept_radius,
-            n,
-            [
-                b["body_shape"],
-                b["body_bound_radius"],
-                b["body_velocity"],
-                b["body_angular_velocity"],
-                dt,
-                MARGIN,
-                self.swept_radius,
-            ],
-            dev,
-            cache,
-        )
+        launch(_swept_radius, n, [body_struct(bodies), dt, MARGIN, self.swept_radius], dev, cache)
         # cell edge: twice the largest swept radius among ordinary bodies, so most scan 2-3 cells a side
         launch(_cell_size, 1, [self.swept_radius, n, self._ordinary_limit, self.cell_params], dev, cache)
         # counting sort of bodies into hashed cells; the biggest stay out and test everything
-        self.grid.build_from(b["body_position"], n, self.cell_params, self.swept_radius, cache)
+        self.grid.build_from(bodies.arrays["body_position"], n, self.cell_params, self.swept_radius, cache)
         self.pair_count_array.zero_()
         self._query(bodies, cache)
 
     def _query(self, bodies, cache: LaunchCache | None) -> None:
         n = bodies.count
-        b = bodies.arrays
-        grid = self.grid
-        out = (b["body_id"], self.pair_count_array, self.pair_a, self.pair_b)  # both queries' last arguments
-        launch(
-            _query_grid,
-            n,
-            [
-                b["body_position"],
-                self.swept_radius,
-                grid.point_cell,
-                b["body_inv_mass"],
-                self.cell_params,
-                grid.mask,
-                grid.cell_start,
-                grid.cell_count,
-                grid.entries,
-                grid.sorted_x,
-                grid.sorted_radius,
-                grid.sorted_coord,
-                *out,
-            ],
-            self.device,
-            cache,
-        )
-        launch(
-            _query_large,
-            n,
-            [
-                n,
-                grid.point_cell,
-                b["body_shape"],
-                b["body_position"],
-                b["body_orientation"],
-                self.swept_radius,
-                b["body_inv_mass"],
-                *out,
-            ],
-            self.device,
-            cache,
-        )
+        args = [body_struct(bodies), self.swept_radius, self.grid.struct(self.cell_params), self._pairs()]
+        launch(_query_grid, n, args, self.device, cache)
+        launch(_query_large, n, [n, *args], self.device, cache)
+
+    def _pairs(self) -> PairList:
+        """The pair buffers as the queries write them (the same struct while the buffers are)."""
+        p = self._pair_list
+        if p is None or p.a is not self.pair_a:
+            p = self._pair_list = PairList()
+            p.count, p.a, p.b = self.pair_count_array, self.pair_a, self.pair_b
+        return p
 
     def end(self, bodies, cache: LaunchCache | None = None) -> bool:
         """Host side after `launch`: read the pair count; grow the pair buffers and query again if

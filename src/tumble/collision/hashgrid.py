@@ -51,53 +51,53 @@ def cell_hash(c: wp.vec3i, mask: int):
     return int((((hx ^ hy ^ hz) << wp.uint32(6)) | local) & wp.uint32(mask))
 
 
+@wp.struct
+class Grid:
+    """A `HashGrid`'s arrays as kernels take them (`HashGrid.struct`); see `HashGrid` for each."""
+
+    params: wp.array(dtype=float_t)  # (cell edge, its inverse, largest radius kept in the grid)
+    mask: int
+    cell_start: wp.array(dtype=wp.int32)
+    cell_count: wp.array(dtype=wp.int32)
+    cell_fill: wp.array(dtype=wp.int32)
+    entries: wp.array(dtype=wp.int32)
+    sorted_x: wp.array(dtype=vec3)
+    sorted_radius: wp.array(dtype=float_t)
+    sorted_coord: wp.array(dtype=wp.vec3i)
+    point_cell: wp.array(dtype=wp.int32)
+    point_cell_coord: wp.array(dtype=wp.vec3i)
+
+
 @wp.kernel
-def _count(
-    x: wp.array(dtype=vec3),
-    radius: wp.array(dtype=float_t),
-    params: wp.array(dtype=float_t),  # (cell edge, its inverse, largest radius kept in the grid)
-    mask: int,
-    point_cell: wp.array(dtype=wp.int32),
-    point_cell_coord: wp.array(dtype=wp.vec3i),
-    cell_count: wp.array(dtype=wp.int32),
-):
+def _count(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
     i = wp.tid()
-    if radius[i] > params[2]:
-        point_cell[i] = -1  # left out of the grid (its owner queries it some other way)
+    if radius[i] > g.params[2]:
+        g.point_cell[i] = -1  # left out of the grid (its owner queries it some other way)
         return
-    c = cell_of(x[i], params[1])
-    h = cell_hash(c, mask)
-    point_cell[i] = h
-    point_cell_coord[i] = c
-    wp.atomic_add(cell_count, h, 1)
+    c = cell_of(x[i], g.params[1])
+    h = cell_hash(c, g.mask)
+    g.point_cell[i] = h
+    g.point_cell_coord[i] = c
+    wp.atomic_add(g.cell_count, h, 1)
 
 
 @wp.kernel
-def _scatter(
-    x: wp.array(dtype=vec3),
-    radius: wp.array(dtype=float_t),
-    point_cell: wp.array(dtype=wp.int32),
-    point_cell_coord: wp.array(dtype=wp.vec3i),
-    cell_start: wp.array(dtype=wp.int32),
-    cell_fill: wp.array(dtype=wp.int32),
-    entries: wp.array(dtype=wp.int32),
-    sorted_x: wp.array(dtype=vec3),
-    sorted_radius: wp.array(dtype=float_t),
-    sorted_coord: wp.array(dtype=wp.vec3i),
-):
+def _scatter(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
     i = wp.tid()
-    h = point_cell[i]
+    h = g.point_cell[i]
     if h >= 0:
-        e = cell_start[h] + wp.atomic_add(cell_fill, h, 1)
-        entries[e] = i
+        e = g.cell_start[h] + wp.atomic_add(g.cell_fill, h, 1)
+        g.entries[e] = i
         # copies in cell order, so a query reads each cell's points from contiguous memory
-        sorted_x[e] = x[i]
-        sorted_radius[e] = radius[i]
-        sorted_coord[e] = point_cell_coord[i]
+        g.sorted_x[e] = x[i]
+        g.sorted_radius[e] = radius[i]
+        g.sorted_coord[e] = g.point_cell_coord[i]
 
 
 class HashGrid:
     """Points sorted into hashed cells.
+
+    (`_struct`, the arrays as kernels take them, is a cache that snapshots keep by name only.)
 
     Attributes:
         cell_size: cell edge of the last build [m]; `inv_cell` its inverse.
@@ -110,6 +110,8 @@ class HashGrid:
         point_cell_coord: integer cell coordinates of each point, vec3i.
     """
 
+    SNAPSHOT_CACHES = frozenset({"_struct"})
+
     def __init__(self, device: str):
         self.device = device
         self.cell_size = 1.0
@@ -117,6 +119,7 @@ class HashGrid:
         self.mask = 0
         self._points = 0
         self.params = wp.zeros(3, dtype=float_t, device=device)  # what `build` was given, for the kernels
+        self._struct: Grid | None = None  # the last `struct`, kept while its arrays are the grid's
 
     def reserve(self, count: int) -> None:
         """Size the table and the point buffers for `count` points (allocates only when they grow)."""
@@ -129,6 +132,7 @@ class HashGrid:
             self.cell_count = wp.zeros(table, dtype=wp.int32, device=self.device)
             self.cell_start = wp.zeros(table, dtype=wp.int32, device=self.device)
             self.cell_fill = wp.zeros(table, dtype=wp.int32, device=self.device)
+            self._struct = None  # made anew by `struct` over the arrays in use
         if count > self._points:
             self._points = max(count, 2 * self._points)
             self.point_cell = wp.zeros(self._points, dtype=wp.int32, device=self.device)
@@ -138,6 +142,7 @@ class HashGrid:
             self.sorted_x = wp.zeros(self._points, dtype=vec3, device=self.device)
             self.sorted_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
+            self._struct = None
 
     def build(
         self,
@@ -175,33 +180,27 @@ class HashGrid:
         self.cell_fill.zero_()
         if count == 0:
             return self
-        launch(
-            _count,
-            count,
-            [x, radius, params, self.mask, self.point_cell, self.point_cell_coord, self.cell_count],
-            self.device,
-            cache,
-        )
+        grid = self.struct(params)
+        launch(_count, count, [x, radius, grid], self.device, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        launch(
-            _scatter,
-            count,
-            [
-                x,
-                radius,
-                self.point_cell,
-                self.point_cell_coord,
-                self.cell_start,
-                self.cell_fill,
-                self.entries,
-                self.sorted_x,
-                self.sorted_radius,
-                self.sorted_coord,
-            ],
-            self.device,
-            cache,
-        )
+        launch(_scatter, count, [x, radius, grid], self.device, cache)
         return self
+
+    def struct(self, params: wp.array | None = None) -> Grid:
+        """The grid's arrays as kernels take them, with `params` (default: `self.params`, what `build`
+        was given) as the cell edge, its inverse and the largest radius kept in the grid.
+
+        The same struct comes back while the arrays are the same ones (a recorded launch then re-packs
+        nothing): a struct is never changed after it is made, since recorded launches hold copies."""
+        params = self.params if params is None else params
+        g = self._struct
+        if g is None or g.params is not params:
+            g = self._struct = Grid()
+            g.params, g.mask = params, self.mask
+            g.cell_start, g.cell_count, g.cell_fill = self.cell_start, self.cell_count, self.cell_fill
+            g.entries, g.point_cell, g.point_cell_coord = self.entries, self.point_cell, self.point_cell_coord
+            g.sorted_x, g.sorted_radius, g.sorted_coord = self.sorted_x, self.sorted_radius, self.sorted_coord
+        return g
 
 
 def _spread_bits(v: np.ndarray) -> np.ndarray:
