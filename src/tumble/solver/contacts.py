@@ -71,7 +71,7 @@ from ..model import body_arrays
 from ..real import TYPES, BodyArrays, float_t, vec3
 from ..state import ArraySet, host_view
 from ..structs import array_struct, fill_struct
-from .rigid import inv_inertia_times, inv_inertia_world, safe_inverse
+from .rigid import add_to_velocity, inv_inertia_times, inv_inertia_world, safe_inverse
 
 vec4 = wp.types.vector(length=4, dtype=float_t)
 
@@ -485,24 +485,13 @@ def _delta(va: vec3, wa: vec3, vb: vec3, wb: vec3):
 
 
 @wp.func
-def _add(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), i: int, dv: vec3, dw: vec3, serial: int):
-    """Add dv, dw to body i's velocities v, w: `serial` (CPU) plain updates, one contact after another
-    (Gauss-Seidel); else atomics (CUDA)."""
-    if serial != 0:
-        v[i] = v[i] + dv
-        w[i] = w[i] + dw
-    else:
-        wp.atomic_add(v, i, dv)
-        wp.atomic_add(w, i, dw)
-
-
-@wp.func
 def _add_pair(b: BodyArrays, ia: int, ib: int, d: Delta, serial: int):
-    """Add one contact's changes d to the velocities of its two bodies (static bodies never change)."""
+    """Add one contact's changes d to the velocities of its two bodies (static bodies never change):
+    plain updates on the CPU (`serial`), one contact after another (Gauss-Seidel); else atomics (CUDA)."""
     if b.inv_mass[ia] > float_t(0.0):
-        _add(b.velocity, b.angular_velocity, ia, d.va, d.wa, serial)
+        add_to_velocity(b.velocity, b.angular_velocity, ia, d.va, d.wa, serial)
     if b.inv_mass[ib] > float_t(0.0):
-        _add(b.velocity, b.angular_velocity, ib, d.vb, d.wb, serial)
+        add_to_velocity(b.velocity, b.angular_velocity, ib, d.vb, d.wb, serial)
 
 
 @wp.kernel
@@ -783,9 +772,9 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
             wb_ = wb_ + rows[kk].angular_b_n * jn + rows[kk].angular_b_t1 * j1 + rows[kk].angular_b_t2 * j2
             wb_ = wb_ + rows[kk].angular_b_twist * jw
         if pair.ima > float_t(0.0):
-            _add(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
+            add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
         if pair.imb > float_t(0.0):
-            _add(b.warm_velocity, b.warm_angular_velocity, ib, P * pair.imb, wb_, serial)
+            add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ib, P * pair.imb, wb_, serial)
 
 
 def _make_solve(serial: int):
@@ -820,6 +809,16 @@ class ImpactPass:
     threshold: float_t  # approach speed [m/s] below which a contact carrying load does not bounce
     floor: float_t  # the same for a contact carrying none: the approach gravity gives in two substeps
     ahead: int  # 1: the velocities are the next substep's but for its gravity kick
+
+
+@wp.struct
+class Ticks:
+    """When the serial collision pass last tested each contact and last changed each body, in ticks of
+    `clock` (which only grows): a contact neither of whose bodies changed since its last test is skipped."""
+
+    tested: wp.array(dtype=wp.int64)  # per contact
+    changed: wp.array(dtype=wp.int64)  # per body
+    clock: wp.array(dtype=wp.int64)  # one value
 
 
 @wp.func(inline=True)
@@ -1021,25 +1020,8 @@ def _make_impacts(serial: int):
     # a name of its own: a recorded CPU graph finds a kernel by its name
     @wp.kernel(name="_impacts_serial" if serial else "_impacts_parallel")
     def impacts(
-        rows: wp.array(dtype=ContactRow),
-        b: BodyArrays,
-        gravity: vec3,
-        h: float_t,
-        threshold: float_t,
-        floor: float_t,
-        ahead: int,
-        counts: wp.array(dtype=wp.int32),
-        tested: wp.array(dtype=wp.int64),
-        changed: wp.array(dtype=wp.int64),
-        clock: wp.array(dtype=wp.int64),
+        rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass, ticks: Ticks, counts: wp.array(dtype=wp.int32)
     ):
-        # the parameters gathered in a local struct (values the compiler keeps in registers)
-        p = ImpactPass()
-        p.gravity = gravity
-        p.h = h
-        p.threshold = threshold
-        p.floor = floor
-        p.ahead = ahead
         if wp.static(serial == 0):
             # one thread per contact (CUDA): atomics and the Jacobi scale
             thread = wp.tid()
@@ -1057,7 +1039,7 @@ def _make_impacts(serial: int):
             # `tested` hold ticks of `clock`, which only grows); the ones skipped would collide nothing
             # again, and the result is the same as sweeping them all.
             count = counts[0]
-            t = clock[0]
+            t = ticks.clock[0]
             one = wp.int64(1)
             sweep = int(0)
             hits = int(1)
@@ -1073,21 +1055,21 @@ def _make_impacts(serial: int):
                     ia = rows[k].body_a
                     ib = rows[k].body_b
                     if sweep > 0:
-                        last = tested[k]
-                        if changed[ia] < last and changed[ib] < last:
+                        last = ticks.tested[k]
+                        if ticks.changed[ia] < last and ticks.changed[ib] < last:
                             continue
                     t = t + one
-                    tested[k] = t
+                    ticks.tested[k] = t
                     hit = _impact(k, size, rows, b, p, 1)
                     if hit > 0:
                         t = t + one
                         if b.inv_mass[ia] > float_t(0.0):
-                            changed[ia] = t
+                            ticks.changed[ia] = t
                         if b.inv_mass[ib] > float_t(0.0):
-                            changed[ib] = t
+                            ticks.changed[ib] = t
                         hits += hit
                 sweep += 1
-            clock[0] = t
+            ticks.clock[0] = t
 
     return impacts
 
@@ -1106,6 +1088,7 @@ class SolverStructs(NamedTuple):
     bodies: BodyArrays
     previous: Previous
     owners: Owners
+    ticks: Ticks
 
 
 class ContactSet(ArraySet):
@@ -1133,7 +1116,7 @@ class ContactSet(ArraySet):
         self._owner_capacity = 0
         self._sized: tuple = ()
         self._structs: SolverStructs | None = None
-        self._passes: dict[tuple[float, bool], SolvePass] = {}
+        self._passes: dict[tuple, SolvePass | ImpactPass] = {}
         self._writer: ContactWriter | None = None
 
     def grow(self, count: int) -> None:
@@ -1201,7 +1184,9 @@ class ContactSet(ArraySet):
             owners.start, owners.count = self.owner_start, self.owner_count
             owners.fill, owners.entries = self.owner_fill, self.owner_entries
             previous = fill_struct(Previous, p.arrays, "previous_")
-            self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners)
+            ticks = Ticks()
+            ticks.tested, ticks.changed, ticks.clock = self.impact_tested, self.impact_changed, self.impact_clock
+            self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners, ticks)
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
         counts = (self.count, p.count)
         if self.device == "cpu":
@@ -1215,7 +1200,7 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        c, b, p, owners = self._structs
+        c, b, p, owners = self._structs.contacts, self._structs.bodies, self._structs.previous, self._structs.owners
         dev = self.device
         self.owner_count.zero_()
         self.owner_fill.zero_()
@@ -1251,7 +1236,7 @@ class ContactSet(ArraySet):
         if self.count == 0:
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
-        c, b, p, _ = self._structs
+        c, b, p = self._structs.contacts, self._structs.bodies, self._structs.previous
         wp.launch(_store, dim=self.capacity, device=self.device, inputs=[c, self.rows, b, p, self.counts])
 
     def end_solve(self) -> None:
@@ -1334,20 +1319,29 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
 
 
 def _solve_pass(contacts: ContactSet, h: float, use_bias: bool) -> SolvePass:
-    """The parameters of a solve pass at substep h, one struct per (h, use_bias) kept by the contact set
-    (a recorded launch re-packs a struct argument only when it is another one)."""
-    key = (h, use_bias)
-    p = contacts._passes.get(key)
-    if p is None:
-        if len(contacts._passes) >= 8:
-            contacts._passes.clear()  # dt or substeps changed many times: keep only the passes in use
-        p = contacts._passes[key] = SolvePass()
+    """The parameters of a solve pass at substep h."""
+
+    def parameters() -> SolvePass:
+        p = SolvePass()
         p.inv_h = float_t(1.0 / h)
         p.use_bias = int(use_bias)
         p.bias_rate, p.mass_scale, p.impulse_scale = map(float_t, softness(h))
         p.static_bias_rate, p.static_mass_scale, p.static_impulse_scale = map(float_t, softness(h, stiffness=2.0))
         p.max_push = float_t(MAX_PUSH_VELOCITY)
         p.slop = float_t(LINEAR_SLOP)
+        return p
+
+    return _parameters(contacts, ("solve", h, use_bias), parameters)
+
+
+def _parameters(contacts: ContactSet, key: tuple, make):
+    """The struct of a pass's parameters that `make()` builds, one per key kept by the contact set: a
+    recorded launch re-packs a struct argument only when it is another one."""
+    p = contacts._passes.get(key)
+    if p is None:
+        if len(contacts._passes) >= 16:
+            contacts._passes.clear()  # dt, substeps or gravity changed many times: keep only the passes in use
+        p = contacts._passes[key] = make()
     return p
 
 
@@ -1373,19 +1367,15 @@ def impacts(
     if contacts.count == 0:
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
+
+    def parameters() -> ImpactPass:
+        p = ImpactPass()
+        p.gravity, p.h, p.threshold = vec3(*gravity), float_t(h), float_t(threshold)
+        p.floor = float_t(2.0 * float(np.linalg.norm(gravity)) * h)  # the approach speed gravity gives in two substeps
+        p.ahead = int(ahead)
+        return p
+
+    p = _parameters(contacts, ("impacts", tuple(map(float, gravity)), h, threshold, ahead), parameters)
     serial = _serial(contacts)
-    floor = 2.0 * float(np.linalg.norm(gravity)) * h  # the approach speed gravity gives in two substeps
-    args = [
-        contacts.rows,
-        contacts._structs.bodies,
-        vec3(*gravity),
-        h,
-        threshold,
-        floor,
-        int(ahead),
-        contacts.counts,
-        contacts.impact_tested,
-        contacts.impact_changed,
-        contacts.impact_clock,
-    ]
+    args = [contacts.rows, contacts._structs.bodies, p, contacts._structs.ticks, contacts.counts]
     launch(_IMPACTS[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)

@@ -114,7 +114,7 @@ from ..model import Field, Role, body_arrays, fields_of
 from ..real import BodyArrays, float_t, mat22, mat33, quat, vec2, vec3
 from ..state import ArraySet, RowGroup, readonly
 from ..structs import array_struct, fill_struct
-from .rigid import inv_inertia_world, safe_inverse
+from .rigid import add_to_velocity, inv_inertia_world, safe_inverse
 
 # no adjoint code: nothing differentiates through the joints, and it would double the compile time
 wp.set_module_options({"enable_backward": False})
@@ -383,16 +383,9 @@ def add_velocity(
     serial: int,
 ):
     """Add a velocity change to body row i (not the world, not static bodies); atomics off the CPU."""
-    if i < 0:
-        return
-    if inv_mass[i] == float_t(0.0):
-        return
-    if serial != 0:
-        v[i] = v[i] + dv
-        w[i] = w[i] + dw
-    else:
-        wp.atomic_add(v, i, dv)
-        wp.atomic_add(w, i, dw)
+    if i >= 0:
+        if inv_mass[i] != float_t(0.0):
+            add_to_velocity(v, w, i, dv, dw, serial)
 
 
 def _make_solve(kind: int):

@@ -31,3 +31,15 @@ def safe_inverse(k: float_t):
     if k > float_t(0.0):
         return float_t(1.0) / k
     return float_t(0.0)
+
+
+@wp.func
+def add_to_velocity(v: wp.array(dtype=vec3), w: wp.array(dtype=vec3), i: int, dv: vec3, dw: vec3, serial: int):
+    """Add dv, dw to row i of the velocities v, w: `serial` (the CPU) plain updates, one after another
+    in the thread's order (Gauss-Seidel); else atomics (CUDA)."""
+    if serial != 0:
+        v[i] = v[i] + dv
+        w[i] = w[i] + dw
+    else:
+        wp.atomic_add(v, i, dv)
+        wp.atomic_add(w, i, dw)
