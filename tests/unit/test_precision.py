@@ -29,7 +29,7 @@ def test_each_precision_has_its_own_copy_of_the_kernel_modules():
     assert k32.real.float_t is wp.float32 and k32.real.vec3 is wp.vec3f and k32.real.quat is wp.quatf
     assert k64.real.float_t is wp.float64 and k64.real.vec3 is wp.vec3d and k64.real.mat33 is wp.mat33d
     # a copy reaches the other kernel modules of its own precision ...
-    assert k32.contacts.ContactWriter is k32.narrowphase.ContactWriter
+    assert k32.contacts.Contacts is k32.narrowphase.Contacts
     assert k32.cloth.springs is k32.springs
     # ... and shares every other module, and the classes listed as shared
     assert importlib.import_module("tumble._float32.state") is tumble.state

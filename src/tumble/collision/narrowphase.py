@@ -28,6 +28,7 @@ from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
 from ..state import host_view
+from ..structs import array_struct
 from .hulls import Hulls, HullSet
 from .meshes import MeshSet
 
@@ -44,18 +45,21 @@ _ZERO = wp.constant(float_t(0.0))
 _ONE = wp.constant(float_t(1.0))
 
 
-@wp.struct
-class ContactWriter:
-    """The contact arrays the narrow phase appends to (capacity = length of the arrays)."""
+#: the contact arrays the narrow phase appends to, one row a contact point (the solver's `ContactSet`
+#: holds them; capacity = length of the arrays)
+CONTACT_FIELDS = {
+    "contact_body_a": wp.int32,
+    "contact_body_b": wp.int32,
+    "contact_normal": vec3,  # unit, a -> b
+    "contact_point": vec3,  # [m]
+    "contact_separation": float_t,  # [m], negative when overlapping
+    "contact_local_a": vec3,  # surface point on a, body frame [m]
+    "contact_local_b": vec3,
+}
 
-    count: wp.array(dtype=wp.int32)
-    body_a: wp.array(dtype=wp.int32)
-    body_b: wp.array(dtype=wp.int32)
-    normal: wp.array(dtype=vec3)
-    point: wp.array(dtype=vec3)
-    separation: wp.array(dtype=float_t)
-    local_a: wp.array(dtype=vec3)
-    local_b: wp.array(dtype=vec3)
+#: the contact arrays as kernels take them, with the count of the rows written (`count[0]`, an array of one):
+#: `contact_normal` is `c.normal`
+Contacts = array_struct("Contacts", {"contact_count": wp.int32, **CONTACT_FIELDS}, "contact_", __name__)
 
 
 @wp.struct
@@ -65,7 +69,7 @@ class Pose:
 
 
 @wp.func
-def emit(c: ContactWriter, a: int, b: int, pa_: Pose, pb_: Pose, n: vec3, p_a: vec3, p_b: vec3, max_sep: float_t):
+def emit(c: Contacts, a: int, b: int, pa_: Pose, pb_: Pose, n: vec3, p_a: vec3, p_b: vec3, max_sep: float_t):
     """Append one contact from surface points p_a (on a) and p_b (on b) and normal n (a -> b)."""
     s = wp.dot(n, p_b - p_a)
     if s > max_sep:
@@ -92,7 +96,7 @@ def _axis(q: quat, k: int):
 
 
 @wp.func
-def collide_plane_sphere(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, max_sep: float_t):
+def collide_plane_sphere(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, max_sep: float_t):
     # signed distance of the centre: d = n . (x_b - x_plane); separation = d - r
     n = _axis(A.q, 2)
     d = wp.dot(n, B.x - A.x)
@@ -113,7 +117,7 @@ def _box_corner(h: vec3, k: int):
 
 
 @wp.func
-def collide_plane_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, h: vec3, max_sep: float_t):
+def collide_plane_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, h: vec3, max_sep: float_t):
     # the (up to) four deepest of the eight corners
     n = _axis(A.q, 2)
     depth = vec8()
@@ -134,7 +138,7 @@ def collide_plane_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, h: vec
 
 @wp.func
 def collide_sphere_sphere(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -207,7 +211,7 @@ def box_closest(p: vec3, h: vec3):
 
 
 @wp.func
-def collide_sphere_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
+def collide_sphere_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
     # closest point of the box to the sphere centre, in the box frame
     p = wp.quat_rotate_inv(B.q, A.x - B.x)
     q, out, d = box_closest(p, h)  # out: box -> sphere, box frame
@@ -305,7 +309,7 @@ def _reduce_manifold(u2: vec8, v2: vec8, d2: vec8, m: int):
 
 @wp.func
 def _emit_manifold(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -336,7 +340,7 @@ def _emit_manifold(
 
 @wp.func
 def _face_contacts(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool, axis: int, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool, axis: int, max_sep: float_t
 ):
     """Manifold for a face axis: `axis` of the reference box (A if ref_is_a) against the other box."""
     R = A
@@ -439,7 +443,7 @@ def _lines_closest(pa: vec3, ua: vec3, ha: float_t, pb: vec3, ub: vec3):
 
 @wp.func
 def _edge_contact(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int, L: vec3, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, i: int, j: int, L: vec3, max_sep: float_t
 ):
     """Closest points of edge i of A and edge j of B for the cross axis L (oriented A -> B)."""
     pa = A.x
@@ -467,7 +471,7 @@ def _edge_contact(
 
 
 @wp.func
-def collide_box_box(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, max_sep: float_t):
+def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, max_sep: float_t):
     T = B.x - A.x
     best_sep = float_t(-1.0e30)
     best_kind = int(-1)  # 0: face of A, 1: face of B, 2: edge-edge
@@ -543,7 +547,7 @@ def _perpendicular(u: vec3):
 
 @wp.func
 def _sphere_pair(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -565,7 +569,7 @@ def _sphere_pair(
 
 
 @wp.func
-def collide_plane_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
+def collide_plane_capsule(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, max_sep: float_t):
     # the two end spheres against the plane: at most two contacts, a line contact when lying flat
     n = _axis(A.q, 2)
     u = _axis(B.q, 2)
@@ -580,7 +584,7 @@ def collide_plane_capsule(c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r:
 
 @wp.func
 def collide_sphere_capsule(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, h: vec3, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ra: float_t, rb: float_t, h: vec3, max_sep: float_t
 ):
     # the sphere against the nearest point of the capsule's segment
     u = _axis(B.q, 2)
@@ -630,7 +634,7 @@ def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, o
 
 @wp.func
 def collide_box_capsule(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
 ):
     # the capsule's segment in the box frame: p(t) = p0 + t u, t in [-a, a]
     hh = _capsule_half_height(rb, hb)
@@ -705,7 +709,7 @@ segment_closest = _segment_closest  # for cloth edges against mesh edges (cloth/
 
 @wp.func
 def collide_capsule_capsule(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, rb: float_t, hb: vec3, max_sep: float_t
 ):
     la = _capsule_half_height(ra, ha)
     lb = _capsule_half_height(rb, hb)
@@ -831,7 +835,7 @@ def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
 
 @wp.func
 def collide_plane_hull(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, bound: float_t, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, bound: float_t, max_sep: float_t
 ):
     # up to four of the vertices within the speculative distance (`_four_vertices`)
     n = _axis(A.q, 2)
@@ -848,9 +852,7 @@ def collide_plane_hull(
 
 
 @wp.func
-def collide_sphere_hull(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, H: Hulls, h: int, max_sep: float_t
-):
+def collide_sphere_hull(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, H: Hulls, h: int, max_sep: float_t):
     # nearest point of the hull to the sphere centre, in the hull frame
     q, out, _d = hull_closest(H, h, vec3(_ONE, _ONE, _ONE), wp.quat_rotate_inv(B.q, A.x - B.x))
     n = -wp.quat_rotate(B.q, out)  # sphere (a) -> hull (b)
@@ -873,7 +875,7 @@ def _clip_interval(lo: float_t, hi: float_t, c0: float_t, cu: float_t, eps: floa
 
 @wp.func
 def collide_capsule_hull(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, ra: float_t, ha: vec3, H: Hulls, h: int, max_sep: float_t
 ):
     # the capsule's segment in the hull frame, its deepest point by golden-section search
     hh = _capsule_half_height(ra, ha)
@@ -969,7 +971,7 @@ def _clip3(p: Polygon3, m: vec3, o: float_t):
 
 @wp.func
 def _hull_face_contacts(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -1086,7 +1088,7 @@ def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq:
 
 @wp.func
 def collide_hulls(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int, sb: vec3, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int, sb: vec3, max_sep: float_t
 ):
     """Separating axis test over both hulls' face normals and their Minkowski-face edge pairs
     (Gregorius, "The Separating Axis Test between Convex Polyhedra", GDC 2013), then face
@@ -1209,7 +1211,7 @@ def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
 
 @wp.func
 def _sphere_mesh(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64, max_sep: float_t
 ):
     found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
     if found:
@@ -1224,9 +1226,7 @@ def _mesh_vertex(mesh: wp.uint64, i: int):
 
 
 @wp.func
-def collide_sphere_mesh(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t
-):
+def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t):
     """The nearest mesh point, then every other face the sphere nearly touches inside the face.
 
     A sphere in a crease (a V-groove, a concave corner) rests on two or three faces at once: a
@@ -1268,7 +1268,7 @@ def collide_sphere_mesh(
 
 @wp.func
 def collide_capsule_mesh(
-    c: ContactWriter, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, mesh: wp.uint64, max_sep: float_t
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, h: vec3, mesh: wp.uint64, max_sep: float_t
 ):
     # spheres at both ends and the middle of the segment (a line contact on a slope; a capsule
     # lying across a ridge rests on its middle)
@@ -1378,7 +1378,7 @@ def _pick(k: int, i0: int, i1: int, i2: int, i3: int):
 
 @wp.func
 def _mesh_edges_into_solid(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -1499,7 +1499,7 @@ def _mesh_edges_into_solid(
 
 @wp.func
 def collide_vertices_mesh(
-    c: ContactWriter,
+    c: Contacts,
     a: int,
     b: int,
     A: Pose,
@@ -1553,7 +1553,7 @@ def _collide_pairs(
     mesh_ids: wp.array(dtype=wp.uint64),
     dt: float_t,
     margin: float_t,
-    c: ContactWriter,
+    c: Contacts,
     pair_count: wp.array(dtype=wp.int32),
 ):
     p = wp.tid()

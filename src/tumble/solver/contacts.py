@@ -65,7 +65,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
-from ..collision.narrowphase import ContactWriter
+from ..collision.narrowphase import CONTACT_FIELDS, Contacts
 from ..launch import LaunchCache, launch
 from ..model import body_arrays
 from ..real import TYPES, BodyArrays, float_t, vec3
@@ -105,17 +105,6 @@ MANIFOLD_SWEEPS = wp.constant(6)
 #: 1.02 sweeps a block, the pyramid's top as far off; float64: 1e-6)
 MANIFOLD_SWEEP_TOLERANCE = wp.constant(float_t(max(1.0e-6, 8192.0 * TYPES.eps)))
 MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
-
-CONTACT_FIELDS = {
-    # from the narrow phase: what the views show and the next step's matching reads
-    "contact_body_a": wp.int32,
-    "contact_body_b": wp.int32,
-    "contact_normal": vec3,  # unit, a -> b
-    "contact_point": vec3,  # [m]
-    "contact_separation": float_t,  # [m], negative when overlapping
-    "contact_local_a": vec3,  # surface point on a, body frame [m]
-    "contact_local_b": vec3,
-}
 
 
 @wp.struct
@@ -177,8 +166,6 @@ PREVIOUS_FIELDS = {
 }
 
 
-#: the contact arrays as the kernels take them: `contact_normal` is `c.normal`
-Contacts = array_struct("Contacts", CONTACT_FIELDS, "contact_", __name__)
 #: last step's contacts as the kernels take them: `previous_body_a` is `p.body_a`
 Previous = array_struct("Previous", PREVIOUS_FIELDS, "previous_", __name__)
 
@@ -1098,7 +1085,7 @@ class ContactSet(ArraySet):
     #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
     #: solver structs were built from, so it differs in a restored world while meaning the same;
     #: `rows` and `_passes` are solver scratch and parameters, made anew by every step
-    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes"})
+    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes", "_struct"})
 
     def __init__(self, device: str):
         super().__init__(CONTACT_FIELDS, device=device, capacity=64)
@@ -1117,7 +1104,7 @@ class ContactSet(ArraySet):
         self._sized: tuple = ()
         self._structs: SolverStructs | None = None
         self._passes: dict[tuple, SolvePass | ImpactPass] = {}
-        self._writer: ContactWriter | None = None
+        self._struct: Contacts | None = None
 
     def grow(self, count: int) -> None:
         self.count = 0
@@ -1126,26 +1113,21 @@ class ContactSet(ArraySet):
     def begin_step(self) -> None:
         self.count_array.zero_()
 
-    def writer(self) -> ContactWriter:
-        """The narrow phase's output arrays as a struct (built once per set of arrays), count zeroed."""
-        a = self.arrays
+    def writer(self) -> Contacts:
+        """The contact arrays as the narrow phase appends to them, count zeroed (`struct`)."""
         self.count_array.zero_()
-        w = self._writer
-        if w is None or w.body_a is not a["contact_body_a"]:
-            w = self._writer = ContactWriter()
-            w.count = self.count_array
-            w.body_a, w.body_b = a["contact_body_a"], a["contact_body_b"]
-            w.normal, w.point, w.separation = a["contact_normal"], a["contact_point"], a["contact_separation"]
-            w.local_a, w.local_b = a["contact_local_a"], a["contact_local_b"]
-        return w
+        return self.struct()
 
     def row_values(self, field: str) -> np.ndarray:
         """One field of the solver's rows (`ContactRow`, filled by `prepare`) for this step's contacts, a host copy."""
         return self.rows.numpy()[field][: self.count].copy()
 
     def struct(self) -> Contacts:
-        """The contact arrays as the kernels take them (`begin_solve` keeps one per set of arrays)."""
-        return fill_struct(Contacts, self.arrays, "contact_")
+        """The contact arrays and their count as the kernels take them: one struct while the arrays are the same."""
+        c = self._struct
+        if c is None or c.body_a is not self.arrays["contact_body_a"]:
+            c = self._struct = fill_struct(Contacts, {"contact_count": self.count_array, **self.arrays}, "contact_")
+        return c
 
     def begin_solve(self, bodies) -> tuple:
         """Host side of the solver stages, before any of them runs: size the scratch buffers, put
