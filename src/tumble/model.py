@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import warp as wp
 
-from .precision import DEFAULT_PRECISION, PACKAGE
+from .precision import PACKAGE
 from .state import ArraySet, RowGroup, float_t, numpy_dtype, quat, vec3
 from .structs import fill_struct
 
@@ -163,7 +163,15 @@ def body_struct(bodies) -> Any:
     return cached[0]
 
 
-class Model:
+class _Part:
+    """What a world's parts share: their rows of `BODY_FIELDS` in the world's one dict of body arrays
+    (`role` picks them) and their share of the cloth, set with the first cloth."""
+
+    def __init__(self, role: Role, device: str, arrays: dict, precision: str):
+        self.bodies = ArraySet(fields_of(BODY_FIELDS, role), device=device, arrays=arrays, precision=precision)
+
+
+class Model(_Part):
     """What does not change while the world steps (users may still edit it between steps).
 
     Attributes:
@@ -176,24 +184,15 @@ class Model:
             until the first cloth.
     """
 
-    def __init__(
-        self,
-        device: str,
-        arrays: dict,
-        hulls: HullSet,
-        meshes: MeshSet,
-        *,
-        joints: ArraySet | None = None,
-        precision: str = DEFAULT_PRECISION,
-    ):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.MODEL), device=device, arrays=arrays, precision=precision)
+    def __init__(self, device: str, arrays: dict, precision: str, hulls: HullSet, meshes: MeshSet, joints: ArraySet):
+        super().__init__(Role.MODEL, device, arrays, precision)
         self.hulls = hulls
         self.meshes = meshes
         self.joints = joints
-        self.cloth: ClothModel | None = None  # set with the first cloth
+        self.cloth: ClothModel | None = None
 
 
-class State:
+class State(_Part):
     """What changes while the world steps; with the emitters' counters and random generators it is
     everything `World.snapshot` copies, compares and saves.
 
@@ -201,29 +200,21 @@ class State:
         bodies: the state rows of `BODY_FIELDS` (pose and velocities).
         contacts: last step's contacts with their impulses, the next step's warm start.
         joints: the state rows of `solver.joints.JOINT_FIELDS` (accumulated impulses, the warm
-            start; forces; broken flags), None for a world without a joint solver.
+            start; forces; broken flags).
         cloth: the cloth's particle positions, velocities and pin targets, and its contact counts
             (`cloth.system.ClothState`), None until the first cloth.
         step_count: steps taken.
     """
 
-    def __init__(
-        self,
-        device: str,
-        arrays: dict,
-        contacts: ArraySet,
-        *,
-        joints: ArraySet | None = None,
-        precision: str = DEFAULT_PRECISION,
-    ):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.STATE), device=device, arrays=arrays, precision=precision)
+    def __init__(self, device: str, arrays: dict, precision: str, contacts: ArraySet, joints: ArraySet):
+        super().__init__(Role.STATE, device, arrays, precision)
         self.contacts = contacts
         self.joints = joints
-        self.cloth: ClothState | None = None  # set with the first cloth
+        self.cloth: ClothState | None = None
         self.step_count = 0
 
 
-class Control:
+class Control(_Part):
     """This step's inputs: user forces and drags, cleared once the step has used them, and the wind.
 
     Attributes:
@@ -232,8 +223,8 @@ class Control:
             until the first cloth.
     """
 
-    def __init__(self, device: str, arrays: dict, *, precision: str = DEFAULT_PRECISION):
-        self.bodies = ArraySet(fields_of(BODY_FIELDS, Role.CONTROL), device=device, arrays=arrays, precision=precision)
+    def __init__(self, device: str, arrays: dict, precision: str):
+        super().__init__(Role.CONTROL, device, arrays, precision)
         self.cloth: ClothControl | None = None
 
     @property

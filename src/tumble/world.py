@@ -172,14 +172,10 @@ class World:
         self.joints: JointSet = k.joints.JointSet(self.device)
         hulls: HullSet = k.hulls.HullSet(self.device)
         meshes: MeshSet = k.meshes.MeshSet(self.device)
-        self.model = Model(
-            self.device, shared, hulls, meshes, joints=self.joints.definitions, precision=self._precision
-        )
+        self.model = Model(self.device, shared, self._precision, hulls, meshes, self.joints.definitions)
         self.contacts: ContactSet = k.contacts.ContactSet(self.device)
-        self.state = State(
-            self.device, shared, self.contacts.previous, joints=self.joints.impulses, precision=self._precision
-        )
-        self.control = Control(self.device, shared, precision=self._precision)
+        self.state = State(self.device, shared, self._precision, self.contacts.previous, self.joints.impulses)
+        self.control = Control(self.device, shared, self._precision)
         # every body array as one table, for the stages (model, state, control and the solver's scratch)
         self.bodies = body_row_group(self.device, shared, self.model, self.state, self.control)
         self.emitters: list[Emitter] = []
