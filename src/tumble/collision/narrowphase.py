@@ -593,8 +593,39 @@ def collide_sphere_capsule(
     _sphere_pair(c, a, b, A, B, A.x, ra, B.x + u * t, rb, _perpendicular(u), max_sep)
 
 
+def _golden_section(objective):
+    """A Warp function that narrows [lo, hi] around the minimum over t of `objective` at p0 + t u, a
+    convex function of t, by `steps` steps of golden-section search (each shrinks the interval by
+    0.618); it returns the final (lo, hi). `objective(p, H, i, j, a, b)` takes the point and hands
+    the rest through (a hull's rows and sizes, as each objective names them)."""
+
+    @wp.func
+    def search(p0: vec3, u: vec3, lo: float_t, hi: float_t, steps: int, H: Hulls, i: int, j: int, a: vec3, b: vec3):
+        g = float_t(0.6180339887498949)
+        x1 = hi - g * (hi - lo)
+        x2 = lo + g * (hi - lo)
+        f1 = objective(p0 + u * x1, H, i, j, a, b)
+        f2 = objective(p0 + u * x2, H, i, j, a, b)
+        for _it in range(steps):
+            if f1 <= f2:
+                hi = x2
+                x2 = x1
+                f2 = f1
+                x1 = hi - g * (hi - lo)
+                f1 = objective(p0 + u * x1, H, i, j, a, b)
+            else:
+                lo = x1
+                x1 = x2
+                f1 = f2
+                x2 = lo + g * (hi - lo)
+                f2 = objective(p0 + u * x2, H, i, j, a, b)
+        return lo, hi
+
+    return search
+
+
 @wp.func
-def _convex_distance(p: vec3, H: Hulls, h: int, one: vec3, hb: vec3):
+def _convex_distance(p: vec3, H: Hulls, h: int, _unused: int, one: vec3, hb: vec3):
     """Signed distance of p from a box (h < 0: half extents hb) or from hull h (scaled by `one`)."""
     if h < 0:
         _q, _o, f = box_closest(p, hb)
@@ -603,32 +634,16 @@ def _convex_distance(p: vec3, H: Hulls, h: int, one: vec3, hb: vec3):
     return f
 
 
+#: the signed distance from a convex set is a convex function, and so is its restriction to a line:
+#: 40 steps shrink [lo, hi] by 0.618^40 ~ 4e-9
+_nearest_along = _golden_section(_convex_distance)
+
+
 @wp.func
 def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, one: vec3, hb: vec3):
     """Parameter t in [lo, hi] minimising the signed distance of p0 + t u from a box or a hull
-    (`_convex_distance`).
-
-    The signed distance from a convex set is a convex function, and so is its restriction to a
-    line, so golden-section search finds the minimum: 40 steps shrink [lo, hi] by 0.618^40 ~ 4e-9.
-    """
-    g = float_t(0.6180339887498949)
-    x1 = hi - g * (hi - lo)
-    x2 = lo + g * (hi - lo)
-    f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
-    f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
-    for _it in range(40):
-        if f1 <= f2:
-            hi = x2
-            x2 = x1
-            f2 = f1
-            x1 = hi - g * (hi - lo)
-            f1 = _convex_distance(p0 + u * x1, H, h, one, hb)
-        else:
-            lo = x1
-            x1 = x2
-            f1 = f2
-            x2 = lo + g * (hi - lo)
-            f2 = _convex_distance(p0 + u * x2, H, h, one, hb)
+    (`_convex_distance`)."""
+    lo, hi = _nearest_along(p0, u, lo, hi, 40, H, h, 0, one, hb)
     return (lo + hi) * float_t(0.5)
 
 
@@ -781,6 +796,16 @@ def _face_depth(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3):
             best = wp.dot(n, p) - d
             normal = n
     return best, normal
+
+
+@wp.func
+def _face_depth_at(p: vec3, H: Hulls, f0: int, nf: int, sc: vec3, _unused: vec3):
+    """`_face_depth`'s depth alone, as `_golden_section` calls its objective."""
+    depth, _n = _face_depth(H, f0, nf, sc, p)
+    return depth
+
+
+_deepest_along = _golden_section(_face_depth_at)
 
 
 @wp.func
@@ -1438,25 +1463,8 @@ def _mesh_edges_into_solid(
                     n, d = _hull_face(H, f, sc)
                     bound_lo = wp.max(bound_lo, wp.min(wp.dot(n, s0 + u * lo), wp.dot(n, s0 + u * hi)) - d)
                 if bound_lo < best:
-                    # golden-section search of f(t) (convex, piecewise linear)
-                    gr = float_t(0.6180339887498949)
-                    x1 = hi - gr * (hi - lo)
-                    x2 = lo + gr * (hi - lo)
-                    v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
-                    v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
-                    for _it in range(30):
-                        if v1 <= v2:
-                            hi = x2
-                            x2 = x1
-                            v2 = v1
-                            x1 = hi - gr * (hi - lo)
-                            v1, _n1 = _face_depth(H, f0, nf, sc, s0 + u * x1)
-                        else:
-                            lo = x1
-                            x1 = x2
-                            v1 = v2
-                            x2 = lo + gr * (hi - lo)
-                            v2, _n2 = _face_depth(H, f0, nf, sc, s0 + u * x2)
+                    # golden-section search of the depth along the edge (convex, piecewise linear)
+                    lo, hi = _deepest_along(s0, u, lo, hi, 30, H, f0, nf, sc, vec3())
                     pt = s0 + u * ((lo + hi) * float_t(0.5))
                     depth, normal = _face_depth(H, f0, nf, sc, pt)
                     if depth < best:
