@@ -24,6 +24,7 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..real import float_t, vec3
+from ..structs import cached_struct
 
 #: hash table slots per point (a power of two): flat point sets fill a quarter of each block's slots
 TABLE_LOAD = 4
@@ -49,6 +50,18 @@ def cell_hash(c: wp.vec3i, mask: int):
     hz = wp.uint32(c[2] >> 2) * wp.uint32(83492791)
     local = wp.uint32((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4))
     return int((((hx ^ hy ^ hz) << wp.uint32(6)) | local) & wp.uint32(mask))
+
+
+@wp.struct
+class Cells:
+    """A built grid as queries take it (`HashGrid.cells`; its fields are the grid's attributes of those names)."""
+
+    inv_cell: float_t  # the inverse of the cell edge [1/m] (of the last `build`)
+    mask: int  # table size - 1
+    cell_start: wp.array(dtype=wp.int32)  # per slot: its first row of `entries`
+    cell_count: wp.array(dtype=wp.int32)  # per slot: its number of points
+    entries: wp.array(dtype=wp.int32)  # the point indices, sorted by slot
+    point_cell_coord: wp.array(dtype=wp.vec3i)  # per point: its cell's coordinates
 
 
 @wp.kernel
@@ -110,6 +123,10 @@ class HashGrid:
         point_cell_coord: integer cell coordinates of each point, vec3i.
     """
 
+    # the grid as queries take it (`cells`), built on first use and again after a build; a
+    # class default, so that a grid restored from a snapshot older than it has it too
+    _cells: tuple | None = None
+
     def __init__(self, device: str):
         self.device = device
         self.cell_size = 1.0
@@ -138,6 +155,11 @@ class HashGrid:
             self.sorted_x = wp.zeros(self._points, dtype=vec3, device=self.device)
             self.sorted_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
+
+    def cells(self) -> Cells:
+        """The grid as queries take it: the same struct until the next `build` (its cell edge) or a larger table."""
+        self._cells = cached_struct(Cells, vars(self), "", self._cells)
+        return self._cells[0]
 
     def build(
         self,
