@@ -15,11 +15,12 @@ says so). Orientations are unit quaternions stored as (x, y, z, w).
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple, overload
+from typing import TYPE_CHECKING, Any, Concatenate, NamedTuple, ParamSpec, TypeVar, overload
 
 import numpy as np
 import warp as wp
@@ -28,7 +29,7 @@ from numpy.typing import ArrayLike
 from . import limits, snapshot, validate
 from . import precision as precisions
 from . import shapes as _shapes
-from .cloth.wind import AIR_DENSITY
+from .cloth.system import ClothSystem  # its keywords are `add_cloth`'s and `set_wind`'s (the same in both precisions)
 from .collision.hashgrid import spatial_order
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
@@ -52,7 +53,6 @@ from .state import (
 )
 
 if TYPE_CHECKING:  # the classes of the float64 copy; each world's come from `kernels(precision)`
-    from .cloth.system import ClothSystem
     from .collision.broadphase import BroadPhase
     from .collision.hulls import HullSet
     from .collision.meshes import MeshSet
@@ -99,6 +99,25 @@ class BodyView(property):
     def __get__(self, world: World, owner: type | None = None) -> np.ndarray: ...
     def __get__(self, world, owner=None):
         return super().__get__(world, owner)
+
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _keywords_of(
+    target: Callable[Concatenate[Any, _P], Any],
+) -> Callable[[Callable[..., _R]], Callable[Concatenate[Any, _P], _R]]:
+    """A method that takes the keywords of the method `target` and hands them on, declared once: it
+    shows `target`'s signature (to `inspect`, the API page, the scene schema's defaults and type
+    checkers) with its own return type."""
+
+    def front(method: Callable[..., _R]) -> Callable[Concatenate[Any, _P], _R]:
+        returns = inspect.signature(method).return_annotation
+        method.__signature__ = inspect.signature(target).replace(return_annotation=returns)  # type: ignore[attr-defined]
+        return method
+
+    return front
 
 
 class World:
@@ -667,61 +686,14 @@ class World:
         }
         return adders[kind](**kwargs)
 
-    def add_emitter(
-        self,
-        *,
-        shape: str | Sequence[str] = "sphere",
-        rate: float = 100.0,
-        count: int = 100,
-        position: Sequence[float] | np.ndarray = (0.0, 0.0, 1.0),
-        region: str = "point",
-        extent: float | Sequence[float] = 0.0,
-        direction: Sequence[float] | np.ndarray = (0.0, 0.0, -1.0),
-        cone_angle: float = 0.0,
-        speed: float | Sequence[float] = 0.0,
-        radius: float | Sequence[float] = 0.05,
-        half_extents: float | Sequence = 0.05,
-        half_height: float | Sequence[float] = 0.05,
-        points: ArrayLike | None = None,
-        file: str | os.PathLike[str] | None = None,
-        scale: float | Sequence[float] = 1.0,
-        mass: float | Sequence[float] | None = None,
-        density: float | Sequence[float] | None = None,
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        random_orientation: bool = False,
-        angular_speed: float | Sequence[float] = 0.0,
-        seed: int | None = None,
-    ) -> Emitter:
+    @_keywords_of(Emitter.__init__)
+    def add_emitter(self, **keywords) -> Emitter:
         """Add an emitter that releases bodies over time; the keywords are `tumble.Emitter`'s.
 
         Returns:
             The `Emitter` (the emitter's handle), whose `rate` may be changed while the world runs.
         """
-        emitter = Emitter(
-            shape=shape,
-            rate=rate,
-            count=count,
-            position=position,
-            region=region,
-            extent=extent,
-            direction=direction,
-            cone_angle=cone_angle,
-            speed=speed,
-            radius=radius,
-            half_extents=half_extents,
-            half_height=half_height,
-            points=points,
-            file=file,
-            scale=scale,
-            mass=mass,
-            density=density,
-            restitution=restitution,
-            friction=friction,
-            random_orientation=random_orientation,
-            angular_speed=angular_speed,
-            seed=seed,
-        )
+        emitter = Emitter(**keywords)
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
@@ -739,43 +711,15 @@ class World:
         self.emitters = [e for e in self.emitters if e is not emitter]
         emitter.world_key = None
 
-    def add_cloth(
-        self,
-        *,
-        size: Sequence[float] = (1.0, 1.0),
-        resolution: Sequence[int] = (32, 32),
-        position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        mass: float | None = None,
-        areal_density: float | None = None,
-        stiffness: float | dict[str, float] | None = None,
-        damping: float | dict[str, float] | None = None,
-        max_stretch: float | None = 0.1,
-        pins: str | Sequence[Sequence[int]] | None = None,
-        thickness: float = 0.01,
-        friction: float = 0.3,
-    ) -> ClothId:
+    @_keywords_of(ClothSystem.add_cloth)
+    def add_cloth(self, **keywords) -> ClothId:
         """Add a rectangular mass-spring cloth; the keywords are `ClothSystem.add_cloth`'s.
 
         Returns:
             The cloth's `ClothId` (an int, its index in creation order); `world.cloth` holds the
             particles of every cloth.
         """
-        index = self.cloth.add_cloth(
-            size=size,
-            resolution=resolution,
-            position=position,
-            orientation=orientation,
-            mass=mass,
-            areal_density=areal_density,
-            stiffness=stiffness,
-            damping=damping,
-            max_stretch=max_stretch,
-            pins=pins,
-            thickness=thickness,
-            friction=friction,
-        )
-        return ClothId(index, 0, self._key)
+        return ClothId(self.cloth.add_cloth(**keywords), 0, self._key)
 
     @property
     def has_cloth(self) -> bool:
@@ -798,27 +742,10 @@ class World:
         b = self.bodies
         self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
 
-    def set_wind(
-        self,
-        *,
-        velocity: Sequence[float] = (0.0, 0.0, 0.0),
-        turbulence: float = 0.0,
-        scale: float = 1.0,
-        seed: int = 0,
-        drag: float = 1.2,
-        lift: float = 0.3,
-        air_density: float = AIR_DENSITY,
-    ) -> None:
+    @_keywords_of(ClothSystem.set_wind)
+    def set_wind(self, **keywords) -> None:
         """Set the wind acting on cloth; the keywords are `ClothSystem.set_wind`'s (model: `tumble.Wind`)."""
-        self.cloth.set_wind(
-            velocity=velocity,
-            turbulence=turbulence,
-            scale=scale,
-            seed=seed,
-            drag=drag,
-            lift=lift,
-            air_density=air_density,
-        )
+        self.cloth.set_wind(**keywords)
 
     def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
         """Set restitution and/or friction of every body (planes included), effective at once."""
