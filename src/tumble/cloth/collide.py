@@ -56,6 +56,7 @@ from ..launch import LaunchCache, each_end, launch_each
 from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
+from ..structs import cached_struct
 from .arrays import Limits, Particles, Tethers, corners
 
 PLANE = wp.constant(int(ShapeType.PLANE))
@@ -832,7 +833,7 @@ def _find_pairs(particles: Particles, margin: float_t, reach: float_t, cells: Ce
         xp = x[p]
         # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
         # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
-        lo = cell_of(xp - vec3(reach, reach, reach), cells.inv_cell)
+        lo = cell_of(xp - vec3(reach, reach, reach), cells.params[1])
         cloth = particles.cloth[p]
         pi = particles.i[p]
         pj = particles.j[p]
@@ -1055,6 +1056,10 @@ class SelfCollisionGrid:
         device: Warp device.
     """
 
+    # the pair list as `_find_pairs` writes it (`PairList`), built again when the buffer grows; a class
+    # default, so that a finder restored from a snapshot older than it has it too
+    _out: tuple | None = None
+
     def __init__(self, device: str):
         self.grid = HashGrid(device)
         self.found = wp.zeros(1, dtype=wp.int32, device=device)
@@ -1091,9 +1096,8 @@ class SelfCollisionGrid:
         grid = self.grid.build(x, n, 1.0 / inv_cell)
         # candidate pairs
         self.found.zero_()
-        out = PairList()
-        out.rows, out.found = pairs, self.found
-        launch_each(_find_pairs, n, [particles, margin, reach, grid.cells(), out], dev, cache)
+        self._out = cached_struct(PairList, {"rows": pairs, "found": self.found}, "", self._out)
+        launch_each(_find_pairs, n, [particles, margin, reach, grid.cells(), self._out[0]], dev, cache)
         found = int(self.found.numpy()[0])
         count = min(found, pairs.shape[0])
         if found > count:

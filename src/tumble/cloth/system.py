@@ -722,7 +722,10 @@ class ClothSystem:
         triangles = self.model.topology["triangles"]
         collide.catch_small_spheres(s.particles, s.tethers, triangles, near, cache=self._cache)
         # this pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)
-        wp.copy(self.state.body_contacts, self._contacts_next)
+        if self.device == "cpu":
+            host_view(self.state.body_contacts)[:] = host_view(self._contacts_next)  # the host views are the arrays
+        else:
+            wp.copy(self.state.body_contacts, self._contacts_next)
 
     def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.

@@ -56,7 +56,7 @@ def cell_hash(c: wp.vec3i, mask: int):
 class Cells:
     """A built grid as queries take it (`HashGrid.cells`; its fields are the grid's attributes of those names)."""
 
-    inv_cell: float_t  # the inverse of the cell edge [1/m] (of the last `build`)
+    params: wp.array(dtype=float_t)  # (cell edge [m], its inverse [1/m], largest radius kept) of the last `build`
     mask: int  # table size - 1
     cell_start: wp.array(dtype=wp.int32)  # per slot: its first row of `entries`
     cell_count: wp.array(dtype=wp.int32)  # per slot: its number of points
@@ -123,7 +123,7 @@ class HashGrid:
         point_cell_coord: integer cell coordinates of each point, vec3i.
     """
 
-    # the grid as queries take it (`cells`), built on first use and again after a build; a
+    # the grid as queries take it (`cells`), built on first use and again when the buffers change; a
     # class default, so that a grid restored from a snapshot older than it has it too
     _cells: tuple | None = None
 
@@ -157,7 +157,8 @@ class HashGrid:
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
 
     def cells(self) -> Cells:
-        """The grid as queries take it: the same struct until the next `build` (its cell edge) or a larger table."""
+        """The grid of the last `build` as queries take it: the same struct until the table or the point
+        buffers are reallocated (the cell edge is read from `params`)."""
         self._cells = cached_struct(Cells, vars(self), "", self._cells)
         return self._cells[0]
 

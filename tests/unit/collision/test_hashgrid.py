@@ -137,19 +137,19 @@ def test_rebuild_after_the_points_move_and_grow():
 
 
 def test_cells_are_the_grid_as_queries_take_it_and_kept_while_its_buffers_are():
-    """cells() holds the grid's table and buffers and the last build's inverse cell edge; it is the same
-    struct until the next build."""
+    """cells() holds the grid's table and buffers and the last build's cell edge (in `params`); it is the
+    same struct until the buffers are reallocated."""
     rng = np.random.default_rng(6)
     grid = HashGrid(DEVICE)
     x = wp.array(rng.uniform(-1.0, 1.0, size=(50, 3)), dtype=vec3, device=DEVICE)
     cells = grid.build(x, 50, 0.2).cells()
     assert cells.cell_start is grid.cell_start and cells.entries is grid.entries and cells.mask == grid.mask
-    assert cells.point_cell_coord is grid.point_cell_coord and cells.inv_cell == pytest.approx(5.0)
+    assert cells.point_cell_coord is grid.point_cell_coord and cells.params.numpy()[1] == pytest.approx(5.0)
     assert grid.cells() is cells
-    assert grid.build(x, 50, 0.25).cells() is not cells and grid.cells().inv_cell == pytest.approx(4.0)
+    assert grid.build(x, 50, 0.25).cells() is cells and cells.params.numpy()[1] == pytest.approx(4.0)
     more = wp.array(rng.uniform(-1.0, 1.0, size=(700, 3)), dtype=vec3, device=DEVICE)
     grown = grid.build(more, 700, 0.25).cells()
-    assert grown.entries is grid.entries and grown.mask == grid.mask
+    assert grown is not cells and grown.entries is grid.entries and grown.mask == grid.mask
 
 
 def morton_key(c: np.ndarray) -> int:
