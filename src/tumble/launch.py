@@ -102,3 +102,24 @@ def launch(kernel, dim: int, inputs: list, device, cache: LaunchCache | None = N
         wp.launch(kernel, dim=dim, inputs=inputs, device=device)
     else:
         cache.launch(kernel, dim, inputs, device)
+
+
+@wp.func
+def each_end(thread: int, serial: int, count: int):
+    """Where the elements of thread `thread` of a `launch_each` kernel end: its loop is
+    `for k in range(wp.tid(), each_end(wp.tid(), serial, count))`, over all `count` for the one
+    thread of a serial launch, else over the thread's own element."""
+    if serial != 0:
+        return count
+    return thread + 1
+
+
+def launch_each(kernel, count: int, inputs: list, device, cache: LaunchCache | None = None) -> None:
+    """`kernel` over `count` elements, whose last argument is `serial` (see `each_end`).
+
+    On the CPU, where Warp runs the threads of a launch one after another in index order, one
+    thread loops over the elements in that order (`serial` 1): the same arithmetic in the same
+    order, without each element's thread start-up. Elsewhere one thread per element (`serial` 0).
+    """
+    serial = 1 if (device == "cpu" if isinstance(device, str) else device.is_cpu) else 0
+    launch(kernel, 1 if serial else count, [*inputs, serial], device, cache)

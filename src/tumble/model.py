@@ -29,7 +29,7 @@ import warp as wp
 
 from .precision import PACKAGE
 from .state import ArraySet, RowGroup, float_t, numpy_dtype, quat, vec3
-from .structs import fill_struct
+from .structs import cached_struct
 
 if TYPE_CHECKING:
     from .cloth.system import ClothControl, ClothModel, ClothState
@@ -143,10 +143,7 @@ def body_arrays(bodies, cached: tuple | None = None) -> tuple:
     `cached` (a previous return) comes back while the arrays are the same ones, so that a
     recorded launch re-packs nothing; callers keep it as a cache, rebuilt on demand.
     """
-    arrays = [bodies.arrays[f.name] for f in KERNEL_FIELDS]
-    if cached is not None and all(x is y for x, y in zip(cached[1], arrays)):
-        return cached
-    return fill_struct(body_arrays_struct(bodies.precision), bodies.arrays, "body_"), arrays
+    return cached_struct(body_arrays_struct(bodies.precision), bodies.arrays, "body_", cached)
 
 
 #: body row group -> its last `body_arrays` (dropped with the group)

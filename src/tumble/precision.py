@@ -98,6 +98,7 @@ KERNEL_MODULES: dict[str, str] = {
     "collision.meshes": "meshes",
     "collision.broadphase": "broadphase",
     "collision.narrowphase": "narrowphase",
+    "cloth.arrays": "cloth_arrays",
     "cloth.springs": "springs",
     "cloth.attach": "attach",
     "cloth.wind": "wind",

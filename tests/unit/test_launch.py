@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from tumble.launch import LaunchCache, launch
+from tumble.launch import LaunchCache, each_end, launch, launch_each
 from tumble.state import float_t
 
 DEVICE = "cpu"
@@ -124,3 +124,29 @@ def test_graph_replay_gives_the_results_of_direct_launches():
         stages(ref_x, ref_y)
     np.testing.assert_array_equal(x.numpy(), ref_x.numpy())
     np.testing.assert_array_equal(y.numpy(), ref_y.numpy())
+
+
+@wp.kernel
+def _running_sum(x: wp.array(dtype=float_t), y: wp.array(dtype=float_t), serial: int):
+    """y[i] = x[i] + y[i - 1]: each element reads the one before it, so the order of the elements shows."""
+    for i in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
+        if i > 0:
+            y[i] = x[i] + y[i - 1]
+        else:
+            y[i] = x[i]
+
+
+def test_launch_each_loops_in_one_thread_on_the_cpu_in_index_order():
+    """launch_each on the CPU is one thread over the elements in order (the running sum comes out whole),
+    the same as one thread per element there, where Warp runs the threads in index order."""
+    x, y = arrays()
+    launch_each(_running_sum, 8, [x, y], DEVICE)
+    np.testing.assert_array_equal(y.numpy(), np.cumsum(np.arange(8.0)))
+    y_threads = wp.zeros(8, dtype=float_t, device=DEVICE)
+    wp.launch(_running_sum, dim=8, inputs=[x, y_threads, 0], device=DEVICE)
+    np.testing.assert_array_equal(y_threads.numpy(), y.numpy())
+    cache = LaunchCache()
+    for _ in range(2):  # recorded, then replayed
+        y.zero_()
+        launch_each(_running_sum, 8, [x, y], wp.get_device(DEVICE), cache)
+        np.testing.assert_array_equal(y.numpy(), np.cumsum(np.arange(8.0)))

@@ -7,7 +7,7 @@ import pytest
 import warp as wp
 
 from tumble.state import float_t, vec3
-from tumble.structs import array_struct, fill_struct
+from tumble.structs import array_struct, cached_struct, fill_struct
 
 FIELDS = {"thing_mass": float_t, "thing_position": vec3}
 Things = array_struct("Things", FIELDS, "thing_", __name__)
@@ -42,3 +42,20 @@ def test_a_field_without_the_prefix_is_refused():
     """A table entry that does not start with the prefix is a ValueError naming it."""
     with pytest.raises(ValueError, match="body_mass"):
         array_struct("Bad", {"body_mass": float_t}, "thing_", __name__)
+
+
+def test_a_table_may_name_an_array_type():
+    """An entry that is a Warp array type (pairs of indices) is a field of that type."""
+    Pairs = array_struct("Pairs", {"pair_ids": wp.array2d(dtype=wp.int32), "pair_length": float_t}, "pair_", __name__)
+    assert Pairs.vars["ids"].type.ndim == 2 and Pairs.vars["ids"].type.dtype is wp.int32
+    assert Pairs.vars["length"].type.ndim == 1
+
+
+def test_a_cached_struct_is_kept_while_its_arrays_are_the_same():
+    """cached_struct returns the cache while the table holds the same arrays, a new struct once one is replaced."""
+    arrays = {"thing_mass": wp.zeros(2, dtype=float_t), "thing_position": wp.zeros(2, dtype=vec3)}
+    first = cached_struct(Things, arrays, "thing_")
+    assert cached_struct(Things, dict(arrays), "thing_", first) is first
+    arrays["thing_mass"] = wp.zeros(4, dtype=float_t)
+    second = cached_struct(Things, arrays, "thing_", first)
+    assert second is not first and second[0].mass is arrays["thing_mass"]

@@ -20,86 +20,101 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_end, launch_each
 from ..model import body_arrays
 from ..real import BodyArrays, float_t, vec3
 from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times
+from ..structs import array_struct, cached_struct
+from .arrays import Particles
+
+#: the arrays of the body pins, one row per pin (`BodyPins.particle`, `.body`, `.local`)
+PIN_FIELDS = {
+    "particle": wp.int32,  # the pinned particle
+    "body": wp.int32,  # the row of the body it follows
+    "local": vec3,  # its point in the body's frame [m]
+}
+#: the body pins as the kernels take them
+Pins = array_struct("Pins", PIN_FIELDS, "", __name__)
 
 
 @wp.kernel
 def _reaction(
-    pin_particle: wp.array(dtype=wp.int32),
-    pin_body: wp.array(dtype=wp.int32),
-    pin_local: wp.array(dtype=vec3),
-    particle_force: wp.array(dtype=vec3),
-    particle_mass: wp.array(dtype=float_t),
+    pins: Pins,
+    force: wp.array(dtype=vec3),
+    particles: Particles,
     gravity: vec3,
     h: float_t,
     bodies: BodyArrays,
     serial: int,
 ):
-    k = wp.tid()
-    b = pin_body[k]
-    im = bodies.inv_mass[b]
-    if im == float_t(0.0):
-        return
-    p = pin_particle[k]
-    F = particle_force[p] + gravity * particle_mass[p]
-    r = wp.quat_rotate(bodies.orientation[b], pin_local[k])
-    dv = F * (im * h)
-    dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
-    add_velocity(b, dv, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
+    for k in range(wp.tid(), each_end(wp.tid(), serial, pins.particle.shape[0])):
+        b = pins.body[k]
+        im = bodies.inv_mass[b]
+        if im == float_t(0.0):
+            continue
+        p = pins.particle[k]
+        F = force[p] + gravity * particles.mass[p]
+        r = wp.quat_rotate(bodies.orientation[b], pins.local[k])
+        dv = F * (im * h)
+        dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
+        add_velocity(b, dv, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
 
 
 @wp.kernel
-def _follow(
-    pin_particle: wp.array(dtype=wp.int32),
-    pin_body: wp.array(dtype=wp.int32),
-    pin_local: wp.array(dtype=vec3),
-    bodies: BodyArrays,
-    particle_position: wp.array(dtype=vec3),
-    particle_pin_target: wp.array(dtype=vec3),
-):
-    k = wp.tid()
-    b = pin_body[k]
-    p = pin_particle[k]
-    point = bodies.position[b] + wp.quat_rotate(bodies.orientation[b], pin_local[k])
-    particle_position[p] = point
-    particle_pin_target[p] = point
+def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, serial: int):
+    for k in range(wp.tid(), each_end(wp.tid(), serial, pins.particle.shape[0])):
+        b = pins.body[k]
+        p = pins.particle[k]
+        point = bodies.position[b] + wp.quat_rotate(bodies.orientation[b], pins.local[k])
+        particles.position[p] = point
+        particles.pin_target[p] = point
 
 
 @wp.kernel
 def _sum_pin_load(
     pins: wp.array(dtype=wp.int32),
     force: wp.array(dtype=vec3),
-    mass: wp.array(dtype=float_t),
+    particles: Particles,
     gravity: vec3,
     h: float_t,
     total: wp.array(dtype=vec3),
+    serial: int,
 ):
-    p = pins[wp.tid()]
-    wp.atomic_add(total, 0, (force[p] + gravity * mass[p]) * h)
+    for k in range(wp.tid(), each_end(wp.tid(), serial, pins.shape[0])):
+        p = pins[k]
+        wp.atomic_add(total, 0, (force[p] + gravity * particles.mass[p]) * h)
 
 
-def sum_pin_load(pins, force, mass, gravity, total, h, *, cache: LaunchCache | None = None) -> None:
+def sum_pin_load(pins, force, particles: Particles, gravity, total, h, *, cache: LaunchCache | None = None) -> None:
     """Add to total[0] the impulse over h of a force on every pinned particle, plus its weight.
 
     Args:
         pins: the pinned particles, shape (k,) int32.
         force: per-particle force [N], shape (P,) vec3 (springs and air; or a pull in kg m with
             h the inverse substep and zero gravity).
-        mass: particle masses [kg], shape (P,).
+        particles: the particle arrays (reads `mass` [kg]).
         gravity: [m/s^2], shape (3,).
         total: accumulator [N s], shape (1,) vec3.
         h: substep [s].
     """
     if pins.shape[0]:
-        launch(_sum_pin_load, pins.shape[0], [pins, force, mass, vec3(*gravity), float(h), total], pins.device, cache)
+        launch_each(
+            _sum_pin_load, pins.shape[0], [pins, force, particles, vec3(*gravity), float(h), total], pins.device, cache
+        )
 
 
 class BodyPins:
-    """Particles pinned to points of bodies (rows of the world's body arrays)."""
+    """Particles pinned to points of bodies (rows of the world's body arrays).
+
+    Attributes:
+        count: the number of pins.
+        particle, body, local: the arrays of `PIN_FIELDS`, at least one row (the first `count` are pins).
+    """
+
+    # the pin arrays as the kernels take them (`_struct`), built on first use and again when the arrays
+    # change; a class default, so that pins restored from a snapshot older than it have it too
+    _pins: tuple | None = None
 
     def __init__(self, device: str):
         self.device = device
@@ -134,41 +149,34 @@ class BodyPins:
         self.body: wp.array = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
         self.local: wp.array = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
 
+    def _struct(self) -> Pins:
+        """The pin arrays as the kernels take them, built again only when the arrays were."""
+        self._pins = cached_struct(Pins, vars(self), "", self._pins)
+        return self._pins[0]
+
     def _body_struct(self, bodies) -> BodyArrays:
         """The body arrays as the kernels take them, built again only when the arrays were."""
         self._bodies = body_arrays(bodies, self._bodies)
         return self._bodies[0]
 
-    def _react(self, force: wp.array, mass: wp.array, bodies, gravity: vec3, h: float) -> None:
-        """`force` on the pin particles, plus `gravity` times their `mass`, acts on the bodies for `h` seconds."""
+    def _react(self, force: wp.array, particles: Particles, bodies, gravity: vec3, h: float) -> None:
+        """`force` on the pin particles, plus `gravity` times their mass, acts on the bodies for `h` seconds."""
         if self.count == 0:
             return
-        inputs = [self.particle, self.body, self.local, force, mass, gravity, h, self._body_struct(bodies)]
-        wp.launch(_reaction, dim=self.count, device=self.device, inputs=[*inputs, 1 if self.device == "cpu" else 0])
+        inputs = [self._struct(), force, particles, gravity, h, self._body_struct(bodies)]
+        launch_each(_reaction, self.count, inputs, self.device)
 
-    def react(self, arrays: dict, bodies, gravity, h: float) -> None:
+    def react(self, particles: Particles, bodies, gravity, h: float) -> None:
         """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""
-        self._react(arrays["particle_force"], arrays["particle_mass"], bodies, vec3(*gravity), h)
+        self._react(particles.force, particles, bodies, vec3(*gravity), h)
 
-    def react_constraints(self, arrays: dict, bodies, h: float) -> None:
+    def react_constraints(self, particles: Particles, bodies, h: float) -> None:
         """The stretch limit's and tethers' pull on the pins this substep (`particle_pin_load`,
         lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
-        self._react(arrays["particle_pin_load"], arrays["particle_mass"], bodies, vec3(0.0, 0.0, 0.0), 1.0 / h)
+        self._react(particles.pin_load, particles, bodies, vec3(0.0, 0.0, 0.0), 1.0 / h)
 
-    def follow(self, arrays: dict, bodies) -> None:
-        """Put the pinned particles on their body points."""
+    def follow(self, particles: Particles, bodies) -> None:
+        """Put the pinned particles (and their targets) on their body points."""
         if self.count == 0:
             return
-        wp.launch(
-            _follow,
-            dim=self.count,
-            device=self.device,
-            inputs=[
-                self.particle,
-                self.body,
-                self.local,
-                self._body_struct(bodies),
-                arrays["particle_position"],
-                arrays["particle_pin_target"],
-            ],
-        )
+        launch_each(_follow, self.count, [self._struct(), self._body_struct(bodies), particles], self.device)

@@ -21,6 +21,11 @@ Stages:
   not pass through itself, choose a thickness close to the grid spacing: particles farther
   apart than the thickness can slip between each other.
 
+The kernels take the particle arrays as one struct (`arrays.Particles`) and the bodies near the
+cloth, with the pass's settings, as another (`Near`, from `near_bodies`); "one thread per
+particle" is the CUDA launch: on the CPU one thread loops over the particles (triangles, pairs)
+in index order (`launch.launch_each`), which is the order Warp runs a launch's threads in there.
+
 Contacts are resolved on positions, as in position-based dynamics (Mueller et al. 2007), with
 inverse-mass weighting: for penetration depth d along normal n, with particle and body inverse
 masses w_p and w_b (w_b = 1/m + (r x n) . I^-1 (r x n) at the contact point), the particle
@@ -43,15 +48,16 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..collision.hashgrid import HashGrid, cell_hash, cell_of
+from ..collision.hashgrid import Grid, HashGrid, cell_hash, cell_of
 from ..collision.hulls import Hulls
 from ..collision.meshes import Meshes, edge_table
 from ..collision.narrowphase import box_closest, hull_closest, segment_closest
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_end, launch_each
 from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
-from .springs import Limits, Tethers
+from ..structs import cached_struct
+from .arrays import Limits, Particles, Tethers, corners
 
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
@@ -61,18 +67,33 @@ CONVEX = wp.constant(int(ShapeType.CONVEX))
 MESH = wp.constant(int(ShapeType.MESH))
 
 
+@wp.struct
+class Near:
+    """The bodies the cloth may touch this step, as its contact kernels take them (`near_bodies`)."""
+
+    bodies: BodyArrays  # the world's body arrays (dynamic bodies get the cloth's pushes)
+    hulls: Hulls  # the world's convex hulls
+    meshes: Meshes  # the world's static meshes
+    candidates: wp.array(dtype=wp.int32)  # the body rows that can reach the cloth this step
+    contacts_prev: wp.array(dtype=wp.int32)  # per body row: the particles that touched it in the last pass
+    contacts_next: wp.array(dtype=wp.int32)  # per body row: this pass's count (zeroed before the pass)
+    h: float_t  # the substep [s]
+    taut: float_t  # a tether holds its particle from taut x its limit on (`collide_bodies`)
+    strict: int  # 1: particles give way only within their slack (`collide_bodies`)
+
+
 @wp.func
-def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), tethers: Tethers, taut: float_t):
+def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, particles: Particles, tethers: Tethers, taut: float_t):
     """Inverse mass with which particle p at xp yields to a push along n: less the tauter its tethers.
 
     A tether that the push would stretch holds its particle: free below taut x its limit, fixed
     at the limit, linear in between (a sudden switch made bodies resting on cloth chatter).
     """
     w = w_p
-    t = tethers.first[p]
-    t_end = t + tethers.count[p]
+    t = particles.tether_first[p]
+    t_end = t + particles.tether_count[p]
     while t < t_end:
-        arm = xp - x[tethers.pin[t]]
+        arm = xp - particles.position[tethers.pin[t]]
         if wp.dot(arm, n) > float_t(0.0):
             lim = tethers.limit[t]
             slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - taut))
@@ -82,9 +103,7 @@ def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, x: wp.array(dtype=vec3), 
 
 
 @wp.func
-def _tether_hold(
-    t: int, xp: vec3, u: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), tethers: Tethers, taut: float_t
-):
+def _tether_hold(t: int, xp: vec3, u: vec3, particles: Particles, tethers: Tethers, taut: float_t):
     """How tether t of a particle at xp resists a push along u: (pull, tight), pull = cos of the angle
     between u and the tether (0 when the push does not lengthen it or its pin is free) and tight its
     tautness, 0 below taut x its limit, 1 at the limit (the `_give_way` ramp)."""
@@ -92,8 +111,8 @@ def _tether_hold(
     pull = zero
     tight = zero
     pin = tethers.pin[t]
-    if inv_m[pin] <= zero:
-        arm = xp - x[pin]
+    if particles.inv_mass[pin] <= zero:
+        arm = xp - particles.position[pin]
         length = wp.length(arm)
         if length > float_t(1.0e-12):
             pull = wp.max(wp.dot(arm, u) / length, zero)
@@ -103,21 +122,12 @@ def _tether_hold(
 
 
 @wp.func
-def _route_to_pins(
-    p: int,
-    xp: vec3,
-    held: vec3,
-    x: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    tethers: Tethers,
-    taut: float_t,
-    pin_load: wp.array(dtype=vec3),
-):
+def _route_to_pins(p: int, xp: vec3, held: vec3, particles: Particles, tethers: Tethers, taut: float_t):
     """A push `held` [kg m] on particle p that the cloth took without moving p (its tethers or limited
     springs held it) goes on to the pins that hold it: shared among p's tethers that the push
     lengthens, each in proportion to its tautness (as `_give_way` ramps it) and to how straight the
     push pulls on it; by pull alone when none is near its limit. The pins' loads then sum to
-    `held`, so the body's push ends on the pins and momentum is kept.
+    `held`, so the body's push ends on the pins (`particles.pin_load`) and momentum is kept.
     """
     size = wp.length(held)
     if size <= float_t(0.0):
@@ -126,21 +136,21 @@ def _route_to_pins(
     zero = float_t(0.0)
     total = zero
     along = zero
-    t0 = tethers.first[p]
-    t_end = t0 + tethers.count[p]
+    t0 = particles.tether_first[p]
+    t_end = t0 + particles.tether_count[p]
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, x, inv_m, tethers, taut)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, taut)
         total += pull * tight
         along += pull
     if along <= zero:
         return
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, x, inv_m, tethers, taut)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, taut)
         share = pull / along
         if total > zero:
             share = pull * tight / total
         if share > zero:
-            wp.atomic_add(pin_load, tethers.pin[t], held * share)
+            wp.atomic_add(particles.pin_load, tethers.pin[t], held * share)
 
 
 @wp.func
@@ -206,22 +216,21 @@ def _slack_along(a: vec3, n: vec3, limit: float_t):
 
 
 @wp.func
-def _slack(
-    p: int, xp: vec3, n: vec3, x: wp.array(dtype=vec3), inv_m: wp.array(dtype=float_t), limits: Limits, tethers: Tethers
-):
+def _slack(p: int, xp: vec3, n: vec3, particles: Particles, limits: Limits, tethers: Tethers):
     """How far particle p may move along n before one of its limited springs or tethers reaches its limit
     (the other ends held where they are)."""
+    x = particles.position
     s = float_t(1.0e30)
     k = limits.first[p]
     k_end = k + limits.count[p]
     while k < k_end:
         s = wp.min(s, _slack_along(xp - x[limits.other[k]], n, limits.length[k]))
         k += 1
-    t = tethers.first[p]
-    t_end = t + tethers.count[p]
+    t = particles.tether_first[p]
+    t_end = t + particles.tether_count[p]
     while t < t_end:
         pin = tethers.pin[t]
-        if inv_m[pin] <= float_t(0.0):
+        if particles.inv_mass[pin] <= float_t(0.0):
             s = wp.min(s, _slack_along(xp - x[pin], n, tethers.limit[t]))
         t += 1
     return s
@@ -326,105 +335,93 @@ def _surface(
 
 
 @wp.kernel
-def _collide_bodies(
-    x: wp.array(dtype=vec3),
-    x_prev: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    thickness: wp.array(dtype=float_t),
-    friction: wp.array(dtype=float_t),
-    tethers: Tethers,
-    limits: Limits,
-    candidates: wp.array(dtype=wp.int32),
-    candidate_count: int,
-    bodies: BodyArrays,
-    hulls: Hulls,
-    meshes: Meshes,
-    contact_count_prev: wp.array(dtype=wp.int32),
-    contact_count_next: wp.array(dtype=wp.int32),
-    pin_load: wp.array(dtype=vec3),
-    h: float_t,
-    taut: float_t,
-    strict: int,
-):
-    p = wp.tid()
-    w_p = inv_m[p]
-    if w_p <= float_t(0.0):
-        return
-    xp = x[p]
-    zero = float_t(0.0)
-    # static bodies first (pass 0), then dynamic ones (pass 1), so that a particle pressed
-    # against a static body by a dynamic one knows it cannot give way
-    support = vec3(zero, zero, zero)
-    k = int(0)
-    while k < 2 * candidate_count:
-        b = candidates[k % candidate_count]
-        dynamic_pass = k >= candidate_count
-        k += 1
-        if (bodies.inv_mass[b] > zero) != dynamic_pass:
+def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near: Near, serial: int):
+    x = particles.position
+    x_prev = particles.position_prev
+    thickness = particles.thickness
+    bodies = near.bodies
+    count = near.candidates.shape[0]
+    for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
+        w_p = particles.inv_mass[p]
+        if w_p <= float_t(0.0):
             continue
-        c = bodies.position[b]
-        q = bodies.orientation[b]
-        # signed distance d from the body's surface and outward normal n
-        found, d, n = _surface(bodies.shape[b], b, xp, x_prev[p], bodies, hulls, meshes, float_t(2.0) * thickness[p])
-        depth = thickness[p] - d
-        if not found or depth <= zero:
-            continue
-
-        # the body's inverse mass at the contact point along n: w_b = 1/m + (r x n) . I^-1 (r x n)
-        split = float_t(wp.max(contact_count_prev[b], 1))
-        wp.atomic_add(contact_count_next, b, 1)
-        r_b = (xp - n * d) - c
-        w_lin = bodies.inv_mass[b]
-        inv_i = bodies.inv_inertia[b]
-        rn = wp.cross(r_b, n)
-        w_b = w_lin + wp.dot(rn, inv_inertia_times(q, inv_i, rn))
-        # a particle which a static body holds from the other side cannot give way to a dynamic
-        # one; nor can one whose tethers are taut in the direction of the push (between taut x
-        # limit and the limit a tether stiffens gradually: an on/off switch made bodies resting
-        # on cloth chatter)
-        w_c = w_p
-        if w_b == zero:
-            support = support + n
-        elif wp.dot(support, n) < zero:
-            w_c = zero
-        if w_b > zero and w_c > zero:
-            w_c = wp.min(w_c, _give_way(p, xp, n, w_p, x, tethers, taut))
-        if w_c + w_b <= zero:
-            continue
-        # normal, mass-weighted: lambda = depth / (w_c + c w_b) moves the particle lambda w_c along n
-        # and gives the body -lambda n (c: particles on this body in the last pass, "mass splitting");
-        # strict: the cloth gives way only as far as its stretch limit lets it, a particle moves at
-        # most its slack along n (before one of its limited springs or tethers reaches its limit),
-        # and the body is pushed out the rest of the way, lambda_b = (depth - slack) / (c w_b)
-        lam = depth / (w_c + split * w_b)
-        move = lam * w_c
-        lam_b = lam
-        if strict != 0 and w_b > zero and move > zero:
-            slack = _slack(p, xp, n, x, inv_m, limits, tethers)
-            if move > slack:
-                move = slack
-                lam_b = (depth - slack) / (split * w_b)
-        xp = xp + n * move
-
-        # friction on the particle's tangential motion relative to the body surface this substep
-        mu = wp.sqrt(friction[p] * bodies.friction[b])
-        vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
-        tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
-        move_t = lam_t * w_c
-        if strict != 0 and w_b > zero and move_t > zero:
-            move_t = wp.min(move_t, _slack(p, xp, -tdir, x, inv_m, limits, tethers))
-        xp = xp - tdir * move_t
-        _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, h, bodies)
-        # what the body gave the particle beyond the particle's own momentum change, m_p times its
-        # move, the cloth held (taut tethers, the strict slack): it goes on to the pins; a particle
-        # pressed against a static body passes it to that body instead
-        if w_b > zero and wp.dot(support, n) >= zero:
-            m_p = float_t(1.0) / w_p
-            _route_to_pins(
-                p, xp, n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p), x, inv_m, tethers, taut, pin_load
+        xp = x[p]
+        zero = float_t(0.0)
+        # static bodies first (pass 0), then dynamic ones (pass 1), so that a particle pressed
+        # against a static body by a dynamic one knows it cannot give way
+        support = vec3(zero, zero, zero)
+        k = int(0)
+        while k < 2 * count:
+            b = near.candidates[k % count]
+            dynamic_pass = k >= count
+            k += 1
+            if (bodies.inv_mass[b] > zero) != dynamic_pass:
+                continue
+            c = bodies.position[b]
+            q = bodies.orientation[b]
+            # signed distance d from the body's surface and outward normal n
+            found, d, n = _surface(
+                bodies.shape[b], b, xp, x_prev[p], bodies, near.hulls, near.meshes, float_t(2.0) * thickness[p]
             )
+            depth = thickness[p] - d
+            if not found or depth <= zero:
+                continue
 
-    x[p] = xp
+            # the body's inverse mass at the contact point along n: w_b = 1/m + (r x n) . I^-1 (r x n)
+            split = float_t(wp.max(near.contacts_prev[b], 1))
+            wp.atomic_add(near.contacts_next, b, 1)
+            r_b = (xp - n * d) - c
+            w_lin = bodies.inv_mass[b]
+            inv_i = bodies.inv_inertia[b]
+            rn = wp.cross(r_b, n)
+            w_b = w_lin + wp.dot(rn, inv_inertia_times(q, inv_i, rn))
+            # a particle which a static body holds from the other side cannot give way to a dynamic
+            # one; nor can one whose tethers are taut in the direction of the push (between taut x
+            # limit and the limit a tether stiffens gradually: an on/off switch made bodies resting
+            # on cloth chatter)
+            w_c = w_p
+            if w_b == zero:
+                support = support + n
+            elif wp.dot(support, n) < zero:
+                w_c = zero
+            if w_b > zero and w_c > zero:
+                w_c = wp.min(w_c, _give_way(p, xp, n, w_p, particles, tethers, near.taut))
+            if w_c + w_b <= zero:
+                continue
+            # normal, mass-weighted: lambda = depth / (w_c + c w_b) moves the particle lambda w_c along n
+            # and gives the body -lambda n (c: particles on this body in the last pass, "mass splitting");
+            # strict: the cloth gives way only as far as its stretch limit lets it, a particle moves at
+            # most its slack along n (before one of its limited springs or tethers reaches its limit),
+            # and the body is pushed out the rest of the way, lambda_b = (depth - slack) / (c w_b)
+            lam = depth / (w_c + split * w_b)
+            move = lam * w_c
+            lam_b = lam
+            if near.strict != 0 and w_b > zero and move > zero:
+                slack = _slack(p, xp, n, particles, limits, tethers)
+                if move > slack:
+                    move = slack
+                    lam_b = (depth - slack) / (split * w_b)
+            xp = xp + n * move
+
+            # friction on the particle's tangential motion relative to the body surface this substep
+            mu = wp.sqrt(particles.friction[p] * bodies.friction[b])
+            vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
+            tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * near.h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
+            move_t = lam_t * w_c
+            if near.strict != 0 and w_b > zero and move_t > zero:
+                move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers))
+            xp = xp - tdir * move_t
+            _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, near.h, bodies)
+            # what the body gave the particle beyond the particle's own momentum change, m_p times its
+            # move, the cloth held (taut tethers, the strict slack): it goes on to the pins; a particle
+            # pressed against a static body passes it to that body instead
+            if w_b > zero and wp.dot(support, n) >= zero:
+                m_p = float_t(1.0) / w_p
+                _route_to_pins(
+                    p, xp, n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p), particles, tethers, near.taut
+                )
+
+        x[p] = xp
 
 
 @wp.func
@@ -516,78 +513,70 @@ def _off_triangle(c: vec3, c_start: vec3, a0: vec3, a1: vec3, a2: vec3, s0: vec3
 
 @wp.kernel
 def _catch_small_spheres(
-    x: wp.array(dtype=vec3),
-    x_prev: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    rest: wp.array(dtype=vec3),
-    thickness: wp.array(dtype=float_t),
-    friction: wp.array(dtype=float_t),
-    tethers: Tethers,
-    triangles: wp.array2d(dtype=wp.int32),
-    candidates: wp.array(dtype=wp.int32),
-    candidate_count: int,
-    bodies: BodyArrays,
-    contact_count_prev: wp.array(dtype=wp.int32),
-    contact_count_next: wp.array(dtype=wp.int32),
-    h: float_t,
-    taut: float_t,
+    particles: Particles, tethers: Tethers, triangles: wp.array2d(dtype=wp.int32), near: Near, serial: int
 ):
-    t = wp.tid()
-    i0 = triangles[t, 0]
-    i1 = triangles[t, 1]
-    i2 = triangles[t, 2]
-    w0 = inv_m[i0]
-    w1 = inv_m[i1]
-    w2 = inv_m[i2]
-    zero = float_t(0.0)
-    # spheres that fit between this triangle's particles: no wider than its longest rest edge
-    edge = wp.max(
-        wp.length(rest[i1] - rest[i0]), wp.max(wp.length(rest[i2] - rest[i1]), wp.length(rest[i0] - rest[i2]))
-    )
-    gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
-    for k in range(candidate_count):
-        b = candidates[k]
-        r = bodies.radius[b]
-        if bodies.shape[b] != SPHERE or r >= edge:
-            continue
-        c = bodies.position[b]
-        a0 = x[i0]
-        a1 = x[i1]
-        a2 = x[i2]
-        hit, beta, n, depth = _off_triangle(
-            c, c - bodies.velocity[b] * h, a0, a1, a2, x_prev[i0], x_prev[i1], x_prev[i2], r + gap
+    x = particles.position
+    x_prev = particles.position_prev
+    rest = particles.rest_position
+    bodies = near.bodies
+    for t in range(wp.tid(), each_end(wp.tid(), serial, triangles.shape[0])):
+        i0, i1, i2 = corners(triangles, t)
+        w0 = particles.inv_mass[i0]
+        w1 = particles.inv_mass[i1]
+        w2 = particles.inv_mass[i2]
+        zero = float_t(0.0)
+        # spheres that fit between this triangle's particles: no wider than its longest rest edge
+        edge = wp.max(
+            wp.length(rest[i1] - rest[i0]), wp.max(wp.length(rest[i2] - rest[i1]), wp.length(rest[i0] - rest[i2]))
         )
-        if not hit:
-            continue
-        p_prev = x_prev[i0] * beta[0] + x_prev[i1] * beta[1] + x_prev[i2] * beta[2]
-        # lambda moves the closest point by -lambda sum(beta_i^2 w_i) n and the centre by lambda w_b n;
-        # particles held by taut tethers give way less, as against any body
-        w_b = bodies.inv_mass[b]
-        split = float_t(wp.max(contact_count_prev[b], 1))
-        g0 = _give_way(i0, a0, -n, w0, x, tethers, taut)
-        g1 = _give_way(i1, a1, -n, w1, x, tethers, taut)
-        g2 = _give_way(i2, a2, -n, w2, x, tethers, taut)
-        w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
-        if w_tri + split * w_b <= zero:
-            continue
-        wp.atomic_add(contact_count_next, b, 1)
-        lam = depth / (w_tri + split * w_b)
-        wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
-        wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
-        wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
+        gap = float_t(0.5) * wp.min(particles.thickness[i0], wp.min(particles.thickness[i1], particles.thickness[i2]))
+        for k in range(near.candidates.shape[0]):
+            b = near.candidates[k]
+            r = bodies.radius[b]
+            if bodies.shape[b] != SPHERE or r >= edge:
+                continue
+            c = bodies.position[b]
+            a0 = x[i0]
+            a1 = x[i1]
+            a2 = x[i2]
+            hit, beta, n, depth = _off_triangle(
+                c, c - bodies.velocity[b] * near.h, a0, a1, a2, x_prev[i0], x_prev[i1], x_prev[i2], r + gap
+            )
+            if not hit:
+                continue
+            p_prev = x_prev[i0] * beta[0] + x_prev[i1] * beta[1] + x_prev[i2] * beta[2]
+            # lambda moves the closest point by -lambda sum(beta_i^2 w_i) n and the centre by lambda w_b n;
+            # particles held by taut tethers give way less, as against any body
+            w_b = bodies.inv_mass[b]
+            split = float_t(wp.max(near.contacts_prev[b], 1))
+            g0 = _give_way(i0, a0, -n, w0, particles, tethers, near.taut)
+            g1 = _give_way(i1, a1, -n, w1, particles, tethers, near.taut)
+            g2 = _give_way(i2, a2, -n, w2, particles, tethers, near.taut)
+            w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
+            if w_tri + split * w_b <= zero:
+                continue
+            wp.atomic_add(near.contacts_next, b, 1)
+            lam = depth / (w_tri + split * w_b)
+            wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
+            wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
+            wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
 
-        # friction on the triangle point's tangential motion relative to the sphere's surface
-        q = bodies.orientation[b]
-        inv_i = bodies.inv_inertia[b]
-        r_b = -n * r
-        mu = wp.sqrt((friction[i0] + friction[i1] + friction[i2]) / float_t(3.0) * bodies.friction[b])
-        p_moved = x[i0] * beta[0] + x[i1] * beta[1] + x[i2] * beta[2] - p_prev
-        vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
-        tdir, lam_t = _coulomb(p_moved - vb * h, n, r_b, w_tri, w_b, split, mu, lam, q, inv_i)
-        wp.atomic_sub(x, i0, tdir * (lam_t * beta[0] * g0))
-        wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
-        wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
-        _push_body(b, tdir * lam_t + n * lam, r_b, q, inv_i, w_b, h, bodies)
+            # friction on the triangle point's tangential motion relative to the sphere's surface
+            q = bodies.orientation[b]
+            inv_i = bodies.inv_inertia[b]
+            r_b = -n * r
+            mu = wp.sqrt(
+                (particles.friction[i0] + particles.friction[i1] + particles.friction[i2])
+                / float_t(3.0)
+                * bodies.friction[b]
+            )
+            p_moved = x[i0] * beta[0] + x[i1] * beta[1] + x[i2] * beta[2] - p_prev
+            vb = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r_b)
+            tdir, lam_t = _coulomb(p_moved - vb * near.h, n, r_b, w_tri, w_b, split, mu, lam, q, inv_i)
+            wp.atomic_sub(x, i0, tdir * (lam_t * beta[0] * g0))
+            wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
+            wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
+            _push_body(b, tdir * lam_t + n * lam, r_b, q, inv_i, w_b, near.h, bodies)
 
 
 @wp.func
@@ -626,8 +615,7 @@ def _signs(j: int):
 
 @wp.func
 def _keep_vertex_off(
-    x: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
+    particles: Particles,
     i0: int,
     i1: int,
     i2: int,
@@ -646,14 +634,15 @@ def _keep_vertex_off(
     slip over the substep, bounded by mu lambda."""
     zero = float_t(0.0)
     one = float_t(1.0)
+    x = particles.position
     a0 = _to_frame(q, c, x[i0])
     a1 = _to_frame(q, c, x[i1])
     a2 = _to_frame(q, c, x[i2])
     hit, beta, n, depth = _off_triangle(v, v, a0, a1, a2, s0, s1, s2, gap)
     if hit:
-        w0 = inv_m[i0]
-        w1 = inv_m[i1]
-        w2 = inv_m[i2]
+        w0 = particles.inv_mass[i0]
+        w1 = particles.inv_mass[i1]
+        w2 = particles.inv_mass[i2]
         w_tri = beta[0] * beta[0] * w0 + beta[1] * beta[1] * w1 + beta[2] * beta[2] * w2
         if w_tri > zero:
             lam = depth / w_tri
@@ -669,9 +658,7 @@ def _keep_vertex_off(
 
 @wp.func
 def _keep_edge_off(
-    x: wp.array(dtype=vec3),
-    x_prev: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
+    particles: Particles,
     triangles: wp.array2d(dtype=wp.int32),
     t: int,
     owned: int,
@@ -688,6 +675,8 @@ def _keep_edge_off(
     cloth edge's ends move by weights (1 - s, s), with friction, as `_keep_vertex_off`."""
     zero = float_t(0.0)
     one = float_t(1.0)
+    x = particles.position
+    x_prev = particles.position_prev
     e_half = float_t(0.5) * wp.length(e1 - e0)
     if e_half > float_t(1.0e-12):
         e_dir = (e1 - e0) / (float_t(2.0) * e_half)
@@ -697,8 +686,8 @@ def _keep_edge_off(
                 continue
             ia = triangles[t, e]
             ib = triangles[t, (e + 1) % 3]
-            wa = inv_m[ia]
-            wb = inv_m[ib]
+            wa = particles.inv_mass[ia]
+            wb = particles.inv_mass[ib]
             la = _to_frame(q, c, x[ia])
             lb = _to_frame(q, c, x[ib])
             c_half = float_t(0.5) * wp.length(lb - la)
@@ -738,194 +727,181 @@ def _keep_edge_off(
 
 @wp.kernel
 def _collide_features(
-    x: wp.array(dtype=vec3),
-    x_prev: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    thickness: wp.array(dtype=float_t),
-    friction: wp.array(dtype=float_t),
+    particles: Particles,
     triangles: wp.array2d(dtype=wp.int32),
     edge_owner: wp.array(dtype=wp.int32),
-    candidates: wp.array(dtype=wp.int32),
-    candidate_count: int,
-    bodies: BodyArrays,
-    meshes: Meshes,
+    near: Near,
+    serial: int,
 ):
-    t = wp.tid()
-    i0 = triangles[t, 0]
-    i1 = triangles[t, 1]
-    i2 = triangles[t, 2]
-    zero = float_t(0.0)
-    if inv_m[i0] + inv_m[i1] + inv_m[i2] <= zero:
-        return
-    # the triangle keeps half the particles' thickness from the features, as from small spheres
-    # (where the particles' own contacts hold the cloth, the triangles stay out of their way)
-    gap = float_t(0.5) * wp.min(thickness[i0], wp.min(thickness[i1], thickness[i2]))
-    mu_cloth = (friction[i0] + friction[i1] + friction[i2]) / float_t(3.0)
-    owned = edge_owner[t]
-    for k in range(candidate_count):
-        b = candidates[k]
-        shape = bodies.shape[b]
-        if shape != MESH and (shape != BOX or bodies.inv_mass[b] > zero):
+    x = particles.position
+    x_prev = particles.position_prev
+    bodies = near.bodies
+    for t in range(wp.tid(), each_end(wp.tid(), serial, triangles.shape[0])):
+        i0, i1, i2 = corners(triangles, t)
+        zero = float_t(0.0)
+        if particles.inv_mass[i0] + particles.inv_mass[i1] + particles.inv_mass[i2] <= zero:
             continue
-        c = bodies.position[b]
-        q = bodies.orientation[b]
-        mu = wp.sqrt(mu_cloth * bodies.friction[b])
-        # the triangle in the body's frame at the start of the substep and now, and its box widened by the gap
-        s0 = _to_frame(q, c, x_prev[i0])
-        s1 = _to_frame(q, c, x_prev[i1])
-        s2 = _to_frame(q, c, x_prev[i2])
-        a0 = _to_frame(q, c, x[i0])
-        a1 = _to_frame(q, c, x[i1])
-        a2 = _to_frame(q, c, x[i2])
-        lo = wp.min(wp.min(wp.min(a0, a1), wp.min(a2, s0)), wp.min(s1, s2)) - vec3(gap, gap, gap)
-        hi = wp.max(wp.max(wp.max(a0, a1), wp.max(a2, s0)), wp.max(s1, s2)) + vec3(gap, gap, gap)
-        if shape == BOX:
-            # a static box's 8 corners and 12 edges, where the triangle's box meets the box
-            he = bodies.half_extents[b]
-            if not _overlaps(-he, he, lo, hi):
+        # the triangle keeps half the particles' thickness from the features, as from small spheres
+        # (where the particles' own contacts hold the cloth, the triangles stay out of their way)
+        gap = float_t(0.5) * wp.min(particles.thickness[i0], wp.min(particles.thickness[i1], particles.thickness[i2]))
+        mu_cloth = (particles.friction[i0] + particles.friction[i1] + particles.friction[i2]) / float_t(3.0)
+        owned = edge_owner[t]
+        for k in range(near.candidates.shape[0]):
+            b = near.candidates[k]
+            shape = bodies.shape[b]
+            if shape != MESH and (shape != BOX or bodies.inv_mass[b] > zero):
                 continue
-            for j in range(8):
-                corner = wp.cw_mul(he, _signs(j))
-                if _overlaps(corner, corner, lo, hi):
-                    _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, corner, c, q, gap, mu)
-            for j in range(12):
-                # edges along axis j // 4, at the signs (u, w) of the other two axes
-                axis = j // 4
-                sign = _signs(j % 4)
-                u = sign[0]
-                w = sign[1]
-                e0 = vec3(zero, zero, zero)
-                e1 = vec3(zero, zero, zero)
-                if axis == 0:
-                    e0 = vec3(-he[0], u * he[1], w * he[2])
-                    e1 = vec3(he[0], u * he[1], w * he[2])
-                elif axis == 1:
-                    e0 = vec3(u * he[0], -he[1], w * he[2])
-                    e1 = vec3(u * he[0], he[1], w * he[2])
-                else:
-                    e0 = vec3(u * he[0], w * he[1], -he[2])
-                    e1 = vec3(u * he[0], w * he[1], he[2])
-                if _overlaps(wp.min(e0, e1), wp.max(e0, e1), lo, hi):
-                    _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
-            continue
-        # a mesh: the triangles its BVH finds in the box, each with the sharp features it owns
-        g = bodies.geometry[b]
-        mesh = meshes.id[g]
-        first = meshes.feature_start[g]
-        query = wp.mesh_query_aabb(
-            mesh,
-            wp.vec3f(wp.float32(lo[0]), wp.float32(lo[1]), wp.float32(lo[2])),
-            wp.vec3f(wp.float32(hi[0]), wp.float32(hi[1]), wp.float32(hi[2])),
-        )
-        m = wp.mesh_get(mesh)
-        f = int(0)
-        while wp.mesh_query_aabb_next(query, f):
-            flags = meshes.feature[first + f]
-            for j in range(3):
-                if (flags & (1 << j)) != 0:
-                    v = _mesh_vertex(m.points, m.indices, 3 * f + j)
-                    if _overlaps(v, v, lo, hi):
-                        _keep_vertex_off(x, inv_m, i0, i1, i2, s0, s1, s2, v, c, q, gap, mu)
-            for j in range(3):
-                if (flags & (8 << j)) != 0:
-                    e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
-                    e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
+            c = bodies.position[b]
+            q = bodies.orientation[b]
+            mu = wp.sqrt(mu_cloth * bodies.friction[b])
+            # the triangle in the body's frame at the start of the substep and now, and its box widened by the gap
+            s0 = _to_frame(q, c, x_prev[i0])
+            s1 = _to_frame(q, c, x_prev[i1])
+            s2 = _to_frame(q, c, x_prev[i2])
+            a0 = _to_frame(q, c, x[i0])
+            a1 = _to_frame(q, c, x[i1])
+            a2 = _to_frame(q, c, x[i2])
+            lo = wp.min(wp.min(wp.min(a0, a1), wp.min(a2, s0)), wp.min(s1, s2)) - vec3(gap, gap, gap)
+            hi = wp.max(wp.max(wp.max(a0, a1), wp.max(a2, s0)), wp.max(s1, s2)) + vec3(gap, gap, gap)
+            if shape == BOX:
+                # a static box's 8 corners and 12 edges, where the triangle's box meets the box
+                he = bodies.half_extents[b]
+                if not _overlaps(-he, he, lo, hi):
+                    continue
+                for j in range(8):
+                    corner = wp.cw_mul(he, _signs(j))
+                    if _overlaps(corner, corner, lo, hi):
+                        _keep_vertex_off(particles, i0, i1, i2, s0, s1, s2, corner, c, q, gap, mu)
+                for j in range(12):
+                    # edges along axis j // 4, at the signs (u, w) of the other two axes
+                    axis = j // 4
+                    sign = _signs(j % 4)
+                    u = sign[0]
+                    w = sign[1]
+                    e0 = vec3(zero, zero, zero)
+                    e1 = vec3(zero, zero, zero)
+                    if axis == 0:
+                        e0 = vec3(-he[0], u * he[1], w * he[2])
+                        e1 = vec3(he[0], u * he[1], w * he[2])
+                    elif axis == 1:
+                        e0 = vec3(u * he[0], -he[1], w * he[2])
+                        e1 = vec3(u * he[0], he[1], w * he[2])
+                    else:
+                        e0 = vec3(u * he[0], w * he[1], -he[2])
+                        e1 = vec3(u * he[0], w * he[1], he[2])
                     if _overlaps(wp.min(e0, e1), wp.max(e0, e1), lo, hi):
-                        _keep_edge_off(x, x_prev, inv_m, triangles, t, owned, e0, e1, c, q, gap, mu)
+                        _keep_edge_off(particles, triangles, t, owned, e0, e1, c, q, gap, mu)
+                continue
+            # a mesh: the triangles its BVH finds in the box, each with the sharp features it owns
+            g = bodies.geometry[b]
+            mesh = near.meshes.id[g]
+            first = near.meshes.feature_start[g]
+            query = wp.mesh_query_aabb(
+                mesh,
+                wp.vec3f(wp.float32(lo[0]), wp.float32(lo[1]), wp.float32(lo[2])),
+                wp.vec3f(wp.float32(hi[0]), wp.float32(hi[1]), wp.float32(hi[2])),
+            )
+            m = wp.mesh_get(mesh)
+            f = int(0)
+            while wp.mesh_query_aabb_next(query, f):
+                flags = near.meshes.feature[first + f]
+                for j in range(3):
+                    if (flags & (1 << j)) != 0:
+                        v = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                        if _overlaps(v, v, lo, hi):
+                            _keep_vertex_off(particles, i0, i1, i2, s0, s1, s2, v, c, q, gap, mu)
+                for j in range(3):
+                    if (flags & (8 << j)) != 0:
+                        e0 = _mesh_vertex(m.points, m.indices, 3 * f + j)
+                        e1 = _mesh_vertex(m.points, m.indices, 3 * f + (j + 1) % 3)
+                        if _overlaps(wp.min(e0, e1), wp.max(e0, e1), lo, hi):
+                            _keep_edge_off(particles, triangles, t, owned, e0, e1, c, q, gap, mu)
+
+
+@wp.struct
+class PairList:
+    """The self-collision pair list as `_find_pairs` writes it."""
+
+    rows: wp.array2d(dtype=wp.int32)  # the pairs (p, q), p < q, (K, 2)
+    found: wp.array(dtype=wp.int32)  # (1,): how many pairs were found (more than K when the list is full)
 
 
 @wp.kernel
-def _find_pairs(
-    x: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    thickness: wp.array(dtype=float_t),
-    particle_cloth: wp.array(dtype=wp.int32),
-    particle_i: wp.array(dtype=wp.int32),
-    particle_j: wp.array(dtype=wp.int32),
-    margin: float_t,
-    reach: float_t,
-    inv_cell: float_t,
-    mask: int,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_count: wp.array(dtype=wp.int32),
-    cell_particles: wp.array(dtype=wp.int32),
-    particle_cell_coord: wp.array(dtype=wp.vec3i),
-    pair_count: wp.array(dtype=wp.int32),
-    pairs: wp.array2d(dtype=wp.int32),
-):
-    p = wp.tid()
-    xp = x[p]
-    # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
-    # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
-    lo = cell_of(xp - vec3(reach, reach, reach), inv_cell)
-    cloth = particle_cloth[p]
-    pi = particle_i[p]
-    pj = particle_j[p]
-    capacity = pairs.shape[0]
-    for dz in range(2):
-        for dy in range(2):
-            for dx in range(2):
-                cx = lo[0] + dx
-                cy = lo[1] + dy
-                cz = lo[2] + dz
-                slot = cell_hash(wp.vec3i(cx, cy, cz), mask)
-                e = cell_start[slot]
-                end = e + cell_count[slot]
-                while e < end:
-                    q = cell_particles[e]
-                    e += 1
-                    # each pair once (p < q)
-                    if q <= p:
-                        continue
-                    # grid neighbours are held apart by springs, not by collisions
-                    if particle_cloth[q] == cloth:
-                        if wp.abs(particle_i[q] - pi) <= 2 and wp.abs(particle_j[q] - pj) <= 2:
+def _find_pairs(particles: Particles, margin: float_t, reach: float_t, cells: Grid, out: PairList, serial: int):
+    x = particles.position
+    for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
+        xp = x[p]
+        # cells are 2 reach wide, so the ball of radius `reach` around x_p lies in the 2 x 2 x 2
+        # cells from `lo` (loops with constant bounds: Warp unrolls them, much faster on the CPU)
+        lo = cell_of(xp - vec3(reach, reach, reach), cells.params[1])
+        cloth = particles.cloth[p]
+        pi = particles.i[p]
+        pj = particles.j[p]
+        capacity = out.rows.shape[0]
+        for dz in range(2):
+            for dy in range(2):
+                for dx in range(2):
+                    cx = lo[0] + dx
+                    cy = lo[1] + dy
+                    cz = lo[2] + dz
+                    slot = cell_hash(wp.vec3i(cx, cy, cz), cells.mask)
+                    e = cells.cell_start[slot]
+                    end = e + cells.cell_count[slot]
+                    while e < end:
+                        q = cells.entries[e]
+                        e += 1
+                        # each pair once (p < q)
+                        if q <= p:
                             continue
-                    rel = xp - x[q]
-                    near = float_t(0.5) * (thickness[p] + thickness[q]) + margin
-                    if wp.dot(rel, rel) >= near * near:
-                        continue
-                    # the slot may hold other cells too (hash collisions): count each pair once;
-                    # pairs of two pins never move
-                    cq = particle_cell_coord[q]
-                    if cq[0] != cx or cq[1] != cy or cq[2] != cz:
-                        continue
-                    if inv_m[p] + inv_m[q] <= float_t(0.0):
-                        continue
-                    k = wp.atomic_add(pair_count, 0, 1)
-                    if k < capacity:
-                        pairs[k, 0] = p
-                        pairs[k, 1] = q
+                        # grid neighbours are held apart by springs, not by collisions
+                        if particles.cloth[q] == cloth:
+                            if wp.abs(particles.i[q] - pi) <= 2 and wp.abs(particles.j[q] - pj) <= 2:
+                                continue
+                        rel = xp - x[q]
+                        near = float_t(0.5) * (particles.thickness[p] + particles.thickness[q]) + margin
+                        if wp.dot(rel, rel) >= near * near:
+                            continue
+                        # the slot may hold other cells too (hash collisions): count each pair once;
+                        # pairs of two pins never move
+                        cq = cells.point_cell_coord[q]
+                        if cq[0] != cx or cq[1] != cy or cq[2] != cz:
+                            continue
+                        if particles.inv_mass[p] + particles.inv_mass[q] <= float_t(0.0):
+                            continue
+                        k = wp.atomic_add(out.found, 0, 1)
+                        if k < capacity:
+                            out.rows[k, 0] = p
+                            out.rows[k, 1] = q
 
 
 @wp.kernel
 def _separate_pairs(
-    x: wp.array(dtype=vec3),
-    inv_m: wp.array(dtype=float_t),
-    thickness: wp.array(dtype=float_t),
+    particles: Particles,
     pairs: wp.array2d(dtype=wp.int32),
     count: int,
+    serial: int,
 ):
-    k = wp.tid()
-    if k >= count:
-        return
-    p = pairs[k, 0]
-    q = pairs[k, 1]
-    rel = x[p] - x[q]
-    dist = wp.length(rel)
-    target = float_t(0.5) * (thickness[p] + thickness[q])
-    if dist >= target:
-        return
-    w_p = inv_m[p]
-    w_q = inv_m[q]
-    n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
-    if dist > float_t(1.0e-12):
-        n = rel / dist
-    # push both to distance `target`, in proportion to their inverse masses (Gauss-Seidel on
-    # the CPU, where kernels run serially)
-    c = n * ((target - dist) / (w_p + w_q))
-    wp.atomic_add(x, p, c * w_p)
-    wp.atomic_sub(x, q, c * w_q)
+    x = particles.position
+    for k in range(wp.tid(), each_end(wp.tid(), serial, count)):
+        if k >= count:
+            continue
+        p = pairs[k, 0]
+        q = pairs[k, 1]
+        rel = x[p] - x[q]
+        dist = wp.length(rel)
+        target = float_t(0.5) * (particles.thickness[p] + particles.thickness[q])
+        if dist >= target:
+            continue
+        w_p = particles.inv_mass[p]
+        w_q = particles.inv_mass[q]
+        n = vec3(float_t(0.0), float_t(0.0), float_t(1.0))
+        if dist > float_t(1.0e-12):
+            n = rel / dist
+        # push both to distance `target`, in proportion to their inverse masses (Gauss-Seidel on
+        # the CPU, where kernels run serially)
+        c = n * ((target - dist) / (w_p + w_q))
+        wp.atomic_add(x, p, c * w_p)
+        wp.atomic_sub(x, q, c * w_q)
 
 
 def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float, dt: float) -> np.ndarray:
@@ -963,45 +939,16 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def collide_bodies(
-    x,
-    x_prev,
-    inv_mass,
-    thickness,
-    friction,
-    tethers: Tethers,
-    limits: Limits,
-    candidates,
-    bodies,
-    hulls,
-    meshes,
-    contact_count_prev,
-    contact_count_next,
-    pin_load,
-    h,
-    *,
-    taut: float = 0.97,
-    strict: bool = False,
-    cache: LaunchCache | None = None,
-):
-    """Push particles out of the candidate bodies, with friction, and push the bodies back.
+def near_bodies(candidates, bodies, hulls, meshes, counts, h, *, taut: float = 0.97, strict: bool = False) -> Near:
+    """The bodies the cloth may touch this step, as the contact kernels take them.
 
     Args:
-        x: particle positions after integration [m], shape (P,) vec3 (corrected in place).
-        x_prev: particle positions at the start of the substep [m], shape (P,) vec3.
-        inv_mass: [1/kg], shape (P,); pinned particles (0) are not moved.
-        thickness: distance particles keep from surfaces [m], shape (P,).
-        friction: particle friction coefficients, shape (P,); combined with a body's as sqrt(mu_p mu_b).
-        tethers: each particle's tethers and their pins and largest lengths (`springs.tether_arrays`).
-        limits: each particle's limited springs (`springs.Limits`).
-        candidates: body indices to test, shape (k,) int32.
+        candidates: the body rows to test, shape (k,) int32 (`candidate_bodies`).
         bodies: the world's body arrays (`BodyArrays`, from `body_arrays`); positions and velocities of
             dynamic bodies are updated.
         hulls: the world's `Hulls` struct (convex bodies); meshes: its `Meshes` struct (`MeshSet.struct`).
-        contact_count_prev: particles touching each body in the previous pass, shape (n,) int32.
-        contact_count_next: zeroed; receives this pass's counts, shape (n,) int32.
-        pin_load: the pins' load [kg m], shape (P,) vec3 (added to: the part of the bodies' pushes that
-            the cloth held without its particles moving, passed on to the pins holding them).
+        counts: per body row, the particles that touched it in the previous pass and (zeroed before
+            each pass) in this one, two arrays of shape (n,) int32.
         h: substep [s].
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
@@ -1010,54 +957,35 @@ def collide_bodies(
             and tethers leave them (the other ends held), and the bodies are pushed out the rest
             of the way, so contacts never stretch the cloth past its limit (`ClothSystem.strict_limit`).
     """
-    k = candidates.shape[0]
-    if k == 0:
-        return
-    launch(
-        _collide_bodies,
-        x.shape[0],
-        [
-            x,
-            x_prev,
-            inv_mass,
-            thickness,
-            friction,
-            tethers,
-            limits,
-            candidates,
-            k,
-            bodies,
-            hulls,
-            meshes,
-            contact_count_prev,
-            contact_count_next,
-            pin_load,
-            float(h),
-            float(taut),
-            int(strict),
-        ],
-        x.device,
-        cache,
-    )
+    near = Near()
+    near.bodies, near.hulls, near.meshes, near.candidates = bodies, hulls, meshes, candidates
+    near.contacts_prev, near.contacts_next = counts
+    near.h, near.taut, near.strict = float_t(h), float_t(taut), int(strict)
+    return near
+
+
+def collide_bodies(
+    particles: Particles, tethers: Tethers, limits: Limits, near: Near, *, cache: LaunchCache | None = None
+):
+    """Push particles out of the near bodies, with friction, and push the bodies back.
+
+    Args:
+        particles: the particle arrays: `position` after integration (corrected in place),
+            `position_prev` at the start of the substep; pinned particles (`inv_mass` 0) are not
+            moved; each keeps its `thickness` from surfaces; its `friction` is combined with a
+            body's as sqrt(mu_p mu_b); `pin_load` [kg m] adds the part of the bodies' pushes that
+            the cloth held without its particles moving, passed on to the pins holding them.
+        tethers: each tether's pin and largest length (a particle's are `particles.tether_first`, ...).
+        limits: each particle's limited springs.
+        near: the bodies to test, the contact counts and the pass's settings (`near_bodies`).
+    """
+    if near.candidates.shape[0]:
+        x = particles.position
+        launch_each(_collide_bodies, x.shape[0], [particles, tethers, limits, near], x.device, cache)
 
 
 def catch_small_spheres(
-    x,
-    x_prev,
-    inv_mass,
-    rest_position,
-    thickness,
-    friction,
-    tethers: Tethers,
-    triangles,
-    candidates,
-    bodies,
-    contact_count_prev,
-    contact_count_next,
-    h,
-    *,
-    taut: float = 0.97,
-    cache: LaunchCache | None = None,
+    particles: Particles, tethers: Tethers, triangles, near: Near, *, cache: LaunchCache | None = None
 ):
     """Keep spheres that fit between particles from passing through the cloth's triangles.
 
@@ -1066,35 +994,12 @@ def catch_small_spheres(
     triangle is kept at least radius + thickness / 2 from the centre, on the side the centre
     was on when the substep began: the triangle's particles and the sphere move apart, weighted
     by inverse masses, barycentric weights and tautness of the particles' tethers, with
-    Coulomb friction at the sphere's surface (position-based, like `collide_bodies`).
-    Cost O(T x candidates).
+    Coulomb friction at the sphere's surface (position-based, like `collide_bodies`, whose
+    arguments these are; `triangles`: (T, 3) int32). Cost O(T x candidates).
     """
-    k = candidates.shape[0]
-    if k == 0 or triangles.shape[0] == 0:
-        return
-    launch(
-        _catch_small_spheres,
-        triangles.shape[0],
-        [
-            x,
-            x_prev,
-            inv_mass,
-            rest_position,
-            thickness,
-            friction,
-            tethers,
-            triangles,
-            candidates,
-            k,
-            bodies,
-            contact_count_prev,
-            contact_count_next,
-            float(h),
-            float(taut),
-        ],
-        x.device,
-        cache,
-    )
+    count = triangles.shape[0]
+    if near.candidates.shape[0] and count:
+        launch_each(_catch_small_spheres, count, [particles, tethers, triangles, near], triangles.device, cache)
 
 
 def edge_owners(triangles: np.ndarray) -> np.ndarray:
@@ -1107,20 +1012,7 @@ def edge_owners(triangles: np.ndarray) -> np.ndarray:
     return flags.astype(np.int32)
 
 
-def collide_features(
-    x,
-    x_prev,
-    inv_mass,
-    thickness,
-    friction,
-    triangles,
-    edge_owner,
-    candidates,
-    bodies,
-    meshes,
-    *,
-    cache: LaunchCache | None = None,
-):
+def collide_features(particles: Particles, triangles, edge_owner, near: Near, *, cache: LaunchCache | None = None):
     """Keep the sharp features of static meshes and boxes (a cone's tip, a box's edge, a plate's border) out of the cloth's triangles.
 
     Particles alone keep out of a body's surface, but a feature narrower than the gaps between
@@ -1135,26 +1027,18 @@ def collide_features(
     Serial on the CPU, so deterministic there. Dynamic boxes are left to the particle contacts.
 
     Args:
-        x: particle positions [m], shape (P,) vec3 (corrected in place); x_prev: at the substep's start.
-        inv_mass, thickness, friction: per particle, shape (P,).
+        particles: the particle arrays (`position` corrected in place; `position_prev` at the
+            substep's start; `inv_mass`, `thickness`, `friction`).
         triangles: (T, 3) int32; edge_owner: `edge_owners(triangles)`, (T,) int32.
-        candidates: body indices that can reach the cloth, (k,) int32 (only meshes and static boxes are read).
-        bodies: `BodyArrays`; meshes: the world's `Meshes` struct (`MeshSet.struct`).
+        near: the bodies that can reach the cloth (`near_bodies`; only its meshes and static boxes are read).
         cache: recorded launches to replay.
 
     Cost O(T x (log F + features near each triangle)) per call for a mesh of F triangles, O(T x 20)
     for a box near the triangle.
     """
-    k = candidates.shape[0]
-    if k == 0 or triangles.shape[0] == 0:
-        return
-    launch(
-        _collide_features,
-        triangles.shape[0],
-        [x, x_prev, inv_mass, thickness, friction, triangles, edge_owner, candidates, k, bodies, meshes],
-        x.device,
-        cache,
-    )
+    count = triangles.shape[0]
+    if near.candidates.shape[0] and count:
+        launch_each(_collide_features, count, [particles, triangles, edge_owner, near], triangles.device, cache)
 
 
 def pair_buffer(particle_count: int, device: str) -> wp.array:
@@ -1172,6 +1056,10 @@ class SelfCollisionGrid:
         device: Warp device.
     """
 
+    # the pair list as `_find_pairs` writes it (`PairList`), built again when the buffer grows; a class
+    # default, so that a finder restored from a snapshot older than it has it too
+    _out: tuple | None = None
+
     def __init__(self, device: str):
         self.grid = HashGrid(device)
         self.found = wp.zeros(1, dtype=wp.int32, device=device)
@@ -1179,12 +1067,7 @@ class SelfCollisionGrid:
     def find_pairs(
         self,
         pairs: wp.array,
-        x,
-        inv_mass,
-        thickness,
-        particle_cloth,
-        particle_i,
-        particle_j,
+        particles: Particles,
         max_thickness: float,
         margin: float,
         *,
@@ -1194,10 +1077,8 @@ class SelfCollisionGrid:
 
         Args:
             pairs: the pair buffer, (K, 2) int32 (`pair_buffer`).
-            x: positions [m], shape (P,) vec3.
-            inv_mass: [1/kg], shape (P,).
-            thickness: [m], shape (P,).
-            particle_cloth, particle_i, particle_j: cloth index and grid coordinates, shape (P,) int32.
+            particles: the particle arrays (reads `position`, `inv_mass`, `thickness`, and the
+                cloth and grid place `cloth`, `i`, `j`).
             max_thickness: the largest thickness [m].
             margin: how much closer two particles may come during the step [m].
             cache: recorded launches to replay.
@@ -1207,6 +1088,7 @@ class SelfCollisionGrid:
             K were found: this step keeps the truncated list, the next finds room) and the number of
             pairs in it.
         """
+        x = particles.position
         n, dev = x.shape[0], x.device
         reach = max_thickness + margin
         inv_cell = 0.5 / reach  # cells 2 reach wide: each query visits 2 x 2 x 2 cells
@@ -1214,30 +1096,8 @@ class SelfCollisionGrid:
         grid = self.grid.build(x, n, 1.0 / inv_cell)
         # candidate pairs
         self.found.zero_()
-        launch(
-            _find_pairs,
-            n,
-            [
-                x,
-                inv_mass,
-                thickness,
-                particle_cloth,
-                particle_i,
-                particle_j,
-                margin,
-                reach,
-                grid.inv_cell,
-                grid.mask,
-                grid.cell_start,
-                grid.cell_count,
-                grid.entries,
-                grid.point_cell_coord,
-                self.found,
-                pairs,
-            ],
-            dev,
-            cache,
-        )
+        self._out = cached_struct(PairList, {"rows": pairs, "found": self.found}, "", self._out)
+        launch_each(_find_pairs, n, [particles, margin, reach, grid.struct(), self._out[0]], dev, cache)
         found = int(self.found.numpy()[0])
         count = min(found, pairs.shape[0])
         if found > count:
@@ -1248,17 +1108,16 @@ class SelfCollisionGrid:
         return pairs, count
 
 
-def separate_pairs(x, inv_mass, thickness, pairs, count: int, *, cache: LaunchCache | None = None) -> None:
+def separate_pairs(particles: Particles, pairs, count: int, *, cache: LaunchCache | None = None) -> None:
     """Every substep: push the listed pairs that are closer than their mean thickness apart.
 
     Args:
-        x: positions [m], shape (P,) vec3 (corrected in place).
-        inv_mass: [1/kg], shape (P,).
-        thickness: [m], shape (P,).
+        particles: the particle arrays (`position` corrected in place, weighted by `inv_mass`;
+            `thickness`).
         pairs: the pair list, (K, 2) int32; count: how many of its rows are pairs.
         cache: recorded launches to replay.
     """
     if count:
-        # launched over the whole buffer (threads past `count` return), so the recorded
+        # on CUDA launched over the whole buffer (threads past `count` return), so the recorded
         # launch is reused whatever the count
-        launch(_separate_pairs, pairs.shape[0], [x, inv_mass, thickness, pairs, count], x.device, cache)
+        launch_each(_separate_pairs, pairs.shape[0], [particles, pairs, count], pairs.device, cache)

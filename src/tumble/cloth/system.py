@@ -7,8 +7,9 @@ and relaxed (the body arrays, hulls and meshes it collides with), and `end_step`
 last substep. The cloth keeps no reference to the world; its data are the world's parts
 (`ClothModel`, `ClothState`, `ClothControl`: `world.model.cloth`, `world.state.cloth`,
 `world.control.cloth`), its particle arrays declared once in `PARTICLE_FIELDS` and stepped as one
-`RowGroup` with the stage's scratch rows. One cloth substep runs these stages,
-each a plain function over arrays (see `springs`, `wind` and `collide`):
+`RowGroup` with the stage's scratch rows, its topology declared in the tables of `arrays`. One
+cloth substep runs these stages, each a plain function over the arrays as the kernels take them
+(the structs of `arrays`, `ClothStructs`; see `springs`, `wind` and `collide`):
 
 1. forces: springs (structural, shear, bend) and, with wind set, drag and lift per triangle;
 2. integrate: semi-implicit Euler; pinned particles move towards their targets;
@@ -37,6 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -44,13 +46,15 @@ import warp as wp
 from .. import validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
-from ..model import Field, Role, body_arrays, fields_of
+from ..model import Role, body_arrays, fields_of
 from ..real import float_t, vec3
 from ..shapes import ShapeType
 from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, host_view, numpy_dtype, readonly
+from ..structs import cached_struct, fill_struct
 from . import attach, collide, grid, springs
+from .arrays import PARTICLE_FIELDS, TOPOLOGY, Limits, Particles, Springs, Stretch, Structural, Tethers
 from .attach import BodyPins
-from .wind import Wind, accumulate_air_forces, sample_wind
+from .wind import MODE_FIELDS, Modes, Wind, accumulate_air_forces, sample_wind
 
 #: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution
 DEFAULT_STIFFNESS = {"structural": 12.0, "shear": 1.2, "bend": 0.3}
@@ -59,29 +63,16 @@ DEFAULT_DAMPING = {"structural": 0.002, "shear": 0.0005, "bend": 0.0001}
 #: default areal density [kg/m^2] when neither mass nor areal_density is given (light cotton)
 DEFAULT_AREAL_DENSITY = 0.2
 
-#: every per-particle array, declared once (as `tumble.model.BODY_FIELDS` declares the body arrays)
-PARTICLE_FIELDS: tuple[Field, ...] = (
-    Field("particle_mass", float_t, Role.MODEL, "kg", "mass"),
-    Field("particle_inv_mass", float_t, Role.MODEL, "1/kg", "inverse mass, 0 = pinned (pins may change it)"),
-    Field("particle_thickness", float_t, Role.MODEL, "m", "collision thickness"),
-    Field("particle_friction", float_t, Role.MODEL, "", "friction coefficient"),
-    Field("particle_cloth", wp.int32, Role.MODEL, "", "index of the cloth in creation order"),
-    Field("particle_i", wp.int32, Role.MODEL, "", "grid column in its cloth"),
-    Field("particle_j", wp.int32, Role.MODEL, "", "grid row in its cloth"),
-    Field("particle_rest_position", vec3, Role.MODEL, "m", "position in the rest shape"),
-    Field("particle_position", vec3, Role.STATE, "m", "position"),
-    Field("particle_velocity", vec3, Role.STATE, "m/s", "velocity"),
-    Field("particle_pin_target", vec3, Role.STATE, "m", "where a pinned particle should be at the end of the step"),
-    Field("particle_position_prev", vec3, Role.SCRATCH, "m", "position at the start of the substep"),
-    Field("particle_force", vec3, Role.SCRATCH, "N", "force accumulated over the substep"),
-    Field("particle_external_force", vec3, Role.CONTROL, "N", "user force for the current step"),
-    Field("particle_wind", vec3, Role.SCRATCH, "m/s", "wind velocity at the particle this step"),
-    Field(
-        "particle_pin_load", vec3, Role.SCRATCH, "kg m", "the stretch limit's and tethers' pull on a pin, this substep"
-    ),
-    Field("particle_tether_first", wp.int32, Role.MODEL, "", "first tether of the particle (derived from the pins)"),
-    Field("particle_tether_count", wp.int32, Role.MODEL, "", "its number of tethers (derived from the pins)"),
-)
+
+class ClothStructs(NamedTuple):
+    """The cloth's arrays as the kernels take them (the structs of `arrays`), built once per set of arrays."""
+
+    particles: Any  # Particles: every particle array
+    springs: Any  # Springs
+    structural: Any  # Structural: the structural springs
+    stretch: Any  # Stretch: the springs the stretch limit holds
+    limits: Any  # Limits: each particle's limited springs
+    tethers: Any  # Tethers
 
 
 @dataclass(frozen=True)
@@ -129,10 +120,11 @@ class ClothModel:
         particles: the model rows of `PARTICLE_FIELDS` (masses, inverse masses: 0 = pinned,
             thickness, friction, grid place, rest shape, tethers).
         cloths: where each cloth lives in the particle rows (`Cloth`), in creation order.
-        topology: name -> Warp array: springs (`spring_ids` (m, 2) int32, `spring_rest_length`,
-            `spring_stiffness`, `spring_damping`), structural springs and rest lengths, limited springs
-            and limits (`stretch_ids`, `stretch_limit`), `triangles` (T, 3) int32, and what is derived
-            from them and from the pins (`limit_*` per particle, `pin_index`, `tether_pin`, `tether_limit`).
+        topology: name -> Warp array, the arrays of `arrays.TOPOLOGY`: springs (`spring_ids` (m, 2)
+            int32, `spring_rest_length`, `spring_stiffness`, `spring_damping`), structural springs and
+            rest lengths, limited springs and limits (`stretch_ids`, `stretch_limit`), `triangles`
+            (T, 3) int32, and what is derived from them and from the pins (`limit_*` per particle,
+            `pin_index`, `tether_pin`, `tether_limit`).
         body_pins: pins that follow bodies (cloth/attach.py).
     """
 
@@ -219,6 +211,12 @@ class ClothSystem:
         gravity: [m/s^2], shape (3,): what `potential_energy` measures against until a step passes its own.
     """
 
+    # caches of the structs the kernels take, built on first use and again when their arrays change; class
+    # defaults, so that a world restored from a snapshot older than them has them too
+    _structs: tuple | None = None  # the particle and topology arrays (`_kernel_structs`)
+    _near_bodies: tuple | None = None  # the bodies near the cloth (`_near`)
+    _modes: tuple | None = None  # the wind's modes (`wind.Modes`)
+
     def __init__(
         self,
         device: str = "cpu",
@@ -260,7 +258,7 @@ class ClothSystem:
         self._candidates_host = np.zeros(0, dtype=np.int32)
         self._reach = 0.0
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)  # this substep's body_contacts
-        self._wind_modes: tuple[wp.array, wp.array, wp.array, wp.array] | None = None  # of control.wind
+        self._wind_modes: tuple[wp.array, ...] | None = None  # of control.wind, by `wind.MODE_FIELDS`
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
         self._features_near = False  # a static mesh or box can reach the cloth this step
@@ -448,13 +446,8 @@ class ClothSystem:
             air_density=validate.number(air_density, "air_density", low=0.0),
         )
         # the turbulence modes on the device: the stage's, derived from the wind
-        wave, amplitude, omega, phase = self.control.wind.mode_arrays()
-        self._wind_modes = (
-            wp.array(wave, dtype=vec3, device=self.device),
-            wp.array(amplitude, dtype=vec3, device=self.device),
-            wp.array(omega, dtype=float_t, device=self.device),
-            wp.array(phase, dtype=float_t, device=self.device),
-        )
+        modes = zip(MODE_FIELDS.values(), self.control.wind.mode_arrays(), strict=True)
+        self._wind_modes = tuple(wp.array(values, dtype=dtype, device=self.device) for dtype, values in modes)
 
     @property
     def wind(self) -> Wind | None:
@@ -476,17 +469,9 @@ class ClothSystem:
                     np.ascontiguousarray(host[name], np_type) if name in host else np.zeros((p, *tail), np_type)
                 )
             part.load(rows_of, count=p, capacity=p)
-        top = self.model.topology
-        for name in ("spring_ids", "structural_ids", "stretch_ids", "triangles"):
-            top[name] = wp.array(np.ascontiguousarray(host[name], dtype=np.int32), dtype=wp.int32, device=self.device)
-        for name in (
-            "spring_rest_length",
-            "spring_stiffness",
-            "spring_damping",
-            "structural_rest_length",
-            "stretch_limit",
-        ):
-            top[name] = wp.array(host[name], dtype=float_t, device=self.device)
+        for name in TOPOLOGY:
+            if name in host:  # the rows a cloth gives; the rest is derived from them below
+                self._put(name, host[name])
         self._strain = wp.zeros(len(host["structural_ids"]), dtype=float_t, device=self.device)
         self._build_limits()
         self._edge_owner = wp.array(collide.edge_owners(host["triangles"]), dtype=wp.int32, device=self.device)
@@ -497,8 +482,16 @@ class ClothSystem:
         self._reach = float(host["particle_thickness"].max())
         self._update_pins()
 
+    def _put(self, name: str, values: np.ndarray) -> None:
+        """The topology array `name` (of `arrays.TOPOLOGY`) anew, holding `values`."""
+        row: Any = TOPOLOGY[name]
+        dtype = row.dtype if isinstance(row, wp.array) else row  # an array type: rows of int32 pairs or triples
+        self.model.topology[name] = wp.array(
+            np.ascontiguousarray(values, numpy_dtype(dtype)[0]), dtype=dtype, device=self.device
+        )
+
     def _build_limits(self) -> None:
-        """Per particle: its limited springs (other end and limit, `springs.Limits`)."""
+        """Per particle: its limited springs (other end and limit, `arrays.Limits`)."""
         dev, p = self.device, self.particles.count
         ids, limit = self._host("stretch_ids"), self._host("stretch_limit")
         ends = np.concatenate([ids[:, 0], ids[:, 1]]).astype(np.int64)
@@ -507,14 +500,10 @@ class ClothSystem:
         first = (np.cumsum(count) - count).astype(np.int32)
         other = np.concatenate([ids[:, 1], ids[:, 0]])[order].astype(np.int32)
         length = np.concatenate([limit, limit])[order]
-        top = self.model.topology
-        top["limit_first"] = wp.array(first, dtype=wp.int32, device=dev)
-        top["limit_count"] = wp.array(count, dtype=wp.int32, device=dev)
-        top["limit_other"] = wp.array(np.resize(other, max(1, len(other))), dtype=wp.int32, device=dev)
-        top["limit_length"] = wp.array(np.resize(length, max(1, len(length))), dtype=float_t, device=dev)
-        self._limits = springs.Limits()
-        for name in ("first", "count", "other", "length"):
-            setattr(self._limits, name, top["limit_" + name])
+        self._put("limit_first", first)
+        self._put("limit_count", count)
+        self._put("limit_other", np.resize(other, max(1, len(other))))
+        self._put("limit_length", np.resize(length, max(1, len(length))))
         self._pin_impulse = wp.zeros(1, dtype=vec3, device=dev)
 
     def _update_pins(self) -> None:
@@ -536,10 +525,9 @@ class ClothSystem:
         def cat(xs, dtype):
             return np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype)
 
-        top = self.model.topology
-        top["pin_index"] = wp.array(np.flatnonzero(inv_m == 0.0).astype(np.int32), dtype=wp.int32, device=self.device)
-        top["tether_pin"] = wp.array(cat(pins, np.int32), dtype=wp.int32, device=self.device)
-        top["tether_limit"] = wp.array(cat(limits, np.float64), dtype=float_t, device=self.device)
+        self._put("pin_index", np.flatnonzero(inv_m == 0.0))
+        self._put("tether_pin", cat(pins, np.int32))
+        self._put("tether_limit", cat(limits, np.float64))
         # per particle: its first tether and how many (tethers are sorted by particle)
         owner = cat(parts, np.int32)
         p = self.particles.count
@@ -547,10 +535,6 @@ class ClothSystem:
         first = (np.cumsum(count) - count).astype(np.int32)
         self.particles.write("particle_tether_first", slice(0, p), first)
         self.particles.write("particle_tether_count", slice(0, p), count)
-        a = self.particles.arrays
-        self._tethers = springs.tether_arrays(
-            a["particle_tether_first"], a["particle_tether_count"], top["tether_pin"], top["tether_limit"]
-        )
         self._cache.clear()
         self._update_stable_step()
 
@@ -610,200 +594,138 @@ class ClothSystem:
             self._cloth_substep(self._cloth_h, bodies, hulls, meshes)
             self._cloth_done += 1
 
+    def _kernel_structs(self) -> ClothStructs:
+        """The particle and topology arrays as the kernels take them, built again only when some array was
+        (a new cloth, new pins, a restored snapshot)."""
+        held = [*self.particles.arrays.values(), *self.model.topology.values()]
+        cached = self._structs
+        if cached is None or len(cached[1]) != len(held) or not all(a is b for a, b in zip(cached[1], held)):
+            a, top = self.particles.arrays, self.model.topology
+            built = ClothStructs(
+                fill_struct(Particles, a, "particle_"),
+                fill_struct(Springs, top, "spring_"),
+                fill_struct(Structural, top, "structural_"),
+                fill_struct(Stretch, top, "stretch_"),
+                fill_struct(Limits, top, "limit_"),
+                fill_struct(Tethers, top, "tether_"),
+            )
+            cached = self._structs = (built, held)
+        return cached[0]
+
     def _cloth_substep(self, hi: float, bodies, hulls, meshes) -> None:
         """One cloth substep of `hi` seconds: forces, integration, constraints, collisions, velocities."""
         gravity = self._gravity
-        a, top = self.particles.arrays, self.model.topology
+        top = self.model.topology
+        s = self._kernel_structs()
+        particles = s.particles
         total = self._cloth_total
         cache = self._cache
         # forces: springs, then air on every triangle
-        springs.accumulate_spring_forces(
-            a["particle_position"],
-            a["particle_velocity"],
-            top["spring_ids"],
-            top["spring_rest_length"],
-            top["spring_stiffness"],
-            top["spring_damping"],
-            a["particle_force"],
-            cache=cache,
-        )
+        springs.accumulate_spring_forces(particles, s.springs, cache=cache)
         if self.wind is not None:
             w = self.wind
-            accumulate_air_forces(
-                a["particle_position"],
-                a["particle_velocity"],
-                a["particle_wind"],
-                top["triangles"],
-                w.drag,
-                w.lift,
-                w.air_density,
-                a["particle_force"],
-                cache=cache,
-            )
+            accumulate_air_forces(particles, top["triangles"], w.drag, w.lift, w.air_density, cache=cache)
 
-        self.body_pins.react(a, bodies, gravity, hi)  # the pull on body pins moves their bodies
-        attach.sum_pin_load(
-            top["pin_index"], a["particle_force"], a["particle_mass"], gravity, self._pin_impulse, hi, cache=cache
-        )
+        self.body_pins.react(particles, bodies, gravity, hi)  # the pull on body pins moves their bodies
+        attach.sum_pin_load(top["pin_index"], particles.force, particles, gravity, self._pin_impulse, hi, cache=cache)
 
         # integrate: semi-implicit Euler; pins cover the rest of the way to their targets evenly
         remaining = max(1, total - self._substep_index)
-        springs.integrate(
-            a["particle_position"],
-            a["particle_velocity"],
-            a["particle_position_prev"],
-            a["particle_force"],
-            a["particle_external_force"],
-            a["particle_inv_mass"],
-            a["particle_pin_target"],
-            gravity,
-            hi,
-            1.0 / remaining,
-            cache=cache,
-        )
+        springs.integrate(particles, gravity, hi, 1.0 / remaining, cache=cache)
         self._substep_index += 1
-        self.body_pins.follow(a, bodies)  # body pins sit on their body points
+        self.body_pins.follow(particles, bodies)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over the
         # substeps and pump energy into a ball resting in a hammock (with `strict_limit` the
         # contacts never stretch the cloth past its limit: see docs/design.md, "Cloth with bodies")
         touching = self._candidates.shape[0] > 0
-        pin_load = a["particle_pin_load"]
-        pin_load.zero_()
+        near = self._near(hi, hulls, meshes) if touching else None
+        particles.pin_load.zero_()
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            self.last_stretch_sweeps = self._limit(pin_load, 1.0 if touching else self.stretch_relaxation)
+            self.last_stretch_sweeps = self._limit(s, 1.0 if touching else self.stretch_relaxation)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
             if self.self_collision and self.state.pair_count:
-                self._separate_pairs(cache)
-                self._limit(pin_load, 1.0, tethers=False, min_iterations=0)
+                collide.separate_pairs(particles, self.state.pairs, self.state.pair_count, cache=cache)
+                self._limit(s, 1.0, tethers=False, min_iterations=0)
 
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
-            if touching:
-                self._collide_bodies(hi, hulls, meshes)
+            if near is not None:
+                self._collide_bodies(s, near)
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
                 if self.self_collision and self.state.pair_count:
-                    self._separate_pairs(cache)
-                    self._collide_bodies(hi, hulls, meshes)
+                    collide.separate_pairs(particles, self.state.pairs, self.state.pair_count, cache=cache)
+                    self._collide_bodies(s, near)
 
         # the triangles against the sharp features of static meshes and boxes, once the particles
         # are settled against the faces (once a substep: their cost is one BVH query a triangle)
-        if touching and self._features_near:
-            assert self._bodies is not None  # set by begin_step
-            collide.collide_features(
-                a["particle_position"],
-                a["particle_position_prev"],
-                a["particle_inv_mass"],
-                a["particle_thickness"],
-                a["particle_friction"],
-                top["triangles"],
-                self._edge_owner,
-                self._candidates,
-                self._bodies[0],
-                meshes,
-                cache=cache,
-            )
+        if near is not None and self._features_near:
+            collide.collide_features(particles, top["triangles"], self._edge_owner, near, cache=cache)
 
         # with a dynamic body near, the stretch limit has the last word: the cloth ends every substep
         # within its limit; what it takes back from the contacts stays inside the particles'
         # thickness and is pushed out again next substep (the body's push that the taut cloth
         # held went on to the pins in `collide`)
         if self._bodies_near:
-            self._limit(pin_load, 1.0)
+            self._limit(s, 1.0)
 
         # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
-        self.body_pins.react_constraints(a, bodies, hi)
+        self.body_pins.react_constraints(particles, bodies, hi)
         attach.sum_pin_load(
-            top["pin_index"], pin_load, a["particle_mass"], (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
+            top["pin_index"], particles.pin_load, particles, (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
         )
 
         # velocities from the corrected positions
-        springs.update_velocities(
-            a["particle_position"], a["particle_position_prev"], a["particle_velocity"], hi, cache=cache
-        )
+        springs.update_velocities(particles, hi, cache=cache)
 
-    def _separate_pairs(self, cache) -> None:
-        """The pairs of the self-collision list pushed apart to their mean thickness."""
-        a = self.particles.arrays
-        collide.separate_pairs(
-            a["particle_position"],
-            a["particle_inv_mass"],
-            a["particle_thickness"],
-            self.state.pairs,
-            self.state.pair_count,
-            cache=cache,
-        )
-
-    def _limit(self, pin_load, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
+    def _limit(self, s: ClothStructs, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
         """The stretch limit: tethers to the pins (unless `tethers` is False), then Provot's sweeps
         (`stretch_iterations`, the minimum replaced by `min_iterations` if given; over-relaxed by
-        `relax`); the pins' share goes into `pin_load`. Returns the number of sweeps."""
-        a, top = self.particles.arrays, self.model.topology
+        `relax`); the pins' share goes into `particle_pin_load`. Returns the number of sweeps."""
         if tethers:
-            springs.limit_tethers(
-                a["particle_position"], a["particle_inv_mass"], self._tethers, pin_load=pin_load, cache=self._cache
-            )
+            springs.limit_tethers(s.particles, s.tethers, cache=self._cache)
         lo_it, hi_it = self.stretch_iterations
         return springs.limit_stretch(
-            a["particle_position"],
-            a["particle_inv_mass"],
-            top["stretch_ids"],
-            top["stretch_limit"],
+            s.particles,
+            s.stretch,
             self._violated,
-            pin_load=pin_load,
             min_iterations=lo_it if min_iterations is None else min_iterations,
             max_iterations=hi_it,
             relax=relax,
             cache=self._cache,
         )
 
-    def _collide_bodies(self, hi: float, hulls, meshes) -> None:
-        """Particles, then triangles against small spheres, out of the candidate bodies; bodies pushed back."""
-        a, top = self.particles.arrays, self.model.topology
+    def _near(self, hi: float, hulls, meshes) -> collide.Near:
+        """The bodies near the cloth as the contact kernels take them (`collide.near_bodies`), built
+        again only when what it holds changed: the candidates, the body arrays, the substep."""
         assert self._bodies is not None  # set by begin_step
-        bodies = self._bodies[0]
+        counts = (self.state.body_contacts, self._contacts_next)
+        held = (self._candidates, self._bodies[0], hulls, meshes, *counts)
+        settings = (hi, self.strict_limit)
+        cached = self._near_bodies
+        if cached is None or cached[2] != settings or any(a is not b for a, b in zip(cached[1], held, strict=True)):
+            near = collide.near_bodies(
+                self._candidates, self._bodies[0], hulls, meshes, counts, hi, strict=self.strict_limit
+            )
+            cached = self._near_bodies = (near, held, settings)
+        return cached[0]
+
+    def _collide_bodies(self, s: ClothStructs, near: collide.Near) -> None:
+        """Particles, then triangles against small spheres, out of the near bodies; bodies pushed back."""
         self._contacts_next.zero_()
-        collide.collide_bodies(
-            a["particle_position"],
-            a["particle_position_prev"],
-            a["particle_inv_mass"],
-            a["particle_thickness"],
-            a["particle_friction"],
-            self._tethers,
-            self._limits,
-            self._candidates,
-            bodies,
-            hulls,
-            meshes,
-            self.state.body_contacts,
-            self._contacts_next,
-            a["particle_pin_load"],
-            hi,
-            strict=self.strict_limit,
-            cache=self._cache,
-        )
-        collide.catch_small_spheres(
-            a["particle_position"],
-            a["particle_position_prev"],
-            a["particle_inv_mass"],
-            a["particle_rest_position"],
-            a["particle_thickness"],
-            a["particle_friction"],
-            self._tethers,
-            top["triangles"],
-            self._candidates,
-            bodies,
-            self.state.body_contacts,
-            self._contacts_next,
-            hi,
-            cache=self._cache,
-        )
-        self.state.body_contacts, self._contacts_next = self._contacts_next, self.state.body_contacts
+        collide.collide_bodies(s.particles, s.tethers, s.limits, near, cache=self._cache)
+        triangles = self.model.topology["triangles"]
+        collide.catch_small_spheres(s.particles, s.tethers, triangles, near, cache=self._cache)
+        # this pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)
+        if self.device == "cpu":
+            host_view(self.state.body_contacts)[:] = host_view(self._contacts_next)  # the host views are the arrays
+        else:
+            wp.copy(self.state.body_contacts, self._contacts_next)
 
     def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
@@ -842,18 +764,10 @@ class ClothSystem:
         wind = self.control.wind
         if wind is not None:
             assert self._wind_modes is not None  # set with the wind
-            wave, amplitude, omega, phase = self._wind_modes
-            sample_wind(
-                a["particle_position"],
-                wind.velocity,
-                wave,
-                amplitude,
-                omega,
-                phase,
-                time,
-                a["particle_wind"],
-                cache=self._cache,
+            self._modes = cached_struct(
+                Modes, dict(zip(MODE_FIELDS, self._wind_modes, strict=True)), "mode_", self._modes
             )
+            sample_wind(self._kernel_structs().particles, wind.velocity, self._modes[0], time, cache=self._cache)
 
         v = a["particle_velocity"].numpy()[:p]
         with np.errstate(over="ignore", invalid="ignore"):
@@ -881,12 +795,7 @@ class ClothSystem:
                 self.state.pair_travel = 2.0 * speed * dt
                 self.state.pairs, self.state.pair_count = self._grid.find_pairs(
                     self.state.pairs,
-                    a["particle_position"],
-                    a["particle_inv_mass"],
-                    a["particle_thickness"],
-                    a["particle_cloth"],
-                    a["particle_i"],
-                    a["particle_j"],
+                    self._kernel_structs().particles,
                     self._reach,
                     self.state.pair_margin,
                     cache=self._cache,
@@ -1124,9 +1033,8 @@ class ClothSystem:
         """Largest strain (|xj - xi| - l0) / l0 over the structural springs (0.1 = 10 % longer)."""
         if self.particles.count == 0 or len(self._host("structural_ids")) == 0:
             return 0.0
-        a, top = self.particles.arrays, self.model.topology
-        s = springs.strain(a["particle_position"], top["structural_ids"], top["structural_rest_length"], self._strain)
-        return float(s.max())
+        structs = self._kernel_structs()
+        return float(springs.strain(structs.particles, structs.structural, self._strain).max())
 
     def pin_force(self) -> np.ndarray:
         """Mean force [N] the cloth exerted on all its pins (fixed and on bodies) over the last world

@@ -31,13 +31,25 @@ import numpy as np
 import warp as wp
 
 from .. import validate
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_end, launch_each
 from ..real import float_t, vec3
+from ..structs import array_struct
+from .arrays import Particles, corners
 
 #: classes without kernels that the float32 copy of this module shares (tumble.precision)
 __shared__ = ("Wind",)
 
 AIR_DENSITY = 1.2  # [kg/m^3] at sea level, 20 C
+
+#: the turbulence's Fourier modes on the device (`Wind.mode_arrays`), one row per mode
+MODE_FIELDS = {
+    "mode_wave": vec3,  # wave vector kappa_k [1/m]
+    "mode_amplitude": vec3,  # amplitude a_k [m/s]
+    "mode_omega": float_t,  # frequency omega_k [rad/s]
+    "mode_phase": float_t,  # phase phi_k [rad]
+}
+#: the modes as the kernels take them: `mode_wave` is `modes.wave`
+Modes = array_struct("Modes", MODE_FIELDS, "mode_", __name__)
 
 
 @dataclass
@@ -97,92 +109,74 @@ class Wind:
 
 
 @wp.kernel
-def _sample_wind(
-    x: wp.array(dtype=vec3),
-    mean: vec3,
-    wave: wp.array(dtype=vec3),
-    amplitude: wp.array(dtype=vec3),
-    omega: wp.array(dtype=float_t),
-    phase: wp.array(dtype=float_t),
-    t: float_t,
-    u: wp.array(dtype=vec3),
-):
-    p = wp.tid()
-    # u = U + sum_k a_k sin(kappa_k . (x - U t) + omega_k t + phi_k)
-    xt = x[p] - mean * t
-    acc = mean
-    k = int(0)
-    while k < wave.shape[0]:
-        acc = acc + amplitude[k] * wp.sin(wp.dot(wave[k], xt) + omega[k] * t + phase[k])
-        k += 1
-    u[p] = acc
+def _sample_wind(particles: Particles, mean: vec3, modes: Modes, t: float_t, serial: int):
+    x = particles.position
+    for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
+        # u = U + sum_k a_k sin(kappa_k . (x - U t) + omega_k t + phi_k)
+        xt = x[p] - mean * t
+        acc = mean
+        k = int(0)
+        while k < modes.wave.shape[0]:
+            acc = acc + modes.amplitude[k] * wp.sin(wp.dot(modes.wave[k], xt) + modes.omega[k] * t + modes.phase[k])
+            k += 1
+        particles.wind[p] = acc
 
 
 @wp.kernel
 def _air_forces(
-    x: wp.array(dtype=vec3),
-    v: wp.array(dtype=vec3),
-    u: wp.array(dtype=vec3),
-    tris: wp.array2d(dtype=wp.int32),
-    half_rho_cd: float_t,
-    half_rho_cl: float_t,
-    f: wp.array(dtype=vec3),
+    particles: Particles, tris: wp.array2d(dtype=wp.int32), half_rho_cd: float_t, half_rho_cl: float_t, serial: int
 ):
-    t = wp.tid()
-    a = tris[t, 0]
-    b = tris[t, 1]
-    c = tris[t, 2]
-    cross = wp.cross(x[b] - x[a], x[c] - x[a])
-    twice_area = wp.length(cross)
-    if twice_area <= float_t(1.0e-15):
-        return
-    n = cross / twice_area
-    area = float_t(0.5) * twice_area
-    third = float_t(1.0) / float_t(3.0)
-    rel = (u[a] + u[b] + u[c] - v[a] - v[b] - v[c]) * third
-    un = wp.dot(rel, n)
-    speed2 = wp.dot(rel, rel)
-    # drag 1/2 rho Cd A |u_n| u_n n, lift 1/2 rho Cl A |u| u_n (n - u_n u / |u|^2)
-    force = n * (half_rho_cd * area * wp.abs(un) * un)
-    if speed2 > float_t(1.0e-20):
-        speed = wp.sqrt(speed2)
-        force = force + (n - rel * (un / speed2)) * (half_rho_cl * area * speed * un)
-    share = force * third
-    wp.atomic_add(f, a, share)
-    wp.atomic_add(f, b, share)
-    wp.atomic_add(f, c, share)
+    x = particles.position
+    v = particles.velocity
+    u = particles.wind
+    for t in range(wp.tid(), each_end(wp.tid(), serial, tris.shape[0])):
+        a, b, c = corners(tris, t)
+        cross = wp.cross(x[b] - x[a], x[c] - x[a])
+        twice_area = wp.length(cross)
+        if twice_area <= float_t(1.0e-15):
+            continue
+        n = cross / twice_area
+        area = float_t(0.5) * twice_area
+        third = float_t(1.0) / float_t(3.0)
+        rel = (u[a] + u[b] + u[c] - v[a] - v[b] - v[c]) * third
+        un = wp.dot(rel, n)
+        speed2 = wp.dot(rel, rel)
+        # drag 1/2 rho Cd A |u_n| u_n n, lift 1/2 rho Cl A |u| u_n (n - u_n u / |u|^2)
+        force = n * (half_rho_cd * area * wp.abs(un) * un)
+        if speed2 > float_t(1.0e-20):
+            speed = wp.sqrt(speed2)
+            force = force + (n - rel * (un / speed2)) * (half_rho_cl * area * speed * un)
+        share = force * third
+        wp.atomic_add(particles.force, a, share)
+        wp.atomic_add(particles.force, b, share)
+        wp.atomic_add(particles.force, c, share)
 
 
-def sample_wind(x, mean, wave, amplitude, omega, phase, t, u, *, cache: LaunchCache | None = None):
-    """Evaluate the wind field at every particle.
+def sample_wind(particles: Particles, mean, modes: Modes, t, *, cache: LaunchCache | None = None):
+    """Evaluate the wind field at every particle, into `particles.wind` [m/s].
 
     Args:
-        x: particle positions [m], shape (P,) vec3.
+        particles: the particle arrays (reads `position`, writes `wind`).
         mean: mean wind U [m/s], shape (3,).
-        wave, amplitude: mode wave vectors [1/m] and amplitudes [m/s], shape (K,) vec3.
-        omega, phase: mode frequencies [rad/s] and phases [rad], shape (K,).
+        modes: the turbulence's modes (`Modes`, over the arrays of `Wind.mode_arrays`).
         t: time [s].
-        u: output wind velocities [m/s], shape (P,) vec3.
     """
-    launch(_sample_wind, x.shape[0], [x, vec3(*mean), wave, amplitude, omega, phase, float(t), u], x.device, cache)
+    x = particles.position
+    launch_each(_sample_wind, x.shape[0], [particles, vec3(*mean), modes, float(t)], x.device, cache)
 
 
-def accumulate_air_forces(x, v, u, triangles, drag, lift, air_density, force, *, cache: LaunchCache | None = None):
-    """Add the drag and lift of every triangle, a third to each of its particles.
+def accumulate_air_forces(
+    particles: Particles, triangles, drag, lift, air_density, *, cache: LaunchCache | None = None
+):
+    """Add the drag and lift of every triangle, a third to each of its particles, into `particles.force` [N].
 
     Args:
-        x, v: particle positions [m] and velocities [m/s], shape (P,) vec3.
-        u: wind velocity at each particle [m/s], shape (P,) vec3.
+        particles: the particle arrays (reads `position`, `velocity` and the `wind` at each particle).
         triangles: particle indices, shape (T, 3) int32.
         drag, lift: coefficients C_d, C_l.
         air_density: rho [kg/m^3].
-        force: per-particle force accumulator [N], shape (P,) vec3 (added to).
     """
-    if triangles.shape[0]:
-        launch(
-            _air_forces,
-            triangles.shape[0],
-            [x, v, u, triangles, 0.5 * air_density * drag, 0.5 * air_density * lift, force],
-            x.device,
-            cache,
-        )
+    count = triangles.shape[0]
+    if count:
+        inputs = [particles, triangles, 0.5 * air_density * drag, 0.5 * air_density * lift]
+        launch_each(_air_forces, count, inputs, triangles.device, cache)

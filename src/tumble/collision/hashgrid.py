@@ -24,6 +24,7 @@ import warp as wp
 
 from ..launch import LaunchCache, launch
 from ..real import float_t, vec3
+from ..structs import cached_struct
 
 #: hash table slots per point (a power of two): flat point sets fill a quarter of each block's slots
 TABLE_LOAD = 4
@@ -53,19 +54,20 @@ def cell_hash(c: wp.vec3i, mask: int):
 
 @wp.struct
 class Grid:
-    """A `HashGrid`'s arrays as kernels take them (`HashGrid.struct`); see `HashGrid` for each."""
+    """A `HashGrid`'s arrays as kernels take them (`HashGrid.struct`; its fields are the grid's
+    attributes of those names, `params` aside: see `struct`)."""
 
-    params: wp.array(dtype=float_t)  # (cell edge, its inverse, largest radius kept in the grid)
-    mask: int
-    cell_start: wp.array(dtype=wp.int32)
-    cell_count: wp.array(dtype=wp.int32)
-    cell_fill: wp.array(dtype=wp.int32)
-    entries: wp.array(dtype=wp.int32)
-    sorted_x: wp.array(dtype=vec3)
+    params: wp.array(dtype=float_t)  # (cell edge [m], its inverse [1/m], largest radius kept in the grid)
+    mask: int  # table size - 1
+    cell_start: wp.array(dtype=wp.int32)  # per slot: its first row of `entries`
+    cell_count: wp.array(dtype=wp.int32)  # per slot: its number of points
+    cell_fill: wp.array(dtype=wp.int32)  # per slot: points scattered so far (during a build)
+    entries: wp.array(dtype=wp.int32)  # the point indices, sorted by slot
+    sorted_x: wp.array(dtype=vec3)  # row e: the position, radius and cell coordinates of entries[e]
     sorted_radius: wp.array(dtype=float_t)
     sorted_coord: wp.array(dtype=wp.vec3i)
-    point_cell: wp.array(dtype=wp.int32)
-    point_cell_coord: wp.array(dtype=wp.vec3i)
+    point_cell: wp.array(dtype=wp.int32)  # per point: its slot, -1 when left out
+    point_cell_coord: wp.array(dtype=wp.vec3i)  # per point: its cell's coordinates
 
 
 @wp.kernel
@@ -97,8 +99,6 @@ def _scatter(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
 class HashGrid:
     """Points sorted into hashed cells.
 
-    (`_struct`, the arrays as kernels take them, is a cache that snapshots keep by name only.)
-
     Attributes:
         cell_size: cell edge of the last build [m]; `inv_cell` its inverse.
         mask: table size - 1 (the table size is a power of two).
@@ -110,7 +110,9 @@ class HashGrid:
         point_cell_coord: integer cell coordinates of each point, vec3i.
     """
 
-    SNAPSHOT_CACHES = frozenset({"_struct"})
+    # the grid as kernels take it (`struct`), made on first use and again when an array changes; a class
+    # default, so that a grid restored from a snapshot older than it has it too
+    _grid: tuple | None = None
 
     def __init__(self, device: str):
         self.device = device
@@ -119,7 +121,6 @@ class HashGrid:
         self.mask = 0
         self._points = 0
         self.params = wp.zeros(3, dtype=float_t, device=device)  # what `build` was given, for the kernels
-        self._struct: Grid | None = None  # the last `struct`, kept while its arrays are the grid's
 
     def reserve(self, count: int) -> None:
         """Size the table and the point buffers for `count` points (allocates only when they grow)."""
@@ -132,7 +133,6 @@ class HashGrid:
             self.cell_count = wp.zeros(table, dtype=wp.int32, device=self.device)
             self.cell_start = wp.zeros(table, dtype=wp.int32, device=self.device)
             self.cell_fill = wp.zeros(table, dtype=wp.int32, device=self.device)
-            self._struct = None  # made anew by `struct` over the arrays in use
         if count > self._points:
             self._points = max(count, 2 * self._points)
             self.point_cell = wp.zeros(self._points, dtype=wp.int32, device=self.device)
@@ -142,7 +142,6 @@ class HashGrid:
             self.sorted_x = wp.zeros(self._points, dtype=vec3, device=self.device)
             self.sorted_radius = wp.zeros(self._points, dtype=float_t, device=self.device)
             self.sorted_coord = wp.zeros(self._points, dtype=wp.vec3i, device=self.device)
-            self._struct = None
 
     def build(
         self,
@@ -191,16 +190,10 @@ class HashGrid:
         was given) as the cell edge, its inverse and the largest radius kept in the grid.
 
         The same struct comes back while the arrays are the same ones (a recorded launch then re-packs
-        nothing): a struct is never changed after it is made, since recorded launches hold copies."""
-        params = self.params if params is None else params
-        g = self._struct
-        if g is None or g.params is not params:
-            g = self._struct = Grid()
-            g.params, g.mask = params, self.mask
-            g.cell_start, g.cell_count, g.cell_fill = self.cell_start, self.cell_count, self.cell_fill
-            g.entries, g.point_cell, g.point_cell_coord = self.entries, self.point_cell, self.point_cell_coord
-            g.sorted_x, g.sorted_radius, g.sorted_coord = self.sorted_x, self.sorted_radius, self.sorted_coord
-        return g
+        nothing); a struct is never changed once made, since recorded launches hold copies of it."""
+        held = {**vars(self), "params": self.params if params is None else params}
+        self._grid = cached_struct(Grid, held, "", self._grid)
+        return self._grid[0]
 
 
 def _spread_bits(v: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ Typical use::
     recorder.save("pile.npz")
 
 The per-body and per-particle arrays are the declared ones (`model.BODY_FIELDS`,
-`cloth.system.PARTICLE_FIELDS`), named without their entity: each state array every frame
+`cloth.arrays.PARTICLE_FIELDS`), named without their entity: each state array every frame
 (`body_position` -> position (F, N, 3), `particle_velocity` -> cloth_velocity (F, P, 3)), each
 model array once (`body_mass` -> mass (N,), `particle_mass` -> cloth_mass (P,)); scratch and
 control arrays are not recorded. A new declared array is recorded without a line here.
@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from .. import validate
-from ..cloth.system import PARTICLE_FIELDS
+from ..cloth.arrays import PARTICLE_FIELDS
 from ..errors import TumbleError
 from ..model import BODY_FIELDS, Field, Role
 from ..shapes import SHAPE_NAMES

@@ -11,9 +11,11 @@ import math
 import numpy as np
 import warp as wp
 
+from tumble.cloth.arrays import PARTICLE_FIELDS, Particles
 from tumble.cloth.attach import BodyPins, sum_pin_load
 from tumble.model import BODY_FIELDS, fields_of
-from tumble.state import ArraySet, float_t, vec3
+from tumble.state import ArraySet, vec3
+from tumble.structs import fill_struct
 
 from ..reference import quat_matrix
 
@@ -38,13 +40,15 @@ def two_bodies() -> ArraySet:
 
 
 def particles(n: int) -> dict[str, wp.array]:
-    return {
-        "particle_position": wp.zeros(n, dtype=vec3),
-        "particle_pin_target": wp.zeros(n, dtype=vec3),
-        "particle_force": wp.zeros(n, dtype=vec3),
-        "particle_pin_load": wp.zeros(n, dtype=vec3),
-        "particle_mass": wp.array(np.full(n, 0.1), dtype=float_t),
-    }
+    """Every particle array of n particles of 0.1 kg, the rest zero."""
+    arrays = ArraySet(fields_of(PARTICLE_FIELDS), device="cpu", capacity=n).arrays
+    arrays["particle_mass"].fill_(0.1)
+    return arrays
+
+
+def struct(arrays: dict[str, wp.array]) -> Particles:
+    """The particle arrays as the kernels take them."""
+    return fill_struct(Particles, arrays, "particle_")
 
 
 def test_pinned_particles_sit_on_their_body_points():
@@ -56,7 +60,7 @@ def test_pinned_particles_sit_on_their_body_points():
     assert pins.count == 2
     arrays = particles(4)
     arrays["particle_position"].assign(np.full((4, 3), 7.0))
-    pins.follow(arrays, bodies)
+    pins.follow(struct(arrays), bodies)
     x, R = bodies.numpy("body_position")[1], quat_matrix(bodies.numpy("body_orientation")[1])
     out = arrays["particle_position"].numpy()
     np.testing.assert_allclose(out[[1, 3]], x + local @ R.T, atol=1e-12)
@@ -74,7 +78,7 @@ def test_the_pull_on_a_pin_moves_its_body_and_not_a_static_one():
     force = np.array([[1.0, -2.0, 0.5], [100.0, 0.0, 0.0]])
     arrays["particle_force"].assign(force)
     h = 0.01
-    pins.react(arrays, bodies, G, h)
+    pins.react(struct(arrays), bodies, G, h)
     F = force[0] + 0.1 * G
     R = quat_matrix(bodies.numpy("body_orientation")[1])
     inv_i_world = R @ np.diag([1.0, 0.5, 0.25]) @ R.T
@@ -100,8 +104,8 @@ def test_a_particle_follows_the_body_it_was_pinned_to_last_and_remove_releases_i
     pins.remove([1])
     assert pins.count == 0
     bodies = two_bodies()
-    pins.follow(particles(2), bodies)  # nothing pinned: no launch, nothing moves
-    pins.react(particles(2), bodies, G, 0.01)
+    pins.follow(struct(particles(2)), bodies)  # nothing pinned: no launch, nothing moves
+    pins.react(struct(particles(2)), bodies, G, 0.01)
     assert not bodies.numpy("body_velocity").any()
 
 
@@ -112,8 +116,8 @@ def test_sum_pin_load_adds_the_impulse_of_force_and_weight():
     arrays["particle_force"].assign(force)
     total = wp.zeros(1, dtype=vec3)
     pins = wp.array(np.array([0, 1, 3], dtype=np.int32), dtype=wp.int32)
-    sum_pin_load(pins, arrays["particle_force"], arrays["particle_mass"], G, total, 0.5)
+    sum_pin_load(pins, arrays["particle_force"], struct(arrays), G, total, 0.5)
     expected = (force[[0, 1, 3]].sum(axis=0) + 3 * 0.1 * G) * 0.5
     np.testing.assert_allclose(total.numpy()[0], expected, atol=1e-14)
-    sum_pin_load(wp.zeros(0, dtype=wp.int32), arrays["particle_force"], arrays["particle_mass"], G, total, 0.5)
+    sum_pin_load(wp.zeros(0, dtype=wp.int32), arrays["particle_force"], struct(arrays), G, total, 0.5)
     np.testing.assert_allclose(total.numpy()[0], expected, atol=1e-14)  # no pins: nothing added

@@ -6,13 +6,27 @@ import math
 
 import numpy as np
 import pytest
+import warp as wp
 
 import tumble
 from tumble.cloth import collide
+from tumble.cloth.arrays import PARTICLE_FIELDS, Particles
+from tumble.model import fields_of
+from tumble.state import ArraySet
+from tumble.structs import fill_struct
 
 
 def make_world(**kwargs):
     return tumble.World(dt=1.0 / 240.0, substeps=4, **kwargs)
+
+
+def particles(**columns) -> Particles:
+    """Particles with the given arrays (`position=...`: `particle_position`), the rest zero, as the kernels take them."""
+    n = len(next(iter(columns.values())))
+    arrays = ArraySet(fields_of(PARTICLE_FIELDS), device="cpu", capacity=n).arrays
+    for name, values in columns.items():
+        arrays["particle_" + name].assign(np.asarray(values, dtype=arrays["particle_" + name].numpy().dtype))
+    return fill_struct(Particles, arrays, "particle_")
 
 
 def test_body_collision_pushes_particle_out_of_static_shapes():
@@ -75,10 +89,6 @@ def _brute_force_pairs(x, inv_m, thickness, cloth, gi, gj, margin):
 def test_self_collision_pairs_equal_brute_force_and_the_buffer_grows(seed):
     """find_pairs lists exactly the brute-force pairs; from a buffer too small it keeps the first K and
     returns a larger buffer that holds the whole list on the next call."""
-    import warp as wp
-
-    from tumble.state import float_t, vec3
-
     rng = np.random.default_rng(seed)
     n = 400
     x = rng.uniform(0.0, 0.4, size=(n, 3))
@@ -90,11 +100,8 @@ def test_self_collision_pairs_equal_brute_force_and_the_buffer_grows(seed):
     expected = _brute_force_pairs(x, inv_m, thickness, cloth, gi, gj, margin)
     assert len(expected) > 64  # more than the smallest buffer holds
 
-    def arr(a, dtype):
-        return wp.array(a, dtype=dtype, device="cpu")
-
-    args = (arr(x, vec3), arr(inv_m, float_t), arr(thickness, float_t), arr(cloth, wp.int32))
-    args += (arr(gi, wp.int32), arr(gj, wp.int32), float(thickness.max()), margin)
+    columns = {"position": x, "inv_mass": inv_m, "thickness": thickness, "cloth": cloth, "i": gi, "j": gj}
+    args = (particles(**columns), float(thickness.max()), margin)
     finder = collide.SelfCollisionGrid("cpu")
     small = collide.pair_buffer(0, "cpu")
     grown, count = finder.find_pairs(small, *args)
@@ -107,16 +114,11 @@ def test_self_collision_pairs_equal_brute_force_and_the_buffer_grows(seed):
 
 def test_separate_pairs_pushes_a_listed_pair_to_its_thickness_by_inverse_mass():
     """Two particles 0.01 m apart with thickness 0.03: pushed to 0.03 apart, the light one three times as far."""
-    import warp as wp
-
-    from tumble.state import float_t, vec3
-
-    x = wp.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [5.0, 0.0, 0.0]], dtype=vec3, device="cpu")
-    inv_m = wp.array([1.0, 3.0, 1.0], dtype=float_t, device="cpu")
-    thickness = wp.array([0.03, 0.03, 0.03], dtype=float_t, device="cpu")
+    x = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    p = particles(position=x, inv_mass=[1.0, 3.0, 1.0], thickness=[0.03, 0.03, 0.03])
     pairs = wp.array([[0, 1], [0, 2]], dtype=wp.int32, device="cpu")
-    collide.separate_pairs(x, inv_m, thickness, pairs, 1)
-    out = x.numpy()
+    collide.separate_pairs(p, pairs, 1)
+    out = p.position.numpy()
     assert out[1, 0] - out[0, 0] == pytest.approx(0.03, abs=1e-15)
     assert -out[0, 0] == pytest.approx(0.005, abs=1e-15) and out[1, 0] - 0.01 == pytest.approx(0.015, abs=1e-15)
     assert np.array_equal(out[2], [5.0, 0.0, 0.0])  # past the count: not read

@@ -9,7 +9,29 @@ import pytest
 import warp as wp
 
 from tumble.cloth import springs
-from tumble.state import float_t, vec3
+from tumble.cloth.arrays import PARTICLE_FIELDS, Particles, Springs, Stretch, Tethers
+from tumble.model import fields_of
+from tumble.state import ArraySet, float_t
+from tumble.structs import fill_struct
+
+
+def particles(x, inv_mass=None) -> tuple[Particles, dict[str, wp.array]]:
+    """Particles at `x` (n, 3) with inverse masses `inv_mass` (default 1), at rest: the struct and its arrays."""
+    n = len(x)
+    arrays = ArraySet(fields_of(PARTICLE_FIELDS), device="cpu", capacity=n).arrays
+    arrays["particle_position"].assign(np.asarray(x, dtype=np.float64))
+    arrays["particle_inv_mass"].assign(np.ones(n) if inv_mass is None else np.asarray(inv_mass, dtype=np.float64))
+    return fill_struct(Particles, arrays, "particle_"), arrays
+
+
+def table(struct, prefix: str, **columns):
+    """A struct of `arrays.py` over the given columns (named without `prefix`): index pairs int32, the rest float."""
+    arrays = {}
+    for name, values in columns.items():
+        values = np.asarray(values)
+        dtype = wp.int32 if values.dtype.kind == "i" else float_t
+        arrays[prefix + name] = wp.array(values.astype(np.int32 if dtype is wp.int32 else np.float64), dtype=dtype)
+    return fill_struct(struct, arrays, prefix)
 
 
 def test_stable_substep_single_spring():
@@ -21,47 +43,39 @@ def test_stable_substep_single_spring():
 
 def test_spring_force_on_plain_arrays():
     """One stretched spring pulls its ends together with ks (|d| - l0)."""
-    x = wp.array(np.array([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0]]), dtype=vec3)
-    v = wp.zeros(2, dtype=vec3)
-    f = wp.zeros(2, dtype=vec3)
-    ids = wp.array(np.array([[0, 1]], dtype=np.int32), dtype=wp.int32)
-    one = lambda value: wp.array(np.array([value]), dtype=float_t)  # noqa: E731
-    springs.accumulate_spring_forces(x, v, ids, one(1.0), one(4.0), one(0.0), f)
-    assert f.numpy() == pytest.approx(np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]))
+    p, arrays = particles([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0]])
+    spring = table(Springs, "spring_", ids=[[0, 1]], rest_length=[1.0], stiffness=[4.0], damping=[0.0])
+    springs.accumulate_spring_forces(p, spring)
+    assert arrays["particle_force"].numpy() == pytest.approx(np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]))
 
 
 def test_stretch_limit_on_plain_arrays():
     """A spring stretched to 2 l0 is brought back to at most (1 + s) l0, pinned end fixed."""
-    x = wp.array(np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]]), dtype=vec3)
-    inv_m = wp.array(np.array([0.0, 1.0]), dtype=float_t)
-    ids = wp.array(np.array([[0, 1]], dtype=np.int32), dtype=wp.int32)
-    limit = wp.array(np.array([1.1]), dtype=float_t)
+    p, arrays = particles([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]], inv_mass=[0.0, 1.0])
     flag = wp.zeros(1, dtype=wp.int32)
-    springs.limit_stretch(x, inv_m, ids, limit, flag)
-    out = x.numpy()
+    springs.limit_stretch(p, table(Stretch, "stretch_", ids=[[0, 1]], limit=[1.1]), flag)
+    out = arrays["particle_position"].numpy()
     assert out[0] == pytest.approx([0.0, 0.0, 0.0])
     assert 1.0 < out[1, 0] <= 1.1
 
 
 def test_tethers_on_plain_arrays():
     """A particle tethered to two pins ends within margin x limit of each; a released pin holds nothing."""
-    x = wp.array(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, -3.0, 0.0], [9.0, 9.0, 9.0]]), dtype=vec3)
-    inv_m = wp.array(np.array([0.0, 0.0, 1.0, 1.0]), dtype=float_t)
+    x = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, -3.0, 0.0], [9.0, 9.0, 9.0]]
+    p, arrays = particles(x, inv_mass=[0.0, 0.0, 1.0, 1.0])
     # particle 2 has tethers to pins 0 and 1 (limit 1.2 each); particle 3 none
-    first = wp.array(np.array([0, 0, 0, 2], dtype=np.int32), dtype=wp.int32)
-    count = wp.array(np.array([0, 0, 2, 0], dtype=np.int32), dtype=wp.int32)
-    pin = wp.array(np.array([0, 1], dtype=np.int32), dtype=wp.int32)
-    limit = wp.array(np.array([1.2, 1.2]), dtype=float_t)
-    tethers = springs.tether_arrays(first, count, pin, limit)
+    arrays["particle_tether_first"].assign(np.array([0, 0, 0, 2], dtype=np.int32))
+    arrays["particle_tether_count"].assign(np.array([0, 0, 2, 0], dtype=np.int32))
+    tethers = table(Tethers, "tether_", pin=[0, 1], limit=[1.2, 1.2])
     for _ in range(20):  # alternating projections onto two balls converge into their overlap
-        springs.limit_tethers(x, inv_m, tethers)
-    out = x.numpy()
+        springs.limit_tethers(p, tethers)
+    out = arrays["particle_position"].numpy()
     assert np.linalg.norm(out[2] - out[0]) <= 0.99 * 1.2 + 1e-9
     assert np.linalg.norm(out[2] - out[1]) <= 0.99 * 1.2 + 1e-9
     assert out[0] == pytest.approx([0.0, 0.0, 0.0]) and out[1] == pytest.approx([1.0, 0.0, 0.0])
     assert out[3] == pytest.approx([9.0, 9.0, 9.0])
     # pin 1 released (inverse mass > 0): its tether no longer acts
-    x = wp.array(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [9.0, 9.0, 9.0]]), dtype=vec3)
-    released = wp.array(np.array([0.0, 1.0, 1.0, 1.0]), dtype=float_t)
-    springs.limit_tethers(x, released, tethers)
-    assert x.numpy()[2] == pytest.approx([0.0, -1.0, 0.0])
+    arrays["particle_position"].assign(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [9.0, 9.0, 9.0]]))
+    arrays["particle_inv_mass"].assign(np.array([0.0, 1.0, 1.0, 1.0]))
+    springs.limit_tethers(p, tethers)
+    assert arrays["particle_position"].numpy()[2] == pytest.approx([0.0, -1.0, 0.0])

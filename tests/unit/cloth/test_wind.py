@@ -8,8 +8,11 @@ import warp as wp
 
 import tumble
 from tumble.cloth import Wind
+from tumble.cloth.arrays import PARTICLE_FIELDS, Particles
 from tumble.cloth.wind import accumulate_air_forces
-from tumble.state import vec3
+from tumble.model import fields_of
+from tumble.state import ArraySet
+from tumble.structs import fill_struct
 
 
 def make_world(**kwargs):
@@ -31,13 +34,14 @@ def test_air_force_face_on_and_edge_on():
     """Drag on a face-on triangle is 1/2 rho Cd A u^2 along the normal; edge-on it is zero."""
     pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     tris = wp.array(np.array([[0, 1, 2]], dtype=np.int32), dtype=wp.int32)
-    x = wp.array(pts, dtype=vec3)
-    v = wp.zeros(3, dtype=vec3)
+    arrays = ArraySet(fields_of(PARTICLE_FIELDS), device="cpu", capacity=3).arrays  # at rest
+    arrays["particle_position"].assign(pts)
+    particles = fill_struct(Particles, arrays, "particle_")
     for wind, expected in (((0.0, 0.0, 2.0), 0.5 * 1.2 * 1.0 * 0.5 * 4.0), ((2.0, 1.0, 0.0), 0.0)):
-        u = wp.array(np.tile(wind, (3, 1)), dtype=vec3)
-        f = wp.zeros(3, dtype=vec3)
-        accumulate_air_forces(x, v, u, tris, 1.0, 0.0, 1.2, f)
-        total = f.numpy().sum(axis=0)
+        arrays["particle_wind"].assign(np.tile(wind, (3, 1)))
+        arrays["particle_force"].zero_()
+        accumulate_air_forces(particles, tris, 1.0, 0.0, 1.2)
+        total = arrays["particle_force"].numpy().sum(axis=0)
         assert total == pytest.approx([0.0, 0.0, expected], abs=1e-12)
 
 

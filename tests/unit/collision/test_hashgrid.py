@@ -136,6 +136,24 @@ def test_rebuild_after_the_points_move_and_grow():
         assert grid_pairs(grid, xs, n, 0.2) == brute_force_pairs(x, 0.2)
 
 
+def test_struct_is_the_grid_as_kernels_take_it_and_kept_while_its_buffers_are():
+    """struct() holds the grid's table and buffers and the last build's cell edge (in `params`); it is the
+    same struct until the buffers are reallocated, and another one for other params."""
+    rng = np.random.default_rng(6)
+    grid = HashGrid(DEVICE)
+    x = wp.array(rng.uniform(-1.0, 1.0, size=(50, 3)), dtype=vec3, device=DEVICE)
+    cells = grid.build(x, 50, 0.2).struct()
+    assert cells.cell_start is grid.cell_start and cells.entries is grid.entries and cells.mask == grid.mask
+    assert cells.point_cell_coord is grid.point_cell_coord and cells.params.numpy()[1] == pytest.approx(5.0)
+    assert grid.struct() is cells
+    assert grid.build(x, 50, 0.25).struct() is cells and cells.params.numpy()[1] == pytest.approx(4.0)
+    more = wp.array(rng.uniform(-1.0, 1.0, size=(700, 3)), dtype=vec3, device=DEVICE)
+    grown = grid.build(more, 700, 0.25).struct()
+    assert grown is not cells and grown.entries is grid.entries and grown.mask == grid.mask
+    params = wp.zeros(3, dtype=float_t, device=DEVICE)
+    assert grid.struct(params).params is params and grid.struct() is not grown
+
+
 def morton_key(c: np.ndarray) -> int:
     """Bit k of x, y, z goes to bit 3k, 3k + 1, 3k + 2 of the key (written bit by bit)."""
     key = 0
