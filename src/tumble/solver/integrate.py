@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_end, launch_each
 from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, quatw, vec3, vec3w, wide_t
 from .rigid import inv_inertia_times
@@ -106,36 +106,16 @@ def _position(i: int, b: BodyArrays, h: float_t):
     b.angular_velocity[i] = vec3(wp.quat_rotate(q1, vec3w(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2])))
 
 
-def _make_integrators(serial: int):
-    """The two integration kernels: one thread looping over the bodies (`serial`, the CPU: no per-thread
-    start-up for each body), or one thread per body (CUDA); the other branch is left out when Warp compiles it."""
-
-    # names of their own: a recorded CPU graph finds a kernel by its name
-    @wp.kernel(name="_integrate_velocities_serial" if serial else "_integrate_velocities_parallel")
-    def integrate_velocities(b: BodyArrays, gravity: vec3, h: float_t, use_warm: int, count: int):
-        if wp.static(serial == 0):
-            i = wp.tid()
-            if i < count:  # launched over the capacity (see tumble.launch)
-                _velocity(i, b, gravity, h, use_warm)
-        else:
-            for i in range(count):
-                _velocity(i, b, gravity, h, use_warm)
-
-    @wp.kernel(name="_integrate_positions_serial" if serial else "_integrate_positions_parallel")
-    def integrate_positions(b: BodyArrays, h: float_t, count: int):
-        if wp.static(serial == 0):
-            i = wp.tid()
-            if i < count:
-                _position(i, b, h)
-        else:
-            for i in range(count):
-                _position(i, b, h)
-
-    return integrate_velocities, integrate_positions
+@wp.kernel
+def _integrate_velocities(b: BodyArrays, gravity: vec3, h: float_t, use_warm: int, count: int, serial: int):
+    for i in range(wp.tid(), each_end(wp.tid(), serial, count)):
+        _velocity(i, b, gravity, h, use_warm)
 
 
-#: (integrate_velocities, integrate_positions) by serial (1 on the CPU)
-_INTEGRATORS = {serial: _make_integrators(serial) for serial in (0, 1)}
+@wp.kernel
+def _integrate_positions(b: BodyArrays, h: float_t, count: int, serial: int):
+    for i in range(wp.tid(), each_end(wp.tid(), serial, count)):
+        _position(i, b, h)
 
 
 @wp.kernel
@@ -152,9 +132,8 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
     """
     if bodies.count == 0:
         return  # a cloth-only world: no launch over an empty capacity
-    serial = int(bodies.device == "cpu")
     args = [body_struct(bodies), vec3(*gravity), h, int(warm), bodies.count]
-    launch(_INTEGRATORS[serial][0], 1 if serial else bodies.capacity, args, bodies.device, cache)
+    launch_each(_integrate_velocities, bodies.count, args, bodies.device, cache)
 
 
 def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -> None:
@@ -162,9 +141,7 @@ def integrate_positions(bodies, h: float, *, cache: LaunchCache | None = None) -
     kinematic body."""
     if bodies.count == 0:
         return
-    serial = int(bodies.device == "cpu")
-    args = [body_struct(bodies), h, bodies.count]
-    launch(_INTEGRATORS[serial][1], 1 if serial else bodies.capacity, args, bodies.device, cache)
+    launch_each(_integrate_positions, bodies.count, [body_struct(bodies), h, bodies.count], bodies.device, cache)
 
 
 def begin_step(bodies) -> None:
