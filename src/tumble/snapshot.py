@@ -364,13 +364,16 @@ class _Restore:
         """Restore the attributes of `obj`: those the snapshot has, and none that it lacks."""
         prefix = path + "/" if path else ""
         saved = self.children.get(path, set()) - skip
+        caches = getattr(type(obj), "SNAPSHOT_CACHES", ())
         for name, value in _world_order(obj) if obj is self.world else sorted(vars(obj).items()):
             if name in skip:
                 continue
-            if name in saved:
+            if name in caches:
+                # never taken from the file, whatever it holds (an older file may hold one: mesh BVH ids are
+                # pointers into the process that saved it); kept, unless it refers to arrays the restore replaces
+                self.derived.append((obj, name, value))
+            elif name in saved:
                 self.value(obj, name, value, prefix + name)
-            elif name in getattr(type(obj), "SNAPSHOT_CACHES", ()):
-                _assign(obj, name, None)  # a cache the snapshot's version had not: rebuilt on first use
             elif _is_plain(value) or isinstance(value, (np.ndarray, wp.array)):
                 delattr(obj, name)  # made after the snapshot was taken (a lazily sized buffer)
         for name in sorted(saved - set(vars(obj))):

@@ -16,8 +16,10 @@ from tumble import snapshot
 from tumble.snapshot import SnapshotError
 
 ROOT = Path(__file__).resolve().parents[2]
-# a pile with an emitter, the box tower, the rain (emitter, random sizes) and the hammock (cloth + bodies)
-SCENES = ["sphere_pile", "box_tower", "rain", "hammock"]
+# a pile with an emitter, the box tower, the rain (emitter, random sizes), the hammock (cloth + bodies), and two
+# scenes with triangle meshes: the pebble bowl (convex bodies in a mesh) and the cloth statue (cloth over a mesh),
+# whose BVH ids are pointers of the process that made them (a resume in a new process crashed on the saved ones)
+SCENES = ["sphere_pile", "box_tower", "rain", "hammock", "pebble_bowl", "cloth_statue"]
 
 
 def _steps(world, seconds: float) -> None:

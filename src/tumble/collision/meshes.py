@@ -91,6 +91,11 @@ def sharp_features(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndar
 class MeshSet:
     """The triangle meshes of one world; row i is the `body_geometry` of a mesh body."""
 
+    #: what snapshots keep by name only: the BVH ids are pointers, valid in the process that made them
+    #: (a resume in another process crashed on the saved ones); the world the snapshot is restored into
+    #: has its own, built from the same meshes
+    SNAPSHOT_CACHES = frozenset({"_ids", "_struct"})
+
     def __init__(self, device: str):
         self.device = device
         self.meshes: list[wp.Mesh] = []
