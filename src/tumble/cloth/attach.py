@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..launch import LaunchCache, each_end, launch_each
+from ..launch import LaunchCache, each_end, launch_each, vector
 from ..model import body_arrays
 from ..real import BodyArrays, float_t, vec3
 from ..solver.joints import add_velocity
@@ -100,7 +100,7 @@ def sum_pin_load(pins, force, particles: Particles, gravity, total, h, *, cache:
     """
     if pins.shape[0]:
         launch_each(
-            _sum_pin_load, pins.shape[0], [pins, force, particles, vec3(*gravity), float(h), total], pins.device, cache
+            _sum_pin_load, pins.shape[0], [pins, force, particles, vector(gravity), float(h), total], pins.device, cache
         )
 
 
@@ -159,7 +159,7 @@ class BodyPins:
         self._bodies = body_arrays(bodies, self._bodies)
         return self._bodies[0]
 
-    def _react(self, force: wp.array, particles: Particles, bodies, gravity: vec3, h: float) -> None:
+    def _react(self, force: wp.array, particles: Particles, bodies, gravity: tuple[float, ...], h: float) -> None:
         """`force` on the pin particles, plus `gravity` times their mass, acts on the bodies for `h` seconds."""
         if self.count == 0:
             return
@@ -168,12 +168,12 @@ class BodyPins:
 
     def react(self, particles: Particles, bodies, gravity, h: float) -> None:
         """The cloth's pull on the pins (and their weight) acts on the bodies for `h` seconds."""
-        self._react(particles.force, particles, bodies, vec3(*gravity), h)
+        self._react(particles.force, particles, bodies, vector(gravity), h)
 
     def react_constraints(self, particles: Particles, bodies, h: float) -> None:
         """The stretch limit's and tethers' pull on the pins this substep (`particle_pin_load`,
         lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
-        self._react(particles.pin_load, particles, bodies, vec3(0.0, 0.0, 0.0), 1.0 / h)
+        self._react(particles.pin_load, particles, bodies, (0.0, 0.0, 0.0), 1.0 / h)
 
     def follow(self, particles: Particles, bodies) -> None:
         """Put the pinned particles (and their targets) on their body points."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..launch import LaunchCache, each_end, launch_each
+from ..launch import LaunchCache, each_end, launch_each, vector
 from ..real import float_t, vec3
 from .arrays import Particles, Springs, Stretch, Structural, Tethers
 
@@ -152,7 +152,7 @@ def integrate(particles: Particles, gravity, h, pin_alpha, *, cache: LaunchCache
         pin_alpha: fraction of the remaining way to the pin target covered by this substep.
     """
     x = particles.position
-    launch_each(_integrate, x.shape[0], [particles, vec3(*gravity), float(h), float(pin_alpha)], x.device, cache)
+    launch_each(_integrate, x.shape[0], [particles, vector(gravity), float(h), float(pin_alpha)], x.device, cache)
 
 
 def limit_stretch(

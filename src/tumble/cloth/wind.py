@@ -31,7 +31,7 @@ import numpy as np
 import warp as wp
 
 from .. import validate
-from ..launch import LaunchCache, each_end, launch_each
+from ..launch import LaunchCache, each_end, launch_each, vector
 from ..real import float_t, vec3
 from ..structs import array_struct
 from .arrays import Particles, corners
@@ -162,7 +162,7 @@ def sample_wind(particles: Particles, mean, modes: Modes, t, *, cache: LaunchCac
         t: time [s].
     """
     x = particles.position
-    launch_each(_sample_wind, x.shape[0], [particles, vec3(*mean), modes, float(t)], x.device, cache)
+    launch_each(_sample_wind, x.shape[0], [particles, vector(mean), modes, float(t)], x.device, cache)
 
 
 def accumulate_air_forces(

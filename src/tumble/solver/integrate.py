@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..launch import LaunchCache, each_end, launch_each
+from ..launch import LaunchCache, each_end, launch_each, vector
 from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, quatw, vec3, vec3w, wide_t
 from .rigid import inv_inertia_times
@@ -132,7 +132,7 @@ def integrate_velocities(bodies, gravity, h: float, *, warm: bool, cache: Launch
     """
     if bodies.count == 0:
         return  # a cloth-only world: no launch over an empty capacity
-    args = [body_struct(bodies), vec3(*gravity), h, int(warm), bodies.count]
+    args = [body_struct(bodies), vector(gravity), h, int(warm), bodies.count]
     launch_each(_integrate_velocities, bodies.count, args, bodies.device, cache)
 
 
