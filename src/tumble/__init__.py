@@ -23,7 +23,7 @@ from .cloth import ClothSystem, Wind
 from .emitters import Emitter
 from .errors import HandleError, SceneError, SimulationError, TumbleError
 from .model import Control, Model, State
-from .shapes import ShapeType
+from .shapes import ShapeType, SolidOptions
 from .snapshot import Snapshot, SnapshotError
 from .state import BodyId, BodyKind, ClothId, JointId
 from .wedge import wedge
@@ -50,6 +50,7 @@ __all__ = [
     "SimulationError",
     "Snapshot",
     "SnapshotError",
+    "SolidOptions",
     "State",
     "TumbleError",
     "Wind",

@@ -16,9 +16,11 @@ import os
 import re
 import sys
 import tempfile
+import typing
 from pathlib import Path
 
 import tumble
+from tumble.keywords import defaults_of
 
 #: classes of the reference, in page order
 CLASSES = (
@@ -35,6 +37,7 @@ CLASSES = (
     tumble.ClothSystem,
     tumble.Wind,
     tumble.ShapeType,
+    tumble.SolidOptions,
     tumble.TumbleError,
     tumble.SceneError,
     tumble.SimulationError,
@@ -138,7 +141,7 @@ def _annotation(annotation) -> str:
     return annotation if isinstance(annotation, str) else inspect.formatannotation(annotation)
 
 
-_SECTION = re.compile(r"^(Args|Arguments|Returns|Raises|Attributes|Yields|Tuning attributes.*):$")
+_SECTION = re.compile(r"^(Args|Arguments|Keys|Returns|Raises|Attributes|Yields|Tuning attributes.*):$")
 _ITEM = re.compile(r"^(\*{0,2}[A-Za-z_][\w, .*]*):\s*(.*)$")
 
 
@@ -191,7 +194,23 @@ def _markdown(doc: str | None) -> str:
     return "\n".join(out).strip()
 
 
+def _keyword_set(cls) -> list[str]:
+    """A keyword set (a TypedDict taken as `**options`): its docstring, then a table of its keys."""
+    name, default = cls.__name__, defaults_of(cls)
+    parts = [f"## `tumble.{name}` (keywords)", "", _markdown(cls.__doc__), ""]
+    parts += ["| key | type | default |", "|---|---|---|"]
+    for key, annotation in cls.__annotations__.items():
+        shown = getattr(
+            annotation, "__forward_arg__", annotation
+        )  # a TypedDict keeps its keys' annotations as ForwardRefs
+        cells = (key, _annotation(shown), repr(default[key]))
+        parts.append("| " + " | ".join(f"`{c}`".replace("|", "\\|") for c in cells) + " |")
+    return [*parts, ""]
+
+
 def _class_section(cls) -> list[str]:
+    if typing.is_typeddict(cls):
+        return _keyword_set(cls)
     name = cls.__name__
     kind = "exception" if issubclass(cls, BaseException) else "enum" if issubclass(cls, enum.Enum) else "class"
     parts = [f"## `tumble.{name}` ({kind})", ""]

@@ -8,8 +8,12 @@ every combination.
 from __future__ import annotations
 
 import enum
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from .keywords import defaults
 
 #: density [kg/m^3] of a body given neither mass nor density (water)
 DEFAULT_DENSITY = 1000.0
@@ -17,6 +21,55 @@ DEFAULT_DENSITY = 1000.0
 DEFAULT_RESTITUTION = 0.5
 #: default friction coefficient of a body
 DEFAULT_FRICTION = 0.5
+
+
+class SolidOptions(TypedDict, total=False):
+    """The keywords every solid body's adder takes beside its position and size: `World.add_sphere`,
+    `add_box`, `add_capsule`, `add_convex` and the batch adders `add_spheres`, `add_boxes`, `add_capsules`.
+
+    A batch adder takes one value for all its bodies, or one a body (mass and density shape (n,),
+    velocity and angular velocity (n, 3), orientation (n, 4)). The defaults are in the table below
+    (`tumble.shapes.SOLID_DEFAULTS`).
+
+    Keys:
+        mass: [kg], > 0. Give `mass` or `density`; with neither, density is 1000 kg/m^3.
+        density: [kg/m^3], > 0.
+        velocity: initial linear velocity [m/s], shape (3,).
+        orientation: initial orientation (x, y, z, w). A convex body's is
+            its user frame's (`World.add_convex`).
+        angular_velocity: initial angular velocity, world frame [rad/s], shape (3,).
+        restitution: coefficient of restitution in [0, 1].
+        friction: Coulomb friction coefficient (>= 0).
+        static: if True the body never moves (inverse mass 0).
+        kinematic: if True the body moves only with the velocity it is given (at creation or by
+            `World.set_body_state` / `World.set_kinematic_target`), unaffected by gravity and
+            contacts, and pushes dynamic bodies as a body of infinite mass would.
+    """
+
+    mass: float | ArrayLike | None
+    density: float | ArrayLike | None
+    velocity: ArrayLike
+    orientation: ArrayLike
+    angular_velocity: ArrayLike
+    restitution: float
+    friction: float
+    static: bool
+    kinematic: bool
+
+
+#: the defaults of `SolidOptions`, read by the body adders and the scene schema
+SOLID_DEFAULTS = defaults(
+    SolidOptions,
+    mass=None,
+    density=None,
+    velocity=(0.0, 0.0, 0.0),
+    orientation=(0.0, 0.0, 0.0, 1.0),
+    angular_velocity=(0.0, 0.0, 0.0),
+    restitution=DEFAULT_RESTITUTION,
+    friction=DEFAULT_FRICTION,
+    static=False,
+    kinematic=False,
+)
 
 
 class ShapeType(enum.IntEnum):

@@ -19,7 +19,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple, overload
+from typing import TYPE_CHECKING, Any, NamedTuple, Unpack, overload
 
 import numpy as np
 import warp as wp
@@ -28,16 +28,17 @@ from numpy.typing import ArrayLike
 from . import limits, snapshot, validate
 from . import precision as precisions
 from . import shapes as _shapes
-from .cloth.wind import AIR_DENSITY
+from .cloth.system import ClothSystem  # its add_cloth's and set_wind's keywords are World's (both precisions')
 from .collision.hashgrid import spatial_order
 from .emitters import Emitter
 from .errors import HandleError, SimulationError
+from .keywords import given, keywords_of
 from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_row_group
 from .npmath import inertia_world, quat_from_z, quat_mul, quat_rotate, rotation_vector
 from .precision import Precision
 from .runtime import init_warp
-from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, ShapeType
+from .shapes import DEFAULT_FRICTION, DEFAULT_RESTITUTION, SOLID_DEFAULTS, ShapeType, SolidOptions
 from .snapshot import Snapshot
 from .solver import joints as joint_solver
 from .state import (
@@ -52,7 +53,6 @@ from .state import (
 )
 
 if TYPE_CHECKING:  # the classes of the float64 copy; each world's come from `kernels(precision)`
-    from .cloth.system import ClothSystem
     from .collision.broadphase import BroadPhase
     from .collision.hulls import HullSet
     from .collision.meshes import MeshSet
@@ -300,169 +300,69 @@ class World:
         )[0]
 
     def add_sphere(
-        self,
-        *,
-        position: Sequence[float] | np.ndarray,
-        radius: float,
-        mass: float | None = None,
-        density: float | None = None,
-        velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
-        kinematic: bool = False,
+        self, *, position: Sequence[float] | np.ndarray, radius: float, **options: Unpack[SolidOptions]
     ) -> BodyId:
         """Add a solid sphere.
 
         Args:
             position: centre [m], shape (3,).
             radius: [m], > 0.
-            mass: [kg], > 0. Give `mass` or `density`; with neither, density is 1000 kg/m^3.
-            density: [kg/m^3], > 0.
-            velocity: initial linear velocity [m/s].
-            orientation: initial orientation (x, y, z, w).
-            angular_velocity: initial angular velocity, world frame [rad/s].
-            restitution: coefficient of restitution in [0, 1].
-            friction: Coulomb friction coefficient (>= 0).
-            static: if True the sphere never moves (inverse mass 0).
-            kinematic: if True the sphere moves only with the velocity it is given (at creation or
-                by `set_body_state` / `set_kinematic_target`), unaffected by gravity and contacts,
-                and pushes dynamic bodies as a body of infinite mass would.
+            options: mass or density, velocity, orientation, angular velocity, material, static or
+                kinematic: `tumble.SolidOptions`.
 
         Returns:
             The sphere's `BodyId`.
         """
         validate.positive(radius, "radius")
-        return self.add_spheres(
-            position=validate.vector(position, "position")[None],
-            radius=radius,
-            mass=mass,
-            density=density,
-            velocity=velocity,
-            orientation=orientation,
-            angular_velocity=angular_velocity,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-            kinematic=kinematic,
-        )[0]
+        o = given(options, SOLID_DEFAULTS, "World.add_sphere")
+        return self.add_spheres(position=validate.vector(position, "position")[None], radius=radius, **o)[0]
 
     def add_box(
         self,
         *,
         position: Sequence[float] | np.ndarray,
         half_extents: Sequence[float] | np.ndarray,
-        mass: float | None = None,
-        density: float | None = None,
-        velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
-        kinematic: bool = False,
+        **options: Unpack[SolidOptions],
     ) -> BodyId:
         """Add a solid box. Arguments as `add_sphere`, with half extents [m], shape (3,), all > 0."""
-        return self.add_boxes(
-            position=validate.vector(position, "position")[None],
-            half_extents=validate.vector(half_extents, "half_extents"),
-            mass=mass,
-            density=density,
-            velocity=velocity,
-            orientation=orientation,
-            angular_velocity=angular_velocity,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-            kinematic=kinematic,
-        )[0]
+        o = given(options, SOLID_DEFAULTS, "World.add_box")
+        x = validate.vector(position, "position")[None]
+        return self.add_boxes(position=x, half_extents=validate.vector(half_extents, "half_extents"), **o)[0]
 
     def add_spheres(
-        self,
-        *,
-        position: ArrayLike,
-        radius: float | ArrayLike,
-        mass: float | ArrayLike | None = None,
-        density: float | ArrayLike | None = None,
-        velocity: ArrayLike = (0.0, 0.0, 0.0),
-        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
-        kinematic: bool = False,
+        self, *, position: ArrayLike, radius: float | ArrayLike, **options: Unpack[SolidOptions]
     ) -> list[BodyId]:
         """Add n spheres in one call, much faster than n calls of `add_sphere`.
 
         Args:
             position: centres [m], shape (n, 3).
-            radius, mass, density: one value for all, or shape (n,); see `add_sphere`.
-            velocity, angular_velocity: shape (3,) for all, or (n, 3).
-            orientation: shape (4,) for all, or (n, 4), (x, y, z, w).
-            restitution, friction, static, kinematic: one value for all.
+            radius: one value for all, or shape (n,).
+            options: as `add_sphere`'s, one value for all or one a body (`tumble.SolidOptions`).
 
         Returns:
             The new bodies' ids, in order.
         """
+        o = given(options, SOLID_DEFAULTS, "World.add_spheres")
         x = validate.rows(position, "position", 3)
         r = validate.positive_rows(radius, "radius", len(x))
-        m = self._masses(mass, density, _shapes.sphere_volume(r))
+        m = self._masses(o, _shapes.sphere_volume(r))
         inertia = _shapes.sphere_inertia(m, r)
         return self._add_solids(
-            ShapeType.SPHERE,
-            x,
-            velocity,
-            orientation,
-            angular_velocity,
-            radius=r,
-            half_extents=np.zeros((len(x), 3)),
-            mass=m,
-            inertia=inertia,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-            kinematic=kinematic,
+            ShapeType.SPHERE, x, o, radius=r, half_extents=np.zeros((len(x), 3)), mass=m, inertia=inertia
         )
 
     def add_boxes(
-        self,
-        *,
-        position: ArrayLike,
-        half_extents: ArrayLike,
-        mass: float | ArrayLike | None = None,
-        density: float | ArrayLike | None = None,
-        velocity: ArrayLike = (0.0, 0.0, 0.0),
-        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
-        kinematic: bool = False,
+        self, *, position: ArrayLike, half_extents: ArrayLike, **options: Unpack[SolidOptions]
     ) -> list[BodyId]:
         """Add n boxes in one call; arguments as `add_spheres`, with half extents [m], shape (3,) or (n, 3)."""
+        o = given(options, SOLID_DEFAULTS, "World.add_boxes")
         x = validate.rows(position, "position", 3)
         h = validate.rows(half_extents, "half_extents", 3, len(x))
         if np.any(h <= 0.0):
             raise ValueError(f"half_extents must all be > 0, got {validate.show(half_extents)}")
-        m = self._masses(mass, density, _shapes.box_volume(h))
+        m = self._masses(o, _shapes.box_volume(h))
         inertia = _shapes.box_inertia(m, h)
-        return self._add_solids(
-            ShapeType.BOX,
-            x,
-            velocity,
-            orientation,
-            angular_velocity,
-            radius=np.zeros(len(x)),
-            half_extents=h,
-            mass=m,
-            inertia=inertia,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-            kinematic=kinematic,
-        )
+        return self._add_solids(ShapeType.BOX, x, o, radius=np.zeros(len(x)), half_extents=h, mass=m, inertia=inertia)
 
     def add_capsule(
         self,
@@ -470,14 +370,7 @@ class World:
         position: Sequence[float] | np.ndarray,
         radius: float,
         half_height: float,
-        mass: float | None = None,
-        density: float | None = None,
-        velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
+        **options: Unpack[SolidOptions],
     ) -> BodyId:
         """Add a solid capsule: the points within `radius` of a segment along the body's z axis.
 
@@ -487,19 +380,9 @@ class World:
                 2 (half_height + radius) long).
             Others as `add_sphere`.
         """
-        return self.add_capsules(
-            position=validate.vector(position, "position")[None],
-            radius=radius,
-            half_height=half_height,
-            mass=mass,
-            density=density,
-            velocity=velocity,
-            orientation=orientation,
-            angular_velocity=angular_velocity,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-        )[0]
+        o = given(options, SOLID_DEFAULTS, "World.add_capsule")
+        x = validate.vector(position, "position")[None]
+        return self.add_capsules(position=x, radius=radius, half_height=half_height, **o)[0]
 
     def add_capsules(
         self,
@@ -507,37 +390,18 @@ class World:
         position: ArrayLike,
         radius: float | ArrayLike,
         half_height: float | ArrayLike,
-        mass: float | ArrayLike | None = None,
-        density: float | ArrayLike | None = None,
-        velocity: ArrayLike = (0.0, 0.0, 0.0),
-        orientation: ArrayLike = (0.0, 0.0, 0.0, 1.0),
-        angular_velocity: ArrayLike = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
+        **options: Unpack[SolidOptions],
     ) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
+        o = given(options, SOLID_DEFAULTS, "World.add_capsules")
         x = validate.rows(position, "position", 3)
         r = validate.positive_rows(radius, "radius", len(x))
         a = validate.positive_rows(half_height, "half_height", len(x))
-        m = self._masses(mass, density, _shapes.capsule_volume(r, a))
+        m = self._masses(o, _shapes.capsule_volume(r, a))
         inertia = _shapes.capsule_inertia(m, r, a)
         # half extents of the body-frame bounding box; the kernels read the half height as h_z - r
         h = np.stack([r, r, a + r], axis=1)
-        return self._add_solids(
-            ShapeType.CAPSULE,
-            x,
-            velocity,
-            orientation,
-            angular_velocity,
-            radius=r,
-            half_extents=h,
-            mass=m,
-            inertia=inertia,
-            restitution=restitution,
-            friction=friction,
-            static=static,
-        )
+        return self._add_solids(ShapeType.CAPSULE, x, o, radius=r, half_extents=h, mass=m, inertia=inertia)
 
     def add_convex(
         self,
@@ -546,14 +410,7 @@ class World:
         file: str | os.PathLike[str] | None = None,
         scale: float | Sequence[float] = 1.0,
         position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        mass: float | None = None,
-        density: float | None = None,
-        velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        angular_velocity: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        static: bool = False,
+        **options: Unpack[SolidOptions],
     ) -> BodyId:
         """Add a solid convex body: the convex hull of `points`, or of the vertices of a mesh `file`.
 
@@ -568,9 +425,10 @@ class World:
             file: a mesh file (OBJ, STL, PLY, OFF, glTF/GLB) read with trimesh; a mesh that is
                 not watertight still gives its hull, with a one-line notice.
             scale: one factor or three (per user axis) applied to the points first.
-            position, orientation: the user frame's pose (x, y, z, w).
-            Others as `add_sphere`.
+            position: the user frame's origin [m]; its orientation is the option `orientation`.
+            options: as `add_sphere`'s (`tumble.SolidOptions`).
         """
+        o = given(options, SOLID_DEFAULTS, "World.add_convex")
         from .collision.hulls import hull_from_points
         from .io.meshfile import hull_points
 
@@ -579,25 +437,19 @@ class World:
         points, name = hull_points(points, file)
         factor = validate.scale(scale)
         proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
-        q_user = validate.quaternion(orientation)
+        q_user = validate.quaternion(o["orientation"])
         x = validate.vector(position, "position") + quat_rotate(q_user, proto.offset_com)
-        q = quat_mul(q_user, proto.rotation)
-        m = self._masses(mass, density, np.array([proto.volume]))
+        m = self._masses(o, np.array([proto.volume]))
         inertia = proto.inertia[None] * (m[0] / proto.volume)
         index = self.hulls.add(proto)
         ids = self._add_solids(
             ShapeType.CONVEX,
             x[None],
-            velocity,
-            q,
-            angular_velocity,
+            {**o, "orientation": quat_mul(q_user, proto.rotation)},
             radius=np.zeros(1),
             half_extents=np.abs(proto.vertex).max(axis=0)[None],
             mass=m,
             inertia=inertia,
-            restitution=restitution,
-            friction=friction,
-            static=static,
             bound=np.array([proto.bound_radius]),
         )
         self.bodies.write("body_geometry", self._row(ids[0]), index)
@@ -663,61 +515,14 @@ class World:
         }
         return adders[kind](**kwargs)
 
-    def add_emitter(
-        self,
-        *,
-        shape: str | Sequence[str] = "sphere",
-        rate: float = 100.0,
-        count: int = 100,
-        position: Sequence[float] | np.ndarray = (0.0, 0.0, 1.0),
-        region: str = "point",
-        extent: float | Sequence[float] = 0.0,
-        direction: Sequence[float] | np.ndarray = (0.0, 0.0, -1.0),
-        cone_angle: float = 0.0,
-        speed: float | Sequence[float] = 0.0,
-        radius: float | Sequence[float] = 0.05,
-        half_extents: float | Sequence = 0.05,
-        half_height: float | Sequence[float] = 0.05,
-        points: ArrayLike | None = None,
-        file: str | os.PathLike[str] | None = None,
-        scale: float | Sequence[float] = 1.0,
-        mass: float | Sequence[float] | None = None,
-        density: float | Sequence[float] | None = None,
-        restitution: float = DEFAULT_RESTITUTION,
-        friction: float = DEFAULT_FRICTION,
-        random_orientation: bool = False,
-        angular_speed: float | Sequence[float] = 0.0,
-        seed: int | None = None,
-    ) -> Emitter:
+    @keywords_of(Emitter.__init__)
+    def add_emitter(self, **keywords: Any) -> Emitter:
         """Add an emitter that releases bodies over time; the keywords are `tumble.Emitter`'s.
 
         Returns:
             The `Emitter` (the emitter's handle), whose `rate` may be changed while the world runs.
         """
-        emitter = Emitter(
-            shape=shape,
-            rate=rate,
-            count=count,
-            position=position,
-            region=region,
-            extent=extent,
-            direction=direction,
-            cone_angle=cone_angle,
-            speed=speed,
-            radius=radius,
-            half_extents=half_extents,
-            half_height=half_height,
-            points=points,
-            file=file,
-            scale=scale,
-            mass=mass,
-            density=density,
-            restitution=restitution,
-            friction=friction,
-            random_orientation=random_orientation,
-            angular_speed=angular_speed,
-            seed=seed,
-        )
+        emitter = Emitter(**keywords)
         if emitter.seed is None:
             emitter.seed = int(self.rng.integers(0, 2**31 - 1))
         emitter.reset_rng()
@@ -735,43 +540,15 @@ class World:
         self.emitters = [e for e in self.emitters if e is not emitter]
         emitter.world_key = None
 
-    def add_cloth(
-        self,
-        *,
-        size: Sequence[float] = (1.0, 1.0),
-        resolution: Sequence[int] = (32, 32),
-        position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-        orientation: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0, 1.0),
-        mass: float | None = None,
-        areal_density: float | None = None,
-        stiffness: float | dict[str, float] | None = None,
-        damping: float | dict[str, float] | None = None,
-        max_stretch: float | None = 0.1,
-        pins: str | Sequence[Sequence[int]] | None = None,
-        thickness: float = 0.01,
-        friction: float = 0.3,
-    ) -> ClothId:
+    @keywords_of(ClothSystem.add_cloth)
+    def add_cloth(self, **keywords: Any) -> ClothId:
         """Add a rectangular mass-spring cloth; the keywords are `ClothSystem.add_cloth`'s.
 
         Returns:
             The cloth's `ClothId` (an int, its index in creation order); `world.cloth` holds the
             particles of every cloth.
         """
-        index = self.cloth.add_cloth(
-            size=size,
-            resolution=resolution,
-            position=position,
-            orientation=orientation,
-            mass=mass,
-            areal_density=areal_density,
-            stiffness=stiffness,
-            damping=damping,
-            max_stretch=max_stretch,
-            pins=pins,
-            thickness=thickness,
-            friction=friction,
-        )
-        return ClothId(index, 0, self._key)
+        return ClothId(self.cloth.add_cloth(**keywords), 0, self._key)
 
     @property
     def has_cloth(self) -> bool:
@@ -794,27 +571,10 @@ class World:
         b = self.bodies
         self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
 
-    def set_wind(
-        self,
-        *,
-        velocity: Sequence[float] = (0.0, 0.0, 0.0),
-        turbulence: float = 0.0,
-        scale: float = 1.0,
-        seed: int = 0,
-        drag: float = 1.2,
-        lift: float = 0.3,
-        air_density: float = AIR_DENSITY,
-    ) -> None:
+    @keywords_of(ClothSystem.set_wind)
+    def set_wind(self, **keywords: Any) -> None:
         """Set the wind acting on cloth; the keywords are `ClothSystem.set_wind`'s (model: `tumble.Wind`)."""
-        self.cloth.set_wind(
-            velocity=velocity,
-            turbulence=turbulence,
-            scale=scale,
-            seed=seed,
-            drag=drag,
-            lift=lift,
-            air_density=air_density,
-        )
+        self.cloth.set_wind(**keywords)
 
     def set_material(self, *, restitution: float | None = None, friction: float | None = None) -> None:
         """Set restitution and/or friction of every body (planes included), effective at once."""
@@ -1161,7 +921,9 @@ class World:
             raise HandleError(f"body {int(ids[np.argmax(rows < 0)])} was removed from this World")
         return ids, rows
 
-    def _masses(self, mass, density, volume: np.ndarray) -> np.ndarray:
+    def _masses(self, options: dict[str, Any], volume: np.ndarray) -> np.ndarray:
+        """The masses of solids of `volume` from the `SolidOptions` mass or density."""
+        mass, density = options["mass"], options["density"]
         if mass is not None and density is not None:
             raise ValueError("give mass or density, not both")
         if mass is not None:
@@ -1172,29 +934,16 @@ class World:
         )
 
     def _add_solids(
-        self,
-        shape,
-        position,
-        velocity,
-        orientation,
-        angular_velocity,
-        *,
-        radius,
-        half_extents,
-        mass,
-        inertia,
-        restitution,
-        friction,
-        static,
-        kinematic=False,
-        bound=None,
+        self, shape, position, options: dict[str, Any], *, radius, half_extents, mass, inertia, bound=None
     ) -> list[BodyId]:
+        """Add solids of one shape at `position` with the `SolidOptions` `options` (defaults filled in)."""
         n = len(position)
-        q = validate.quaternion(orientation, "orientation", n)
-        v = validate.rows(velocity, "velocity", 3, n)
-        w = validate.rows(angular_velocity, "angular_velocity", 3, n)
-        restitution, friction = validate.restitution(restitution), validate.friction(friction)
-        static, kinematic = validate.flag(static, "static"), validate.flag(kinematic, "kinematic")
+        q = validate.quaternion(options["orientation"], "orientation", n)
+        v = validate.rows(options["velocity"], "velocity", 3, n)
+        w = validate.rows(options["angular_velocity"], "angular_velocity", 3, n)
+        restitution = validate.restitution(options["restitution"])
+        friction = validate.friction(options["friction"])
+        static, kinematic = validate.flag(options["static"], "static"), validate.flag(options["kinematic"], "kinematic")
         if static and kinematic:
             raise ValueError("a body is static or kinematic, not both")
         kind = BodyKind.DYNAMIC

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import typing
 from pathlib import Path
 
 import pytest
@@ -12,7 +13,7 @@ from tumble import apidoc
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "api.md"
 #: what a class inherits from Python's own bases, which the page does not repeat
-BUILTIN = set(dir(int)) | set(dir(tuple)) | set(dir(Exception)) | set(dir(enum.IntEnum))
+BUILTIN = set(dir(int)) | set(dir(tuple)) | set(dir(Exception)) | set(dir(enum.IntEnum)) | set(dir(dict))
 
 
 def test_the_page_is_up_to_date():
@@ -38,6 +39,10 @@ def test_every_public_member_is_listed(cls):
         names |= {n for n in dir(tumble.World()) if not n.startswith("_")}
     missing = sorted(n for n in names if f"`{cls.__name__}.{n}`" not in page)
     assert not missing, f"not in docs/api.md: {missing}"
+    if typing.is_typeddict(cls):  # a keyword set: a table row for each of its keys, in its own section
+        section = page.split(f"## `tumble.{cls.__name__}`")[1].split("\n## ")[0]
+        missing = sorted(key for key in cls.__annotations__ if f"| `{key}` |" not in section)
+        assert not missing, f"keys not in docs/api.md: {missing}"
 
 
 def test_the_page_names_nothing_that_does_not_exist():

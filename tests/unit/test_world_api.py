@@ -419,6 +419,33 @@ def test_forwarding_calls_have_the_real_signatures():
         assert all(p.kind != p.VAR_KEYWORD for p in inspect.signature(front).parameters.values())
 
 
+SOLID_ADDERS = {
+    "add_sphere": dict(position=(0, 0, 1), radius=0.1),
+    "add_box": dict(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1)),
+    "add_capsule": dict(position=(0, 0, 1), radius=0.1, half_height=0.2),
+    "add_convex": dict(points=np.eye(3).tolist() + [[0, 0, 0]]),
+    "add_spheres": dict(position=[(0, 0, 1), (1, 0, 1)], radius=0.1),
+    "add_boxes": dict(position=[(0, 0, 1), (1, 0, 1)], half_extents=(0.1, 0.1, 0.1)),
+    "add_capsules": dict(position=[(0, 0, 1), (1, 0, 1)], radius=0.1, half_height=0.2),
+}
+
+
+@pytest.mark.parametrize("adder", list(SOLID_ADDERS))
+def test_every_solid_adder_takes_the_solid_options(adder):
+    """Each solid adder takes SolidOptions' keywords (a kinematic capsule or convex body too), and a
+    misspelt keyword is refused naming the adder, before anything is added."""
+    w = tumble.World()
+    ids = getattr(w, adder)(**SOLID_ADDERS[adder], kinematic=True, velocity=(1.0, 0.0, 0.0), friction=0.2)
+    for body in ids if isinstance(ids, list) else [ids]:
+        assert w.body_state(body).kind == tumble.BodyKind.KINEMATIC
+        assert w.body_state(body).velocity.tolist() == [1.0, 0.0, 0.0]
+        assert w.body_friction[w.body_row(body)] == 0.2
+    count = w.body_count
+    with pytest.raises(TypeError, match=rf"^World.{adder}\(\) got an unexpected keyword argument 'frction'$"):
+        getattr(w, adder)(**SOLID_ADDERS[adder], frction=0.2)
+    assert w.body_count == count
+
+
 def test_the_package_ships_its_type_hints():
     """py.typed sits in the package and pyproject.toml installs it."""
     from pathlib import Path

@@ -54,7 +54,7 @@ from ..structs import cached_struct, fill_struct
 from . import attach, collide, grid, springs
 from .arrays import PARTICLE_FIELDS, TOPOLOGY, Limits, Particles, Springs, Stretch, Structural, Tethers
 from .attach import BodyPins
-from .wind import MODE_FIELDS, Modes, Wind, accumulate_air_forces, sample_wind
+from .wind import AIR_DENSITY, MODE_FIELDS, Modes, Wind, accumulate_air_forces, sample_wind
 
 #: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution
 DEFAULT_STIFFNESS = {"structural": 12.0, "shear": 1.2, "bend": 0.3}
@@ -424,7 +424,7 @@ class ClothSystem:
         seed: int = 0,
         drag: float = 1.2,
         lift: float = 0.3,
-        air_density: float = 1.2,
+        air_density: float = AIR_DENSITY,
     ) -> None:
         """Set the wind acting on every cloth; see `tumble.cloth.wind.Wind` for the model.
 

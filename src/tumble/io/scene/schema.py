@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 import inspect
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,7 +17,7 @@ from ... import limits
 from ...cloth import system as _cloth
 from ...precision import DEFAULT_PRECISION, PRECISIONS
 from ...render.camera import DEFAULT_FOV
-from ...shapes import DEFAULT_DENSITY
+from ...shapes import DEFAULT_DENSITY, SOLID_DEFAULTS
 from ...world import World
 from .checks import (
     Bad,
@@ -83,18 +83,19 @@ def _shown(value) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _api_default(function: Callable, name: str):
-    """The default of keyword `name` of the API `function`: a scene key and the API share one default.
+def _api_default(source: Callable | Mapping[str, Any], name: str):
+    """The default of keyword `name` of the API `source`, a function or a keyword set's defaults
+    (`SOLID_DEFAULTS`): a scene key and the API share one default.
 
     A tuple (a vector) comes back as the list of floats a scene file holds.
     """
-    default = inspect.signature(function).parameters[name].default
+    default = source[name] if isinstance(source, Mapping) else inspect.signature(source).parameters[name].default
     return [float(v) for v in default] if isinstance(default, tuple) else default
 
 
-def _defaults(function: Callable) -> Callable[[str], Any]:
-    """`_api_default` of one API function, for the keys of one table."""
-    return functools.partial(_api_default, function)
+def _defaults(source: Callable | Mapping[str, Any]) -> Callable[[str], Any]:
+    """`_api_default` of one API function or keyword set, for the keys of one table."""
+    return functools.partial(_api_default, source)
 
 
 _wind_default = _defaults(_cloth.ClothSystem.set_wind)
@@ -136,23 +137,25 @@ _MASS = {
 }
 
 
-def _body_fields(size_key: str, size: Field, add: Callable) -> dict[str, Field]:
-    """The keys of a solid body's table; the defaults are those of `add` (World.add_sphere, ...)."""
-    d = _defaults(add)
+def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
+    """The keys of a solid body's table; the defaults are the body adders' (`SOLID_DEFAULTS`)."""
     return {
         "position": Field(vector(3), REQUIRED, "m", "centre of mass"),
         size_key: size,
-        "velocity": Field(vector(3), d("velocity"), "m/s", "initial linear velocity"),
+        "velocity": Field(vector(3), _solid("velocity"), "m/s", "initial linear velocity"),
         **_MASS,
-        **_material(d),
-        "static": Field(boolean(), d("static"), "", "immovable (inverse mass 0)"),
-        "orientation": Field(quaternion(), d("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
-        "angular_velocity": Field(vector(3), d("angular_velocity"), "rad/s", "initial angular velocity, world frame"),
+        **_material(_solid),
+        "static": Field(boolean(), _solid("static"), "", "immovable (inverse mass 0)"),
+        "orientation": Field(quaternion(), _solid("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
+        "angular_velocity": Field(
+            vector(3), _solid("angular_velocity"), "rad/s", "initial angular velocity, world frame"
+        ),
     }
 
 
 _world = _defaults(World.__init__)
 _plane = _defaults(World.add_plane)
+_solid = _defaults(SOLID_DEFAULTS)
 _convex = _defaults(World.add_convex)
 _mesh = _defaults(World.add_mesh)
 _emitter = _defaults(World.add_emitter)
@@ -216,7 +219,7 @@ SCHEMA: dict[str, TableSpec] = {
             "sphere",
             True,
             "Solid spheres.",
-            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"), World.add_sphere),
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius")),
             mass_or_density,
         ),
         TableSpec(
@@ -226,7 +229,6 @@ SCHEMA: dict[str, TableSpec] = {
             _body_fields(
                 "half_extents",
                 Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes"),
-                World.add_box,
             ),
             mass_or_density,
         ),
@@ -234,7 +236,7 @@ SCHEMA: dict[str, TableSpec] = {
             "capsule",
             True,
             "Solid capsules: the points within radius of a segment of length 2 half_height along the body z axis.",
-            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"), World.add_capsule)
+            _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"))
             | {"half_height": Field(number(low=0, low_open=True), REQUIRED, "m", "half length of the segment")},
             mass_or_density,
         ),
@@ -250,14 +252,14 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 "scale": Field(scale_factor(), _convex("scale"), "", "factor(s) applied to the points or the file"),
                 "position": Field(vector(3), REQUIRED, "m", "origin of the points' frame"),
-                "orientation": Field(quaternion(), _convex("orientation"), "", "orientation of the points' frame"),
-                "velocity": Field(vector(3), _convex("velocity"), "m/s", "initial linear velocity"),
+                "orientation": Field(quaternion(), _solid("orientation"), "", "orientation of the points' frame"),
+                "velocity": Field(vector(3), _solid("velocity"), "m/s", "initial linear velocity"),
                 "angular_velocity": Field(
-                    vector(3), _convex("angular_velocity"), "rad/s", "initial angular velocity, world frame"
+                    vector(3), _solid("angular_velocity"), "rad/s", "initial angular velocity, world frame"
                 ),
                 **_MASS,
-                **_material(_convex),
-                "static": Field(boolean(), _convex("static"), "", "immovable (inverse mass 0)"),
+                **_material(_solid),
+                "static": Field(boolean(), _solid("static"), "", "immovable (inverse mass 0)"),
             },
             convex_rules,
         ),

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import inspect
 import math
+import typing
 
 import pytest
 
 import tumble
 from tumble.cloth.system import ClothSystem
 from tumble.io.scene import schema
+from tumble.keywords import defaults_of
 
 
 @pytest.mark.parametrize("name", list(schema.SCHEMA))
@@ -37,16 +39,36 @@ API = {
 }
 
 
+def api_defaults(function) -> dict[str, object]:
+    """The defaults of the keywords `function` takes: its own parameters', and those of the keyword set
+    (a TypedDict) it takes as `**options: Unpack[...]`, found from the annotation."""
+    out = {}
+    for name, p in inspect.signature(function).parameters.items():
+        if p.kind is p.VAR_KEYWORD:
+            (options,) = typing.get_args(typing.get_type_hints(function)[name])
+            out |= defaults_of(options)
+        else:
+            out[name] = p.default
+    return out
+
+
+def test_the_solid_adders_defaults_come_from_their_keyword_set():
+    """add_sphere's mass, velocity, ... defaults are SolidOptions' (what the scene tables are checked against)."""
+    d = api_defaults(tumble.World.add_sphere)
+    assert d["velocity"] == (0.0, 0.0, 0.0) and d["restitution"] == 0.5 and d["kinematic"] is False
+    assert d["radius"] is inspect.Parameter.empty
+
+
 @pytest.mark.parametrize("name", list(API))
 def test_defaults_are_the_api_defaults(name):
     """Give each key the default of the API keyword it is passed to, so that the file and the API cannot drift.
 
     A key the file requires, or leaves to the engine (None), shows the API's default in the reference instead.
     """
-    parameters = inspect.signature(API[name]).parameters
+    parameters = api_defaults(API[name])
     shared = 0
     for key, f in schema.SCHEMA[name].fields.items():
-        api = parameters[key].default if key in parameters else inspect.Parameter.empty
+        api = parameters.get(key, inspect.Parameter.empty)
         if api is inspect.Parameter.empty or f.default is schema.REQUIRED:
             continue
         api = [float(v) for v in api] if isinstance(api, tuple) else api
