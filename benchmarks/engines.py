@@ -90,11 +90,11 @@ class TumbleAdapter:
 
         self._wp = wp
         self.scene = scene
-        substeps = {} if scene.substeps is None else {"substeps": scene.substeps}
+        options = {} if scene.substeps is None else {"substeps": scene.substeps}
+        if self.precision is not None:  # (left out otherwise, so that overhead.py --compare can time older trees)
+            options["precision"] = self.precision
         gravity = (0.0, 0.0, -scene.gravity)
-        self.world = world = tumble.World(
-            gravity=gravity, dt=scene.dt, device=device, precision=self.precision, **substeps
-        )
+        self.world = world = tumble.World(gravity=gravity, dt=scene.dt, device=device, **options)
         if quality:
             world.substeps = self.QUALITY_SUBSTEPS
         self.device = world.device
