@@ -61,7 +61,7 @@ _WORLD_SKIP = frozenset(
 _PARTS = {"model": 0, "state": 1, "control": 2}
 
 # what `ArraySet` itself keeps beside its arrays (captured through its markers)
-_ARRAYSET_OWN = frozenset({"fields", "arrays", "count", "capacity", "device"})
+_ARRAYSET_OWN = frozenset({"fields", "numpy_types", "arrays", "count", "capacity", "device"})
 # what a `RowGroup` keeps: its sets are saved where the world's parts (model, state, control) hold
 # them; the rest (the solver's scratch sets) is grown back to their rows by `RowGroup.sync`
 _ROWGROUP_OWN = frozenset({"parts", "arrays", "fields", "_part", "device"})

@@ -51,6 +51,8 @@ def numpy_dtype(dtype: type) -> tuple[type, tuple[int, ...]]:
 def cast(values, np_type: type, name: str) -> np.ndarray:
     """`values` as an array of `np_type`; ValueError naming `name` for a finite value the type cannot
     hold (beyond float32's 3.4e38, or a nonzero one below its 1.2e-38, which would become 0 or inf)."""
+    if np_type is np.float64:  # nothing to lose, nothing to warn of (and no errstate, ~3 us a call)
+        return np.asarray(values, dtype=np.float64)
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         out: np.ndarray = np.asarray(values, dtype=np_type)
     if np_type is np.float32:
@@ -96,6 +98,8 @@ class ArraySet:
         if len(found) > 1:
             raise ValueError(f"an ArraySet holds one precision, got {found}")
         self.precision: str = found[0] if found else (precision or "float64")
+        #: NumPy scalar type and trailing shape of each field's rows (`numpy_dtype`)
+        self.numpy_types = {name: numpy_dtype(dtype) for name, dtype in self.fields.items()}
         self.device = device
         self.count = 0
         self.capacity = 0
@@ -132,19 +136,18 @@ class ArraySet:
         start = self.count
         self.reserve(start + k)
         # rows that `take` dropped may hold old values: zero the fields not given
+        types = self.numpy_types
         zeros: dict[str, np.ndarray] = {
-            name: np.zeros((k,) + numpy_dtype(dtype)[1], numpy_dtype(dtype)[0])
-            for name, dtype in self.fields.items()
-            if name not in rows
+            name: np.zeros((k,) + tail, np_type) for name, (np_type, tail) in types.items() if name not in rows
         }
         converted = {}  # every field first, so that a value the precision cannot hold changes nothing
         for name, values in {**rows, **zeros}.items():
-            np_type, tail = numpy_dtype(self.fields[name])
+            np_type, tail = types[name]
             converted[name] = cast(values, np_type, name).reshape((k,) + tail)
         for name, src in converted.items():
             dtype = self.fields[name]
             if self.device == "cpu":
-                self.arrays[name].numpy()[start : start + k] = src  # the host view is the array
+                host_view(self.arrays[name])[start : start + k] = src  # the host view is the array
             else:
                 staged: wp.array = wp.array(np.ascontiguousarray(src), dtype=dtype, device=self.device)
                 wp.copy(self.arrays[name], staged, dest_offset=start, count=k)
@@ -174,7 +177,7 @@ class ArraySet:
         k = len(rows)
         for name in self.fields:
             arr = self.arrays[name]
-            host = arr.numpy()
+            host = host_view(arr)
             host[:k] = host[rows]
             if self.device != "cpu":
                 arr.assign(host)
@@ -182,7 +185,7 @@ class ArraySet:
 
     def write(self, name: str, rows, values) -> None:
         """Overwrite the rows `rows` (an index array or slice) of one array from host values."""
-        host = self.arrays[name].numpy()
+        host = host_view(self.arrays[name])
         host[rows] = cast(values, host.dtype.type, name)
         if self.device != "cpu":
             self.arrays[name].assign(host)
@@ -258,8 +261,9 @@ class RowGroup:
     def append(self, rows: dict[str, np.ndarray]) -> range:
         """Append rows given as NumPy arrays (first axis = rows) to every part; missing fields are zero."""
         k = len(next(iter(rows.values())))
-        for name, values in rows.items():  # before any part changes: a value its precision cannot hold
-            cast(values, numpy_dtype(self.fields[name])[0], name)
+        # cast before any part changes (a value its precision cannot hold changes nothing); the parts
+        # then take the cast arrays as they are
+        rows = {name: cast(values, self._part[name].numpy_types[name][0], name) for name, values in rows.items()}
         self.reserve(self.count + k)
         added = [p.append({name: v for name, v in rows.items() if name in p.fields}, count=k) for p in self.parts]
         return added[0]
