@@ -21,7 +21,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 import warnings
 
 from .errors import TumbleError
@@ -120,7 +122,18 @@ def build_parser() -> Parser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (`kill`, a job's time limit), raised where the command is so that it unwinds as Ctrl-C
+    does: every output still being written is removed, and what the user had is left as it was."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -132,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     prefix = f"tumble {args.command}: error:"
     try:
         return int(args.command_main(args) or 0)
+    except Terminated:
+        print(f"tumble {args.command}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"tumble {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -22,10 +22,10 @@ built from a scene file, the scene's text, so that `tumble.load_snapshot` (`io.s
 from __future__ import annotations
 
 import enum
+import hashlib
 import json
 import math
 import os
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -485,11 +485,24 @@ def save(snap: Snapshot, path: str | os.PathLike[str]) -> Path:
         "arrays": sorted(snap.arrays),
     }
     payload = {f"a{i}": a for i, a in enumerate(snap.arrays[k] for k in manifest["arrays"])}
+    manifest["digest"] = _digest(manifest, payload)
     payload["manifest"] = np.frombuffer(json.dumps(manifest).encode(), dtype=np.uint8)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **payload)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle
     return path
+
+
+def _digest(manifest: dict[str, Any], payload: dict[str, np.ndarray]) -> str:
+    """A hash of a snapshot file's contents (the manifest without its digest, each array's name,
+    type, shape and bytes): `read` refuses a file whose contents were damaged or edited since."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(json.dumps({k: v for k, v in manifest.items() if k != "digest"}, sort_keys=True).encode())
+    for name in sorted(payload):
+        a = np.ascontiguousarray(payload[name])
+        h.update(f"{name}:{a.dtype.str}:{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def read(path: str | os.PathLike[str]) -> Snapshot:
@@ -505,37 +518,38 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
                     f"{path}: snapshot format {manifest['format']} is not the format {FORMAT} "
                     "this version of Tumble reads"
                 )
-            arrays = {k: data[f"a{i}"] for i, k in enumerate(manifest["arrays"])}
+            payload = {f"a{i}": data[f"a{i}"] for i in range(len(manifest["arrays"]))}
+            if "digest" in manifest and manifest["digest"] != _digest(manifest, payload):  # (files before it have none)
+                raise SnapshotError(
+                    f"{path}: the snapshot is damaged or was edited (its contents do not match its digest)"
+                )
+            arrays = {k: payload[f"a{i}"] for i, k in enumerate(manifest["arrays"])}
     except SnapshotError:
         raise
     except FileNotFoundError:
         raise SnapshotError(f"{path}: no such snapshot file") from None
     except IsADirectoryError:
         raise SnapshotError(f"{path}: is a directory, not a snapshot file") from None
-    except (
-        OSError,
-        ValueError,
-        KeyError,
-        TypeError,
-        EOFError,
-        zipfile.BadZipFile,
-        json.JSONDecodeError,
-        UnicodeDecodeError,
-    ) as exc:
+    except Exception as exc:  # whatever the zip, zlib, NumPy or JSON readers raise on a damaged file
         raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
-    time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
-    if manifest["format"] < 7:
-        _upgrade_contacts(manifest["values"], arrays)
-    return Snapshot(
-        arrays,
-        manifest["values"],
-        int(manifest["step_count"]),
-        time,
-        manifest.get("scene"),
-        manifest.get("scene_path"),
-        dict(manifest.get("overrides") or {}),
-        _READS[manifest["format"]] or _saved_precision(manifest, path),
-    )
+    try:
+        time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
+        if manifest["format"] < 7:
+            _upgrade_contacts(manifest["values"], arrays)
+        return Snapshot(
+            arrays,
+            manifest["values"],
+            int(manifest["step_count"]),
+            time,
+            manifest.get("scene"),
+            manifest.get("scene_path"),
+            dict(manifest.get("overrides") or {}),
+            _READS[manifest["format"]] or _saved_precision(manifest, path),
+        )
+    except SnapshotError:
+        raise
+    except Exception as exc:  # a manifest that lacks a key or holds one of the wrong type
+        raise SnapshotError(f"{path}: not a Tumble snapshot file (its manifest: {type(exc).__name__}: {exc})") from None
 
 
 def _upgrade_contacts(values: dict, arrays: dict[str, np.ndarray]) -> None:

@@ -60,6 +60,9 @@ if TYPE_CHECKING:
 
 #: most variants a wedge runs without `yes=True` / `--yes`
 MAX_VARIANTS = 1000
+#: most variants (and values of one key) a wedge takes even with `--yes`: checked before a range is
+#: expanded, so that 0..1000000000 is refused at once rather than after building a billion values
+MAX_VARIANTS_EVER = 100_000
 #: seconds to wait for an existing cluster at `address` to answer
 CONNECT_TIMEOUT = 5.0
 #: what a variant can keep besides result.json, scene.toml and final.png
@@ -243,6 +246,7 @@ def parse_values(text) -> list:
             a, b = (int(p) for p in s.split(".."))
             if b < a:
                 raise WedgeError(f"empty range {s!r}: the end {b} is below the start {a}")
+            _at_most(b - a + 1, s)
             values = list(range(a, b + 1))
         elif ".." in s and not s.startswith(("[", '"', "'")):
             raise WedgeError(f"range {s!r}: a..b takes two integers, e.g. 0..99")
@@ -263,6 +267,11 @@ def parse_values(text) -> list:
     return values
 
 
+def _at_most(count: int, s: str) -> None:
+    if count > MAX_VARIANTS_EVER:
+        raise WedgeError(f"range {s!r} gives {count:,} values; a wedge takes at most {MAX_VARIANTS_EVER:,}")
+
+
 def _linspace(s: str) -> list:
     parts = s.split(":")
     if len(parts) != 3:
@@ -275,6 +284,7 @@ def _linspace(s: str) -> list:
         raise WedgeError(f"range {s!r}: count must be a whole number, got {parts[2].strip()!r}")
     if count < 1:
         raise WedgeError(f"empty range {s!r}: count must be at least 1")
+    _at_most(count, s)
     if count == 1:
         return [start]
     values = [_round(start + (stop - start) * k / (count - 1)) for k in range(count)]
@@ -453,6 +463,11 @@ def plan_wedge(
         keys.append(key)
         values.append(vals)
     total = math.prod(len(v) for v in values)
+    if total > MAX_VARIANTS_EVER:
+        raise WedgeError(
+            f"{total:,} variants ({' x '.join(str(len(v)) for v in values)}) is more than a wedge runs, "
+            f"{MAX_VARIANTS_EVER:,} even with --yes"
+        )
     if total > limit and not yes:
         raise WedgeError(
             f"{total:,} variants is more than the limit of {limit:,} "

@@ -659,6 +659,8 @@ class World:
     def _joint_body(self, body, key: str):
         try:
             i = self._row(body)
+        except HandleError as exc:  # another world's, or a removed one: say which
+            raise joint_solver.JointArgumentError(key, str(exc)) from None
         except (IndexError, TypeError, ValueError):
             raise joint_solver.JointArgumentError(
                 key, f"no body {body!r} (the world has {self.bodies.count} bodies)"
@@ -902,13 +904,16 @@ class World:
             if isinstance(b, (bool, np.bool_)) or not isinstance(b, (int, np.integer)):
                 raise TypeError(f"body must be a BodyId (or an int id), got {validate.show(b)}")
             i = int(b)
-            if not 0 <= i < self._id_count:
-                raise IndexError(f"body {i} does not exist (the world has {self._id_count} body ids)")
             if isinstance(b, Handle):
                 if not isinstance(b, BodyId):
                     raise TypeError(f"body must be a BodyId, got the {type(b).__name__} {b!r}")
                 if b.world_key is not None and b.world_key != self._key:
                     raise HandleError(f"body {i} belongs to another World")
+                if b.world_key is not None and not 0 <= i < self._id_count:  # its id was freed with it
+                    raise HandleError(f"body {i} was removed from this World")
+            if not 0 <= i < self._id_count:
+                raise IndexError(f"body {i} does not exist (the world has {self._id_count} body ids)")
+            if isinstance(b, Handle):
                 if b.generation != self._body_generation[i]:
                     raise HandleError(
                         f"body {i} was removed from this World (its id now names a newer body)"

@@ -62,3 +62,41 @@ def test_the_parser_lists_its_commands_and_every_option():
     assert args.frames == 12 and export["frames"].type is int and args.output == "x.usda"
     # the positional SCENE argument is an option too, with no flags
     assert [a.dest for a in parser.commands["check"].options if not a.option_strings] == ["scene"]
+
+
+def test_sigterm_unwinds_as_ctrl_c_and_leaves_no_temporary_file(tmp_path, tumble_subprocess_env):
+    """`kill` (SIGTERM) during a render: exit 143 with one line, the user's earlier file unchanged and
+    no temporary output left beside it (the render's atomic write is unwound, as on Ctrl-C)."""
+    import time
+
+    out = tmp_path / "movie.mp4"
+    out.write_bytes(b"the user's earlier file")
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "tumble",
+            "render",
+            "bouncing_ball",
+            "-o",
+            str(out),
+            "--duration",
+            "600",
+            "--size",
+            "64x48",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+    )
+    deadline = time.monotonic() + 120
+    while not any(p.name != out.name for p in tmp_path.iterdir()):  # the render's temporary output
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read() if proc.stderr else ""
+        time.sleep(0.2)
+    proc.terminate()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "tumble render: terminated" and "Traceback" not in err
+    assert out.read_bytes() == b"the user's earlier file"
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]

@@ -241,3 +241,31 @@ def test_a_format_6_file_is_read_at_its_saved_moment_and_resumes(tmp_path):
     _steps(again, 0.5)
     assert np.isfinite(world.body_position).all()
     assert world.state_hash() == again.state_hash()
+
+
+def test_an_edited_or_damaged_file_is_refused(tmp_path):
+    """A file whose arrays were changed after saving (one cut short and saved again with NumPy), or
+    whose compressed bytes were damaged, is refused with a SnapshotError naming it, not resumed."""
+    world = tumble.load_scene("bouncing_ball")
+    world.step()
+    path = tumble.save_snapshot(world.snapshot(), tmp_path / "state.npz")
+    assert snapshot.read(path).step_count == 1
+    data = dict(np.load(path))
+    data["a0"] = data["a0"][:1]
+    np.savez(tmp_path / "edited.npz", **data)
+    with pytest.raises(SnapshotError, match=r"edited\.npz: the snapshot is damaged or was edited"):
+        snapshot.read(tmp_path / "edited.npz")
+    saved = snapshot.read(path)
+    raw = bytearray(path.read_bytes())
+    damaged = 0
+    for offset in range(0, len(raw), 97):  # a flipped byte: refused, or (outside the data) read unchanged
+        flipped = bytearray(raw)
+        flipped[offset] ^= 0xFF
+        (tmp_path / "flipped.npz").write_bytes(flipped)
+        try:
+            again = snapshot.read(tmp_path / "flipped.npz")
+        except SnapshotError:
+            damaged += 1
+        else:
+            assert again == saved, offset
+    assert damaged > 0

@@ -119,6 +119,9 @@ def test_parse_values_forms(text, values):
         ("1,,2", "empty value"),
         ("1,2,1", "given twice"),
         ([], "empty list"),
+        # refused before expanding: a billion values would take minutes and gigabytes to build
+        ("0..1000000000", "gives 1,000,000,001 values; a wedge takes at most 100,000"),
+        ("0:1:100000001", "gives 100,000,001 values"),
     ],
 )
 def test_parse_values_rejects(text, message):

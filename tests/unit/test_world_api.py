@@ -70,6 +70,32 @@ def test_a_removed_handle_is_refused_even_after_its_id_is_reused():
     assert w.body_radius[1] == 0.2 and w.body_mass[1] == 2.0
 
 
+def test_the_handle_of_the_last_body_removed_is_refused_as_removed():
+    """Removing the newest body frees its id, so the world holds fewer ids than the handle names: its
+    handle still gets HandleError (as documented), a plain int that was never an id IndexError."""
+    w = tumble.World()
+    w.add_sphere(position=(0, 0, 1), radius=0.1)
+    last = w.add_sphere(position=(1, 0, 1), radius=0.1)
+    w.remove_body(last)
+    for call in (
+        lambda: last.position,
+        lambda: w.set_body_state(last, position=(0, 0, 0)),
+        lambda: w.remove_body(last),
+    ):
+        with pytest.raises(HandleError, match="body 1 was removed from this World"):
+            call()
+    with pytest.raises(IndexError, match="body 5 does not exist"):
+        w.body_state(5)
+
+
+def test_a_joint_to_another_worlds_body_names_the_other_world():
+    w, other = tumble.World(), tumble.World()
+    a = w.add_sphere(position=(0, 0, 1), radius=0.1)
+    foreign = other.add_sphere(position=(0, 0, 1), radius=0.1)
+    with pytest.raises(ValueError, match="body_b: body 0 belongs to another World"):
+        w.add_joint("ball", a, foreign)
+
+
 @pytest.mark.parametrize(
     "bad, error",
     [(1.0, TypeError), ("1", TypeError), (True, TypeError), (None, TypeError), (17, IndexError), (-1, IndexError)],

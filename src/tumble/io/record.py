@@ -322,6 +322,7 @@ def load_recording(path) -> dict[str, np.ndarray]:
     time = out.get("time")
     if time is None or time.ndim != 1 or len(time) == 0:
         raise RecordingError(f"{p}: a recording needs a non-empty 1-D 'time' array")
+    _check_rows(out, p)
     version = int(out.get("format_version", 1))
     if version > FORMAT_VERSION:
         raise TumbleError(
@@ -329,6 +330,34 @@ def load_recording(path) -> dict[str, np.ndarray]:
             f"(up to {FORMAT_VERSION}); upgrade Tumble"
         )
     return out
+
+
+def _check_rows(rec: dict[str, np.ndarray], path: Path) -> None:
+    """Refuse a recording whose declared arrays disagree on the frame, body or particle count (an edited
+    or damaged file), or whose `shape` names no shape, before a reader indexes one by another."""
+    frames = len(rec["time"])
+    for entity, state, model in (("bodies", BODY_STATE, BODY_MODEL), ("particles", PARTICLE_STATE, PARTICLE_MODEL)):
+        count, first = None, ""  # rows of this entity, from the first array found
+        for per_frame, fields in ((True, state), (False, model)):
+            for name, field in fields.items():
+                a = rec.get(name)
+                if a is None:
+                    continue
+                lead = (frames,) if per_frame else ()
+                rows = a.shape[len(lead)] if a.ndim > len(lead) else -1
+                if count is None:
+                    count, first = rows, name
+                want = (*lead, count, *field.shape)
+                if a.shape != want:
+                    raise RecordingError(
+                        f"{path}: recording array {name!r} has shape {a.shape}, expected {want} ({frames} "
+                        f"frames, {count} {entity} as {first!r} has): the file is damaged or was edited"
+                    )
+    shape = rec.get("shape")
+    if shape is not None and shape.size:
+        odd = shape[(shape < 0) | (shape >= len(SHAPE_NAMES))]
+        if odd.size:
+            raise RecordingError(f"{path}: recording array 'shape' holds {int(odd[0])}, which names no shape")
 
 
 def _describe(path: Path, head: bytes) -> str:

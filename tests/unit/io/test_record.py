@@ -197,3 +197,25 @@ def test_recorder_samples_at_the_nearest_step(write_scene):
     assert np.all(np.abs(time - np.arange(31) / 30) <= 0.5 * world.dt + 1e-12)
     with pytest.raises(ValueError, match="fps"):
         Recorder(world, fps=0)
+
+
+def test_arrays_that_disagree_or_name_no_shape_are_refused(tmp_path):
+    """A recording edited after it was written (one body's rows cut from the positions, or a shape
+    index past the shape table) is refused on reading, before export or plot index one array by another."""
+    world = tumble.load_scene("bouncing_ball")
+    recorder = Recorder(world, fps=60)
+    world.run(0.05, callback=recorder)
+    path = recorder.save(tmp_path / "rec.npz")
+    assert load_recording(path)["position"].shape[1] == world.body_count
+    cut = dict(np.load(path))
+    cut["position"] = cut["position"][:, :1]
+    np.savez(tmp_path / "cut.npz", **cut)
+    with pytest.raises(
+        RecordingError, match=r"array 'orientation' has shape .* as 'position' has\): the file is damaged"
+    ):
+        load_recording(tmp_path / "cut.npz")
+    odd = dict(np.load(path))
+    odd["shape"] = np.full_like(odd["shape"], 57)
+    np.savez(tmp_path / "odd.npz", **odd)
+    with pytest.raises(RecordingError, match="'shape' holds 57, which names no shape"):
+        load_recording(tmp_path / "odd.npz")
