@@ -524,15 +524,6 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
                     f"{path}: the snapshot is damaged or was edited (its contents do not match its digest)"
                 )
             arrays = {k: payload[f"a{i}"] for i, k in enumerate(manifest["arrays"])}
-    except SnapshotError:
-        raise
-    except FileNotFoundError:
-        raise SnapshotError(f"{path}: no such snapshot file") from None
-    except IsADirectoryError:
-        raise SnapshotError(f"{path}: is a directory, not a snapshot file") from None
-    except Exception as exc:  # whatever the zip, zlib, NumPy or JSON readers raise on a damaged file
-        raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
-    try:
         time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
         if manifest["format"] < 7:
             _upgrade_contacts(manifest["values"], arrays)
@@ -548,8 +539,12 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         )
     except SnapshotError:
         raise
-    except Exception as exc:  # a manifest that lacks a key or holds one of the wrong type
-        raise SnapshotError(f"{path}: not a Tumble snapshot file (its manifest: {type(exc).__name__}: {exc})") from None
+    except FileNotFoundError:
+        raise SnapshotError(f"{path}: no such snapshot file") from None
+    except IsADirectoryError:
+        raise SnapshotError(f"{path}: is a directory, not a snapshot file") from None
+    except Exception as exc:  # whatever the zip, zlib, NumPy or JSON readers raise on a damaged file, or a bad manifest
+        raise SnapshotError(f"{path}: not a Tumble snapshot file ({type(exc).__name__}: {exc})") from None
 
 
 def _upgrade_contacts(values: dict, arrays: dict[str, np.ndarray]) -> None:

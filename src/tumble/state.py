@@ -158,11 +158,7 @@ class ArraySet:
         """Host view of the first `count` rows of one array (zero-copy on the CPU)."""
         n = self.count if count is None else count
         arr = self.arrays[name]
-        host = (
-            host_view(arr)
-            if n
-            else np.zeros((0,) + numpy_dtype(self.fields[name])[1], numpy_dtype(self.fields[name])[0])
-        )
+        host = host_view(arr) if n else np.zeros((0,) + self.numpy_types[name][1], self.numpy_types[name][0])
         return host[:n]
 
     def permute(self, order: np.ndarray) -> None:
