@@ -86,6 +86,10 @@ class ShapeType(enum.IntEnum):
 SHAPE_NAMES: tuple[str, ...] = tuple(s.name.lower() for s in ShapeType)
 
 
+#: sizes far outside any scene's (1e300 m) overflow to inf here without a warning; the callers refuse them
+_QUIET = np.errstate(over="ignore", under="ignore", invalid="ignore")
+
+
 def shape_from_name(name: str) -> ShapeType:
     """Return the `ShapeType` called `name` ("plane", "sphere", "box", "capsule", ...).
 
@@ -98,23 +102,27 @@ def shape_from_name(name: str) -> ShapeType:
         raise ValueError(f"unknown shape {name!r}: expected one of {', '.join(SHAPE_NAMES)}") from None
 
 
+@_QUIET
 def sphere_volume(radius):
     """Volume of spheres [m^3]: 4/3 pi r^3 (a number or an array of radii)."""
     return 4.0 / 3.0 * np.pi * np.asarray(radius, dtype=np.float64) ** 3
 
 
+@_QUIET
 def box_volume(half_extents):
     """Volume of boxes [m^3]: 8 hx hy hz, half extents shape (3,) or (n, 3)."""
     h = np.asarray(half_extents, dtype=np.float64)
     return 8.0 * h[..., 0] * h[..., 1] * h[..., 2]
 
 
+@_QUIET
 def sphere_inertia(mass, radius) -> np.ndarray:
     """Principal moments of solid spheres [kg m^2], shape (..., 3): I = 2/5 m r^2."""
     i = 0.4 * np.asarray(mass, dtype=np.float64) * np.asarray(radius, dtype=np.float64) ** 2
     return np.repeat(i[..., None], 3, axis=-1)
 
 
+@_QUIET
 def box_inertia(mass, half_extents) -> np.ndarray:
     """Principal moments of solid boxes [kg m^2], shape (..., 3).
 
@@ -125,6 +133,7 @@ def box_inertia(mass, half_extents) -> np.ndarray:
     return m / 3.0 * (np.sum(h2, axis=-1, keepdims=True) - h2)
 
 
+@_QUIET
 def capsule_volume(radius, half_height):
     """Volume of capsules [m^3]: a cylinder of length 2 a and two hemispheres, pi r^2 (2 a + 4/3 r)."""
     r = np.asarray(radius, dtype=np.float64)
@@ -132,6 +141,7 @@ def capsule_volume(radius, half_height):
     return np.pi * r**2 * (2.0 * a + 4.0 / 3.0 * r)
 
 
+@_QUIET
 def capsule_inertia(mass, radius, half_height) -> np.ndarray:
     """Principal moments of solid capsules about their centre [kg m^2], shape (..., 3); axis along z.
 

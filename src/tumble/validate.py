@@ -247,6 +247,16 @@ def positive_rows(value, name: str, n: int) -> np.ndarray:
     return a
 
 
+def mass_properties_usable(mass, inertia) -> bool:
+    """True when every mass and principal moment of inertia, and its inverse, is finite and > 0.
+
+    The solver divides by both: a sphere of radius 1e300 weighs inf kg, one of 1e-300 nothing.
+    """
+    with np.errstate(all="ignore"):
+        numbers_ = np.concatenate([np.ravel(mass), np.ravel(inertia)]).astype(np.float64)
+        return bool(np.all(np.isfinite(numbers_) & (numbers_ > 0.0) & np.isfinite(1.0 / numbers_)))
+
+
 def quaternion(value, name: str = "orientation", n: int | None = None) -> np.ndarray:
     """Unit quaternions (x, y, z, w): shape (4,) when n is None, else (n, 4) (one row repeated)."""
     q = vector(value, name, 4)[None] if n is None else rows(value, name, 4, n)

@@ -536,3 +536,45 @@ def test_python_api_refuses_requests_beyond_the_solver_limits():
     with pytest.raises(ValueError, match="dt must be in"):
         world.dt = 0.5
     assert world.dt == limits.MAX_DT
+
+
+def test_python_api_refuses_cloth_beyond_the_index_and_memory_limits(monkeypatch):
+    """add_cloth refuses what the scene loader refuses, before allocating: a grid past the int32
+    particle indices, and one that does not fit in the memory available ($TUMBLE_MEMORY caps it)."""
+    from tumble import limits
+
+    world = tumble.World()
+    with pytest.raises(limits.LimitError, match="1,000,000 x 1,000,000 = 1,000,000,000,000 particles; .*int32"):
+        world.add_cloth(resolution=(10**6, 10**6))
+    monkeypatch.setenv(limits.MEMORY_ENV, "100M")
+    most = 100 * 1024**2 // limits.BYTES_PER_PARTICLE
+    with pytest.raises(
+        limits.LimitError, match=f"cloth resolution: 40,000 particles need .* \\(at most {most:,} particles\\)"
+    ):
+        world.add_cloth(resolution=(200, 200))
+    assert world.cloth.particles.count == 0
+    world.add_cloth(resolution=(100, 100))  # 10,000 particles fit in 100 MB
+    assert world.cloth.particles.count == 10_000
+
+
+@pytest.mark.parametrize(
+    "adder, keywords",
+    [
+        ("add_sphere", {"radius": 1e300}),
+        ("add_sphere", {"radius": 1e-300}),
+        ("add_sphere", {"radius": 1e-200, "mass": 1.0}),
+        ("add_sphere", {"radius": 1e150, "density": 1e200}),
+        ("add_box", {"half_extents": (1e200, 1e200, 1e-200), "mass": 1.0}),
+        ("add_capsule", {"radius": 1e200, "half_height": 1e200}),
+    ],
+)
+def test_sizes_whose_mass_or_inertia_overflow_are_refused(adder, keywords, recwarn):
+    """A dynamic body whose mass or inertia (or their inverse) is inf, 0 or NaN in float64 is refused
+    with one ValueError and no NumPy warning, as the scene loader refuses it; nothing is added."""
+    world = tumble.World()
+    with pytest.raises(ValueError, match="must give a mass and inertia that are finite and > 0"):
+        getattr(world, adder)(position=(0, 0, 1), **keywords)
+    assert world.body_count == 0
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+    getattr(world, adder)(position=(0, 0, 1), static=True, **keywords)  # a static body has no mass to overflow
+    assert world.body_count == 1

@@ -43,7 +43,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import warp as wp
 
-from .. import validate
+from .. import limits, validate
 from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Role, body_arrays, fields_of
@@ -331,6 +331,12 @@ class ClothSystem:
         nx, ny = validate.integers(resolution, "cloth resolution", 2, low=1)
         if nx * ny < 2:
             raise ValueError(f"cloth resolution must be at least 2 particles, e.g. 2 x 1, got {(nx, ny)!r}")
+        if self.particles.count + nx * ny > limits.MAX_PARTICLES_INT32:
+            raise limits.LimitError(
+                f"cloth resolution: {nx:,} x {ny:,} = {nx * ny:,} particles; cloth indices are int32, which allows "
+                f"at most {limits.MAX_PARTICLES_INT32:,} particles in all"
+            )
+        limits.check_memory("cloth resolution", "particles", nx * ny, limits.BYTES_PER_PARTICLE)
         position = validate.vector(position, "position")
         q = validate.quaternion(orientation, "cloth orientation")
         if mass is not None and areal_density is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "validate a scene file (keys, values and limits) without running it"
+HELP = "validate a scene file (keys, values, limits, body references and mesh files) without running it"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

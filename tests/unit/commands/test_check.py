@@ -65,3 +65,45 @@ def test_check_takes_exactly_one_scene(capsys):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "SCENE" in err[0]
+
+
+_SPHERE = "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\n"
+_CLOTH = '[[cloth]]\nsize = [1, 1]\nposition = [0, 0, 1]\nresolution = [4, 4]\npins = "corners"\n'
+_JOINT = '[[joint]]\nkind = "ball"\nanchor = [0, 0, 1]\n'
+
+
+@pytest.mark.parametrize(
+    "text, files, fragments",
+    [
+        (
+            _SPHERE + _JOINT + 'body_a = "sphere[0]"\nbody_b = "sphere[3]"\n',
+            {},
+            ("[joint[0]] body_b: no body 'sphere[3]': the file has 1 [[sphere]]",),
+        ),
+        (
+            _SPHERE + _JOINT + 'body_a = "box[0]"\nbody_b = "sphere[0]"\n',
+            {},
+            ("[joint[0]] body_a: no body 'box[0]': the file has 0 [[box]]",),
+        ),
+        (_CLOTH + 'pin_body = "sphere[0]"\n', {}, ("[cloth[0]] pin_body: no body 'sphere[0]'",)),
+        (_CLOTH + 'pin_body = "world"\n', {}, ("[cloth[0]] pin_body: 'world' is not a body",)),
+        (
+            '[[convex]]\nfile = "nothere.obj"\nposition = [0, 0, 1]\n',
+            {},
+            ("[convex[0]]", "nothere.obj: no such mesh file"),
+        ),
+        ('[[mesh]]\nfile = "bad.stl"\n', {"bad.stl": "garbage\n"}, ("[mesh[0]]", "bad.stl: the mesh has no triangles")),
+    ],
+)
+def test_check_refuses_what_run_refuses(write_scene, capsys, text, files, fragments):
+    """Bodies named by joints and cloth pins must be in the file and mesh files must read: `check`
+    refuses such a scene in the words `run` (which builds it) uses, with exit 2 and one line."""
+    path = write_scene(text, "refs.toml")
+    for name, content in files.items():
+        (path.parent / name).write_text(content)
+    assert main(["check", str(path)]) == 2
+    check = capsys.readouterr().err.strip()
+    assert check.count("\n") == 0 and all(f in check for f in fragments), check
+    assert main(["run", str(path), "--duration", "0.01"]) == 2
+    run = capsys.readouterr().err.strip()
+    assert run.count("\n") == 0 and all(f in run for f in fragments), run

@@ -35,7 +35,7 @@ One module per job, each importing only from those before it:
 from __future__ import annotations
 
 from . import checks  # the value checks (`checks.vector`, ...) and cross-key rules
-from .build import WORLD_OVERRIDES, WorldOverrides, build_world, load_scene, load_snapshot
+from .build import WORLD_OVERRIDES, WorldOverrides, build_world, load_scene, load_snapshot, validate_scene
 from .checks import PIN_NAMES, SPRING_KINDS, Bad, Check, KeyBad
 from .docs import reference_markdown
 from .parse import (
@@ -47,7 +47,6 @@ from .parse import (
     parse_scene,
     read_scene,
     resolve_scene_path,
-    validate_scene,
 )
 from .schema import BODY_TABLES, JOINT_KINDS, REQUIRED, SCHEMA, Field, TableSpec, body_ref
 from .verify import check_world

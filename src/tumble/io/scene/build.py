@@ -18,8 +18,9 @@ import numpy as np
 from ... import snapshot, validate
 from ...errors import SceneError
 from ...world import World
+from ..meshfile import read_mesh_file
 from .parse import Scene, parse_scene, parse_table, read_scene, table_label
-from .schema import SCHEMA
+from .schema import BODY_TABLES, SCHEMA
 
 if TYPE_CHECKING:
     from ...state import BodyId
@@ -82,16 +83,16 @@ def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
         made[name] = []
         for i, values in enumerate(scene.items(name)):
             values = dict(values)
-            if values.get("file") is not None and path is not None:
-                values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+            if values.get("file") is not None:
+                values["file"] = _file_path(path, values["file"])
             if values.get("points") is not None:
                 values["points"] = np.asarray(values["points"], dtype=np.float64)
             with _api_errors(path, table_label(name, i)):
                 made[name].append(add(**_given(values)))
     for i, values in enumerate(scene.items("emitter")):
         values = dict(values)
-        if values.get("file") is not None and path is not None:
-            values["file"] = str(Path(path).parent / Path(values["file"]).expanduser())
+        if values.get("file") is not None:
+            values["file"] = _file_path(path, values["file"])
         if values.get("points") is not None:
             values["points"] = np.asarray(values["points"], dtype=np.float64)
         with _api_errors(path, table_label("emitter", i)):
@@ -118,11 +119,57 @@ def build_world(scene: Scene, **overrides: Unpack[WorldOverrides]) -> World:
 
 def _named_body(made: dict, ref: str, path, label: str, key: str):
     """The BodyId of "box[2]" among the bodies the file made, or a SceneError at `key`."""
+    name, index = _body_ref(ref, {name: len(ids) for name, ids in made.items()}, path, label, key)
+    return made[name][index]
+
+
+def _body_ref(ref: str, counts: dict[str, int], path, label: str, key: str) -> tuple[str, int]:
+    """("box", 2) for "box[2]" when the file has `counts["box"]` > 2 boxes; else a SceneError at `key`."""
+    if ref == "world":
+        raise SceneError(
+            "'world' is not a body here: leave pin_body out to pin in place", path=path, table=label, key=key
+        )
     name, index = ref[:-1].split("[")
-    if ref == "world" or int(index) >= len(made[name]):
-        have = "no world here" if ref == "world" else f"the file has {len(made[name])} [[{name}]]"
-        raise SceneError(f"no body {ref!r}: {have}", path=path, table=label, key=key)
-    return made[name][int(index)]
+    if int(index) >= counts.get(name, 0):
+        raise SceneError(
+            f"no body {ref!r}: the file has {counts.get(name, 0)} [[{name}]]", path=path, table=label, key=key
+        )
+    return name, int(index)
+
+
+def _file_path(scene_path, file: str) -> str:
+    """A mesh file named in a scene: relative names are taken from the scene file's folder."""
+    return file if scene_path is None else str(Path(scene_path).parent / Path(file).expanduser())
+
+
+def validate_scene(path) -> Scene:
+    """Check a scene file as far as can be done without building it; returns the validated `Scene`.
+
+    Beyond `read_scene` (keys, values, limits): every body a joint or a cloth's `pin_body` names
+    is in the file, and every mesh file reads as a mesh, so `tumble check` passes no scene that
+    `tumble run` refuses for these. What only the built world shows (a hull that spans no
+    volume, say) is left to `build_world`.
+
+    Raises:
+        SceneError: naming the file, the table and the key.
+    """
+    scene = read_scene(path)
+    counts = {name: len(scene.items(name)) for name in BODY_TABLES}
+    for i, values in enumerate(scene.items("cloth")):
+        if values.get("pin_body") is not None:
+            _body_ref(values["pin_body"], counts, scene.path, table_label("cloth", i), "pin_body")
+    for i, values in enumerate(scene.items("joint")):
+        for key in ("body_a", "body_b"):
+            if values[key] != "world":
+                _body_ref(values[key], counts, scene.path, table_label("joint", i), key)
+    for name in (*BODY_TABLES, "emitter"):
+        for i, values in enumerate(scene.items(name)):
+            if values.get("file") is not None:
+                try:
+                    read_mesh_file(_file_path(scene.path, values["file"]))
+                except ValueError as exc:
+                    raise SceneError(str(exc), path=scene.path, table=table_label(name, i), key="file") from None
+    return scene
 
 
 def _add_joint(world, made: dict, values: dict, path, label: str) -> None:

@@ -370,10 +370,7 @@ def _mass_representable(values: dict) -> None:
                 )
                 for m in masses:
                     inertia = box_inertia(m, h) if key == "half_extents" else sphere_inertia(m, h)
-                    numbers = np.concatenate([[m], np.ravel(inertia)])
-                    if not (
-                        np.all(np.isfinite(numbers)) and np.all(numbers > 0) and np.all(np.isfinite(1.0 / numbers))
-                    ):
+                    if not validate.mass_properties_usable(m, inertia):
                         shown = show(h if exact_box else (h[0] if isinstance(h, list) else h))
                         raise KeyBad(
                             key,

@@ -260,11 +260,6 @@ def read_scene(path) -> Scene:
     return parse_scene(text, path=path)
 
 
-def validate_scene(path) -> Scene:
-    """Check a scene file without building or running it; returns the validated `Scene`."""
-    return read_scene(path)
-
-
 def resolve_scene_path(path) -> Path:
     """`path` itself, or, for a bare name like "sphere_pile", the bundled sample of that name."""
     p = Path(path)
