@@ -252,9 +252,11 @@ def mass_properties_usable(mass, inertia) -> bool:
 
     The solver divides by both: a sphere of radius 1e300 weighs inf kg, one of 1e-300 nothing.
     """
-    with np.errstate(all="ignore"):
-        numbers_ = np.concatenate([np.ravel(mass), np.ravel(inertia)]).astype(np.float64)
-        return bool(np.all(np.isfinite(numbers_) & (numbers_ > 0.0) & np.isfinite(1.0 / numbers_)))
+    values = np.concatenate((np.ravel(mass), np.ravel(inertia)), dtype=np.float64)
+    if not (np.isfinite(values).all() and (values > 0.0).all()):
+        return False
+    with np.errstate(over="ignore"):
+        return bool(np.isfinite(1.0 / values).all())  # 1 / 1e-320 overflows
 
 
 def quaternion(value, name: str = "orientation", n: int | None = None) -> np.ndarray:

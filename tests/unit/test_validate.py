@@ -159,3 +159,23 @@ def test_bounds_of_values_and_ranges():
         validate.bounds([1, 2, 3], "speed")
     with pytest.raises(ValueError, match="speed must be finite"):
         validate.bounds([1, float("inf")], "speed")
+
+
+@pytest.mark.parametrize(
+    "mass, inertia, usable",
+    [
+        (1.0, [0.4, 0.4, 0.4], True),
+        ([1.0, 2.0], [[1, 1, 1], [2, 2, 2]], True),
+        (1e-300, [1e-300, 1e-300, 1e-300], True),  # tiny but its inverse (1e300) is finite
+        (np.inf, [1, 1, 1], False),
+        (0.0, [1, 1, 1], False),
+        (-1.0, [1, 1, 1], False),
+        (1.0, [np.nan, 1, 1], False),
+        (1.0, [1e-320, 1, 1], False),  # subnormal: its inverse overflows
+        ([1.0, np.inf], [[1, 1, 1], [1, 1, 1]], False),
+    ],
+)
+def test_mass_properties_usable_wants_finite_positive_values_with_finite_inverses(mass, inertia, usable, recwarn):
+    """The solver divides by masses and moments: each and its inverse must be finite and > 0; no warning either way."""
+    assert validate.mass_properties_usable(mass, np.array(inertia, dtype=float)) is usable
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

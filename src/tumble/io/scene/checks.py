@@ -339,11 +339,11 @@ def mass_or_density(values: dict) -> None:
 
 
 def _extremes(value) -> list[float]:
-    """The smallest and largest number in a value, a range or a nested list of them."""
+    """The smallest and largest number in a value, a range or a nested list of them (one if they are equal)."""
     flat = np.asarray([value], dtype=object).ravel().tolist()
     while any(isinstance(v, (list, tuple)) for v in flat):
         flat = [x for v in flat for x in (v if isinstance(v, (list, tuple)) else [v])]
-    return [min(flat), max(flat)] if flat else []
+    return sorted({min(flat), max(flat)}) if flat else []  # one value when they are equal
 
 
 def _mass_representable(values: dict) -> None:
