@@ -57,7 +57,27 @@ def within(
 
 def is_zero(v) -> bool:
     """True if the vector `v` is shorter than `ZERO_LENGTH`: it has no direction."""
-    return bool(np.linalg.norm(v) < ZERO_LENGTH)
+    return bool(np.linalg.norm(scaled_down(v)) < ZERO_LENGTH)
+
+
+#: largest component whose square and the squares of three more stay finite in float64
+_SQUARE_SAFE = 1e150
+
+
+def scaled_down(v) -> np.ndarray:
+    """`v` (a finite vector, or rows of them) with each row whose squared length would overflow
+    divided by its largest magnitude: the same direction, a norm that is finite. Other rows are
+    returned unchanged, bit for bit."""
+    v = np.asarray(v, dtype=np.float64)
+    big = np.max(np.abs(v), axis=-1, keepdims=True)
+    return np.where(big > _SQUARE_SAFE, v / np.where(big > _SQUARE_SAFE, big, 1.0), v)
+
+
+def unit(v) -> np.ndarray:
+    """`v` (a finite vector, or rows of them, none zero) divided by its length, row by row; a vector
+    as long as 1e200 too, whose squared length overflows float64."""
+    v = scaled_down(v)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def _real(value, name: str, what: str) -> float:
@@ -178,7 +198,7 @@ def direction(value, name: str) -> np.ndarray:
     d = vector(value, name)
     if is_zero(d):
         raise ValueError(f"{name} must not be zero, got {show(value)}")
-    return d / np.linalg.norm(d)
+    return unit(d)
 
 
 def scale(value, name: str = "scale") -> np.ndarray:
@@ -261,7 +281,7 @@ def mass_properties_usable(mass, inertia) -> bool:
 
 def quaternion(value, name: str = "orientation", n: int | None = None) -> np.ndarray:
     """Unit quaternions (x, y, z, w): shape (4,) when n is None, else (n, 4) (one row repeated)."""
-    q = vector(value, name, 4)[None] if n is None else rows(value, name, 4, n)
+    q = scaled_down(vector(value, name, 4)[None] if n is None else rows(value, name, 4, n))
     norm = np.linalg.norm(q, axis=1, keepdims=True)
     if np.any(norm < ZERO_LENGTH):
         raise ValueError(f"{name} must be a non-zero quaternion (x, y, z, w), got {show(value)}")

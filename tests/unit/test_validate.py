@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -132,6 +134,22 @@ def test_direction_is_unit_and_zero_is_refused():
     np.testing.assert_array_equal(validate.direction((0, 0, 2), "normal"), [0.0, 0.0, 1.0])
     with pytest.raises(ValueError, match=r"^normal must not be zero, got \(0, 0, 0\)$"):
         validate.direction((0, 0, 0), "normal")
+
+
+def test_vectors_whose_squares_overflow_keep_their_direction():
+    """A quaternion or direction of components near 1e200 (squares past float64) normalises without a
+    warning to the same unit vector; before, its norm overflowed to inf and it became (0, 0, 0, 0)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        q = validate.quaternion([1e200, 1e200, 0, 0])
+        rows = validate.quaternion([[0, 0, 0, 1], [0, 0, -1.7e308, 1.7e308]], n=2)
+        d = validate.direction((0, 1e300, 1e300), "normal")
+        assert not validate.is_zero([1e300, 0, 0])
+    np.testing.assert_allclose(q, [2**-0.5, 2**-0.5, 0, 0])
+    np.testing.assert_allclose(rows, [[0, 0, 0, 1], [0, 0, -(2**-0.5), 2**-0.5]])
+    np.testing.assert_allclose(d, [0, 2**-0.5, 2**-0.5])
+    q = np.array([0.0, 0.0, 0.38, 0.92])
+    np.testing.assert_array_equal(validate.quaternion(q), q / np.linalg.norm(q))  # ordinary values: bit for bit
 
 
 def test_scale_is_one_factor_or_three():

@@ -109,6 +109,7 @@ from enum import IntEnum
 import numpy as np
 import warp as wp
 
+from .. import validate
 from ..launch import LaunchCache, launch
 from ..model import Field, Role, body_arrays, fields_of
 from ..real import BodyArrays, float_t, mat22, mat33, quat, vec2, vec3
@@ -1396,9 +1397,9 @@ def joint_rows(
 
     # joint frame: x along the axis (world axis, or in a's frame with frame="body"); fixed: the bodies' frames
     u = np.array([0.0, 0.0, 1.0]) if axis is None else _point(axis, "axis")
-    if np.linalg.norm(u) < 1e-12:
+    if validate.is_zero(u):
         raise JointArgumentError("axis", "must not be the zero vector")
-    u = u / np.linalg.norm(u)
+    u = validate.unit(u)
     if frame == "body":
         u = _rotate(a.orientation, u)
     world_frame = _quat_from_x(u) if kind in (JointKind.HINGE, JointKind.SLIDER) else np.array([0.0, 0.0, 0.0, 1.0])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -19,6 +20,18 @@ def _world():
     a = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1))
     b = world.add_box(position=(0.3, 0, 1), half_extents=(0.1, 0.1, 0.1))
     return world, a, b
+
+
+def test_an_axis_of_huge_components_is_its_direction():
+    """A hinge axis (1e300, 0, 1e300) is the unit axis along it, with no overflow warning (its
+    squared length overflowed float64 before)."""
+    world, a, b = _world()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        huge = world.add_joint("hinge", a, b, anchor=(0.15, 0, 1), axis=(1e300, 0, 1e300))
+        unit = world.add_joint("hinge", a, b, anchor=(0.15, 0, 1), axis=(1, 0, 1))
+    frames = world.joints.numpy("joint_frame_a")
+    np.testing.assert_allclose(frames[huge.index], frames[unit.index], rtol=0, atol=1e-15)
 
 
 def test_add_joint_stores_anchors_in_body_frames():
