@@ -28,6 +28,9 @@ from .errors import TumbleError
 MAX_DT = 0.1
 #: largest number of solver substeps per step (the cost of a step is linear in it)
 MAX_SUBSTEPS = 1000
+#: most cloth substeps in one step: springs too stiff for the step need dt / stable substep of them
+#: (springs.stable_substep), and stiffness 1e300 asked for 1e150, a step that never ended
+MAX_CLOTH_SUBSTEPS = 10_000
 #: largest number of steps in one run (duration / dt): about 12 days at 1 ms a step
 MAX_STEPS = 10**9
 #: most bodies one emitter releases in one step (rate * dt): each new body is tested against the

@@ -242,15 +242,17 @@ def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray,
         particle_damping: D_p [N s/m], shape (P,).
         inv_mass: w_p [1/kg], shape (P,).
     """
-    a = 2.0 * particle_stiffness * inv_mass
-    b = 2.0 * particle_damping * inv_mass
+    with np.errstate(over="ignore"):  # an overflow (inf) gives a stable substep of 0 below
+        a = 2.0 * particle_stiffness * inv_mass
+        b = 2.0 * particle_damping * inv_mass
     active = (a > 0.0) | (b > 0.0)
     if not np.any(active):
         return np.inf
     a, b = a[active], b[active]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(all="ignore"):
         h = np.where(a > 0.0, (-0.5 * b + np.sqrt(0.25 * b * b + a)) / (0.5 * a), 2.0 / np.where(b > 0, b, 1.0))
-    return 0.9 * float(np.min(h))
+    # a or b so large (ks or kd near 1e300) that the root overflows: the stable substep is 0 to float64
+    return 0.9 * float(np.min(np.where(np.isfinite(h), h, 0.0)))
 
 
 @wp.kernel

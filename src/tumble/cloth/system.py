@@ -563,11 +563,29 @@ class ClothSystem:
         """Number of cloth substeps per world step of `dt` seconds.
 
         `substeps` if set, else the fewest that keep the springs stable (at least `min_substeps`).
+
+        Raises:
+            LimitError: beyond `limits.MAX_CLOTH_SUBSTEPS` (springs far too stiff or damped for the step).
         """
         if self.substeps is not None:
-            return max(1, int(self.substeps))
-        n = 1 if not math.isfinite(self._stable_h) else math.ceil(dt / self._stable_h - 1e-9)
-        return max(1, int(self.min_substeps), n)
+            n: float = max(1, int(self.substeps))
+            key = f"cloth substeps: {n:,} is too large"
+        else:
+            if not math.isfinite(self._stable_h):
+                n = 1
+            elif self._stable_h > 0.0:
+                n = math.ceil(dt / self._stable_h - 1e-9)
+            else:  # the stable substep underflowed
+                n = math.inf
+            n = max(1, int(self.min_substeps), n)
+            shown = f"{n:,}" if n < 1e15 else f"{n:.3g}"
+            key = f"cloth stiffness and damping: springs this stiff need {shown} cloth substeps in a step of {dt:g} s"
+        if n > limits.MAX_CLOTH_SUBSTEPS:
+            raise limits.LimitError(
+                f"{key}; the limit is {limits.MAX_CLOTH_SUBSTEPS:,} (lower the stiffness, damping or dt; "
+                "docs/scenes.md#limits)"
+            )
+        return int(n)
 
     def substep(self, h: float, *, bodies, hulls, meshes) -> None:
         """Stage, once per world substep of `h` seconds: the cloth substeps that end in it, coupled to the bodies.

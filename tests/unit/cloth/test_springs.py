@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -39,6 +40,15 @@ def test_stable_substep_single_spring():
     h = springs.stable_substep(np.array([10.0]), np.array([0.0]), np.array([100.0]))
     assert h == pytest.approx(0.9 * 2.0 / math.sqrt(2.0 * 10.0 * 100.0))
     assert springs.stable_substep(np.zeros(3), np.zeros(3), np.ones(3)) == math.inf
+
+
+def test_stable_substep_of_overflowing_springs_is_zero():
+    """Damping 1e300 overflows the root's b^2: the stable substep is 0 (no substep is stable), with no
+    NumPy warning; before, it came out inf, which asked for one substep."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert springs.stable_substep(np.array([10.0]), np.array([1e300]), np.array([100.0])) == 0.0
+        assert springs.stable_substep(np.array([1e300]), np.array([0.0]), np.array([1e300])) == 0.0
 
 
 def test_spring_force_on_plain_arrays():

@@ -83,6 +83,22 @@ def test_cloth_substeps_follow_stiffness():
     assert stiff.cloth.substeps_for(stiff.dt) > 4
 
 
+@pytest.mark.parametrize("springs", [{"stiffness": 1e300}, {"damping": 1e300}, {"stiffness": 1e12}])
+def test_springs_too_stiff_for_any_substep_are_refused_when_the_step_starts(springs):
+    """Springs needing more than limits.MAX_CLOTH_SUBSTEPS cloth substeps in a step are a LimitError
+    naming the count and the limit (stiffness 1e300 asked for 1e150 substeps: the step never ended)."""
+    world = make_world()
+    world.add_cloth(resolution=(8, 8), **springs)
+    with pytest.raises(tumble.limits.LimitError, match=r"^cloth stiffness and damping: .* the limit is 10,000"):
+        world.step()
+    world.cloth.substeps = 10**9
+    with pytest.raises(tumble.limits.LimitError, match=r"^cloth substeps: 1,000,000,000 is too large"):
+        world.step()
+    world.cloth.substeps = 4
+    world.step()
+    assert world.step_count == 1
+
+
 def test_apply_force_lasts_one_step():
     """A force given with apply_force acts during the next step only: dv = F dt / m, then none."""
     world = make_world(gravity=(0, 0, 0))
