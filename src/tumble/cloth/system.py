@@ -348,6 +348,12 @@ class ClothSystem:
                 DEFAULT_AREAL_DENSITY if areal_density is None else validate.positive(areal_density, "areal_density")
             )
             total = density * size[0] * size[1]
+        if not validate.mass_properties_usable(total / (nx * ny), []):
+            raise ValueError(
+                f"cloth mass: {total:g} kg over {nx * ny:,} particles is {total / (nx * ny):g} kg each; the mass or "
+                "areal_density and size must give particles whose mass is finite and > 0, with a finite inverse, "
+                "in float64"
+            )
         ks = grid.per_kind(DEFAULT_STIFFNESS if stiffness is None else stiffness, "stiffness")
         kd = grid.per_kind(DEFAULT_DAMPING if damping is None else damping, "damping")
         if max_stretch is not None:

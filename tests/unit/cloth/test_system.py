@@ -99,6 +99,18 @@ def test_springs_too_stiff_for_any_substep_are_refused_when_the_step_starts(spri
     assert world.step_count == 1
 
 
+@pytest.mark.parametrize(
+    "keywords", [{"size": (1e-300, 1e-300)}, {"mass": 1e-310}, {"areal_density": 1e300, "size": (1e10, 1e10)}]
+)
+def test_a_particle_mass_that_vanishes_or_overflows_is_refused(keywords):
+    """A cloth whose particles would weigh 0 or inf kg in float64 is a ValueError naming the mass;
+    before, a tiny size gave inverse masses of inf with a NumPy divide-by-zero warning."""
+    world = make_world()
+    with pytest.raises(ValueError, match=r"^cloth mass: .* kg each; the mass or areal_density and size"):
+        world.add_cloth(resolution=(4, 4), **keywords)
+    assert not world.has_cloth
+
+
 def test_apply_force_lasts_one_step():
     """A force given with apply_force acts during the next step only: dv = F dt / m, then none."""
     world = make_world(gravity=(0, 0, 0))
