@@ -244,7 +244,7 @@ class World:
 
     @step_count.setter
     def step_count(self, value: int) -> None:
-        self.state.step_count = value
+        self.state.step_count = validate.integer(value, "step_count", low=0)
 
     @property
     def hulls(self) -> HullSet:
@@ -1145,7 +1145,7 @@ class World:
         contacts.end_solve()
 
         self._segment_steps += 1
-        self.step_count += 1
+        self.state.step_count += 1  # not through the setter, which checks what a user gives it
 
     def _solve(self, dt: float, h: float, launches: LaunchCache | None) -> None:
         """The solver stages of one step, after the narrow phase (all launches, no host decisions)."""

@@ -315,6 +315,20 @@ def test_time_is_steps_times_dt():
     assert w.step_count == 960 and w.time == 4.0
 
 
+@pytest.mark.parametrize(
+    ("value", "error"), [("abc", TypeError), (None, TypeError), (-1, ValueError), (1.5, ValueError)]
+)
+def test_step_count_takes_only_a_count(value, error):
+    """world.step_count = "abc" is refused naming step_count; before it was taken, and the next
+    step failed with TypeError: can only concatenate str (not "int") to str."""
+    w = tumble.World()
+    with pytest.raises(error, match=r"^step_count must be an integer >= 0, got "):
+        w.step_count = value
+    w.step_count = 7.0
+    w.step()
+    assert w.step_count == 8 and type(w.step_count) is int
+
+
 def test_time_sums_runs_of_different_dt():
     """When dt changes, each run of equal steps counts as steps * dt."""
     w = tumble.World(dt=1 / 240)
