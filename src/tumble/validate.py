@@ -27,7 +27,7 @@ def show(value) -> str:
         return f"an array of shape {value.shape}"
     if isinstance(value, np.generic):
         value = value.item()  # 2.0, not np.float64(2.0)
-    text = repr(value)
+    text = " ".join(repr(value).split())  # one line: a small 2-d array's repr has several
     return text if len(text) <= _SHOWN else text[: _SHOWN - 3] + "..."
 
 

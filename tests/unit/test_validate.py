@@ -92,6 +92,8 @@ def test_show_keeps_messages_to_one_short_line():
     assert validate.show(np.zeros((1000, 3))) == "an array of shape (1000, 3)"
     long = validate.show("x" * 500)
     assert len(long) == 60 and long.endswith("...")
+    small = validate.show(np.ones((2, 3), dtype=bool))  # a small 2-d array's repr spans lines
+    assert "\n" not in small and small.startswith("array([[ True, True, True], [")
 
 
 def test_the_rules_the_scene_checks_share():

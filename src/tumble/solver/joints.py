@@ -1354,9 +1354,10 @@ def joint_rows(
         if kind not in JOINT_NAMES:
             raise JointArgumentError("kind", f"unknown joint kind {kind!r}: expected one of {', '.join(JOINT_NAMES)}")
         name, kind = kind, JOINT_NAMES[kind]
-    else:
-        kind = JointKind(kind)
+    elif isinstance(kind, JointKind):
         name = kind.name.lower()
+    else:  # None, a number, True: the kinds are named
+        raise JointArgumentError("kind", f"must be one of {', '.join(map(repr, JOINT_NAMES))}, got {kind!r}")
     if frame not in ("world", "body"):
         raise JointArgumentError("frame", f"must be 'world' or 'body', got {frame!r}")
     if a.row >= 0 and a.row == b.row:

@@ -287,3 +287,15 @@ def test_recorded_solver_graph_runs_each_joint_kinds_own_kernel(monkeypatch):
     direct.run(0.25)
     assert recorded.state_hash() == direct.state_hash()
     assert np.abs(recorded.bodies.numpy("body_position")[:, 1]).max() < 1e-12  # nothing drives them off y
+
+
+@pytest.mark.parametrize("kind", [None, 0, 3.5, True, ["ball"]])
+def test_a_kind_that_is_not_a_name_is_refused_naming_kind(kind):
+    """add_joint's kind is a name ("ball", ...) or a JointKind; None, numbers and True get a
+    JointArgumentError at `kind` listing the names (None gave "None is not a valid JointKind")."""
+    world = tumble.World()
+    a = world.add_sphere(position=(0, 0, 1), radius=0.1)
+    with pytest.raises(JointArgumentError, match=r"^kind: must be one of 'ball', 'hinge', .*, got ") as error:
+        world.add_joint(kind, a, None, anchor=(0, 0, 2))
+    assert error.value.key == "kind"
+    assert world.add_joint(JointKind.BALL, a, None, anchor=(0, 0, 2)) is not None
