@@ -92,6 +92,10 @@ class Recorder:
 
     def __init__(self, world, fps: float = 60.0):
         fps = validate.positive(fps, "fps")
+        # one frame a step at most: a higher rate would be stored as the recording's fps while
+        # its frames are a step apart, and exports would time them by the false rate
+        if fps > 1.0 / float(world.dt) * (1 + 1e-9):
+            raise ValueError(f"fps {fps:g} is more than the world's {1.0 / float(world.dt):g} steps per second")
         self.world = world
         self.fps = fps
         self.start_time = float(world.time)

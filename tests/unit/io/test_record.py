@@ -171,6 +171,16 @@ def test_bad_fps_and_bad_output_paths_are_refused(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_fps_above_the_step_rate_is_refused():
+    """A recording takes at most one frame a step: fps above 1 / dt raises ValueError naming both
+    (it recorded one frame a step and stored the higher fps, so an export timed them wrongly)."""
+    world = small_world()
+    steps_per_second = 1.0 / world.dt
+    with pytest.raises(ValueError, match=f"fps 1000 is more than the world's {steps_per_second:g} steps"):
+        Recorder(world, fps=1000.0)
+    assert Recorder(world, fps=steps_per_second).fps == steps_per_second
+
+
 def test_load_refuses_files_without_time_and_newer_versions(tmp_path):
     """No 'time' array: RecordingError; a format version above FORMAT_VERSION: TumbleError naming both."""
     no_time = tmp_path / "no_time.npz"
