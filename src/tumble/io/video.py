@@ -211,6 +211,8 @@ def export(
 
 #: the fastest frame rate a GIF plays: browsers slow delays under 2/100 s down to 1/10 s
 GIF_MAX_FPS = 50.0
+#: the longest delay a GIF frame can have [1/100 s]: the format stores it in 16 bits
+GIF_MAX_DELAY_CS = 65535
 
 
 def gif_delays_ms(n: int, fps: float) -> list[int]:
@@ -229,7 +231,13 @@ def gif_delays_ms(n: int, fps: float) -> list[int]:
             f"a GIF plays at most {GIF_MAX_FPS:g} frames per second, got --fps {fps:g}; use a lower fps or an .mp4"
         )
     ends = np.round(100.0 * np.arange(n + 1) / fps).astype(np.int64)
-    return [int(10 * d) for d in np.diff(ends)]
+    delays = np.diff(ends)
+    if delays.size and delays.max() > GIF_MAX_DELAY_CS:
+        raise ValueError(
+            f"a GIF frame lasts at most {GIF_MAX_DELAY_CS / 100:g} s (a 16-bit delay in 1/100 s), "
+            f"got --fps {fps:g} (a frame every {1.0 / fps:g} s); use a higher fps or an .mp4"
+        )
+    return [int(10 * d) for d in delays]
 
 
 class FfmpegWriter:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tumble.io.video import export, frame_count, output_kind, parse_size, render_frames
+from tumble.io.video import export, frame_count, gif_delays_ms, output_kind, parse_size, render_frames
 from tumble.render import Camera
 
 CAMERA = Camera(position=(0.0, -3.0, 0.8), target=(0.0, 0.0, 0.4), fov_deg=45)
@@ -101,3 +101,14 @@ def test_output_kinds_and_bad_arguments(tmp_path):
     assert parse_size("1280x720") == (1280, 720)
     with pytest.raises(ValueError, match="size"):
         parse_size("big")
+
+
+def test_gif_refuses_a_frame_longer_than_its_16_bit_delay(tmp_path, make_falling_world):
+    """A GIF stores each frame's delay in 16 bits of 1/100 s: --fps 0.001 (100,000 cs a frame)
+    raises ValueError naming --fps before any frame is rendered, and writes nothing (it was an
+    OverflowError from Pillow, an internal error, after rendering); the slowest rate that fits works."""
+    out = tmp_path / "slow.gif"
+    with pytest.raises(ValueError, match=r"at most 655\.35 s.*--fps 0\.001"):
+        export(make_falling_world(), out, duration=0.1, fps=0.001, size=(16, 9), progress=False)
+    assert list(tmp_path.iterdir()) == []
+    assert gif_delays_ms(2, 100 / 65535) == [655350, 655350]
