@@ -152,6 +152,18 @@ def _world_frames(fps, duration, frames) -> tuple[float, int]:
     return frame_times(fps, duration, frames, default_fps=60.0, default_duration=DEFAULT_DURATION)
 
 
+def _check_world_frames(world, fps: float, n: int, *, key: str) -> None:
+    """Refuse `n` frames at `fps` past the step limit or the memory their recording needs
+    (docs/scenes.md#limits), before anything is simulated."""
+    from .. import limits
+
+    limits.check_steps(key, (n - 1) / fps, world.dt)
+    bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
+    particles = world.cloth.particle_count if world.has_cloth else 0
+    per_frame = bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME
+    limits.check_memory(key, "frames", n, per_frame)
+
+
 def select_frames(
     rec: dict, *, fps: float | None = None, duration: float | None = None, frames: int | None = None
 ) -> tuple[np.ndarray, float]:
@@ -173,12 +185,14 @@ def select_frames(
         n = math.floor(length * fps + 1e-6) + 1
     if fps > rec_fps * (1 + 1e-9):
         raise TumbleError(f"fps {fps:g} is more than the recording's {rec_fps:g}")
-    want = times[0] + np.arange(n) / fps
-    if want[-1] > times[-1] + 0.5 / rec_fps:
+    # the last frame's time is checked before the n times are made (frames = 10^11 held 800 GB)
+    if times[0] + (n - 1) / fps > times[-1] + 0.5 / rec_fps:
+        count = f"{n:,}" if n < 10**15 else f"{float(n):.3g}"
         raise TumbleError(
             f"the recording holds {length:g} s ({total} frames at {rec_fps:g} fps); "
-            f"{n} frames at {fps:g} fps need {(n - 1) / fps:g} s"
+            f"{count} frames at {fps:g} fps need {(n - 1) / fps:g} s"
         )
+    want = times[0] + np.arange(n) / fps
     index = np.clip(np.rint((want - times[0]) * rec_fps).astype(np.int64), 0, total - 1)
     return index, fps
 
@@ -1006,6 +1020,7 @@ def export(
 
     if hasattr(source, "step") and hasattr(source, "body_position"):
         out_fps, n = _world_frames(fps, duration, frames)
+        _check_world_frames(source, out_fps, n, key=f"frames {n:,} at {out_fps:g} fps" if frames else "duration")
         with progress_bar(n, "simulating", enabled=progress) as advance:
             rec = simulate(source, fps=out_fps, frames=n, advance=advance)
         index = np.arange(n)

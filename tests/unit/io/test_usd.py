@@ -11,7 +11,9 @@ import pytest
 from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
 import tumble
+from tumble.errors import TumbleError
 from tumble.io import usd
+from tumble.limits import LimitError
 from tumble.npmath import quat_to_matrix
 
 from . import open_stage, record_scene
@@ -353,3 +355,21 @@ def test_world_export_simulates_the_frames(tmp_path):
     assert world.time == pytest.approx(0.25, abs=0.5 / 240)
     inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
     assert np.array(inst.GetPositionsAttr().Get(5))[0, 2] == np.float32(world.body_position[1, 2])
+
+
+def test_too_many_frames_are_refused_before_anything_runs(recording, tmp_path, monkeypatch):
+    """A world export past 10^9 steps or the memory of its frames raises LimitError naming the option
+    before a step is taken (--frames 99999999999 simulated until killed); a recording asked for far
+    more frames than it holds is refused before the frame times are made (no 800 GB array)."""
+    world = tumble.World(dt=1 / 240)
+    world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    with pytest.raises(LimitError, match=r"frames 99,999,999,999 at 60 fps: .* steps; the limit is 1,000,000,000"):
+        usd.export(world, tmp_path / "long.usda", frames=99_999_999_999)
+    with pytest.raises(LimitError, match=r"^duration: 1e\+300 s"):
+        usd.export(world, tmp_path / "long.usda", duration=1e300)
+    monkeypatch.setenv("TUMBLE_MEMORY", "1G")
+    with pytest.raises(LimitError, match=r"frames 100,000,000 at 240 fps: 100,000,000 frames need about 25\.6 GB"):
+        usd.export(world, tmp_path / "long.usda", frames=10**8, fps=240)  # 4e5 s: 10^8 steps, within the limit
+    assert world.step_count == 0 and list(tmp_path.iterdir()) == []
+    with pytest.raises(TumbleError, match=r"the recording holds .*; 100,000,000,000 frames"):
+        usd.export(recording, tmp_path / "long.usda", frames=10**11)
