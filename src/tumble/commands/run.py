@@ -96,6 +96,12 @@ def _check_arguments(args: argparse.Namespace) -> None:
         check_output(args.record, suffixes=(".npz",), option="--record")
     if args.save_state is not None:
         check_output(args.save_state, suffixes=(".npz",), option="--save-state")
+    if args.record is not None and args.save_state is not None:
+        from pathlib import Path
+
+        if Path(args.record).resolve() == Path(args.save_state).resolve():
+            # the state would be written over the recording, which is lost
+            raise TumbleError(f"--record and --save-state name the same file {args.record!r}; give two files")
     if args.device == "cuda":
         import warp as wp
 

@@ -91,6 +91,18 @@ def test_record_writes_the_documented_arrays(write_scene, tmp_path, capsys):
     assert "recorded" in capsys.readouterr().out
 
 
+def test_record_and_save_state_to_one_file_is_refused(write_scene, tmp_path, capsys):
+    """--record X --save-state X wrote the state over the recording and exited 0; now exit 2 with
+    one line naming both options, and the file already there is kept."""
+    out = tmp_path / "both.npz"
+    out.write_bytes(b"kept")
+    argv = ["run", str(write_scene(BALL)), "--duration", "0.05", "--record", str(out)]
+    assert main([*argv, "--save-state", str(tmp_path / "." / "both.npz")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--record and --save-state name the same file" in err
+    assert out.read_bytes() == b"kept"
+
+
 @pytest.mark.parametrize(
     "argv, fragment",
     [
