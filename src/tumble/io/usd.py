@@ -79,7 +79,8 @@ def check_output(path) -> Path:
     """The output path, after checking its suffix and that its folder exists and is writable.
 
     Raises:
-        TumbleError: a suffix other than .usd/.usda/.usdc/.usdz, a missing or read-only folder.
+        TumbleError: a suffix other than .usd/.usda/.usdc/.usdz, a missing or read-only folder,
+            an existing directory.
     """
     path = Path(path)
     if path.suffix.lower() not in EXTENSIONS:
@@ -87,6 +88,9 @@ def check_output(path) -> Path:
     folder = path.parent
     if not folder.is_dir():
         raise TumbleError(f"cannot write {str(path)!r}: folder {str(folder)!r} does not exist")
+    if path.is_dir():
+        # (the stage was authored, then renaming the temporary file over the folder failed)
+        raise TumbleError(f"cannot write {str(path)!r}: is a directory, not a file")
     if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise TumbleError(f"cannot write {str(path)!r}: permission denied")
     return path

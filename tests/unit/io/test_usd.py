@@ -357,6 +357,17 @@ def test_world_export_simulates_the_frames(tmp_path):
     assert np.array(inst.GetPositionsAttr().Get(5))[0, 2] == np.float32(world.body_position[1, 2])
 
 
+def test_an_existing_directory_is_refused_as_the_output(recording, tmp_path):
+    """-o shot.usda naming a folder was found only at the final rename, after simulating and
+    authoring, and named the temporary file ('.shot.x1y2.usda: Is a directory'); check_output
+    refuses it first now, naming the output, and the folder is left as it was."""
+    folder = tmp_path / "shot.usda"
+    folder.mkdir()
+    with pytest.raises(TumbleError, match=r"cannot write '.*shot\.usda': is a directory, not a file"):
+        usd.export(recording, folder)
+    assert os.listdir(tmp_path) == ["shot.usda"] and os.listdir(folder) == []
+
+
 def test_too_many_frames_are_refused_before_anything_runs(recording, tmp_path, monkeypatch):
     """A world export past 10^9 steps or the memory of its frames raises LimitError naming the option
     before a step is taken (--frames 99999999999 simulated until killed); a recording asked for far
