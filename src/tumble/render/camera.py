@@ -18,6 +18,9 @@ from ..shapes import ShapeType
 #: at angle a off the view axis by 1 / cos(a) along the radial direction; at 25 degrees and 16:9
 #: that is 7.5 % at the left and right edges (45 degrees gave 30 %)
 DEFAULT_FOV = 25.0
+#: farthest from the origin a camera or its target may be [m]: the renderer's matrices are float32,
+#: whose products of coordinates overflow past ~1e19 m (1e300 ended in "Singular matrix")
+MAX_COORDINATE = 1e12
 #: direction from the target to the camera used when there is no better one (front, right, above)
 DEFAULT_DIRECTION = np.array([0.55, -1.0, 0.5])
 
@@ -50,6 +53,11 @@ class Camera:
     ):
         self.position = validate.vector(position, "camera position")
         self.target = validate.vector(target, "camera target")
+        for name, v in (("camera position", self.position), ("camera target", self.target)):
+            if np.max(np.abs(v)) > MAX_COORDINATE:
+                raise ValueError(
+                    f"{name} must be within {MAX_COORDINATE:g} m of the origin, got {validate.show(v.tolist())}"
+                )
         self.up = validate.direction(up, "camera up")
         self.fov_deg = validate.number(fov_deg, "camera field of view", low=0.0, high=180.0, above=True, below=True)
         self.near = near

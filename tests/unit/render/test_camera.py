@@ -107,6 +107,14 @@ def test_bad_camera_values_are_refused():
         Camera(position=(1, 2))
     with pytest.raises(ValueError, match="differ"):
         Camera(position=(0, 0, 0), target=(0, 0, 0))
+    # beyond what the float32 matrices hold (1e300 ended in "Singular matrix", naming nothing)
+    with pytest.raises(
+        ValueError, match=r"camera position must be within 1e\+12 m of the origin, got \[1e\+300, 0.0, 0.0\]"
+    ):
+        Camera(position=(1e300, 0, 0))
+    with pytest.raises(ValueError, match="camera target must be within"):
+        Camera(target=(0, -1e13, 0))
+    assert Camera(position=(1e12, 0, 0), target=(0, 0, 0)).position[0] == 1e12
 
 
 def test_scene_camera_with_position_only_looks_at_the_scene():
