@@ -324,6 +324,11 @@ def load_recording(path) -> dict[str, np.ndarray]:
     except (OSError, EOFError, KeyError, zlib.error) as exc:
         raise bad(f"truncated or corrupt ({type(exc).__name__}: {exc})") from None
     time = out.get("time")
+    if "manifest" in out and time is None:  # what tumble.snapshot.write makes
+        raise RecordingError(
+            f"{p}: a saved state (run --save-state), not a recording; resume it with tumble run --resume, "
+            "or make a recording with tumble run --record"
+        )
     if time is None or time.ndim != 1 or len(time) == 0:
         raise RecordingError(f"{p}: a recording needs a non-empty 1-D 'time' array")
     _check_rows(out, p)

@@ -195,6 +195,21 @@ def test_load_refuses_files_without_time_and_newer_versions(tmp_path):
         load_recording(tmp_path / "absent.npz")
 
 
+def test_a_saved_state_is_named_as_one_where_a_recording_is_expected(tmp_path):
+    """A --save-state file given to plot or export is refused as a saved state, pointing at run --resume
+    (it said "a recording needs a non-empty 1-D 'time' array")."""
+    from tumble import snapshot
+
+    world = tumble.World()
+    world.add_sphere(position=(0, 0, 1), radius=0.1)
+    path = tmp_path / "state.npz"
+    snapshot.save(world.snapshot(), path)
+    with pytest.raises(
+        RecordingError, match=r"state.npz: a saved state \(run --save-state\), not a recording; .*--resume"
+    ):
+        load_recording(path)
+
+
 def test_recorder_samples_at_the_nearest_step(write_scene):
     """Record one frame per 1/fps of simulated time, at the step nearest to it, when dt does not divide it."""
     from .scene import BALL

@@ -256,6 +256,12 @@ def read_scene(path) -> Scene:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
+        if path.read_bytes()[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
+            raise SceneError(
+                "a .npz archive (a recording or a saved state), not a scene file: tumble plot and export read "
+                "recordings, tumble run --resume a saved state",
+                path=path,
+            ) from None
         raise SceneError(f"not a UTF-8 text file ({exc.reason})", path=path) from None
     return parse_scene(text, path=path)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import tumble
@@ -151,6 +152,21 @@ def test_malformed_toml_names_file_and_line(write_scene):
         tumble.load_scene(path)
     assert str(path) in str(info.value)
     assert "line 3" in str(info.value)
+
+
+def test_a_npz_archive_given_as_a_scene_says_what_it_is(tmp_path):
+    """A recording or saved state given where a scene is expected is named as a .npz archive (it was
+    "not a UTF-8 text file"); other binary files keep that message."""
+    archive = tmp_path / "shot.npz"
+    np.savez(archive, time=np.zeros(2))
+    with pytest.raises(
+        SceneError, match=r"shot.npz: a .npz archive \(a recording or a saved state\), not a scene file"
+    ):
+        scene_io.read_scene(archive)
+    junk = tmp_path / "junk.toml"
+    junk.write_bytes(b"\xff\xfe\x00binary")
+    with pytest.raises(SceneError, match="not a UTF-8 text file"):
+        scene_io.read_scene(junk)
 
 
 def test_missing_file_is_an_oserror(tmp_path):
