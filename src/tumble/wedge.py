@@ -671,7 +671,7 @@ def run_variant(task: dict) -> dict:
 
             camera = Camera.for_world(world, aspect=size[0] / size[1])
         if keep & {"record", "usd", "figures"}:
-            recorder = Recorder(world, fps=s["fps"])
+            recorder = Recorder(world, fps=min(s["fps"], 1.0 / world.dt))  # at most a frame a step
         else:
             recorder = None
         frames: list[np.ndarray] | None = [] if "video" in keep and renderer is not None else None

@@ -25,6 +25,10 @@ DEFAULT_DURATION = 2.0
 SCENE_HELP = "scene file (.toml), or the name of a bundled sample (e.g. sphere_pile; see samples/)"
 
 
+#: frames a second of simulated time `--record` takes by default
+RECORD_FPS = 60.0
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", metavar="SCENE", nargs="?", default=None, help=SCENE_HELP + "; left out with --resume")
     parser.add_argument(
@@ -64,7 +68,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "run starts, written atomically, kept up to Ctrl-C",
     )
     parser.add_argument(
-        "--fps", type=float, default=60.0, metavar="F", help="recorded frames per second of simulated time (default 60)"
+        "--fps",
+        type=float,
+        default=None,
+        metavar="F",
+        help=f"recorded frames per second of simulated time (default {RECORD_FPS:g}, or one a step if the world "
+        "takes fewer steps a second)",
     )
     parser.add_argument("--profile", action="store_true", help="print the time spent in each stage of the step")
     parser.add_argument(
@@ -81,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _check_arguments(args: argparse.Namespace) -> None:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise TumbleError(f"--duration must be a positive number of seconds, got {args.duration:g}")
-    if not (math.isfinite(args.fps) and args.fps > 0):
+    if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
         raise TumbleError(f"--fps must be a positive number, got {args.fps:g}")
     if args.seed is not None and args.seed < 0:
         raise TumbleError(f"--seed must be >= 0, got {args.seed}")
@@ -121,6 +130,8 @@ def main(args: argparse.Namespace) -> int:
     else:
         world = load_scene(args.scene, seed=args.seed, device=args.device, precision=args.precision)
     steps = limits.check_steps("--duration", args.duration, world.dt)
+    if args.fps is None:  # the default: at most one frame a step (dt = 0.05 s records 20 a second)
+        args.fps = min(RECORD_FPS, 1.0 / world.dt)
     if args.record:
         _check_record_memory(args, world, steps)
     recorder = Recorder(world, fps=args.fps) if args.record else None

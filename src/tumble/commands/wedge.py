@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=30.0,
         metavar="F",
-        help="frames per simulated second of recordings and videos (default 30)",
+        help="frames per simulated second of recordings and videos (default 30; recordings take at most one a step)",
     )
     parser.add_argument(
         "--keep",

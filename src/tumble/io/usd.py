@@ -137,7 +137,7 @@ def simulate(
     """
     from .record import Recorder
 
-    fps, n = _world_frames(fps, duration, frames)
+    fps, n = _world_frames(world, fps, duration, frames)
     if fps > 1.0 / world.dt * (1 + 1e-9):
         raise TumbleError(f"fps {fps:g} is more than the world's {1.0 / world.dt:g} steps per second")
     recorder = Recorder(world, fps=fps)
@@ -151,9 +151,11 @@ def simulate(
     return recorder.arrays()
 
 
-def _world_frames(fps, duration, frames) -> tuple[float, int]:
-    """`frame_times` with the export's defaults: 60 fps for `DEFAULT_DURATION` s."""
-    return frame_times(fps, duration, frames, default_fps=60.0, default_duration=DEFAULT_DURATION)
+def _world_frames(world, fps, duration, frames) -> tuple[float, int]:
+    """`frame_times` with the export's defaults: 60 fps (at most one frame a step of `world`) for
+    `DEFAULT_DURATION` s."""
+    default_fps = min(60.0, 1.0 / world.dt)
+    return frame_times(fps, duration, frames, default_fps=default_fps, default_duration=DEFAULT_DURATION)
 
 
 def _check_world_frames(world, fps: float, n: int, *, key: str) -> None:
@@ -1023,7 +1025,7 @@ def export(
         raise TumbleError(f"bodies must be one of {', '.join(BODY_MODES)}, got {bodies!r}")
 
     if hasattr(source, "step") and hasattr(source, "body_position"):
-        out_fps, n = _world_frames(fps, duration, frames)
+        out_fps, n = _world_frames(source, fps, duration, frames)
         _check_world_frames(source, out_fps, n, key=f"frames {n:,} at {out_fps:g} fps" if frames else "duration")
         with progress_bar(n, "simulating", enabled=progress) as advance:
             rec = simulate(source, fps=out_fps, frames=n, advance=advance)

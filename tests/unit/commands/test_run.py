@@ -163,3 +163,19 @@ def test_a_first_ctrl_c_waits_for_the_step_to_end_and_a_second_stops_at_once():
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.5)
     assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back
+
+
+def test_record_takes_a_frame_a_step_at_most_by_default(write_scene, tmp_path, capsys):
+    """A world of dt = 0.05 s steps 20 times a second: --record without --fps records 20 frames a
+    second of them (the default 60 was refused once the recorder refused rates above the step
+    rate); asking for 60 is refused with one line and exit 2."""
+    path = write_scene("[world]\ndt = 0.05\n" + BALL)
+    out = tmp_path / "slow.npz"
+    assert main(["run", str(path), "--duration", "1", "--record", str(out)]) == 0
+    rec = tumble.io.record.load_recording(out)
+    assert float(rec["fps"]) == 20.0 and len(rec["time"]) == 21
+    np.testing.assert_allclose(np.diff(rec["time"]), 0.05)
+    capsys.readouterr()
+    assert main(["run", str(path), "--duration", "1", "--record", str(tmp_path / "fast.npz"), "--fps", "60"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "fps 60 is more than the world's 20 steps per second" in err

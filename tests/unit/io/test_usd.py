@@ -357,6 +357,18 @@ def test_world_export_simulates_the_frames(tmp_path):
     assert np.array(inst.GetPositionsAttr().Get(5))[0, 2] == np.float32(world.body_position[1, 2])
 
 
+def test_world_export_defaults_to_a_frame_a_step_when_the_world_steps_slower_than_60_fps(tmp_path):
+    """dt = 0.05 s (20 steps a second): the default export rate is 20 fps, not a refusal of the
+    default 60; an explicit rate above the step rate is still refused."""
+    world = tumble.World(dt=0.05)
+    world.add_plane()
+    world.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    stage = open_stage(usd.export(world, tmp_path / "slow.usdc", duration=1.0))
+    assert stage.GetTimeCodesPerSecond() == 20.0 and stage.GetEndTimeCode() == 20
+    with pytest.raises(TumbleError, match="fps 60 is more than the world's 20 steps per second"):
+        usd.export(tumble.World(dt=0.05), tmp_path / "fast.usdc", duration=1.0, fps=60)
+
+
 def test_an_existing_directory_is_refused_as_the_output(recording, tmp_path):
     """-o shot.usda naming a folder was found only at the final rename, after simulating and
     authoring, and named the temporary file ('.shot.x1y2.usda: Is a directory'); check_output
