@@ -252,13 +252,11 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
     shape = world.body_shape
     counts = {s: int((shape == s).sum()) for s in ShapeType}
     rate = (steps - 1) / wall if steps > 1 and wall > 0 else 1.0 / max(first_step, 1e-9)
+    # planes, spheres and boxes always; capsules, convex bodies and meshes when the world has them
+    shown = [s for s in ShapeType if s <= ShapeType.BOX or counts[s]]
     lines = [
         ("scene", str(world.metadata.get("path", args.scene))),
-        (
-            "bodies",
-            f"{world.body_count:,} ({_count(counts[ShapeType.PLANE], 'plane')}, "
-            f"{_count(counts[ShapeType.SPHERE], 'sphere')}, {_count(counts[ShapeType.BOX], 'box')})",
-        ),
+        ("bodies", f"{world.body_count:,} ({', '.join(_count(counts[s], s.name.lower()) for s in shown)})"),
     ]
     if world.has_cloth:
         lines.append(("cloth", f"{world.cloth.particle_count:,} particles"))
@@ -278,8 +276,8 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
 
 
 def _count(n: int, noun: str) -> str:
-    """'1 box', '3 boxes', '1,000 spheres'."""
-    return f"{n:,} {noun}" if n == 1 else f"{n:,} {noun}{'es' if noun.endswith('x') else 's'}"
+    """'1 box', '3 boxes', '1,000 spheres', '2 meshes'."""
+    return f"{n:,} {noun}" if n == 1 else f"{n:,} {noun}{'es' if noun.endswith(('x', 'sh')) else 's'}"
 
 
 def _print_profile(world, steps: int) -> None:

@@ -42,6 +42,20 @@ def test_run_prints_a_summary(write_scene, capsys):
     assert "60 (0.250 s simulated" in out  # 0.25 s at dt = 1/240
 
 
+def test_run_summary_counts_capsules_convex_bodies_and_meshes(capsys, tmp_path):
+    """Count every shape in the summary: capsules, convex bodies and meshes were left out."""
+    (tmp_path / "tri.obj").write_text("v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n")
+    scene = BALL + (
+        "[[capsule]]\nposition = [1, 0, 1]\nradius = 0.1\nhalf_height = 0.2\n"
+        "[[convex]]\nposition = [-1, 0, 1]\npoints = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]]\n"
+        '[[mesh]]\nfile = "tri.obj"\nposition = [5, 5, 0]\n[[mesh]]\nfile = "tri.obj"\nposition = [-5, 5, 0]\n'
+    )
+    path = tmp_path / "shapes.toml"
+    path.write_text(scene)
+    assert main(["run", str(path), "--duration", "0.01"]) == 0
+    assert "6 (1 plane, 1 sphere, 0 boxes, 1 capsule, 1 convex, 2 meshes)" in capsys.readouterr().out
+
+
 def test_run_profile_lists_the_stages(write_scene, capsys):
     """Print the time per stage with --profile."""
     assert main(["run", str(write_scene(BALL)), "--duration", "0.05", "--profile"]) == 0

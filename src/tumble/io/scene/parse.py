@@ -62,7 +62,7 @@ class Scene:
         """One line: counts per table, e.g. "[world], 5 planes, 1 emitter (1000 bodies)"."""
         parts = []
         for name, n in self.counts().items():
-            label = name if n == 1 else name + ("es" if name.endswith(("x", "s")) else "s")
+            label = name if n == 1 else name + ("es" if name.endswith(("x", "s", "sh")) else "s")
             if not SCHEMA[name].array:
                 parts.append(f"[{name}]")
                 continue

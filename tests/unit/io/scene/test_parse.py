@@ -188,6 +188,12 @@ def test_defaults_are_filled_in():
     assert scene.summary() == "1 plane, 1 sphere"
 
 
+def test_summary_says_meshes():
+    """Name two [[mesh]] tables '2 meshes' (it said '2 meshs')."""
+    scene = scene_io.parse_scene('[[mesh]]\nfile = "a.obj"\n[[mesh]]\nfile = "b.obj"\n')
+    assert scene.summary() == "2 meshes"
+
+
 def test_values_and_ranges_are_converted():
     """Convert integers to floats, ranges to tuples and keep shape lists."""
     scene = scene_io.parse_scene(
