@@ -10,8 +10,10 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Callable
 
 __all__ = ["ViewerUnavailable", "ViewerWindow", "run_viewer"]
@@ -62,7 +64,29 @@ def run_viewer(
     window.show()
     if app.platformName() not in ("offscreen", "minimal"):
         window.raise_()
-    return int(app.exec())
+    # Ctrl-C and SIGTERM close the window: a handler that raised (KeyboardInterrupt, tumble.cli's
+    # Terminated) inside a Qt slot only printed a traceback, and the viewer ran on
+    received: list[int] = []
+    previous: dict[int, object] = {}
+    if threading.current_thread() is threading.main_thread():
+
+        def stop(signum: int, frame: object) -> None:
+            received.append(signum)
+            app.quit()
+
+        for number in (signal.SIGINT, signal.SIGTERM):
+            previous[number] = signal.signal(number, stop)
+    try:
+        status = int(app.exec())
+    finally:
+        for key, handler in previous.items():
+            signal.signal(key, handler)  # type: ignore[arg-type]
+    if received:  # unwind as the signal would have outside Qt
+        handler = previous[received[0]]
+        if callable(handler):
+            handler(received[0], None)
+        raise KeyboardInterrupt
+    return status
 
 
 def make_application():

@@ -1,6 +1,12 @@
 """`tumble view` (tumble.commands.view): its arguments and its one-line errors, before any window opens."""
 
 import argparse
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -80,3 +86,26 @@ def test_view_command_opens_the_viewer_on_the_loaded_scene(monkeypatch, tmp_path
     assert seen["title"] == "bouncing_ball" and str(seen["output_dir"]) == str(tmp_path)
     assert seen["world"].body_count == seen["rebuilt"].body_count > 1  # the factory reloads the same scene
     assert seen["rebuilt"] is not seen["world"]
+
+
+def test_view_command_ends_on_sigterm_without_a_traceback(tmp_path):
+    """SIGTERM closes the viewer with status 143 and one line: it printed a traceback from a Qt slot and ran on."""
+    pytest.importorskip("PySide6")
+    src = Path(__file__).resolve().parents[3] / "src"
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "PYTHONPATH": str(src)}
+    env.pop("TUMBLE_DEBUG", None)
+    argv = [sys.executable, "-m", "tumble", "view", "bouncing_ball", "--size", "64x48", "--out-dir", str(tmp_path)]
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    time.sleep(6)  # the window is up and the timer ticking
+    proc.send_signal(signal.SIGTERM)
+    try:
+        _, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        pytest.fail("tumble view ran on after SIGTERM")
+    if proc.returncode == 2 and "viewer" in err.lower():  # no window possible on this machine
+        pytest.skip(err.strip())
+    assert "Traceback" not in err
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "tumble view: terminated"
