@@ -6,8 +6,15 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+# Hypothesis draws the same examples on every run (derived from each test), so that a CI run on a
+# fresh machine is as repeatable as the engine; HYPOTHESIS_PROFILE=explore draws new ones each run
+settings.register_profile("repeatable", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
