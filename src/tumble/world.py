@@ -953,10 +953,7 @@ class World:
             raise ValueError("a body is static or kinematic, not both")
         kind = BodyKind.DYNAMIC
         if not (static or kinematic or validate.mass_properties_usable(mass, inertia)):
-            with np.errstate(all="ignore"):
-                bad = int(
-                    np.argmax(~(np.isfinite(mass) & (mass > 0) & np.all(np.isfinite(inertia) & (inertia > 0), 1)))
-                )
+            bad = next(i for i in range(n) if not validate.mass_properties_usable(mass[i], inertia[i]))
             raise ValueError(
                 f"a {ShapeType(shape).name.lower()} of mass {float(mass[bad]):g} kg and moments of inertia down to "
                 f"{float(np.min(inertia[bad])):g} kg m^2: its size and mass (or density) must give a mass and "

@@ -165,10 +165,10 @@ def main(args: argparse.Namespace) -> int:
 
 def _check_record_memory(args: argparse.Namespace, world, steps: int) -> None:
     """Refuse a --record whose frames would not fit in memory (docs/scenes.md#limits)."""
+    from ..io.record import frame_bytes
+
     frames = min(steps, int(args.duration * args.fps)) + 1  # at most one frame a step
-    bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
-    particles = world.cloth.particle_count if world.has_cloth else 0
-    per_frame = bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME
+    per_frame, bodies, particles = frame_bytes(world)
     try:
         limits.check_memory("--record", "frames", frames, per_frame)
     except limits.LimitError as exc:

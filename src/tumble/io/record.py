@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import validate
+from .. import limits, validate
 from ..cloth.arrays import PARTICLE_FIELDS
 from ..errors import TumbleError
 from ..model import BODY_FIELDS, Field, Role
@@ -95,7 +95,7 @@ class Recorder:
         # one frame a step at most: a higher rate would be stored as the recording's fps while
         # its frames are a step apart, and exports would time them by the false rate
         if fps > 1.0 / float(world.dt) * (1 + 1e-9):
-            raise ValueError(f"fps {fps:g} is more than the world's {1.0 / float(world.dt):g} steps per second")
+            raise limits.LimitError(f"fps {fps:g} is more than the world's {1.0 / float(world.dt):g} steps per second")
         self.world = world
         self.fps = fps
         self.start_time = float(world.time)
@@ -339,6 +339,14 @@ def load_recording(path) -> dict[str, np.ndarray]:
             f"(up to {FORMAT_VERSION}); upgrade Tumble"
         )
     return out
+
+
+def frame_bytes(world) -> tuple[int, int, int]:
+    """Memory a recording of `world` holds per frame [bytes] (docs/scenes.md#limits), with the bodies
+    it counts (those its emitters have still to release included) and its cloth particles."""
+    bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
+    particles = world.cloth.particle_count if world.has_cloth else 0
+    return bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME, bodies, particles
 
 
 def _check_rows(rec: dict[str, np.ndarray], path: Path) -> None:

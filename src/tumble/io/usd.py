@@ -138,9 +138,7 @@ def simulate(
     from .record import Recorder
 
     fps, n = _world_frames(world, fps, duration, frames)
-    if fps > 1.0 / world.dt * (1 + 1e-9):
-        raise TumbleError(f"fps {fps:g} is more than the world's {1.0 / world.dt:g} steps per second")
-    recorder = Recorder(world, fps=fps)
+    recorder = Recorder(world, fps=fps)  # refuses a rate above the world's steps a second
     advance()
     while recorder.frame_count < n:
         before = recorder.frame_count
@@ -162,12 +160,10 @@ def _check_world_frames(world, fps: float, n: int, *, key: str) -> None:
     """Refuse `n` frames at `fps` past the step limit or the memory their recording needs
     (docs/scenes.md#limits), before anything is simulated."""
     from .. import limits
+    from .record import frame_bytes
 
     limits.check_steps(key, (n - 1) / fps, world.dt)
-    bodies = world.body_count + sum(e.count - e.emitted for e in world.emitters)
-    particles = world.cloth.particle_count if world.has_cloth else 0
-    per_frame = bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME
-    limits.check_memory(key, "frames", n, per_frame)
+    limits.check_memory(key, "frames", n, frame_bytes(world)[0])
 
 
 def select_frames(
