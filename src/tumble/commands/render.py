@@ -97,6 +97,7 @@ def main(args: argparse.Namespace) -> int:
 
     import tumble
 
+    from .. import validate
     from ..io.atomic import check_output
     from ..io.video import FORMATS, export, output_kind, parse_size
     from ..render import Renderer, create_context
@@ -104,6 +105,8 @@ def main(args: argparse.Namespace) -> int:
 
     # cheap checks first: the output kind and folder, the size, then an OpenGL context (TumbleError -> exit 2)
     kind = output_kind(args.output)
+    duration = validate.positive(args.duration if args.duration is not None else 5.0, "--duration")
+    validate.positive(args.fps, "--fps")
     check_output(args.output, suffixes=tuple(FORMATS), folder=kind == "png", option="-o")
     width, height = parse_size(args.size)
     ctx = create_context()
@@ -111,7 +114,6 @@ def main(args: argparse.Namespace) -> int:
     try:
         world = tumble.load_scene(args.scene)
         prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
-        duration = args.duration if args.duration is not None else 5.0
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)
         out = export(

@@ -158,6 +158,11 @@ def export(
     check_output(out, suffixes=tuple(FORMATS), folder=kind == "png", option="")
     if kind == "gif":
         gif_delays_ms(n, fps)  # (refuses a rate a GIF cannot play before rendering anything)
+    elif kind == "mp4" and fps < MP4_MIN_FPS:
+        raise ValueError(
+            f"an MP4 frame lasts at most {1.0 / MP4_MIN_FPS:,.0f} s (ffmpeg refuses slower rates), got --fps {fps:g} "
+            f"(a frame every {1.0 / fps:g} s); use a higher fps or a folder of PNG frames"
+        )
     frames = render_frames(
         world,
         duration=duration,
@@ -209,6 +214,9 @@ def export(
     return out
 
 
+#: the slowest frame rate written to an MP4: ffmpeg's muxer fails on time bases finer than about
+#: 1/100,000 s (measured with imageio-ffmpeg's ffmpeg: 1e-5 fps writes, 5e-6 fails)
+MP4_MIN_FPS = 1e-5
 #: the fastest frame rate a GIF plays: browsers slow delays under 2/100 s down to 1/10 s
 GIF_MAX_FPS = 50.0
 #: the longest delay a GIF frame can have [1/100 s]: the format stores it in 16 bits

@@ -220,3 +220,17 @@ def test_a_render_beyond_the_frame_limit_is_refused_before_its_first_frame(tmp_p
     assert f"is {limits.MAX_FRAMES + 10:,} frames; the limit is {limits.MAX_FRAMES:,} frames" in err[0]
     assert not (tmp_path / "x.mp4").exists()
     assert scene[0].time == 0.0  # loaded, never stepped
+
+
+@pytest.mark.parametrize(
+    "option, value",
+    [("--duration", "nan"), ("--duration", "-1"), ("--duration", "inf"), ("--fps", "nan"), ("--fps", "0")],
+)
+def test_a_duration_or_rate_that_is_not_a_positive_number_is_refused_first(tmp_path, cli, scene, capsys, option, value):
+    """--duration nan was reported as "nan steps" against the step limit, and -1 as "duration"
+    without its dashes, after loading the scene: now one line naming the option, before loading."""
+    rc = cli(["render", "s.toml", "-o", str(tmp_path / "x.mp4"), option, value])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert err[0].startswith(f"tumble render: error: {option} must be a positive number, got "), err
+    assert scene == [] and list(tmp_path.iterdir()) == []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tumble.io.video import export, frame_count, gif_delays_ms, output_kind, parse_size, render_frames
+from tumble.io.video import MP4_MIN_FPS, export, frame_count, gif_delays_ms, output_kind, parse_size, render_frames
 from tumble.render import Camera
 
 CAMERA = Camera(position=(0.0, -3.0, 0.8), target=(0.0, 0.0, 0.4), fov_deg=45)
@@ -112,3 +112,14 @@ def test_gif_refuses_a_frame_longer_than_its_16_bit_delay(tmp_path, make_falling
         export(make_falling_world(), out, duration=0.1, fps=0.001, size=(16, 9), progress=False)
     assert list(tmp_path.iterdir()) == []
     assert gif_delays_ms(2, 100 / 65535) == [655350, 655350]
+
+
+def test_mp4_refuses_a_rate_ffmpeg_cannot_mux_and_writes_the_slowest_it_can(tmp_path, make_falling_world):
+    """--fps 1e-6 rendered every frame and then failed inside ffmpeg ("Invalid argument"); it is
+    refused naming --fps before rendering, and the slowest rate allowed (MP4_MIN_FPS) writes a file."""
+    out = tmp_path / "slow.mp4"
+    with pytest.raises(ValueError, match=r"MP4 frame lasts at most 100,000 s.*--fps 1e-06"):
+        export(make_falling_world(), out, duration=0.1, fps=1e-6, size=(16, 10), progress=False)
+    assert list(tmp_path.iterdir()) == []
+    export(make_falling_world(), out, duration=0.1, fps=MP4_MIN_FPS, size=(16, 10), progress=False)
+    assert out.stat().st_size > 0

@@ -250,18 +250,23 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
                 raise SceneError(message, path=path, table=table if key is not None else None, key=key) from None
 
 
+#: what a scene path holding a recording or a saved state (.npz, a zip archive) is told
+_NOT_A_SCENE = (
+    "a .npz archive (a recording or a saved state), not a scene file: tumble plot and export read "
+    "recordings, tumble run --resume a saved state"
+)
+
+
 def read_scene(path) -> Scene:
     """Read and validate a scene file (see `parse_scene`). Raises `SceneError`, or `OSError` if unreadable."""
     path = resolve_scene_path(path)
+    if path.suffix.lower() == ".npz":  # even an empty or broken one: never read as an (empty) scene
+        raise SceneError(_NOT_A_SCENE, path=path)
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         if path.read_bytes()[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
-            raise SceneError(
-                "a .npz archive (a recording or a saved state), not a scene file: tumble plot and export read "
-                "recordings, tumble run --resume a saved state",
-                path=path,
-            ) from None
+            raise SceneError(_NOT_A_SCENE, path=path) from None
         raise SceneError(f"not a UTF-8 text file ({exc.reason})", path=path) from None
     return parse_scene(text, path=path)
 

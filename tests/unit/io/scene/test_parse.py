@@ -169,6 +169,18 @@ def test_a_npz_archive_given_as_a_scene_says_what_it_is(tmp_path):
         scene_io.read_scene(junk)
 
 
+@pytest.mark.parametrize("content", [b"", b"\n", b"[world]\n"], ids=["empty", "newline", "toml"])
+def test_a_file_named_npz_is_never_read_as_a_scene(tmp_path, content):
+    """A .npz path is a recording or a saved state even when it is empty or holds text: it was read
+    as TOML, so a zero-byte one ran as an empty scene and `tumble check` said ok."""
+    path = tmp_path / "cut.npz"
+    path.write_bytes(content)
+    with pytest.raises(SceneError, match=r"cut.npz: a .npz archive .*not a scene file"):
+        scene_io.read_scene(path)
+    with pytest.raises(SceneError, match="not a scene file"):
+        tumble.load_scene(path)
+
+
 def test_missing_file_is_an_oserror(tmp_path):
     """Raise FileNotFoundError (mapped to exit 2 by the CLI) for a missing scene file."""
     with pytest.raises(FileNotFoundError, match="no such scene file"):
