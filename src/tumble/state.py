@@ -38,6 +38,16 @@ def host_view(arr: wp.array) -> np.ndarray:
     return view
 
 
+def host_values(arr: wp.array) -> memoryview:
+    """The values of a Warp array on the CPU as one flat memoryview of its own memory (made once per
+    array): Python's `sum` over a few dozen of them takes well under a microsecond, where a NumPy
+    reduction costs ~2.5 us whatever its size."""
+    values = arr.__dict__.get("_tumble_host_values")
+    if values is None:
+        values = arr._tumble_host_values = memoryview(host_view(arr).reshape(-1))  # type: ignore[attr-defined]
+    return values
+
+
 def numpy_dtype(dtype: type) -> tuple[type, tuple[int, ...]]:
     """NumPy scalar type and trailing shape of one element of a Warp `dtype` (either precision)."""
     precision = precision_of_dtype(dtype)

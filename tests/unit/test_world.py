@@ -92,13 +92,15 @@ def test_bad_world_settings(kwargs):
         tumble.World(**kwargs)
 
 
-def test_nan_in_state_is_reported_with_the_body():
-    """A NaN that reaches the state stops the step with a SimulationError naming the body."""
+@pytest.mark.parametrize("count", [2, 40])  # (under and over VALIDATE_SUM_BODIES: two ways of checking)
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_nan_in_state_is_reported_with_the_body(count, value):
+    """A NaN or an infinity that reaches the state stops the step with a SimulationError naming the body."""
     w = tumble.World()
-    w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
-    w.add_sphere(position=(1, 0, 1), radius=0.1, mass=1.0)
-    w.bodies.write("body_velocity", 1, [np.nan, 0, 0])
-    with pytest.raises(tumble.SimulationError, match="body_velocity of body 1"):
+    w.add_spheres(position=[(k, 0, 1) for k in range(count)], radius=0.1, mass=1.0)
+    w.step()
+    w.bodies.write("body_velocity", count - 1, [0, value, 0])
+    with pytest.raises(tumble.SimulationError, match=f"body_velocity of body {count - 1} is not finite"):
         w.step()
 
 
@@ -179,3 +181,28 @@ def test_unknown_or_missing_device_is_named():
     if not wp.is_cuda_available():
         with pytest.raises(ValueError, match="no CUDA device"):
             tumble.World(device="cuda")
+
+
+def test_pairs_and_contacts_overflowing_a_recorded_step_are_all_found():
+    """A step replayed from a recorded graph whose pair and contact buffers overflow (64 spheres far
+    apart, then moved into one cluster) grows them and collides again, with the same result as a
+    world made with that cluster: no pair read past the buffers' end (the narrow phase's and the
+    solver's loops stop at the capacity, which the count on the device may pass)."""
+
+    def world(position):
+        w = tumble.World(gravity=(0, 0, 0))
+        return w, w.add_spheres(position=position, radius=0.05, mass=0.1)
+
+    apart = np.stack(np.meshgrid(*[np.arange(4.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    cluster = np.random.default_rng(1).uniform(-0.1, 0.1, (64, 3))
+    w, ids = world(apart)
+    for _ in range(5):  # the steps from the second on replay a recorded graph
+        w.step()
+    capacity = (w.broadphase.pair_capacity, w.contacts.capacity)
+    w.set_body_state(ids, position=cluster, velocity=np.zeros((64, 3)))
+    w.step()
+    fresh, _ = world(cluster)
+    fresh.step()
+    assert w.broadphase.pair_count > capacity[0] and w.contacts.count > capacity[1]
+    assert w.contacts.count == fresh.contacts.count
+    assert w.state_hash() == fresh.state_hash()

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_in_use, launch_each
 from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
@@ -1552,28 +1552,23 @@ def collide_vertices_mesh(
 # ---------------------------------------------------------------------------- dispatch
 
 
-@wp.kernel
-def _collide_pairs(
-    pair_a: wp.array(dtype=wp.int32),
-    pair_b: wp.array(dtype=wp.int32),
+@wp.func
+def _collide_pair(
+    a: int,
+    b: int,
     body: BodyArrays,
     hulls: Hulls,
     mesh_ids: wp.array(dtype=wp.uint64),
     dt: float_t,
     margin: float_t,
     c: Contacts,
-    pair_count: wp.array(dtype=wp.int32),
 ):
-    p = wp.tid()
-    if p >= pair_count[0]:
-        return  # launched over the pair capacity, the count on the device (see tumble.launch)
+    """The contacts of one pair of bodies (rows a and b, in either order), by the pair table."""
     shape = body.shape
     radius = body.radius
     half_extents = body.half_extents
     bound = body.bound_radius
     geometry = body.geometry
-    a = pair_a[p]
-    b = pair_b[p]
     # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
     if shape[a] > shape[b]:
         t = a
@@ -1639,6 +1634,24 @@ def _collide_pairs(
             collide_vertices_mesh(c, a, b, A, B, sa, hulls, geometry[a], half_extents[a], bound[a], mesh, max_sep)
 
 
+@wp.kernel
+def _collide_pairs(
+    pair_a: wp.array(dtype=wp.int32),
+    pair_b: wp.array(dtype=wp.int32),
+    body: BodyArrays,
+    hulls: Hulls,
+    mesh_ids: wp.array(dtype=wp.uint64),
+    dt: float_t,
+    margin: float_t,
+    c: Contacts,
+    pair_count: wp.array(dtype=wp.int32),
+    serial: int,
+):
+    # launched over the pair capacity, the count on the device (see tumble.launch.launch_each)
+    for p in range(wp.tid(), each_in_use(wp.tid(), serial, pair_count[0], pair_a.shape[0])):
+        _collide_pair(pair_a[p], pair_b[p], body, hulls, mesh_ids, dt, margin, c)
+
+
 _default_hulls: dict[str, HullSet] = {}
 _default_meshes: dict[str, MeshSet] = {}
 
@@ -1695,7 +1708,7 @@ def launch_pairs(
         contacts.writer(),
         count,
     ]
-    launch(_collide_pairs, pairs.pair_a.shape[0], args, bodies.device, cache)
+    launch_each(_collide_pairs, pairs.pair_a.shape[0], args, bodies.device, cache)
 
 
 def collected(contacts) -> bool:

@@ -66,10 +66,10 @@ import numpy as np
 import warp as wp
 
 from ..collision.narrowphase import CONTACT_FIELDS, Contacts
-from ..launch import LaunchCache, launch
+from ..launch import LaunchCache, each_in_use, launch, launch_each
 from ..model import body_arrays
 from ..real import TYPES, BodyArrays, float_t, vec3
-from ..state import ArraySet, host_view
+from ..state import ArraySet, host_values
 from ..structs import array_struct, fill_struct
 from .rigid import add_to_velocity, inv_inertia_times, inv_inertia_world, safe_inverse
 
@@ -231,20 +231,16 @@ class Owners:
 
 
 @wp.kernel
-def _owner_count(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32)):
-    c = wp.tid()
-    if c >= counts[1]:
-        return  # launched over the capacity: last step's contact count is on the device
-    wp.atomic_add(o.count, _owner(p.body_a[c], p.body_b[c], b.inv_mass), 1)
+def _owner_count(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32), serial: int):
+    for c in range(wp.tid(), each_in_use(wp.tid(), serial, counts[1], p.body_a.shape[0])):
+        wp.atomic_add(o.count, _owner(p.body_a[c], p.body_b[c], b.inv_mass), 1)
 
 
 @wp.kernel
-def _owner_scatter(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32)):
-    c = wp.tid()
-    if c >= counts[1]:
-        return
-    owner = _owner(p.body_a[c], p.body_b[c], b.inv_mass)
-    o.entries[o.start[owner] + wp.atomic_add(o.fill, owner, 1)] = c
+def _owner_scatter(p: Previous, b: BodyArrays, o: Owners, counts: wp.array(dtype=wp.int32), serial: int):
+    for c in range(wp.tid(), each_in_use(wp.tid(), serial, counts[1], p.body_a.shape[0])):
+        owner = _owner(p.body_a[c], p.body_b[c], b.inv_mass)
+        o.entries[o.start[owner] + wp.atomic_add(o.fill, owner, 1)] = c
 
 
 @wp.kernel
@@ -257,71 +253,73 @@ def _match(
     jn_warm: wp.array(dtype=float_t),
     jt_world: wp.array(dtype=vec3),
     counts: wp.array(dtype=wp.int32),
+    serial: int,
 ):
-    k = wp.tid()
-    if k >= counts[0]:
-        return
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    o = ia
-    local = c.local_a[k]
-    if b.inv_mass[ia] == float_t(0.0):
-        o = ib
-        local = c.local_b[k]
-    best = int(-1)
-    best_d = (tolerance * b.bound_radius[o]) * (tolerance * b.bound_radius[o])
-    start = owners.start[o]
-    for e in range(start, start + owners.count[o]):
-        j = owners.entries[e]
-        if p.body_a[j] == ia and p.body_b[j] == ib:
-            d = wp.length_sq(p.local_owner[j] - local)
-            if d < best_d:
-                best_d = d
-                best = j
-    if best >= 0:
-        jn_warm[k] = p.impulse_n[best]
-        jt_world[k] = p.impulse_t[best]
-    else:
-        jn_warm[k] = float_t(0.0)
-        jt_world[k] = vec3()
+    for k in range(wp.tid(), each_in_use(wp.tid(), serial, counts[0], c.body_a.shape[0])):
+        ia = c.body_a[k]
+        ib = c.body_b[k]
+        o = ia
+        local = c.local_a[k]
+        if b.inv_mass[ia] == float_t(0.0):
+            o = ib
+            local = c.local_b[k]
+        best = int(-1)
+        best_d = (tolerance * b.bound_radius[o]) * (tolerance * b.bound_radius[o])
+        start = owners.start[o]
+        for e in range(start, start + owners.count[o]):
+            j = owners.entries[e]
+            if p.body_a[j] == ia and p.body_b[j] == ib:
+                d = wp.length_sq(p.local_owner[j] - local)
+                if d < best_d:
+                    best_d = d
+                    best = j
+        if best >= 0:
+            jn_warm[k] = p.impulse_n[best]
+            jt_world[k] = p.impulse_t[best]
+        else:
+            jn_warm[k] = float_t(0.0)
+            jt_world[k] = vec3()
 
 
 @wp.kernel
-def _store(c: Contacts, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: Previous, counts: wp.array(dtype=wp.int32)):
-    k = wp.tid()
-    if k >= counts[0]:
-        return
-    r = rows[k]
-    p.body_a[k] = r.body_a
-    p.body_b[k] = r.body_b
-    if b.inv_mass[r.body_a] == float_t(0.0):
-        p.local_owner[k] = c.local_b[k]
-    else:
-        p.local_owner[k] = c.local_a[k]
-    p.impulse_n[k] = r.impulse_n
-    # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
-    first = k
-    while rows[first].manifold == 0:
-        first -= 1
-    f = r
-    share = float_t(1.0)
-    head = rows[first]
-    if head.mass_twist > float_t(0.0):
-        f = head
-        share = float_t(1.0) / float_t(head.manifold)
-    p.impulse_t[k] = (f.tangent1 * f.impulse_t1 + f.tangent2 * f.impulse_t2 + f.normal * f.impulse_twist) * share
+def _store(
+    c: Contacts,
+    rows: wp.array(dtype=ContactRow),
+    b: BodyArrays,
+    p: Previous,
+    counts: wp.array(dtype=wp.int32),
+    serial: int,
+):
+    for k in range(wp.tid(), each_in_use(wp.tid(), serial, counts[0], rows.shape[0])):
+        r = rows[k]
+        p.body_a[k] = r.body_a
+        p.body_b[k] = r.body_b
+        if b.inv_mass[r.body_a] == float_t(0.0):
+            p.local_owner[k] = c.local_b[k]
+        else:
+            p.local_owner[k] = c.local_a[k]
+        p.impulse_n[k] = r.impulse_n
+        # friction as a world vector, the twist along n; a patch's (on its first row) spread over its rows
+        first = k
+        while rows[first].manifold == 0:
+            first -= 1
+        f = r
+        share = float_t(1.0)
+        head = rows[first]
+        if head.mass_twist > float_t(0.0):
+            f = head
+            share = float_t(1.0) / float_t(head.manifold)
+        p.impulse_t[k] = (f.tangent1 * f.impulse_t1 + f.tangent2 * f.impulse_t2 + f.normal * f.impulse_twist) * share
 
 
 # ---------------------------------------------------------------------------- prepare / solve
 
 
 @wp.kernel
-def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
-    k = wp.tid()
-    if k >= counts[0]:
-        return
-    wp.atomic_add(count, c.body_a[k], 1)
-    wp.atomic_add(count, c.body_b[k], 1)
+def _body_contact_count(c: Contacts, count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32), serial: int):
+    for k in range(wp.tid(), each_in_use(wp.tid(), serial, counts[0], c.body_a.shape[0])):
+        wp.atomic_add(count, c.body_a[k], 1)
+        wp.atomic_add(count, c.body_b[k], 1)
 
 
 @wp.kernel
@@ -334,120 +332,119 @@ def _prepare(
     body_count: wp.array(dtype=wp.int32),
     counts: wp.array(dtype=wp.int32),
     rows: wp.array(dtype=ContactRow),
+    serial: int,
 ):
-    k = wp.tid()
-    if k >= counts[0]:
-        return
-    r = ContactRow()
-    ia = c.body_a[k]
-    ib = c.body_b[k]
-    n = c.normal[k]
-    r.body_a = ia
-    r.body_b = ib
-    r.normal = n
-    r.separation = c.separation[k]
-    qa = b.orientation[ia]
-    qb = b.orientation[ib]
-    ra = wp.quat_rotate(qa, c.local_a[k])
-    rb = wp.quat_rotate(qb, c.local_b[k])
-    r.r_a = ra
-    r.r_b = rb
-    # manifold: the first row holds its row count, the others 0. It is a patch when its rows
-    # share one normal (a face on a plane or a face: up to 4 points, one normal); a patch takes
-    # its friction at its centre (the mean of its anchors), as two tangent rows and a twist row
-    # about n held on its first row, instead of one friction row per point (see `_solve_manifold`)
-    first = _manifold_first(c, k)
-    size = _manifold_rows(c, first, counts[0])
-    r.manifold = wp.int32(0)
-    if first == k:
-        r.manifold = wp.int32(size)
-    patch = int(0)
-    fa = ra
-    fb = rb
-    if size > 1:
-        patch = int(1)
-        fa = vec3()
-        fb = vec3()
-        for i in range(size):
-            kk = first + i
-            if wp.dot(c.normal[kk], c.normal[first]) < float_t(1.0) - float_t(1.0e-12):
-                patch = int(0)
-            fa = fa + wp.quat_rotate(qa, c.local_a[kk])
-            fb = fb + wp.quat_rotate(qb, c.local_b[kk])
-        fa = fa / float_t(size)
-        fb = fb / float_t(size)
-    if patch == 0:
-        # rows with differing normals (a box or hull on a mesh, a capsule) are not coupled by a
-        # shared face: each is its own manifold of one row, as a lone contact
+    for k in range(wp.tid(), each_in_use(wp.tid(), serial, counts[0], rows.shape[0])):
+        r = ContactRow()
+        ia = c.body_a[k]
+        ib = c.body_b[k]
+        n = c.normal[k]
+        r.body_a = ia
+        r.body_b = ib
+        r.normal = n
+        r.separation = c.separation[k]
+        qa = b.orientation[ia]
+        qb = b.orientation[ib]
+        ra = wp.quat_rotate(qa, c.local_a[k])
+        rb = wp.quat_rotate(qb, c.local_b[k])
+        r.r_a = ra
+        r.r_b = rb
+        # manifold: the first row holds its row count, the others 0. It is a patch when its rows
+        # share one normal (a face on a plane or a face: up to 4 points, one normal); a patch takes
+        # its friction at its centre (the mean of its anchors), as two tangent rows and a twist row
+        # about n held on its first row, instead of one friction row per point (see `_solve_manifold`)
+        first = _manifold_first(c, k)
+        size = _manifold_rows(c, first, counts[0])
+        r.manifold = wp.int32(0)
+        if first == k:
+            r.manifold = wp.int32(size)
+        patch = int(0)
         fa = ra
         fb = rb
-        r.manifold = wp.int32(1)
-    # twist arm: the point's distance from the patch centre across n (the twist row's limit is
-    # mu sum_i jn_i arm_i, the most torque the points' friction can give)
-    arm = ra - fa
-    r.twist_arm = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
-    r.centre_a = fa
-    r.centre_b = fb
-    # tangent basis orthogonal to n
-    t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
-    if wp.length_sq(t1) < float_t(0.01):
-        t1 = wp.cross(n, vec3(float_t(0.0), float_t(1.0), float_t(0.0)))
-    t1 = wp.normalize(t1)
-    t2 = wp.cross(n, t1)
-    r.tangent1 = t1
-    r.tangent2 = t2
-    # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
-    # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
-    Ia = inv_inertia_world(qa, b.inv_inertia[ia])
-    Ib = inv_inertia_world(qb, b.inv_inertia[ib])
-    im = b.inv_mass[ia] + b.inv_mass[ib]
-    ca = wp.cross(ra, n)
-    cb = wp.cross(rb, n)
-    r.angular_a_n = Ia * ca
-    r.angular_b_n = Ib * cb
-    r.mass_n = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
-    # friction rows at the anchors (the patch centre for a patch); a patch's other rows have none
-    on = float_t(1.0)
-    if patch != 0 and first != k:
-        on = float_t(0.0)
-    ca = wp.cross(fa, t1)
-    cb = wp.cross(fb, t1)
-    r.angular_a_t1 = Ia * ca * on
-    r.angular_b_t1 = Ib * cb * on
-    r.mass_t1 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
-    ca = wp.cross(fa, t2)
-    cb = wp.cross(fb, t2)
-    r.angular_a_t2 = Ia * ca * on
-    r.angular_b_t2 = Ib * cb * on
-    r.mass_t2 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
-    # twist about n: angular response I^-1 n, effective mass 1 / (n . I_a^-1 n + n . I_b^-1 n)
-    tw = float_t(0.0)
-    if patch != 0 and first == k:
-        tw = float_t(1.0)
-    r.angular_a_twist = Ia * n * tw
-    r.angular_b_twist = Ib * n * tw
-    r.mass_twist = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
-    # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
-    r.friction = wp.sqrt(b.friction[ia] * b.friction[ib])
-    r.restitution = wp.max(b.restitution[ia], b.restitution[ib])
-    r.relative_velocity = float_t(0.0)  # set by _impact when the contact collides
-    # warm start values arrive as a world friction vector (tangent) plus the twist impulse along
-    # n; project on the new tangents. A patch's friction was stored spread over its rows (so it
-    # survives a change of which row comes first): its first row sums its rows' shares
-    r.impulse_n = jn_warm[k]
-    jt = jt_world[k]
-    if patch != 0:
-        jt = vec3()
-        if first == k:
+        if size > 1:
+            patch = int(1)
+            fa = vec3()
+            fb = vec3()
             for i in range(size):
-                jt = jt + jt_world[k + i]
-    r.impulse_t1 = wp.dot(jt, t1)
-    r.impulse_t2 = wp.dot(jt, t2)
-    r.impulse_twist = wp.dot(jt, n) * tw
-    r.scale = float_t(1.0)
-    if jacobi != 0:
-        r.scale = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
-    rows[k] = r
+                kk = first + i
+                if wp.dot(c.normal[kk], c.normal[first]) < float_t(1.0) - float_t(1.0e-12):
+                    patch = int(0)
+                fa = fa + wp.quat_rotate(qa, c.local_a[kk])
+                fb = fb + wp.quat_rotate(qb, c.local_b[kk])
+            fa = fa / float_t(size)
+            fb = fb / float_t(size)
+        if patch == 0:
+            # rows with differing normals (a box or hull on a mesh, a capsule) are not coupled by a
+            # shared face: each is its own manifold of one row, as a lone contact
+            fa = ra
+            fb = rb
+            r.manifold = wp.int32(1)
+        # twist arm: the point's distance from the patch centre across n (the twist row's limit is
+        # mu sum_i jn_i arm_i, the most torque the points' friction can give)
+        arm = ra - fa
+        r.twist_arm = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
+        r.centre_a = fa
+        r.centre_b = fb
+        # tangent basis orthogonal to n
+        t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
+        if wp.length_sq(t1) < float_t(0.01):
+            t1 = wp.cross(n, vec3(float_t(0.0), float_t(1.0), float_t(0.0)))
+        t1 = wp.normalize(t1)
+        t2 = wp.cross(n, t1)
+        r.tangent1 = t1
+        r.tangent2 = t2
+        # world inverse inertia I^-1 = R diag(1/I) R^T once per body, then per direction d:
+        # angular response I^-1 (r x d) and effective mass 1 / (1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...)
+        Ia = inv_inertia_world(qa, b.inv_inertia[ia])
+        Ib = inv_inertia_world(qb, b.inv_inertia[ib])
+        im = b.inv_mass[ia] + b.inv_mass[ib]
+        ca = wp.cross(ra, n)
+        cb = wp.cross(rb, n)
+        r.angular_a_n = Ia * ca
+        r.angular_b_n = Ib * cb
+        r.mass_n = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb))
+        # friction rows at the anchors (the patch centre for a patch); a patch's other rows have none
+        on = float_t(1.0)
+        if patch != 0 and first != k:
+            on = float_t(0.0)
+        ca = wp.cross(fa, t1)
+        cb = wp.cross(fb, t1)
+        r.angular_a_t1 = Ia * ca * on
+        r.angular_b_t1 = Ib * cb * on
+        r.mass_t1 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+        ca = wp.cross(fa, t2)
+        cb = wp.cross(fb, t2)
+        r.angular_a_t2 = Ia * ca * on
+        r.angular_b_t2 = Ib * cb * on
+        r.mass_t2 = safe_inverse(im + wp.dot(ca, Ia * ca) + wp.dot(cb, Ib * cb)) * on
+        # twist about n: angular response I^-1 n, effective mass 1 / (n . I_a^-1 n + n . I_b^-1 n)
+        tw = float_t(0.0)
+        if patch != 0 and first == k:
+            tw = float_t(1.0)
+        r.angular_a_twist = Ia * n * tw
+        r.angular_b_twist = Ib * n * tw
+        r.mass_twist = safe_inverse(wp.dot(n, Ia * n) + wp.dot(n, Ib * n)) * tw
+        # combination rules: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
+        r.friction = wp.sqrt(b.friction[ia] * b.friction[ib])
+        r.restitution = wp.max(b.restitution[ia], b.restitution[ib])
+        r.relative_velocity = float_t(0.0)  # set by _impact when the contact collides
+        # warm start values arrive as a world friction vector (tangent) plus the twist impulse along
+        # n; project on the new tangents. A patch's friction was stored spread over its rows (so it
+        # survives a change of which row comes first): its first row sums its rows' shares
+        r.impulse_n = jn_warm[k]
+        jt = jt_world[k]
+        if patch != 0:
+            jt = vec3()
+            if first == k:
+                for i in range(size):
+                    jt = jt + jt_world[k + i]
+        r.impulse_t1 = wp.dot(jt, t1)
+        r.impulse_t2 = wp.dot(jt, t2)
+        r.impulse_twist = wp.dot(jt, n) * tw
+        r.scale = float_t(1.0)
+        if jacobi != 0:
+            r.scale = float_t(1.0) / float_t(wp.max(body_count[ia], body_count[ib]))
+        rows[k] = r
 
 
 @wp.struct
@@ -482,20 +479,18 @@ def _add_pair(b: BodyArrays, ia: int, ib: int, d: Delta, serial: int):
 
 
 @wp.kernel
-def _warm_start(rows: wp.array(dtype=ContactRow), b: BodyArrays, serial: int, counts: wp.array(dtype=wp.int32)):
-    k = wp.tid()
-    if k >= counts[0]:
-        return
-    r = rows[k]
-    jn = r.impulse_n
-    j1 = r.impulse_t1
-    j2 = r.impulse_t2
-    P = r.normal * jn + r.tangent1 * j1 + r.tangent2 * j2
-    dwa = r.angular_a_n * jn + r.angular_a_t1 * j1 + r.angular_a_t2 * j2 + r.angular_a_twist * r.impulse_twist
-    dwb = r.angular_b_n * jn + r.angular_b_t1 * j1 + r.angular_b_t2 * j2 + r.angular_b_twist * r.impulse_twist
-    ia = r.body_a
-    ib = r.body_b
-    _add_pair(b, ia, ib, _delta(-P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb), serial)
+def _warm_start(rows: wp.array(dtype=ContactRow), b: BodyArrays, counts: wp.array(dtype=wp.int32), serial: int):
+    for k in range(wp.tid(), each_in_use(wp.tid(), serial, counts[0], rows.shape[0])):
+        r = rows[k]
+        jn = r.impulse_n
+        j1 = r.impulse_t1
+        j2 = r.impulse_t2
+        P = r.normal * jn + r.tangent1 * j1 + r.tangent2 * j2
+        dwa = r.angular_a_n * jn + r.angular_a_t1 * j1 + r.angular_a_t2 * j2 + r.angular_a_twist * r.impulse_twist
+        dwb = r.angular_b_n * jn + r.angular_b_t1 * j1 + r.angular_b_t2 * j2 + r.angular_b_twist * r.impulse_twist
+        ia = r.body_a
+        ib = r.body_b
+        _add_pair(b, ia, ib, _delta(-P * b.inv_mass[ia], -dwa, P * b.inv_mass[ib], dwb), serial)
 
 
 @wp.struct
@@ -1136,7 +1131,8 @@ class ContactSet(ArraySet):
         Returns what the recorded launches of the stages depend on (see `World._solver_graph`).
         """
         p = self.previous
-        p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
+        if p.capacity < self.capacity:
+            p.reserve(self.capacity)  # store_impulses keeps up to `capacity` contacts
         dev = self.device
         if self.rows.shape[0] != self.capacity:
             self.jn_warm = wp.zeros(self.capacity, dtype=float_t, device=dev)
@@ -1170,12 +1166,13 @@ class ContactSet(ArraySet):
             ticks.tested, ticks.changed, ticks.clock = self.impact_tested, self.impact_changed, self.impact_clock
             self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners, ticks)
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested))
-        counts = (self.count, p.count)
+        count = self.count
         if self.device == "cpu":
-            host_view(self.counts)[:] = counts  # the host view is the array
+            values = host_values(self.counts)  # the array's own memory
+            values[0], values[1] = count, p.count
         else:
-            self.counts.assign(np.array(counts, dtype=np.int32))
-        return self._sized + (self.count > 0,)
+            self.counts.assign(np.array((count, p.count), dtype=np.int32))
+        return self._sized + (count > 0,)
 
     def match_previous(self, bodies) -> None:
         """Carry last step's impulses over to the contacts that persist (warm starting)."""
@@ -1188,11 +1185,11 @@ class ContactSet(ArraySet):
         self.owner_fill.zero_()
         # last step's contacts bucketed by owner (counting sort), launched over their capacity
         cap = self.previous.capacity
-        wp.launch(_owner_count, dim=cap, device=dev, inputs=[p, b, owners, self.counts])
+        launch_each(_owner_count, cap, [p, b, owners, self.counts], dev)
         wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
-        wp.launch(_owner_scatter, dim=cap, device=dev, inputs=[p, b, owners, self.counts])
+        launch_each(_owner_scatter, cap, [p, b, owners, self.counts], dev)
         args = [c, b, MATCH_TOLERANCE, owners, p, self.jn_warm, self.jt_world, self.counts]
-        wp.launch(_match, dim=self.capacity, device=dev, inputs=args)
+        launch_each(_match, self.capacity, args, dev)
 
     def remap_bodies(self, slot: np.ndarray, *, current: bool = False) -> None:
         """The body rows were renumbered (row i is now `slot[i]`, -1 if removed): follow them in
@@ -1219,7 +1216,7 @@ class ContactSet(ArraySet):
             return
         assert self._structs is not None  # built by begin_solve, which runs before every solver stage
         c, b, p = self._structs.contacts, self._structs.bodies, self._structs.previous
-        wp.launch(_store, dim=self.capacity, device=self.device, inputs=[c, self.rows, b, p, self.counts])
+        launch_each(_store, self.capacity, [c, self.rows, b, p, self.counts], self.device)
 
     def end_solve(self) -> None:
         """Host side after the solver stages: the contacts stored for warm starting are this step's."""
@@ -1254,27 +1251,9 @@ def prepare(bodies, contacts: ContactSet) -> None:
     c, b = contacts._structs.contacts, contacts._structs.bodies
     if jacobi:
         contacts.body_count.zero_()
-        wp.launch(
-            _body_contact_count,
-            dim=contacts.capacity,
-            device=contacts.device,
-            inputs=[c, contacts.body_count, contacts.counts],
-        )
-    wp.launch(
-        _prepare,
-        dim=contacts.capacity,
-        device=contacts.device,
-        inputs=[
-            c,
-            b,
-            contacts.jn_warm,
-            contacts.jt_world,
-            jacobi,
-            contacts.body_count,
-            contacts.counts,
-            contacts.rows,
-        ],
-    )
+        launch_each(_body_contact_count, contacts.capacity, [c, contacts.body_count, contacts.counts], contacts.device)
+    args = [c, b, contacts.jn_warm, contacts.jt_world, jacobi, contacts.body_count, contacts.counts, contacts.rows]
+    launch_each(_prepare, contacts.capacity, args, contacts.device)
 
 
 def warm_start(bodies, contacts: ContactSet) -> None:
@@ -1282,11 +1261,8 @@ def warm_start(bodies, contacts: ContactSet) -> None:
     later substeps get theirs from the relax pass, through `integrate_velocities`)."""
     if contacts.count:
         assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
-        wp.launch(
-            _warm_start,
-            dim=contacts.capacity,
-            device=contacts.device,
-            inputs=[contacts.rows, contacts._structs.bodies, _serial(contacts), contacts.counts],
+        launch_each(
+            _warm_start, contacts.capacity, [contacts.rows, contacts._structs.bodies, contacts.counts], contacts.device
         )
 
 
