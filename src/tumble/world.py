@@ -218,7 +218,7 @@ class World:
 
     @dt.setter
     def dt(self, value: float) -> None:
-        self._dt = validate.number(value, "dt", low=0.0, high=limits.MAX_DT, above=True)
+        self._dt = _step_length(value)
 
     @property
     def substeps(self) -> int:
@@ -507,7 +507,8 @@ class World:
         return ids[0]
 
     def add_body(self, shape: str | ShapeType, **kwargs: Any) -> BodyId:
-        """Factory: add a body by shape name ("plane", "sphere" or "box") with that shape's keywords."""
+        """Factory: add a body by shape name ("plane", "sphere", "box", "capsule", "convex" or "mesh") with that
+        shape's keywords (those of `add_plane`, `add_sphere`, ...)."""
         kind = shape if isinstance(shape, ShapeType) else _shapes.shape_from_name(validate.text(shape, "shape"))
         adders: dict[ShapeType, Callable[..., BodyId]] = {
             ShapeType.PLANE: self.add_plane,
@@ -777,7 +778,7 @@ class World:
         """
         ids, rows = self._rows(body)
         k = len(rows)
-        h = self.dt if dt is None else validate.positive(dt, "dt")
+        h = self.dt if dt is None else _step_length(dt)
         kinds = self.bodies.numpy("body_kind")[rows]
         if np.any(kinds != BodyKind.KINEMATIC):
             raise ValueError(
@@ -1090,8 +1091,8 @@ class World:
     # ------------------------------------------------------------------ stepping
 
     def step(self, dt: float | None = None) -> None:
-        """Advance the world by one step of `dt` seconds (default `self.dt`)."""
-        dt = self.dt if dt is None else validate.positive(dt, "dt")
+        """Advance the world by one step of `dt` seconds (default `self.dt`; at most `limits.MAX_DT`, 0.1 s, as `dt`)."""
+        dt = self.dt if dt is None else _step_length(dt)
         if dt != self._segment_dt:
             # a new run of steps of another length: bank the time of the last run
             self._time_base = self.time
@@ -1281,7 +1282,7 @@ class World:
         Returns:
             The number of bodies released.
         """
-        return self._emit(self.dt if dt is None else validate.positive(dt, "dt"))
+        return self._emit(self.dt if dt is None else _step_length(dt))
 
     def _emit(self, dt: float) -> int:
         """The emit stage for a `dt` already checked (`step` has; `emit` checks it)."""
@@ -1300,7 +1301,7 @@ class World:
         Returns:
             The number of contacts; read them with `contact_point`, `contact_normal`, ...
         """
-        dt = self.dt if dt is None else validate.positive(dt, "dt")
+        dt = self.dt if dt is None else _step_length(dt)
         pairs = self.broadphase.find_pairs(self.bodies, dt)
         self._k.narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
         return self.contacts.count
@@ -1520,6 +1521,12 @@ class World:
         if self._cloth is not None:
             digest.update(np.ascontiguousarray(self._cloth.particle_position_numpy()).tobytes())
         return digest.hexdigest()
+
+
+def _step_length(dt) -> float:
+    """A step's length [s] as `World.dt` takes it, or as `step(dt)` and the calls that take a step's
+    length do: in (0, `limits.MAX_DT`] (a step(0.5) was taken where dt = 0.5 was refused)."""
+    return validate.number(dt, "dt", low=0.0, high=limits.MAX_DT, above=True)
 
 
 class _StageTimer:

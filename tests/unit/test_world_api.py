@@ -338,9 +338,9 @@ def test_time_sums_runs_of_different_dt():
     for _ in range(50):
         w.step()
     for _ in range(3):
-        w.step(0.25)
-    assert w.time == 100 * (1 / 240) + 50 * (1 / 100) + 3 * 0.25
-    assert abs(w.time - (100 / 240 + 0.5 + 0.75)) < 1e-15
+        w.step(0.1)
+    assert w.time == 100 * (1 / 240) + 50 * (1 / 100) + 3 * 0.1
+    assert abs(w.time - (100 / 240 + 0.5 + 0.3)) < 1e-15
 
 
 # ---------------------------------------------------------------- argument checks
@@ -392,10 +392,14 @@ def _world_with_body():
         (lambda w: w.add_body(3), TypeError, r"shape must be a string, got 3"),
         (lambda w: w.set_material(friction=-0.5), ValueError, r"friction must be a number >= 0, got -0.5"),
         (lambda w: w.apply_force(0, "up"), TypeError, r"force must be 3 finite numbers"),
-        (lambda w: w.step(dt=-1), ValueError, r"dt must be a positive number, got -1"),
+        (lambda w: w.step(dt=-1), ValueError, r"dt must be in \(0, 0.1\], got -1"),
+        # a step longer than World(dt=...) takes (limits.MAX_DT), as step(dt), emit and collide take it
+        (lambda w: w.step(dt=0.5), ValueError, r"dt must be in \(0, 0.1\], got 0.5"),
+        (lambda w: w.collide(dt=0.5), ValueError, r"dt must be in \(0, 0.1\], got 0.5"),
+        (lambda w: w.emit(dt=1.0), ValueError, r"dt must be in \(0, 0.1\], got 1"),
         (lambda w: w.run("long"), TypeError, r"duration must be a number, got 'long'"),
         (lambda w: w.run(0.1, callback=5), TypeError, r"callback must be a function or None, got 5"),
-        (lambda w: w.collide(dt=float("inf")), ValueError, r"dt must be a positive number, got inf"),
+        (lambda w: w.collide(dt=float("inf")), ValueError, r"dt must be in \(0, 0.1\], got inf"),
         (lambda w: w.set_body_state(0, velocity=(0, 0, float("nan"))), ValueError, r"velocity must be finite"),
         (lambda w: w.set_body_state(0, orientation=(0, 0, 0, 0)), ValueError, "non-zero quaternion"),
         (lambda w: w.set_kinematic_target(0, position=(0, 0, 0)), ValueError, "body 0 is not kinematic"),
