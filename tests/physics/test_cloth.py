@@ -149,6 +149,44 @@ def test_cloth_folding_on_ground_keeps_thickness():
     assert non_neighbour_min_distance(x, n) >= 0.99 * thickness
 
 
+@pytest.mark.parametrize("surface", ["plane", "box", "slope"])
+@pytest.mark.parametrize("inside", [0.005, 0.01])
+def test_cloth_made_inside_a_surface_settles_on_it(surface, inside):
+    """A cloth made lying `inside` (up to its whole thickness) into a static surface is pushed out to
+    its thickness without leaping: the push became speed, overlap / dt (2.4 m/s for 1 cm), and the
+    cloth rose 0.3 m. Out after one step, at rest to one step's gravity kick g dt, and never higher
+    than its thickness by more than g dt^2; on a 30 degree slope with friction 0.8 (> tan 30) it stays."""
+    thickness = 0.01
+    world = tumble.World(dt=DT)
+    tilt = math.radians(30.0) if surface == "slope" else 0.0
+    normal = np.array([-math.sin(tilt), 0.0, math.cos(tilt)])
+    if surface == "box":
+        world.add_box(position=(0, 0, -0.5), half_extents=(1, 1, 0.5), static=True, friction=0.8)
+    else:
+        world.add_plane(normal=normal, friction=0.8)
+    orientation = (0.0, -math.sin(tilt / 2), 0.0, math.cos(tilt / 2))  # the cloth lies on the surface
+    centre = normal * (thickness - inside)
+    world.add_cloth(
+        size=(0.5, 0.5),
+        resolution=(8, 8),
+        mass=0.1,
+        position=centre,
+        orientation=orientation,
+        thickness=thickness,
+        friction=0.8,
+    )
+    world.step()
+    g = 9.81
+    heights = [world.cloth.particle_position @ normal]
+    assert heights[0].min() >= thickness - 1e-9
+    assert np.abs(world.cloth.particle_velocity @ normal).max() <= g * DT
+    for _ in range(int(round(1.0 / DT))):
+        world.step()
+        heights.append(world.cloth.particle_position @ normal)
+    assert np.max(heights) <= thickness + g * DT**2
+    assert np.linalg.norm(world.cloth.center_of_mass() - centre - normal * inside) <= g * DT**2 + 1e-9
+
+
 def test_wind_and_turbulence_are_deterministic():
     """Two runs with the same seed give bit-identical states; another seed differs."""
 

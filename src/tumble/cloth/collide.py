@@ -411,6 +411,27 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             if near.strict != 0 and w_b > zero and move_t > zero:
                 move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers))
             xp = xp - tdir * move_t
+            # a body at rest (static, or kinematic and still) pushes the particle out of an overlap it
+            # began the substep in (made inside a surface) without making that push speed: the velocity
+            # update takes (x - x_prev) / h, so x_prev moves out with it by that overlap, at most the
+            # push (the relax pass does this for rigid contacts). A cloth made lying in the ground left
+            # it at overlap / h (2.4 m/s and a 0.3 m leap for 1 cm at dt = 1/240 s). A particle that
+            # landed (its start outside) keeps the inelastic stop; one sliding over an edge keeps its
+            # speed (the overlap is its start's own distance from the surface, not its motion along n)
+            if w_b == zero and wp.length_sq(vb) == zero and wp.dot(n, xp - x_prev[p]) > zero:
+                was_in, d_start, n_start = _surface(
+                    bodies.shape[b],
+                    b,
+                    x_prev[p],
+                    x_prev[p],
+                    bodies,
+                    near.hulls,
+                    near.meshes,
+                    float_t(2.0) * thickness[p],
+                )
+                overlap = thickness[p] - d_start
+                if was_in and overlap > zero:
+                    x_prev[p] = x_prev[p] + n * wp.min(overlap, move)
             _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, near.h, bodies)
             # what the body gave the particle beyond the particle's own momentum change, m_p times its
             # move, the cloth held (taut tethers, the strict slack): it goes on to the pins; a particle
