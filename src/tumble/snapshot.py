@@ -53,7 +53,7 @@ _READS = {5: "float64", 6: None, 7: None}  # formats read, and the precision of 
 # (the solver's scratch rows are reset every step)
 # and the precision (saved as `Snapshot.precision`) with its kernel modules
 _WORLD_SKIP = frozenset(
-    {"_key", "metadata", "profile", "_stage_timers", "device", "_launch_sizes", "bodies", "_precision", "_k"}
+    {"_key", "metadata", "profile", "_lap", "device", "_launch_sizes", "bodies", "_precision", "_k"}
 )
 
 

@@ -30,7 +30,7 @@ from ..launch import LaunchCache, launch
 from ..model import body_struct
 from ..real import BodyArrays, float_t, vec3
 from ..shapes import ShapeType
-from ..state import host_view
+from ..state import host_values
 from .hashgrid import Grid, HashGrid, cell_hash, cell_of
 
 #: extra swept radius [m] so that resting neighbours stay paired
@@ -271,7 +271,7 @@ class BroadPhase:
         """Host side after `launch`: read the pair count; grow the pair buffers and query again if
         they overflowed. Returns True if it queried again (pairs found by a recorded narrow phase
         that followed the first query are then incomplete)."""
-        count = int(host_view(self.pair_count_array)[0])
+        count = host_values(self.pair_count_array)[0]
         again = False
         while count > self.pair_capacity:
             again = True
@@ -280,7 +280,7 @@ class BroadPhase:
             self.pair_b = wp.zeros(self.pair_capacity, dtype=wp.int32, device=self.device)
             self.pair_count_array.zero_()
             self._query(bodies, cache)
-            count = int(host_view(self.pair_count_array)[0])
+            count = host_values(self.pair_count_array)[0]
         self.pair_count = count
-        self.cell_size = float(host_view(self.cell_params)[0])
+        self.cell_size = float(host_values(self.cell_params)[0])
         return again

@@ -27,7 +27,7 @@ from ..launch import LaunchCache, each_in_use, launch_each
 from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
-from ..state import host_view
+from ..state import host_values, host_view
 from ..structs import array_struct
 from .hulls import Hulls, HullSet
 from .meshes import MeshSet
@@ -1713,7 +1713,7 @@ def launch_pairs(
 
 def collected(contacts) -> bool:
     """Host side after `launch_pairs`: the contact count; False (contacts grown) if they overflowed."""
-    count = int(host_view(contacts.count_array)[0])
+    count = host_values(contacts.count_array)[0]
     if count > contacts.capacity:
         contacts.grow(count)
         return False
