@@ -1183,7 +1183,7 @@ class ContactSet(ArraySet):
         dev = self.device
         self.owner_count.zero_()
         self.owner_fill.zero_()
-        # last step's contacts bucketed by owner (counting sort), launched over their capacity
+        # last step's contacts bucketed by owner (counting sort), over their capacity (one thread on the CPU)
         cap = self.previous.capacity
         launch_each(_owner_count, cap, [p, b, owners, self.counts], dev)
         wp.utils.array_scan(self.owner_count, self.owner_start, inclusive=False)
