@@ -48,7 +48,7 @@ def host_values(arr: wp.array) -> memoryview:
         return memoryview(arr.numpy().reshape(-1))
     values = arr.__dict__.get("_tumble_host_values")
     if values is None:
-        values = arr._tumble_host_values = memoryview(host_view(arr).reshape(-1))  # type: ignore[attr-defined]
+        values = arr._tumble_host_values = memoryview(host_view(arr).reshape(-1))  # type: ignore[attr-defined,arg-type]
     return values
 
 
