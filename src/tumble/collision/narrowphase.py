@@ -1552,88 +1552,6 @@ def collide_vertices_mesh(
 # ---------------------------------------------------------------------------- dispatch
 
 
-@wp.func
-def _collide_pair(
-    a: int,
-    b: int,
-    body: BodyArrays,
-    hulls: Hulls,
-    mesh_ids: wp.array(dtype=wp.uint64),
-    dt: float_t,
-    margin: float_t,
-    c: Contacts,
-):
-    """The contacts of one pair of bodies (rows a and b, in either order), by the pair table."""
-    shape = body.shape
-    radius = body.radius
-    half_extents = body.half_extents
-    bound = body.bound_radius
-    geometry = body.geometry
-    # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
-    if shape[a] > shape[b]:
-        t = a
-        a = b
-        b = t
-    sa = shape[a]
-    sb = shape[b]
-    A = Pose()
-    A.x = body.position[a]
-    A.q = body.orientation[a]
-    B = Pose()
-    B.x = body.position[b]
-    B.q = body.orientation[b]
-    # speculative distance: how far the surfaces can approach in one step, plus a margin
-    w = body.angular_velocity
-    reach = wp.length(body.velocity[b] - body.velocity[a])
-    if sa != int(ShapeType.PLANE):
-        reach += wp.length(w[a]) * bound[a]
-    reach += wp.length(w[b]) * bound[b]
-    max_sep = dt * reach + margin
-    one = vec3(_ONE, _ONE, _ONE)
-    if sa == int(ShapeType.PLANE):
-        if sb == int(ShapeType.SPHERE):
-            collide_plane_sphere(c, a, b, A, B, radius[b], max_sep)
-        elif sb == int(ShapeType.BOX):
-            collide_plane_box(c, a, b, A, B, half_extents[b], max_sep)
-        elif sb == int(ShapeType.CAPSULE):
-            collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CONVEX):
-            collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep)
-    elif sa == int(ShapeType.SPHERE):
-        if sb == int(ShapeType.SPHERE):
-            collide_sphere_sphere(c, a, b, A, B, radius[a], radius[b], body.velocity[b] - body.velocity[a], dt, max_sep)
-        elif sb == int(ShapeType.BOX):
-            collide_sphere_box(c, a, b, A, B, radius[a], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CAPSULE):
-            collide_sphere_capsule(c, a, b, A, B, radius[a], radius[b], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CONVEX):
-            collide_sphere_hull(c, a, b, A, B, radius[a], hulls, geometry[b], max_sep)
-    elif sa == int(ShapeType.BOX):
-        if sb == int(ShapeType.BOX):
-            collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CAPSULE):
-            collide_box_capsule(c, a, b, A, B, half_extents[a], radius[b], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CONVEX):
-            # the box as the unit-cube hull (prototype 0) scaled by its half extents
-            collide_hulls(c, a, b, A, B, hulls, 0, half_extents[a], geometry[b], one, max_sep)
-    elif sa == int(ShapeType.CAPSULE):
-        if sb == int(ShapeType.CAPSULE):
-            collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
-        elif sb == int(ShapeType.CONVEX):
-            collide_capsule_hull(c, a, b, A, B, radius[a], half_extents[a], hulls, geometry[b], max_sep)
-    elif sa == int(ShapeType.CONVEX):
-        if sb == int(ShapeType.CONVEX):
-            collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
-    if sb == int(ShapeType.MESH):
-        mesh = mesh_ids[geometry[b]]
-        if sa == int(ShapeType.SPHERE):
-            collide_sphere_mesh(c, a, b, A, B, radius[a], mesh, max_sep)
-        elif sa == int(ShapeType.CAPSULE):
-            collide_capsule_mesh(c, a, b, A, B, radius[a], half_extents[a], mesh, max_sep)
-        elif sa == int(ShapeType.BOX) or sa == int(ShapeType.CONVEX):
-            collide_vertices_mesh(c, a, b, A, B, sa, hulls, geometry[a], half_extents[a], bound[a], mesh, max_sep)
-
-
 @wp.kernel
 def _collide_pairs(
     pair_a: wp.array(dtype=wp.int32),
@@ -1649,7 +1567,78 @@ def _collide_pairs(
 ):
     # launched over the pair capacity, the count on the device (see tumble.launch.launch_each)
     for p in range(wp.tid(), each_in_use(wp.tid(), serial, pair_count[0], pair_a.shape[0])):
-        _collide_pair(pair_a[p], pair_b[p], body, hulls, mesh_ids, dt, margin, c)
+        a = pair_a[p]
+        b = pair_b[p]
+        shape = body.shape
+        radius = body.radius
+        half_extents = body.half_extents
+        bound = body.bound_radius
+        geometry = body.geometry
+        # swap into pair-table order: shape[a] <= shape[b]; the normal then points a -> b
+        if shape[a] > shape[b]:
+            t = a
+            a = b
+            b = t
+        sa = shape[a]
+        sb = shape[b]
+        A = Pose()
+        A.x = body.position[a]
+        A.q = body.orientation[a]
+        B = Pose()
+        B.x = body.position[b]
+        B.q = body.orientation[b]
+        # speculative distance: how far the surfaces can approach in one step, plus a margin
+        w = body.angular_velocity
+        reach = wp.length(body.velocity[b] - body.velocity[a])
+        if sa != int(ShapeType.PLANE):
+            reach += wp.length(w[a]) * bound[a]
+        reach += wp.length(w[b]) * bound[b]
+        max_sep = dt * reach + margin
+        one = vec3(_ONE, _ONE, _ONE)
+        if sa == int(ShapeType.PLANE):
+            if sb == int(ShapeType.SPHERE):
+                collide_plane_sphere(c, a, b, A, B, radius[b], max_sep)
+            elif sb == int(ShapeType.BOX):
+                collide_plane_box(c, a, b, A, B, half_extents[b], max_sep)
+            elif sb == int(ShapeType.CAPSULE):
+                collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CONVEX):
+                collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep)
+        elif sa == int(ShapeType.SPHERE):
+            if sb == int(ShapeType.SPHERE):
+                collide_sphere_sphere(
+                    c, a, b, A, B, radius[a], radius[b], body.velocity[b] - body.velocity[a], dt, max_sep
+                )
+            elif sb == int(ShapeType.BOX):
+                collide_sphere_box(c, a, b, A, B, radius[a], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CAPSULE):
+                collide_sphere_capsule(c, a, b, A, B, radius[a], radius[b], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CONVEX):
+                collide_sphere_hull(c, a, b, A, B, radius[a], hulls, geometry[b], max_sep)
+        elif sa == int(ShapeType.BOX):
+            if sb == int(ShapeType.BOX):
+                collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CAPSULE):
+                collide_box_capsule(c, a, b, A, B, half_extents[a], radius[b], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CONVEX):
+                # the box as the unit-cube hull (prototype 0) scaled by its half extents
+                collide_hulls(c, a, b, A, B, hulls, 0, half_extents[a], geometry[b], one, max_sep)
+        elif sa == int(ShapeType.CAPSULE):
+            if sb == int(ShapeType.CAPSULE):
+                collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
+            elif sb == int(ShapeType.CONVEX):
+                collide_capsule_hull(c, a, b, A, B, radius[a], half_extents[a], hulls, geometry[b], max_sep)
+        elif sa == int(ShapeType.CONVEX):
+            if sb == int(ShapeType.CONVEX):
+                collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
+        if sb == int(ShapeType.MESH):
+            mesh = mesh_ids[geometry[b]]
+            if sa == int(ShapeType.SPHERE):
+                collide_sphere_mesh(c, a, b, A, B, radius[a], mesh, max_sep)
+            elif sa == int(ShapeType.CAPSULE):
+                collide_capsule_mesh(c, a, b, A, B, radius[a], half_extents[a], mesh, max_sep)
+            elif sa == int(ShapeType.BOX) or sa == int(ShapeType.CONVEX):
+                collide_vertices_mesh(c, a, b, A, B, sa, hulls, geometry[a], half_extents[a], bound[a], mesh, max_sep)
 
 
 _default_hulls: dict[str, HullSet] = {}
