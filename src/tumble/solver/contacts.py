@@ -505,6 +505,12 @@ class Pair:
     imb: float_t
 
 
+@wp.func(inline=True)
+def _turned(dtheta: vec3, r: vec3):
+    """An anchor offset r [m] turned with its body by the rotation dtheta [rad] since the step began (to first order)."""
+    return r + wp.cross(dtheta, r)
+
+
 @wp.func
 def _friction_row(rows: wp.array(dtype=ContactRow), k: int, ra: vec3, rb: vec3, limit: float_t, pair: Pair, dv: Delta):
     """Coulomb friction of row k at the anchors ra, rb: |jt| <= limit, clamped on the disc.
@@ -662,12 +668,22 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
     dthb = b.delta_rotation[ib]
     dv = Delta()
     static = pair.ima == float_t(0.0) or pair.imb == float_t(0.0)
+    # friction's anchors on a kinematic body turn with it within the step (a turntable's surface
+    # velocity at the contact turns with the table); on a dynamic body they stay as prepared
+    turn_a = vec3()
+    turn_b = vec3()
+    if pair.ima == float_t(0.0):
+        turn_a = dtha
+    if pair.imb == float_t(0.0):
+        turn_b = dthb
 
     if size == 1:
         # a lone contact: its friction row, then its normal row (non-penetration matters more)
         ra = rows[k].r_a
         rb = rows[k].r_b
-        dv, _ = _friction_row(rows, k, ra, rb, rows[k].friction * rows[k].impulse_n, pair, dv)
+        dv, _ = _friction_row(
+            rows, k, _turned(turn_a, ra), _turned(turn_b, rb), rows[k].friction * rows[k].impulse_n, pair, dv
+        )
         bias, ms, isc = _normal_target(
             rows[k].separation, rows[k].normal, ra, rb, dxa, dtha, dxb, dthb, p, static, False
         )
@@ -712,7 +728,9 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
             change = float_t(0.0)  # the largest impulse change of this sweep [N s]
             change_twist = float_t(0.0)  # the twist row's [N m s]
             if patch:
-                dv, change = _friction_row(rows, k, rows[k].centre_a, rows[k].centre_b, mu * load, pair, dv)
+                ca = _turned(turn_a, rows[k].centre_a)
+                cb = _turned(turn_b, rows[k].centre_b)
+                dv, change = _friction_row(rows, k, ca, cb, mu * load, pair, dv)
                 jw_old = rows[k].impulse_twist
                 wn = wp.dot(pair.wb + dv.wb - pair.wa - dv.wa, rows[k].normal)
                 jw = wp.clamp(jw_old - rows[k].mass_twist * wn * rows[k].scale, -mu * torque, mu * torque)
@@ -727,7 +745,9 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
                     i = size - 1 - j
                 kk = k + i
                 if not patch:
-                    dv, moved = _friction_row(rows, kk, rows[kk].r_a, rows[kk].r_b, mu * rows[kk].impulse_n, pair, dv)
+                    ra = _turned(turn_a, rows[kk].r_a)
+                    rb = _turned(turn_b, rows[kk].r_b)
+                    dv, moved = _friction_row(rows, kk, ra, rb, mu * rows[kk].impulse_n, pair, dv)
                     change = wp.max(change, moved)
                 dv, moved = _normal_row(rows, kk, bias4[i], ms4[i], isc4[i], pair, dv)
                 change = wp.max(change, moved)
