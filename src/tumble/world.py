@@ -778,7 +778,7 @@ class World:
         """
         ids, rows = self._rows(body)
         k = len(rows)
-        h = self.dt if dt is None else _step_length(dt)
+        h = self.dt if dt is None else validate.positive(dt, "dt")
         kinds = self.bodies.numpy("body_kind")[rows]
         if np.any(kinds != BodyKind.KINEMATIC):
             raise ValueError(
@@ -1285,7 +1285,7 @@ class World:
         Returns:
             The number of bodies released.
         """
-        return self._emit(self.dt if dt is None else _step_length(dt))
+        return self._emit(self.dt if dt is None else validate.positive(dt, "dt"))
 
     def _emit(self, dt: float) -> int:
         """The emit stage for a `dt` already checked (`step` has; `emit` checks it)."""
@@ -1304,7 +1304,7 @@ class World:
         Returns:
             The number of contacts; read them with `contact_point`, `contact_normal`, ...
         """
-        dt = self.dt if dt is None else _step_length(dt)
+        dt = self.dt if dt is None else validate.positive(dt, "dt")
         pairs = self.broadphase.find_pairs(self.bodies, dt)
         self._k.narrowphase.collide(self.bodies, pairs, self.contacts, dt, self.hulls, self.meshes)
         return self.contacts.count
@@ -1520,8 +1520,9 @@ class World:
 
 
 def _step_length(dt) -> float:
-    """A step's length [s] as `World.dt` takes it, or as `step(dt)` and the calls that take a step's
-    length do: in (0, `limits.MAX_DT`] (a step(0.5) was taken where dt = 0.5 was refused)."""
+    """A step's length [s] as `World.dt` and `step(dt)` take it: in (0, `limits.MAX_DT`] (a step(0.5)
+    was taken where dt = 0.5 was refused). `emit(dt)` and `collide(dt)`, which step nothing, take any
+    positive length."""
     return validate.number(dt, "dt", low=0.0, high=limits.MAX_DT, above=True)
 
 
