@@ -29,11 +29,11 @@ _NUMPY_DTYPE: dict[type, type] = {wp.int32: np.int32, wp.uint32: np.uint32, wp.i
 def host_view(arr: wp.array) -> np.ndarray:
     """NumPy view of a Warp array: on the CPU the array's own memory, made once per array (a
     `wp.array.numpy()` costs ~5 us, much of a small world's step); on other devices a copy."""
-    assert arr.device is not None  # Warp's stubs allow None; an allocated array always has a device
-    if not arr.device.is_cpu:
-        return arr.numpy()
-    view = arr.__dict__.get("_tumble_host_view")
+    view = arr.__dict__.get("_tumble_host_view")  # (only a CPU array has one: looked up first, it is cheaper)
     if view is None:
+        assert arr.device is not None  # Warp's stubs allow None; an allocated array always has a device
+        if not arr.device.is_cpu:
+            return arr.numpy()
         view = arr._tumble_host_view = arr.numpy()  # type: ignore[attr-defined]  # cached on the array itself
     return view
 
@@ -43,11 +43,11 @@ def host_values(arr: wp.array) -> memoryview:
     once per array), elsewhere of a copy. Python's `sum` over a few dozen of them takes well under a
     microsecond, where a NumPy reduction costs ~2.5 us whatever its size, and an element read is a
     Python number at once (`int(host_view(a)[0])` costs ~0.4 us more)."""
-    assert arr.device is not None  # (as in host_view)
-    if not arr.device.is_cpu:
-        return memoryview(arr.numpy().reshape(-1))
-    values = arr.__dict__.get("_tumble_host_values")
+    values = arr.__dict__.get("_tumble_host_values")  # (as in host_view, only a CPU array has one)
     if values is None:
+        assert arr.device is not None
+        if not arr.device.is_cpu:
+            return memoryview(arr.numpy().reshape(-1))
         values = arr._tumble_host_values = memoryview(host_view(arr).reshape(-1))  # type: ignore[attr-defined,arg-type]
     return values
 
