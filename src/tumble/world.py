@@ -67,6 +67,8 @@ SORT_INTERVAL = 60
 #: worlds of up to this many bodies check their state's finiteness with Python's `sum` over the
 #: values (3 per body and vector: under a microsecond), larger ones with NumPy (~2.5 us a call, then fast)
 VALIDATE_SUM_BODIES = 16
+#: the body state the step checks is finite before it starts
+_CHECKED_FINITE = ("body_position", "body_velocity", "body_angular_velocity")
 
 
 class BodyState(NamedTuple):
@@ -1338,15 +1340,16 @@ class World:
         if n == 0:
             return
         arrays = self.bodies.arrays
-        small = n <= VALIDATE_SUM_BODIES and self.device == "cpu"
-        for name in ("body_position", "body_velocity", "body_angular_velocity"):
-            # the sum is finite when every value is (one pass, no temporary); else look closer
-            if small:
-                total = sum(host_values(arrays[name])[: 3 * n])
-            else:
-                total = np.add.reduce(host_view(arrays[name])[:n], axis=None)
-            if not math.isfinite(total) and not np.isfinite(values := host_view(arrays[name])[:n]).all():
-                bad = int(self.bodies.numpy("body_id")[np.nonzero(~np.isfinite(values).all(axis=1))[0][0]])
+        # a sum is finite when every value is (one pass, no temporary); if not, look closer
+        if n <= VALIDATE_SUM_BODIES and self.device == "cpu":
+            k = 3 * n
+            x, v, w = map(host_values, map(arrays.__getitem__, _CHECKED_FINITE))
+            if math.isfinite(sum(x[:k]) + sum(v[:k]) + sum(w[:k])):
+                return
+        for name in _CHECKED_FINITE:
+            state = host_view(arrays[name])[:n]
+            if not math.isfinite(np.add.reduce(state, axis=None)) and not np.isfinite(state).all():
+                bad = int(self.bodies.numpy("body_id")[np.nonzero(~np.isfinite(state).all(axis=1))[0][0]])
                 raise SimulationError(
                     f"{name} of body {bad} is not finite at t = {self.time:.6g} s "
                     f"(step {self.step_count}); the simulation diverged or was given NaN"
