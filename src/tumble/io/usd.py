@@ -473,20 +473,25 @@ class Take:
     @classmethod
     def from_recording(cls, rec: dict, frames: np.ndarray, fps: float) -> Take:
         names = np.asarray(rec["shape_names"]).astype(str)
-        shape = names[np.asarray(rec["shape"], dtype=np.int64)]
+        kind = np.asarray(rec["shape"], dtype=np.int64)
+        # a removed body's row has shape -1 (and no state): it is left out ("" matches no shape)
+        shape = np.where(kind >= 0, names[np.clip(kind, 0, None)], "")
         pos = np.asarray(rec["position"], dtype=np.float64)[frames]
         quat = np.asarray(rec["orientation"], dtype=np.float64)[frames]
         mass = np.asarray(rec["mass"], dtype=np.float64)
         n = len(shape)
         finite = np.isfinite(pos).all(axis=2) & np.isfinite(quat).all(axis=2)  # (F, N)
         planes = np.flatnonzero(shape == "plane")
-        # a body is static when it has no mass and never moves over the frames exported
+        # a body is static when it has no mass and neither moves nor turns over the frames exported
+        # (a kinematic turntable turning in place was written as static before)
         ever = finite.any(axis=0)
         first = np.where(ever, finite.argmax(axis=0), 0)
         p0 = pos[first, np.arange(n)]
-        still = np.all((pos == p0[None]) | ~finite[..., None], axis=(0, 2))  # (N,)
-        static = np.flatnonzero((shape != "plane") & (mass <= 0.0) & still & ever)
-        moving = np.setdiff1d(np.arange(n), np.union1d(planes, static))
+        q0 = quat[first, np.arange(n)]
+        absent = ~finite[..., None]
+        still = np.all((pos == p0[None]) | absent, axis=(0, 2)) & np.all((quat == q0[None]) | absent, axis=(0, 2))
+        static = np.flatnonzero((shape != "plane") & (shape != "") & (mass <= 0.0) & still & ever)
+        moving = np.setdiff1d(np.flatnonzero(shape != ""), np.union1d(planes, static))
         visible = finite[:, moving]
         # fill the frames where a body does not exist with its nearest known state (hidden there)
         f = len(frames)
@@ -957,9 +962,16 @@ def _volume(proto: Prototype, scales: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- export
 
 
+#: what a recording must hold for an export (`tumble.io.record` writes more)
+RECORDING_KEYS = ("time", "fps", "position", "orientation", "shape", "shape_names", "radius", "half_extents", "mass")
+
+
 def _recording(source) -> dict:
     """A recording's arrays from a dict or an .npz path."""
     if isinstance(source, dict):
+        missing = [k for k in RECORDING_KEYS if k not in source]
+        if missing:  # (a bare KeyError before)
+            raise TumbleError(f"the recording given has no {', '.join(missing)}: it is not a Tumble recording")
         return source
     from .record import load_recording
 
@@ -974,11 +986,7 @@ def _recording(source) -> dict:
         raise
     except Exception as exc:  # noqa: BLE001 - a broken archive, whatever numpy makes of it
         raise TumbleError(f"{str(path)!r}: not a readable recording ({type(exc).__name__}: {exc})") from None
-    missing = [
-        k
-        for k in ("time", "fps", "position", "orientation", "shape", "shape_names", "radius", "half_extents", "mass")
-        if k not in rec
-    ]
+    missing = [k for k in RECORDING_KEYS if k not in rec]
     if missing:
         raise TumbleError(f"{str(path)!r}: not a Tumble recording (no {', '.join(missing)})")
     return rec

@@ -396,3 +396,48 @@ def test_too_many_frames_are_refused_before_anything_runs(recording, tmp_path, m
     assert world.step_count == 0 and list(tmp_path.iterdir()) == []
     with pytest.raises(TumbleError, match=r"the recording holds .*; 100,000,000,000 frames"):
         usd.export(recording, tmp_path / "long.usda", frames=10**11)
+
+
+def test_a_kinematic_body_turning_in_place_is_animated(tmp_path):
+    """A kinematic fan that turns about its own centre moves no point of its centre: it was written
+    as static geometry, its turning lost (found by an outside audit). It is an animated instance
+    whose orientation at the last frame is the world's."""
+    world = tumble.World()
+    world.add_plane()
+    fan = world.add_box(
+        position=(0, 0, 0.5), half_extents=(0.5, 0.05, 0.05), kinematic=True, angular_velocity=(0, 0, 2)
+    )
+    stage = open_stage(usd.export(world, tmp_path / "fan.usda", duration=1.0, fps=30))
+    assert not stage.GetPrimAtPath("/Root/Static/box_1").IsValid()
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    xyzw = [
+        [q.GetImaginary()[0], q.GetImaginary()[1], q.GetImaginary()[2], q.GetReal()]
+        for q in inst.GetOrientationsAttr().Get(30)
+    ]
+    np.testing.assert_allclose(np.abs(np.dot(xyzw[0], world.body_orientation[fan])), 1.0, atol=1e-3)  # half floats
+    assert abs(world.body_orientation[fan][2]) > 0.8  # it turned 2 rad about z
+
+
+@pytest.mark.parametrize("with_mesh", [False, True])
+def test_a_world_with_a_removed_body_exports_the_others(tmp_path, with_mesh):
+    """A removed body's row (shape -1, no state) is left out: it was taken for the last shape name,
+    "mesh", and the export refused the world as an old recording or failed inside NumPy."""
+    world = tumble.World()
+    world.add_plane()
+    if with_mesh:
+        world.add_mesh(vertices=[[3, 0, 0], [4, 0, 0], [3, 1, 0]], triangles=[[0, 1, 2]])
+    gone = world.add_sphere(position=(0, 0, 1), radius=0.1)
+    kept = world.add_sphere(position=(1, 0, 1), radius=0.1)
+    world.remove_body(gone)
+    stage = open_stage(usd.export(world, tmp_path / "r.usda", frames=3))
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Root/Bodies"))
+    positions = np.array(inst.GetPositionsAttr().Get(2))
+    assert len(positions) == 1
+    np.testing.assert_allclose(positions[0], world.body_position[kept], atol=1e-6)
+
+
+def test_a_dict_that_is_not_a_recording_is_refused_by_name(tmp_path):
+    """A hand-made dict missing a recording's arrays gets a TumbleError naming them (a bare KeyError before)."""
+    with pytest.raises(TumbleError, match="the recording given has no time, fps, orientation"):
+        usd.export({"position": np.zeros((1, 1, 3))}, tmp_path / "x.usda")
+    assert list(tmp_path.iterdir()) == []

@@ -107,17 +107,19 @@ JOINT_KINDS = ("ball", "hinge", "slider", "fixed", "distance", "rope")
 def body_ref() -> Check:
     """A body of the file, as its table and index ("box[2]" is the third [[box]]), or "world"."""
 
+    what = '"plane[i]", "sphere[i]", "box[i]", "capsule[i]", "convex[i]", "mesh[i]" or "world"'
+
     def convert(value):
         if not isinstance(value, str):
-            raise Bad(f'must name a body, "plane[i]", "sphere[i]" or "box[i]", or "world"; got {show(value)}')
+            raise Bad(f"must name a body, {what}; got {show(value)}")
         if value == "world":
             return value
         name, _, rest = value.partition("[")
         if name not in BODY_TABLES or not rest.endswith("]") or not rest[:-1].isdigit():
-            raise Bad(f'must name a body, "plane[i]", "sphere[i]" or "box[i]", or "world"; got {show(value)}')
+            raise Bad(f"must name a body, {what}; got {show(value)}")
         return value
 
-    return Check('"plane[i]", "sphere[i]", "box[i]" or "world"', convert)
+    return Check(what, convert)
 
 
 def _material(d: Callable[[str], Any]) -> dict[str, Field]:
