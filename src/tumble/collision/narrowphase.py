@@ -43,6 +43,7 @@ vec8 = wp.types.vector(length=8, dtype=float_t)
 
 _ZERO = wp.constant(float_t(0.0))
 _ONE = wp.constant(float_t(1.0))
+_HALF_SQRT2 = wp.constant(float_t(0.7071067811865476))  # cos 45 degrees
 
 
 #: the contact arrays the narrow phase appends to, one row a contact point (the solver's `ContactSet`
@@ -1226,9 +1227,14 @@ def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
     if wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4):
         length = wp.length(d)
         if length > float_t(1e-6) * (_ONE + wp.length(pl)):
+            face = n
             n = d / length
             dist = length
-            if query.sign < wp.float32(0.0):
+            # behind the face (the sign), the point is inside, pushed out back through the edge;
+            # unless it is more beside the edge than behind the face: past an open mesh's boundary
+            # edge, where a body's corner sliding off a ledge dips as far as its resting contact
+            # sinks, a push back through the edge stopped it (2 m/s to 0.73 and a 4 cm hop)
+            if query.sign < wp.float32(0.0) and -wp.dot(d, face) > _HALF_SQRT2 * length:
                 n = -n
                 dist = -length
     return True, M.x + wp.quat_rotate(M.q, cl), wp.quat_rotate(M.q, n), dist
