@@ -75,6 +75,57 @@ def test_sphere_released_on_a_bowl_side_oscillates_about_the_lowest_point():
     assert np.diff(crossings[:3]).sum() == pytest.approx(period, rel=0.05)
 
 
+@pytest.mark.parametrize("friction", [0.0, 0.8])
+def test_ball_in_a_finely_tessellated_bowl_gains_no_energy(friction):
+    """A ball in a bowl of cells smaller than itself (0.02 m, r = 0.05 m) loses energy, never gains it.
+
+    Rolling or sliding from face to face it crosses a concave edge every few steps. With only the
+    nearest face as its contact it sank into the next face along the one it left and was pushed out
+    after, raised without being slowed: its swing grew from 0.2 to 0.207 m in 5 s (+23 % energy in
+    20 s). Each crossing is an inelastic impact on the new face, so the swing can only shrink. The
+    bound: the energy of 100 um of height (five times the ball's resting sink under its weight).
+    """
+    v, t = grid_mesh(lambda x, y: 0.5 * (x * x + y * y), n=101)
+    w = tumble.World()
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=friction)
+    r, x0 = 0.05, 0.2
+    # released 2 mm above the analytic bowl: the faceted one lies up to 50 um above it
+    w.add_sphere(position=(x0, 0.0, 0.5 * x0 * x0 + r + 0.002), radius=r, restitution=0.0, friction=friction)
+    m, e0 = w.body_mass[1], w.kinetic_energy() + w.potential_energy()
+    energy, xs = [], []
+
+    def record(world):
+        energy.append(world.kinetic_energy() + world.potential_energy())
+        xs.append(world.body_position[1, 0])
+
+    w.run(5.0, callback=record)
+    assert max(energy) <= e0 + m * G * 1e-4
+    assert np.abs(xs[-round(2.0 / w.dt) :]).max() <= x0 + 5e-4  # the last 2 s hold a turning point
+    assert np.abs(xs).min() < 0.01  # it did swing through the middle
+
+
+@pytest.mark.parametrize("alpha_deg", [5.0, 20.0])
+def test_ball_sliding_onto_a_rising_face_keeps_the_speed_along_it(alpha_deg):
+    """A frictionless ball sliding at 2 m/s onto a face rising at alpha keeps v cos(alpha) (e = 0).
+
+    The crease is an inelastic impact: the speed into the new face is lost, the speed along it
+    kept, so the centre then rises (v cos alpha)^2 / (2 g) above where it slid. Bound: one step's
+    rise along the face, v dt sin(alpha) (the crease is met within a step); a crease passed
+    without loss would rise 1.5 mm (5 degrees) and 24 mm (20 degrees) higher.
+    """
+    alpha, v0, r = np.radians(alpha_deg), 2.0, 0.05
+    length = 12.0
+    xb, zb = length * np.cos(alpha), length * np.sin(alpha)
+    vertices = np.array([[-1, -1, 0], [0, -1, 0], [0, 1, 0], [-1, 1, 0], [xb, -1, zb], [xb, 1, zb]], float)
+    w = tumble.World()
+    w.add_mesh(vertices=vertices, triangles=[[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]], restitution=0.0, friction=0.0)
+    w.add_sphere(position=(-0.5, 0.0, r), radius=r, restitution=0.0, friction=0.0, velocity=(v0, 0.0, 0.0))
+    heights = []
+    w.run(1.2 * v0 / (G * np.sin(alpha)) + 0.3, callback=lambda world: heights.append(world.body_position[1, 2]))
+    rise = (v0 * np.cos(alpha)) ** 2 / (2 * G)
+    assert max(heights) - r == pytest.approx(rise, abs=v0 * w.dt * np.sin(alpha))
+
+
 @pytest.mark.parametrize("theta_deg, mu", [(30.0, 0.3), (40.0, 0.5)])
 def test_box_slides_down_a_mesh_ramp_as_down_a_plane(theta_deg, mu):
     """A box on a two-triangle mesh ramp slides with the acceleration it has on an equal plane, within 1 %."""

@@ -44,6 +44,11 @@ vec8 = wp.types.vector(length=8, dtype=float_t)
 _ZERO = wp.constant(float_t(0.0))
 _ONE = wp.constant(float_t(1.0))
 _HALF_SQRT2 = wp.constant(float_t(0.7071067811865476))  # cos 45 degrees
+# a sphere's further mesh faces: a face whose normal is within 1.4 mrad of the nearest contact's
+# is that contact's plane again; a concave neighbour's plane is as far as the mesh within float32's
+# position error (relative 6e-8, a margin of 16 times it)
+_COPLANAR = wp.constant(float_t(1.0 - 1.0e-6))
+_CONCAVE_TOLERANCE = wp.constant(float_t(1.0e-6))
 
 
 #: the contact arrays the narrow phase appends to, one row a contact point (the solver's `ContactSet`
@@ -1258,13 +1263,19 @@ def _mesh_vertex(mesh: wp.uint64, i: int):
 
 @wp.func
 def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t):
-    """The nearest mesh point, then every other face the sphere nearly touches inside the face.
+    """The nearest mesh point, then every other face the sphere nearly touches or rolls onto this step.
 
     A sphere in a crease (a V-groove, a concave corner) rests on two or three faces at once: a
-    face of the triangles near it (BVH AABB query) is a further contact when the centre is in
-    front of it, within r + max_sep of its plane, and projects strictly inside it. Contacts on
-    edges and vertices are left to the nearest point, so a sphere on a flat or convex part of a
-    mesh keeps one contact (neighbours of the touched face meet it on their edges).
+    face of the triangles near it (BVH AABB query) is a further contact, along its own normal,
+    when the centre is in front of it within r + max_sep of its plane and projects inside it.
+    A concave neighbour (its plane no nearer the centre than the mesh is: a plane nearer than
+    the nearest surface point runs through free space, as at a convex edge) is one also where
+    the centre projects outside it by less than max_sep, the distance the sphere can travel in
+    the step: rolling across a concave edge onto it, the sphere is stopped by its plane at the edge instead of sinking into it along
+    the face it left and being pushed out after (a push-out that raised it without slowing it:
+    a ball rolling in a finely tessellated bowl swung ever higher, +23 % energy in 20 s).
+    Contacts on edges and vertices are left to the nearest point, so a sphere on a flat or
+    convex part of a mesh keeps one contact (neighbours of the touched face meet it on their edges).
     """
     found, q, n, d = _mesh_point(mesh, B, A.x, r + max_sep)
     if not found:
@@ -1279,20 +1290,31 @@ def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_
     tri = int(0)
     while wp.mesh_query_aabb_next(query, tri):
         p0 = _mesh_vertex(mesh, tri * 3)
-        e1 = _mesh_vertex(mesh, tri * 3 + 1) - p0
-        e2 = _mesh_vertex(mesh, tri * 3 + 2) - p0
+        p1 = _mesh_vertex(mesh, tri * 3 + 1)
+        p2 = _mesh_vertex(mesh, tri * 3 + 2)
+        e1 = p1 - p0
+        e2 = p2 - p0
         m = wp.cross(e1, e2)
         area2 = wp.length(m)
         if area2 > float_t(0.0):
             nf = m / area2
             dist = wp.dot(nf, p - p0)
             # in front, within reach, not the face (or a coplanar neighbour) already taken
-            if dist > _ZERO and dist <= reach and wp.dot(nf, nq) < float_t(0.999):
-                # barycentric coordinates of the projection: inside when all exceed 1e-4
+            if dist > _ZERO and dist <= reach and wp.dot(nf, nq) < _COPLANAR:
+                # barycentric coordinates of the projection, each times its altitude: the
+                # projection's distance inside each edge (negative outside)
                 w = p - nf * dist - p0
                 l1 = wp.dot(wp.cross(w, e2), m) / (area2 * area2)
                 l2 = wp.dot(wp.cross(e1, w), m) / (area2 * area2)
-                if wp.min(wp.min(l1, l2), _ONE - l1 - l2) > float_t(1e-4):
+                l0 = _ONE - l1 - l2
+                inside = wp.min(
+                    wp.min(l0 * area2 / wp.length(p2 - p1), l1 * area2 / wp.length(e2)), l2 * area2 / wp.length(e1)
+                )
+                # strictly inside (by 1e-4 of each altitude), or concave and within the step's reach of it
+                take = wp.min(wp.min(l1, l2), l0) > float_t(1e-4)
+                if not take and d > _ZERO and inside > -max_sep:
+                    take = dist >= d - _CONCAVE_TOLERANCE * (_ONE + wp.length(p))
+                if take:
                     nw = wp.quat_rotate(B.q, nf)
                     emit(c, a, b, A, B, -nw, A.x - nw * r, A.x - nw * dist, max_sep)
 
