@@ -621,16 +621,17 @@ class World:
             kind: "ball", "hinge", "slider", "fixed", "distance" or "rope".
             body_a, body_b: BodyId (or index) of the two bodies, or None for the world.
             anchor: shared anchor, world point at creation [m]; or anchor_a / anchor_b, one per body
-                (world points, or body-frame points with frame="body"). Default: a's centre (distance
-                and rope: each body's centre).
+                (world points, or body-frame points with frame="body"; either wins over anchor for its
+                body). Default: a's centre (distance and rope: each body's centre).
             axis: hinge / slider axis, world (or a's frame with frame="body"); default (0, 0, 1).
-            lower, upper: hinge angle limits [rad] or slider translation limits [m] (from creation).
+            lower, upper: hinge angle limits [rad], within [-pi, pi] (an infinite one: no limit on that side),
+                or slider translation limits [m] (from creation).
             motor_speed: hinge [rad/s] / slider [m/s] target speed of b relative to a, with max_torque [N m]
                 (hinge) or max_force [N] (slider).
             length, min_length, max_length: distance joint rest length (default: the current distance)
                 and bounds (default: rigid rod; rope: 0 to length; spring: unbounded).
             stiffness, damping: distance spring [N/m], [N s/m].
-            break_force: the joint breaks when its force exceeds this [N] (default never).
+            break_force: the joint breaks when its force exceeds this [N], > 0 (default never).
             collide: whether the two bodies still collide (default False).
 
         Returns:

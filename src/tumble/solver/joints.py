@@ -14,7 +14,8 @@ the same substeps as the contacts (see `solver/contacts.py` and `World.step`):
 - every row reads the bodies' current poses (positions and orientations after the last
   integration), so the error is exact, not linearised;
 - rows of one joint, in order: the axial row (motor or spring, then lower and upper limit),
-  the angular rows, and the point rows last, since keeping the bodies together matters most.
+  with the effective mass it has while the other rows hold, then the angular and point rows
+  together as one block (see "a joint's rows as one block" below).
 
 Rows, with C the position error and J the velocity Jacobian (Cdot = J v):
 - point (ball, hinge, fixed): C = p_b - p_a (anchors in world), a 3 x 3 block
@@ -124,6 +125,11 @@ wp.set_module_options({"enable_backward": False})
 #: joints twice as stiff as contacts, damping ratio 2)
 JOINT_HERTZ_PER_SUBSTEP_RATE = 0.25
 JOINT_DAMPING_RATIO = 2.0
+#: the fastest a joint block's position error is fed back, per row [m/s, rad/s] (as contacts' push-out):
+#: errors beyond 5 mm (at 8 substeps of 1/240 s) are closed at this speed. Light bodies pulled apart by
+#: joints that cannot all hold (a 4 g sphere between a turning kinematic box and a static body) were
+#: flung at the error's full rate and diverged (a random search: 12 of 360 such worlds against 20)
+JOINT_PUSH_SPEED = wp.constant(float_t(3.0))
 
 
 class JointKind(IntEnum):
@@ -271,6 +277,13 @@ def _apply_angular(g: _Geometry, s: _Velocities, L: vec3):
 
 
 @wp.func
+def _push(bias: vec3):
+    """A block's position feedback [m/s, rad/s], each row's at most JOINT_PUSH_SPEED."""
+    top = JOINT_PUSH_SPEED
+    return vec3(wp.clamp(bias[0], -top, top), wp.clamp(bias[1], -top, top), wp.clamp(bias[2], -top, top))
+
+
+@wp.func
 def _limit(
     g: _Geometry,
     s: _Velocities,
@@ -330,6 +343,114 @@ def _solve33(K: mat33, r: vec3):
     if wp.determinant(K) == float_t(0.0):
         return vec3()
     return wp.inverse(K) * r
+
+
+# ---------------------------------------------------------------------------- a joint's rows as one block
+# A hinge's point and swing rows, a fixed joint's point and angular rows, a slider's line and
+# angular rows are solved together, as one block: row by row, a body whose moment is small beside
+# m r^2 about the anchor (a pendulum's bob) is turned by the angular rows instead of moved, and
+# the point row turns it back, so the rows converged at I / (I + m r^2) a pass: a hinged bob of
+# r = 2 cm on a 1 m arm, pushed across the hinge plane at 1 m/s, swung 35 mm out of it; welded
+# 1 m out, it sagged 25 mm. The axial row (motor, limits) is still solved on its own, before the
+# block, with its own effective mass (I for the bob): with the block's coupled mass (I + m r^2)
+# a limit stops such a bob dead, but light bodies joined in conflicting loops (a kinematic body
+# and a static one pulling on the same 4 g sphere) then diverged half again as often in a random
+# search as row by row, so that waits (docs/design.md).
+
+
+@wp.struct
+class _Rows:
+    """Three rows of a joint, row i: Cdot_i = n_i.(v_b - v_a) + jb_i.w_b - ja_i.w_a (the rows of
+    the matrices n, ja, jb); `on` is 1 for a row in use, 0 for one left out (a hinge's third swing
+    row, a slider's third line row). A linear group's impulse is sum lambda_i n_i at the anchors,
+    an angular group's sum lambda_i ja_i (ja_i = jb_i)."""
+
+    n: mat33
+    ja: mat33
+    jb: mat33
+    C: vec3  # position errors
+    on: vec3
+
+
+@wp.struct
+class _Block:
+    """A joint's rows solved together: a linear group (point, or slider line) and an angular one
+    (hinge swing, or angular lock)."""
+
+    lin: _Rows
+    ang: _Rows
+
+
+@wp.struct
+class _Factor:
+    """The block's K = [[A, B], [B^T, C]] (A the linear group's 3 x 3, C the angular group's)
+    ready to solve: A^-1, B and the inverse of the Schur complement S = C - B^T A^-1 B."""
+
+    A_inv: mat33
+    B: mat33
+    S_inv: mat33
+
+
+@wp.func
+def _rows_of(a: vec3, b: vec3, c: vec3):
+    return wp.matrix_from_rows(a, b, c)
+
+
+@wp.func
+def _group_coupling(g: _Geometry, x: _Rows, y: _Rows):
+    """J_x M^-1 J_y^T between two groups, masked to the rows in use."""
+    K = (x.n * wp.transpose(y.n)) * (g.ma + g.mb) + x.ja * g.Ia * wp.transpose(y.ja) + x.jb * g.Ib * wp.transpose(y.jb)
+    return wp.diag(x.on) * K * wp.diag(y.on)
+
+
+@wp.func
+def _inverse_or_zero(M: mat33):
+    """M^-1; zero when M is singular (rows no body can move along)."""
+    if wp.determinant(M) == float_t(0.0):
+        return mat33()
+    return wp.inverse(M)
+
+
+@wp.func
+def _factor(g: _Geometry, blk: _Block):
+    """Factor the block's K (the identity on rows left out)."""
+    one = vec3(float_t(1.0), float_t(1.0), float_t(1.0))
+    A = _group_coupling(g, blk.lin, blk.lin) + wp.diag(one - blk.lin.on)
+    C = _group_coupling(g, blk.ang, blk.ang) + wp.diag(one - blk.ang.on)
+    f = _Factor()
+    f.B = _group_coupling(g, blk.lin, blk.ang)
+    f.A_inv = _inverse_or_zero(A)
+    f.S_inv = _inverse_or_zero(C - wp.transpose(f.B) * f.A_inv * f.B)
+    return f
+
+
+@wp.func
+def _block_solve(f: _Factor, r1: vec3, r2: vec3):
+    """(x, y) with K (x, y) = (r1, r2), by the Schur complement."""
+    y = f.S_inv * (r2 - wp.transpose(f.B) * (f.A_inv * r1))
+    x = f.A_inv * (r1 - f.B * y)
+    return x, y
+
+
+@wp.func
+def _group_speed(x: _Rows, s: _Velocities):
+    return wp.cw_mul(x.n * (s.vb - s.va) + x.jb * s.wb - x.ja * s.wa, x.on)
+
+
+@wp.func
+def _group_apply(g: _Geometry, x: _Rows, s: _Velocities, lam: vec3):
+    """Velocities after the group's impulses lam."""
+    out = _Velocities()
+    out.va = s.va - wp.transpose(x.n) * lam * g.ma
+    out.wa = s.wa - g.Ia * (wp.transpose(x.ja) * lam)
+    out.vb = s.vb + wp.transpose(x.n) * lam * g.mb
+    out.wb = s.wb + g.Ib * (wp.transpose(x.jb) * lam)
+    return out
+
+
+@wp.func
+def _block_apply(g: _Geometry, blk: _Block, s: _Velocities, lin: vec3, ang: vec3):
+    return _group_apply(g, blk.ang, _group_apply(g, blk.lin, s, lin), ang)
 
 
 # ---------------------------------------------------------------------------- kernels
@@ -469,6 +590,41 @@ def _make_solve(kind: int):
             g.value = length
         return g
 
+    @wp.func
+    def block(g: _Geometry):
+        """The rows solved together: point (world axes) and swing (hinge), point and angular lock
+        (fixed, world axes), line (across the axis) and angular lock (slider)."""
+        blk = _Block()
+        zero = float_t(0.0)
+        one = float_t(1.0)
+        ex = vec3(one, zero, zero)
+        ey = vec3(zero, one, zero)
+        ez = vec3(zero, zero, one)
+        ones = vec3(one, one, one)
+        if wp.static(kind == _HINGE or kind == _FIXED):
+            blk.lin.n = wp.identity(n=3, dtype=float_t)
+            blk.lin.ja = _rows_of(wp.cross(g.ra, ex), wp.cross(g.ra, ey), wp.cross(g.ra, ez))
+            blk.lin.jb = _rows_of(wp.cross(g.rb, ex), wp.cross(g.rb, ey), wp.cross(g.rb, ez))
+            blk.lin.C = g.d
+            blk.lin.on = ones
+        if wp.static(kind == _SLIDER):
+            blk.lin.n = _rows_of(g.perp1, g.perp2, vec3())
+            blk.lin.ja = _rows_of(wp.cross(g.arm_a, g.perp1), wp.cross(g.arm_a, g.perp2), vec3())
+            blk.lin.jb = _rows_of(wp.cross(g.rb, g.perp1), wp.cross(g.rb, g.perp2), vec3())
+            blk.lin.C = vec3(wp.dot(g.perp1, g.d), wp.dot(g.perp2, g.d), zero)
+            blk.lin.on = vec3(one, one, zero)
+        if wp.static(kind == _HINGE):
+            blk.ang.ja = _rows_of(g.perp1, g.perp2, vec3())
+            blk.ang.jb = blk.ang.ja
+            blk.ang.C = vec3(wp.dot(g.perp1, g.twist), wp.dot(g.perp2, g.twist), zero)
+            blk.ang.on = vec3(one, one, zero)
+        if wp.static(kind == _FIXED or kind == _SLIDER):
+            blk.ang.ja = wp.identity(n=3, dtype=float_t)
+            blk.ang.jb = blk.ang.ja
+            blk.ang.C = g.twist
+            blk.ang.on = ones
+        return blk
+
     # a name of its own: a recorded CPU graph finds a kernel by its name
     @wp.kernel(name=f"_solve_{JointKind(kind).name.lower()}")
     def solve(
@@ -546,6 +702,16 @@ def _make_solve(kind: int):
             s = s0
             zero = float_t(0.0)
 
+            # the block's rows (point, swing, angular lock, slider line); a distance joint has none
+            blk = block(g)
+            f = _Factor()
+            acc1 = vec3()  # the linear group's accumulated impulses
+            acc2 = vec3()  # the angular group's
+            if wp.static(kind != _DISTANCE):
+                f = _factor(g, blk)
+                acc1 = wp.cw_mul(blk.lin.n * j.impulse_linear[k], blk.lin.on)
+                acc2 = wp.cw_mul(blk.ang.ja * j.impulse_angular[k], blk.ang.on)
+
             if mode == 0:
                 # warm start: last step's impulses, at the current poses
                 s = _total(
@@ -620,73 +786,20 @@ def _make_solve(kind: int):
                     s = _apply_axial(g, s, hi - new)
                     j.impulse_upper[k] = new
 
-                # angular: all three axes (fixed, slider) or the two across the hinge axis
-                if wp.static(kind == _FIXED or kind == _SLIDER):
-                    L0 = j.impulse_angular[k]
-                    cdot3 = s.wb - s.wa
-                    bias3 = vec3()
+                # the block: p_b = p_a (hinge, fixed) or p_b on a's axis line (slider), and the
+                # bodies' frames turning together (all three axes, or the two across a hinge)
+                if wp.static(kind != _DISTANCE):
+                    r1 = _group_speed(blk.lin, s)
+                    r2 = _group_speed(blk.ang, s)
                     if use_bias != 0:
-                        bias3 = g.twist * bias_rate
-                    L = -ms * _solve33(g.Ia + g.Ib, cdot3 + bias3) - isc * L0
-                    L = L * relax
-                    s = _apply_angular(g, s, L)
-                    j.impulse_angular[k] = L0 + L
-                if wp.static(kind == _HINGE):
-                    L0 = j.impulse_angular[k]
-                    e1 = g.perp1
-                    e2 = g.perp2
-                    cdot2 = vec2(wp.dot(e1, s.wb - s.wa), wp.dot(e2, s.wb - s.wa))
-                    bias2 = vec2()
-                    if use_bias != 0:
-                        bias2 = vec2(wp.dot(e1, g.twist), wp.dot(e2, g.twist)) * bias_rate
-                    acc = vec2(wp.dot(e1, L0), wp.dot(e2, L0))
-                    lam = -ms * _solve22(_perp_block(g.Ia + g.Ib, e1, e2), cdot2 + bias2) - isc * acc
-                    lam = lam * relax
-                    L = e1 * lam[0] + e2 * lam[1]
-                    s = _apply_angular(g, s, L)
-                    # keep only the components across the axis (the axis carries the motor and limits)
-                    j.impulse_angular[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
-
-                # point: p_b = p_a (ball, hinge, fixed), or p_b on a's axis line (slider)
-                if wp.static(kind == _BALL or kind == _HINGE or kind == _FIXED):
-                    P0 = j.impulse_linear[k]
-                    cdot3 = s.vb + wp.cross(s.wb, g.rb) - s.va - wp.cross(s.wa, g.ra)
-                    bias3 = vec3()
-                    if use_bias != 0:
-                        bias3 = g.d * bias_rate
-                    Sa = wp.skew(g.ra)
-                    Sb = wp.skew(g.rb)
-                    K = wp.identity(n=3, dtype=float_t) * (g.ma + g.mb) - Sa * g.Ia * Sa - Sb * g.Ib * Sb
-                    P = (-ms * _solve33(K, cdot3 + bias3) - isc * P0) * relax
-                    s = _apply_linear(g, s, P)
-                    j.impulse_linear[k] = P0 + P
-                if wp.static(kind == _SLIDER):
-                    P0 = j.impulse_linear[k]
-                    e1 = g.perp1
-                    e2 = g.perp2
-                    ja1 = wp.cross(g.arm_a, e1)
-                    ja2 = wp.cross(g.arm_a, e2)
-                    jb1 = wp.cross(g.rb, e1)
-                    jb2 = wp.cross(g.rb, e2)
-                    m = g.ma + g.mb
-                    K2 = mat22(
-                        m + wp.dot(ja1, g.Ia * ja1) + wp.dot(jb1, g.Ib * jb1),
-                        wp.dot(ja1, g.Ia * ja2) + wp.dot(jb1, g.Ib * jb2),
-                        wp.dot(ja2, g.Ia * ja1) + wp.dot(jb2, g.Ib * jb1),
-                        m + wp.dot(ja2, g.Ia * ja2) + wp.dot(jb2, g.Ib * jb2),
-                    )
-                    dv = s.vb - s.va
-                    cdot2 = vec2(
-                        wp.dot(e1, dv) + wp.dot(jb1, s.wb) - wp.dot(ja1, s.wa),
-                        wp.dot(e2, dv) + wp.dot(jb2, s.wb) - wp.dot(ja2, s.wa),
-                    )
-                    bias2 = vec2()
-                    if use_bias != 0:
-                        bias2 = vec2(wp.dot(e1, g.d), wp.dot(e2, g.d)) * bias_rate
-                    acc = vec2(wp.dot(e1, P0), wp.dot(e2, P0))
-                    lam = (-ms * _solve22(K2, cdot2 + bias2) - isc * acc) * relax
-                    s = _apply_linear(g, s, e1 * lam[0] + e2 * lam[1])
-                    j.impulse_linear[k] = e1 * (acc[0] + lam[0]) + e2 * (acc[1] + lam[1])
+                        r1 = r1 + _push(wp.cw_mul(blk.lin.C, blk.lin.on) * bias_rate)
+                        r2 = r2 + _push(wp.cw_mul(blk.ang.C, blk.ang.on) * bias_rate)
+                    x1, x2 = _block_solve(f, r1, r2)
+                    lam1 = (-ms * x1 - isc * acc1) * relax
+                    lam2 = (-ms * x2 - isc * acc2) * relax
+                    s = _block_apply(g, blk, s, lam1, lam2)
+                    j.impulse_linear[k] = wp.transpose(blk.lin.n) * (acc1 + lam1)
+                    j.impulse_angular[k] = wp.transpose(blk.ang.ja) * (acc2 + lam2)
 
             add_velocity(ia, s.va - s0.va, s.wa - s0.wa, b.velocity, b.angular_velocity, b.inv_mass, serial)
             add_velocity(ib, s.vb - s0.vb, s.wb - s0.wb, b.velocity, b.angular_velocity, b.inv_mass, serial)
@@ -1416,6 +1529,17 @@ def joint_rows(
             bound = math.pi if kind == JointKind.HINGE else math.inf
             lo = -bound if lower is None else _scalar(lower, "lower", allow_inf=True)
             hi = bound if upper is None else _scalar(upper, "upper", allow_inf=True)
+            if kind == JointKind.HINGE:
+                # the hinge angle is measured in [-pi, pi]: a limit beyond would never be met (an
+                # infinite one is no limit on that side)
+                for key, value in (("lower", lo), ("upper", hi)):
+                    if math.isfinite(value) and abs(value) > math.pi * (1.0 + 1e-12):
+                        raise JointArgumentError(
+                            key,
+                            f"a hinge's angle runs from -180 to 180 degrees (-pi to pi rad), got {value:g} rad"
+                            f" ({math.degrees(value):g} degrees)",
+                        )
+                lo, hi = max(lo, -math.pi), min(hi, math.pi)
             if lo > hi:
                 raise JointArgumentError("lower", f"lower {lo:g} > upper {hi:g}")
     elif lower is not None or upper is not None:
@@ -1458,6 +1582,8 @@ def joint_rows(
         if k or c:
             raise JointArgumentError("stiffness", f"a {name} joint has no spring (distance joints do)")
     force = _scalar(break_force, "break_force", low=0.0, allow_inf=True)
+    if force == 0.0:
+        raise JointArgumentError("break_force", "must be > 0 (a joint of break force 0 would break at once)")
     big = 1.0e30  # infinite limits as large finite numbers: no inf * 0 in the kernels
     return {
         "joint_kind": np.array([int(kind)], dtype=np.int32),

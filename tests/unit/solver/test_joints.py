@@ -69,6 +69,11 @@ def test_distance_and_rope_defaults():
         (("ball", 0, 1), {"lower": 0.0}, "lower"),
         (("hinge", 0, 1), {"motor_speed": 1.0}, "max_torque"),
         (("ball", 0, 1), {"anchor": (0, float("nan"), 0)}, "anchor"),
+        # the hinge angle runs over [-pi, pi]: a limit beyond it would never be met
+        (("hinge", 0, 1), {"upper": 4.0}, "upper"),
+        (("hinge", 0, 1), {"lower": -3.5, "upper": 0.0}, "lower"),
+        # a joint that breaks at any force (the scene loader refused it already)
+        (("ball", 0, 1), {"break_force": 0.0}, "break_force"),
     ],
 )
 def test_add_joint_rejects_bad_arguments(args, kwargs, key):
@@ -79,6 +84,24 @@ def test_add_joint_rejects_bad_arguments(args, kwargs, key):
     assert info.value.key == key
     assert str(info.value).startswith(f"{key}: ")
     assert world.joint_count == 0
+
+
+def test_a_per_body_anchor_wins_over_the_shared_one_for_its_body():
+    """anchor with anchor_b: a's anchor is `anchor`, b's is `anchor_b` (a rope from a world point to a body point)."""
+    world, a, b = _world()
+    world.add_joint("rope", a, b, anchor=(0.0, 0.0, 2.0), anchor_b=(0.3, 0.0, 1.0))
+    pa = world.body_position[a.index] + world.joints.numpy("joint_local_a")[0]  # the bodies start unrotated
+    pb = world.body_position[b.index] + world.joints.numpy("joint_local_b")[0]
+    assert pa == pytest.approx([0.0, 0.0, 2.0])
+    assert pb == pytest.approx([0.3, 0.0, 1.0])
+
+
+def test_infinite_hinge_limits_are_no_limit_on_that_side():
+    """lower=-inf (or upper=inf) on a hinge is the end of its range, -pi (pi)."""
+    world, a, b = _world()
+    world.add_joint("hinge", a, b, lower=-math.inf, upper=0.5)
+    assert world.joints.numpy("joint_lower")[0] == pytest.approx(-math.pi)
+    assert world.joints.numpy("joint_upper")[0] == pytest.approx(0.5)
 
 
 def test_add_joint_rejects_two_static_bodies():
@@ -135,6 +158,7 @@ def test_scene_joint_table_builds_joints():
         (("axis = [0, 1, 0]", "axis = [0, 0, 0]"), "[joint[0]] axis: must not be the zero vector"),
         (("upper = 90", "upper = -90"), "[joint[0]] lower: lower -45 > upper -90"),
         (('body_b = "box[0]"', 'body_b = "cube[0]"'), "[joint[0]] body_b: must name a body"),
+        (("upper = 90", "upper = 200"), "[joint[0]] upper: a hinge's angle runs from -180 to 180 degrees"),
         (('body_a = "sphere[0]"', 'body_a = "plane[0]"\nbody_b = "world"'), None),
     ],
 )
