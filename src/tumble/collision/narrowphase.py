@@ -1246,24 +1246,17 @@ def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
 
 
 @wp.func
-def _sphere_mesh(
-    c: Contacts, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64, max_sep: float_t
-):
-    found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
-    if found:
-        # n points out of the mesh towards the sphere; the contact normal runs a -> b
-        emit(c, a, b, A, B, -n, centre - n * r, q, max_sep)
-
-
-@wp.func
 def _mesh_vertex(mesh: wp.uint64, i: int):
     p = wp.mesh_get_point(mesh, i)
     return vec3(float_t(p[0]), float_t(p[1]), float_t(p[2]))
 
 
 @wp.func
-def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t):
-    """The nearest mesh point, then every other face the sphere nearly touches or rolls onto this step.
+def _sphere_mesh(
+    c: Contacts, a: int, b: int, A: Pose, B: Pose, centre: vec3, r: float_t, mesh: wp.uint64, max_sep: float_t
+):
+    """A sphere of body a at `centre` against a mesh: the nearest mesh point, then every other face
+    the sphere nearly touches or rolls onto this step.
 
     A sphere in a crease (a V-groove, a concave corner) rests on two or three faces at once: a
     face of the triangles near it (BVH AABB query) is a further contact, along its own normal,
@@ -1271,17 +1264,18 @@ def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_
     A concave neighbour (its plane no nearer the centre than the mesh is: a plane nearer than
     the nearest surface point runs through free space, as at a convex edge) is one also where
     the centre projects outside it by less than max_sep, the distance the sphere can travel in
-    the step: rolling across a concave edge onto it, the sphere is stopped by its plane at the edge instead of sinking into it along
-    the face it left and being pushed out after (a push-out that raised it without slowing it:
-    a ball rolling in a finely tessellated bowl swung ever higher, +23 % energy in 20 s).
+    the step: rolling across a concave edge onto it, the sphere is stopped by its plane at the
+    edge instead of sinking into it along the face it left and being pushed out after (a push-out
+    that raised it without slowing it: a ball rolling in a finely tessellated bowl swung ever
+    higher, +23 % energy in 20 s; a capsule, whose ends and middle are such spheres, too).
     Contacts on edges and vertices are left to the nearest point, so a sphere on a flat or
     convex part of a mesh keeps one contact (neighbours of the touched face meet it on their edges).
     """
-    found, q, n, d = _mesh_point(mesh, B, A.x, r + max_sep)
+    found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
     if not found:
         return
-    emit(c, a, b, A, B, -n, A.x - n * r, q, max_sep)
-    p = wp.quat_rotate_inv(B.q, A.x - B.x)  # the centre in the mesh frame
+    emit(c, a, b, A, B, -n, centre - n * r, q, max_sep)
+    p = wp.quat_rotate_inv(B.q, centre - B.x)  # the centre in the mesh frame
     reach = r + max_sep
     lower = wp.vec3f(wp.float32(p[0] - reach), wp.float32(p[1] - reach), wp.float32(p[2] - reach))
     upper = wp.vec3f(wp.float32(p[0] + reach), wp.float32(p[1] + reach), wp.float32(p[2] + reach))
@@ -1316,7 +1310,13 @@ def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_
                     take = dist >= d - _CONCAVE_TOLERANCE * (_ONE + wp.length(p))
                 if take:
                     nw = wp.quat_rotate(B.q, nf)
-                    emit(c, a, b, A, B, -nw, A.x - nw * r, A.x - nw * dist, max_sep)
+                    emit(c, a, b, A, B, -nw, centre - nw * r, centre - nw * dist, max_sep)
+
+
+@wp.func
+def collide_sphere_mesh(c: Contacts, a: int, b: int, A: Pose, B: Pose, r: float_t, mesh: wp.uint64, max_sep: float_t):
+    """A sphere against a mesh (`_sphere_mesh` at its centre)."""
+    _sphere_mesh(c, a, b, A, B, A.x, r, mesh, max_sep)
 
 
 @wp.func
