@@ -14,8 +14,7 @@ the same substeps as the contacts (see `solver/contacts.py` and `World.step`):
 - every row reads the bodies' current poses (positions and orientations after the last
   integration), so the error is exact, not linearised;
 - rows of one joint, in order: the axial row (motor or spring, then lower and upper limit),
-  with the effective mass it has while the other rows hold, then the angular and point rows
-  together as one block (see "a joint's rows as one block" below).
+  then the angular and point rows together as one block (see "a joint's rows as one block").
 
 Rows, with C the position error and J the velocity Jacobian (Cdot = J v):
 - point (ball, hinge, fixed): C = p_b - p_a (anchors in world), a 3 x 3 block
@@ -113,7 +112,7 @@ import warp as wp
 from .. import validate
 from ..launch import LaunchCache, launch
 from ..model import Field, Role, body_arrays, fields_of
-from ..real import BodyArrays, float_t, mat22, mat33, quat, vec2, vec3
+from ..real import BodyArrays, float_t, mat33, quat, vec3
 from ..state import ArraySet, RowGroup, readonly
 from ..structs import array_struct, fill_struct
 from .rigid import add_to_velocity, inv_inertia_world, safe_inverse
@@ -324,21 +323,6 @@ def _total(g: _Geometry, s: _Velocities, linear: vec3, angular: vec3, axial: flo
 
 
 @wp.func
-def _perp_block(I: mat33, e1: vec3, e2: vec3):
-    """The 2 x 2 block [e_i . I e_j] of a symmetric 3 x 3 matrix."""
-    return mat22(wp.dot(e1, I * e1), wp.dot(e1, I * e2), wp.dot(e2, I * e1), wp.dot(e2, I * e2))
-
-
-@wp.func
-def _solve22(K: mat22, r: vec2):
-    det = K[0, 0] * K[1, 1] - K[0, 1] * K[1, 0]
-    if det == float_t(0.0):
-        return vec2()
-    inv = float_t(1.0) / det
-    return vec2((K[1, 1] * r[0] - K[0, 1] * r[1]) * inv, (K[0, 0] * r[1] - K[1, 0] * r[0]) * inv)
-
-
-@wp.func
 def _solve33(K: mat33, r: vec3):
     if wp.determinant(K) == float_t(0.0):
         return vec3()
@@ -389,11 +373,6 @@ class _Factor:
     A_inv: mat33
     B: mat33
     S_inv: mat33
-
-
-@wp.func
-def _rows_of(a: vec3, b: vec3, c: vec3):
-    return wp.matrix_from_rows(a, b, c)
 
 
 @wp.func
@@ -603,18 +582,18 @@ def _make_solve(kind: int):
         ones = vec3(one, one, one)
         if wp.static(kind == _HINGE or kind == _FIXED):
             blk.lin.n = wp.identity(n=3, dtype=float_t)
-            blk.lin.ja = _rows_of(wp.cross(g.ra, ex), wp.cross(g.ra, ey), wp.cross(g.ra, ez))
-            blk.lin.jb = _rows_of(wp.cross(g.rb, ex), wp.cross(g.rb, ey), wp.cross(g.rb, ez))
+            blk.lin.ja = wp.matrix_from_rows(wp.cross(g.ra, ex), wp.cross(g.ra, ey), wp.cross(g.ra, ez))
+            blk.lin.jb = wp.matrix_from_rows(wp.cross(g.rb, ex), wp.cross(g.rb, ey), wp.cross(g.rb, ez))
             blk.lin.C = g.d
             blk.lin.on = ones
         if wp.static(kind == _SLIDER):
-            blk.lin.n = _rows_of(g.perp1, g.perp2, vec3())
-            blk.lin.ja = _rows_of(wp.cross(g.arm_a, g.perp1), wp.cross(g.arm_a, g.perp2), vec3())
-            blk.lin.jb = _rows_of(wp.cross(g.rb, g.perp1), wp.cross(g.rb, g.perp2), vec3())
+            blk.lin.n = wp.matrix_from_rows(g.perp1, g.perp2, vec3())
+            blk.lin.ja = wp.matrix_from_rows(wp.cross(g.arm_a, g.perp1), wp.cross(g.arm_a, g.perp2), vec3())
+            blk.lin.jb = wp.matrix_from_rows(wp.cross(g.rb, g.perp1), wp.cross(g.rb, g.perp2), vec3())
             blk.lin.C = vec3(wp.dot(g.perp1, g.d), wp.dot(g.perp2, g.d), zero)
             blk.lin.on = vec3(one, one, zero)
         if wp.static(kind == _HINGE):
-            blk.ang.ja = _rows_of(g.perp1, g.perp2, vec3())
+            blk.ang.ja = wp.matrix_from_rows(g.perp1, g.perp2, vec3())
             blk.ang.jb = blk.ang.ja
             blk.ang.C = vec3(wp.dot(g.perp1, g.twist), wp.dot(g.perp2, g.twist), zero)
             blk.ang.on = vec3(one, one, zero)
@@ -702,16 +681,6 @@ def _make_solve(kind: int):
             s = s0
             zero = float_t(0.0)
 
-            # the block's rows (point, swing, angular lock, slider line); a distance joint has none
-            blk = block(g)
-            f = _Factor()
-            acc1 = vec3()  # the linear group's accumulated impulses
-            acc2 = vec3()  # the angular group's
-            if wp.static(kind != _DISTANCE):
-                f = _factor(g, blk)
-                acc1 = wp.cw_mul(blk.lin.n * j.impulse_linear[k], blk.lin.on)
-                acc2 = wp.cw_mul(blk.ang.ja * j.impulse_angular[k], blk.ang.on)
-
             if mode == 0:
                 # warm start: last step's impulses, at the current poses
                 s = _total(
@@ -789,6 +758,10 @@ def _make_solve(kind: int):
                 # the block: p_b = p_a (hinge, fixed) or p_b on a's axis line (slider), and the
                 # bodies' frames turning together (all three axes, or the two across a hinge)
                 if wp.static(kind != _DISTANCE):
+                    blk = block(g)
+                    f = _factor(g, blk)
+                    acc1 = wp.cw_mul(blk.lin.n * j.impulse_linear[k], blk.lin.on)  # accumulated impulses
+                    acc2 = wp.cw_mul(blk.ang.ja * j.impulse_angular[k], blk.ang.on)
                     r1 = _group_speed(blk.lin, s)
                     r2 = _group_speed(blk.ang, s)
                     if use_bias != 0:
