@@ -359,6 +359,50 @@ def test_hinge_keeps_a_light_bob_in_its_plane():
     assert np.abs(across).max() < 1.0 * DT / 8 / 10
 
 
+def test_hinge_limit_stops_a_light_bob():
+    """A bob of r = 2 cm on a 1 m arm, released level, swings down onto a 45 degree limit and stays
+    there: the limit stops the whole pendulum (effective moment I + m L^2), inelastically, and it
+    then rests on the limit at the soft row's give under the load, g cos45 h^2 / (L (pi / 2)^2)
+    rad (see the module's note on sag; 4e-5 degrees). (With the bob's own moment the limit held it
+    for I / (I + m L^2) of its swing: it ran through to 76 degrees.)"""
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    bob = world.add_sphere(position=(1.0, 0, 0), radius=LIGHT_BOB, mass=1.0)
+    limit = math.radians(45)
+    world.add_joint("hinge", None, bob, anchor=(0, 0, 0), axis=(0, 1, 0), lower=-0.1, upper=limit)
+    angles = []
+
+    def swing(w):
+        x = w.body_position[bob.index]
+        angles.append(math.atan2(-x[2], x[0]))
+
+    world.run(duration=1.5, callback=swing)
+    h = DT / 8
+    give = G * math.cos(limit) * h * h / (math.pi / 2) ** 2
+    angles = np.array(angles)
+    hit = int(np.argmax(angles > limit - give))
+    assert 0 < hit < len(angles) - 100  # it got there (a swing of 0.404 s from level to 45 degrees: 97 steps)
+    assert angles.max() < limit + give
+    assert angles[hit:].min() > limit - give  # no rebound
+    assert world.joint_error.max() < 1e-5
+
+
+def test_hinge_motor_swings_a_light_bob_at_its_torque():
+    """A 1 N m motor swings a bob of r = 2 cm on a 1 m arm (no gravity) at alpha = 1 / (I + m L^2)
+    up to its target 2 rad/s, then holds it: the motor drives the whole pendulum. (With the bob's
+    own moment its row was I / (I + m L^2) of the pendulum's: the anchor opened 0.7 mm and the
+    speed overshot to 2.0016 rad/s.)"""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    bob = world.add_sphere(position=(1.0, 0, 0), radius=LIGHT_BOB, mass=1.0)
+    world.add_joint("hinge", None, bob, anchor=(0, 0, 0), axis=(0, 0, 1), motor_speed=2.0, max_torque=1.0)
+    alpha = 1.0 / (0.4 * LIGHT_BOB**2 + 1.0)
+    world.run(duration=1.0)
+    assert world.body_angular_velocity[bob.index, 2] == pytest.approx(alpha * 1.0, abs=alpha * DT)
+    assert world.joint_error.max() < 1e-5
+    world.run(duration=2.0)  # at the target after 2 / alpha = 2.0003 s
+    assert world.body_angular_velocity[bob.index, 2] == pytest.approx(2.0, abs=1e-6)
+    assert world.joint_error.max() < 1e-5
+
+
 def test_joint_breaks_over_its_force():
     """A rope of break force 50 N snaps under 10 kg, and the weight falls freely; 200 N holds."""
     for limit, breaks in ((50.0, True), (200.0, False)):

@@ -14,7 +14,8 @@ the same substeps as the contacts (see `solver/contacts.py` and `World.step`):
 - every row reads the bodies' current poses (positions and orientations after the last
   integration), so the error is exact, not linearised;
 - rows of one joint, in order: the axial row (motor or spring, then lower and upper limit),
-  then the angular and point rows together as one block (see "a joint's rows as one block").
+  solved with the speed and effective mass it has once the block holds, then the angular and
+  point rows together as one block (see "a joint's rows as one block").
 
 Rows, with C the position error and J the velocity Jacobian (Cdot = J v):
 - point (ball, hinge, fixed): C = p_b - p_a (anchors in world), a 3 x 3 block
@@ -284,8 +285,8 @@ def _push(bias: vec3):
 
 @wp.func
 def _limit(
-    g: _Geometry,
-    s: _Velocities,
+    speed: float_t,
+    mass: float_t,
     C: float_t,
     sign: float_t,
     accumulated: float_t,
@@ -298,7 +299,8 @@ def _limit(
 ):
     """New accumulated impulse (>= 0) of a one-sided row keeping C >= 0; `sign` -1 for an upper limit.
 
-    Speculative while C > 0 (the gap may close within the substep, no more), soft when violated.
+    `speed` is the axial row's speed and `mass` its effective mass (as the block sees them, see
+    `_Axial`). Speculative while C > 0 (the gap may close within the substep, no more), soft when violated.
     """
     bias = float_t(0.0)
     ms = float_t(1.0)
@@ -309,8 +311,7 @@ def _limit(
         bias = bias_rate * C
         ms = mass_scale
         isc = impulse_scale
-    cdot = sign * _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-    j = -_axial_mass(g) * ms * (cdot + bias) - isc * accumulated
+    j = -mass * ms * (sign * speed + bias) - isc * accumulated
     return wp.max(accumulated + j * relax, float_t(0.0))
 
 
@@ -335,11 +336,9 @@ def _solve33(K: mat33, r: vec3):
 # m r^2 about the anchor (a pendulum's bob) is turned by the angular rows instead of moved, and
 # the point row turns it back, so the rows converged at I / (I + m r^2) a pass: a hinged bob of
 # r = 2 cm on a 1 m arm, pushed across the hinge plane at 1 m/s, swung 35 mm out of it; welded
-# 1 m out, it sagged 25 mm. The axial row (motor, limits) is still solved on its own, before the
-# block, with its own effective mass (I for the bob): with the block's coupled mass (I + m r^2)
-# a limit stops such a bob dead, but light bodies joined in conflicting loops (a kinematic body
-# and a static one pulling on the same 4 g sphere) then diverged half again as often in a random
-# search as row by row, so that waits (docs/design.md).
+# 1 m out, it sagged 25 mm. The axial row (motor, spring, limits) comes first, solved as the
+# block will see it (`_Axial`: its speed once the block holds, its mass the Schur complement,
+# I + m r^2 for the bob), and the block then takes up rigidly what the axial impulse did to its rows.
 
 
 @wp.struct
@@ -430,6 +429,71 @@ def _group_apply(g: _Geometry, x: _Rows, s: _Velocities, lam: vec3):
 @wp.func
 def _block_apply(g: _Geometry, blk: _Block, s: _Velocities, lin: vec3, ang: vec3):
     return _group_apply(g, blk.ang, _group_apply(g, blk.lin, s, lin), ang)
+
+
+@wp.struct
+class _Axial:
+    """The axial row (motor, spring, rod, limits) as the block that follows it sees it.
+
+    With the block's rows held (K_bb lambda_b = -(v_b + bias_b) after the axial impulse), an axial
+    impulse dl leaves the axial speed at v_ax - u.(v_b + bias_b) + S dl, with c = J_b M^-1 J_ax^T
+    the coupling column, u = K_bb^-1 c and S = J_ax M^-1 J_ax^T - c.u the Schur complement: so the
+    row is solved with that projected speed and the effective mass 1 / S, an exact solve of the
+    joint's rows together with the block (for a hinge: all six). A body whose own moment is small
+    beside m r^2 about the hinge (a pendulum's bob) is then stopped by a limit as the whole
+    pendulum, not as a spinning ball: with its own mass (1 / I) the limit held a 2 cm bob on a 1 m
+    arm for I / (I + m r^2) of its swing and the bob ran through a 45 degree limit to 76 degrees.
+    A distance joint has no block: u = 0, S its own row's."""
+
+    u_lin: vec3  # u, in the block's linear and angular groups
+    u_ang: vec3
+    bias_lin: vec3  # the block's position feedback, this pass
+    bias_ang: vec3
+    mass: float_t  # 1 / S [kg, kg m^2]
+
+
+@wp.func
+def _axial_coupling(g: _Geometry, x: _Rows):
+    """c = J_x M^-1 J_ax^T for the group x and the axial row, masked to the rows in use."""
+    c = x.n * g.n * (g.ma + g.mb) + x.ja * (g.Ia * g.ja) + x.jb * (g.Ib * g.jb)
+    return wp.cw_mul(c, x.on)
+
+
+@wp.func
+def _axial_with_block(g: _Geometry, blk: _Block, f: _Factor, bias_lin: vec3, bias_ang: vec3):
+    """The axial row coupled to the block (see `_Axial`)."""
+    a = _Axial()
+    c1 = _axial_coupling(g, blk.lin)
+    c2 = _axial_coupling(g, blk.ang)
+    u1, u2 = _block_solve(f, c1, c2)
+    k = wp.dot(g.n, g.n) * (g.ma + g.mb) + wp.dot(g.ja, g.Ia * g.ja) + wp.dot(g.jb, g.Ib * g.jb)
+    schur = k - wp.dot(c1, u1) - wp.dot(c2, u2)
+    if schur > float_t(1.0e-9) * k:
+        a.u_lin = u1
+        a.u_ang = u2
+        a.mass = float_t(1.0) / schur
+    else:
+        # the block alone fixes the axial coordinate (both bodies' rows degenerate): the row on its own
+        a.mass = _axial_mass(g)
+    a.bias_lin = bias_lin
+    a.bias_ang = bias_ang
+    return a
+
+
+@wp.func
+def _axial_alone(g: _Geometry):
+    """The axial row without a block (distance joints)."""
+    a = _Axial()
+    a.mass = _axial_mass(g)
+    return a
+
+
+@wp.func
+def _projected_speed(g: _Geometry, blk: _Block, a: _Axial, s: _Velocities):
+    """The axial speed once the block has held its rows: v_ax - u.(v_b + bias_b)."""
+    v = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+    v = v - wp.dot(a.u_lin, _group_speed(blk.lin, s) + a.bias_lin)
+    return v - wp.dot(a.u_ang, _group_speed(blk.ang, s) + a.bias_ang)
 
 
 # ---------------------------------------------------------------------------- kernels
@@ -701,13 +765,31 @@ def _make_solve(kind: int):
                 relax = j.scale[k]
                 inv_h = float_t(1.0) / h
 
+                # the block's rows (p_b = p_a, or p_b on a's axis line; the frames turning together) and
+                # their position feedback, and the axial row as the block sees it (`_Axial`)
+                blk = _Block()
+                f = _Factor()
+                bias1 = vec3()
+                bias2 = vec3()
+                if wp.static(kind != _DISTANCE):
+                    blk = block(g)
+                    f = _factor(g, blk)
+                    if use_bias != 0:
+                        bias1 = _push(wp.cw_mul(blk.lin.C, blk.lin.on) * bias_rate)
+                        bias2 = _push(wp.cw_mul(blk.ang.C, blk.ang.on) * bias_rate)
+                ax = _axial_alone(g)
+                if wp.static(kind == _HINGE or kind == _SLIDER):
+                    if j.motor[k] != 0 or j.limit[k] != 0:
+                        ax = _axial_with_block(g, blk, f, bias1, bias2)
+
                 # axial: motor or spring, then the limits
                 axial = j.impulse_axial[k]
+                axial0 = axial + j.impulse_lower[k] - j.impulse_upper[k]
                 if j.motor[k] != 0 and (wp.static(kind == _HINGE or kind == _SLIDER)):
                     # drive the joint speed to the target; |impulse| <= max torque (force) * h
-                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb) - j.motor_speed[k]
+                    cdot = _projected_speed(g, blk, ax, s) - j.motor_speed[k]
                     cap = j.motor_max[k] * h
-                    new = wp.clamp(axial - _axial_mass(g) * cdot * relax, -cap, cap)
+                    new = wp.clamp(axial - ax.mass * cdot * relax, -cap, cap)
                     s = _apply_axial(g, s, new - axial)
                     axial = new
                 if (
@@ -720,14 +802,14 @@ def _make_solve(kind: int):
                     # pass with bias only: solved again in the relax pass, at the positions already moved by
                     # h v, it took a second backward-Euler step, an extra damping k h (an undamped spring lost
                     # its energy at w^2 h, twice backward Euler's w^2 h / 2; tests/physics/test_independent_checks.py)
-                    meff = _axial_mass(g)
+                    meff = ax.mass
                     if meff > zero:
                         kc = j.damping[k] + h * j.stiffness[k]
                         a2 = h * kc * safe_inverse(meff)
                         sms = a2 / (float_t(1.0) + a2)
                         sis = float_t(1.0) / (float_t(1.0) + a2)
                         sbias = j.stiffness[k] / kc * (g.value - j.length[k])
-                        cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+                        cdot = _projected_speed(g, blk, ax, s)
                         new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
                         s = _apply_axial(g, s, new - axial)
                         axial = new
@@ -736,21 +818,41 @@ def _make_solve(kind: int):
                     bias = zero
                     if use_bias != 0:
                         bias = bias_rate * (g.value - j.lower[k])
-                    cdot = _axial_speed(g, s.va, s.wa, s.vb, s.wb)
-                    new = axial + (-_axial_mass(g) * ms * (cdot + bias) - isc * axial) * relax
+                    cdot = _projected_speed(g, blk, ax, s)
+                    new = axial + (-ax.mass * ms * (cdot + bias) - isc * axial) * relax
                     s = _apply_axial(g, s, new - axial)
                     axial = new
                 j.impulse_axial[k] = axial
                 if j.limit[k] != 0 and j.lower[k] < j.upper[k]:
                     lo = j.impulse_lower[k]
                     new = _limit(
-                        g, s, g.value - j.lower[k], float_t(1.0), lo, inv_h, use_bias, bias_rate, ms, isc, relax
+                        _projected_speed(g, blk, ax, s),
+                        ax.mass,
+                        g.value - j.lower[k],
+                        float_t(1.0),
+                        lo,
+                        inv_h,
+                        use_bias,
+                        bias_rate,
+                        ms,
+                        isc,
+                        relax,
                     )
                     s = _apply_axial(g, s, new - lo)
                     j.impulse_lower[k] = new
                     hi = j.impulse_upper[k]
                     new = _limit(
-                        g, s, j.upper[k] - g.value, float_t(-1.0), hi, inv_h, use_bias, bias_rate, ms, isc, relax
+                        _projected_speed(g, blk, ax, s),
+                        ax.mass,
+                        j.upper[k] - g.value,
+                        float_t(-1.0),
+                        hi,
+                        inv_h,
+                        use_bias,
+                        bias_rate,
+                        ms,
+                        isc,
+                        relax,
                     )
                     s = _apply_axial(g, s, hi - new)
                     j.impulse_upper[k] = new
@@ -758,18 +860,20 @@ def _make_solve(kind: int):
                 # the block: p_b = p_a (hinge, fixed) or p_b on a's axis line (slider), and the
                 # bodies' frames turning together (all three axes, or the two across a hinge)
                 if wp.static(kind != _DISTANCE):
-                    blk = block(g)
-                    f = _factor(g, blk)
                     acc1 = wp.cw_mul(blk.lin.n * j.impulse_linear[k], blk.lin.on)  # accumulated impulses
                     acc2 = wp.cw_mul(blk.ang.ja * j.impulse_angular[k], blk.ang.on)
-                    r1 = _group_speed(blk.lin, s)
-                    r2 = _group_speed(blk.ang, s)
-                    if use_bias != 0:
-                        r1 = r1 + _push(wp.cw_mul(blk.lin.C, blk.lin.on) * bias_rate)
-                        r2 = r2 + _push(wp.cw_mul(blk.ang.C, blk.ang.on) * bias_rate)
+                    r1 = _group_speed(blk.lin, s) + bias1
+                    r2 = _group_speed(blk.ang, s) + bias2
                     x1, x2 = _block_solve(f, r1, r2)
-                    lam1 = (-ms * x1 - isc * acc1) * relax
-                    lam2 = (-ms * x2 - isc * acc2) * relax
+                    # the block's impulses are its own part plus -u times the axial impulses (`_Axial`): the
+                    # own part is soft (its leak isc acts on acc + u axial0 only), the part the axial rows
+                    # make (u dax) is taken up rigidly, as they assumed (soft, a limit's impulse on a light
+                    # bob was left as spin)
+                    lam1 = (-ms * x1 - isc * (acc1 + ax.u_lin * axial0)) * relax
+                    lam2 = (-ms * x2 - isc * (acc2 + ax.u_ang * axial0)) * relax
+                    dax = j.impulse_axial[k] + j.impulse_lower[k] - j.impulse_upper[k] - axial0
+                    lam1 = lam1 - ax.u_lin * ((float_t(1.0) - ms) * dax)
+                    lam2 = lam2 - ax.u_ang * ((float_t(1.0) - ms) * dax)
                     s = _block_apply(g, blk, s, lam1, lam2)
                     j.impulse_linear[k] = wp.transpose(blk.lin.n) * (acc1 + lam1)
                     j.impulse_angular[k] = wp.transpose(blk.ang.ja) * (acc2 + lam2)
