@@ -105,6 +105,13 @@ MANIFOLD_SWEEPS = wp.constant(6)
 #: 1.02 sweeps a block, the pyramid's top as far off; float64: 1e-6)
 MANIFOLD_SWEEP_TOLERANCE = wp.constant(float_t(max(1.0e-6, 8192.0 * TYPES.eps)))
 MANIFOLD_TOLERANCE = wp.constant(float_t(1.0e-5))
+#: a dynamic body's friction anchor turns with it within the step (as a kinematic body's always does)
+#: when it is more than this many times as far from its centre as the other body's: a turntable's
+#: under a rider. Then the contact moves with the rider, and so with the table's turn; the rider's
+#: own anchor, near its centre, barely moves. (Without it a rider on a motor-driven table crept
+#: outwards at w^2 r dt / 2.) Not for bodies of a size (a sphere rolling on a sphere: its contact
+#: point does not turn with it), so not every anchor
+FAR_ANCHOR_RATIO = wp.constant(float_t(2.0))
 
 
 @wp.struct
@@ -122,8 +129,8 @@ class ContactRow:
     body_b: wp.int32
     # rows of the manifold that starts here (its pair's next contacts, up to MANIFOLD_ROWS), 0 inside one
     manifold: wp.int32
-    # 1 where a body of the pair is kinematic and turning: its anchors turn with it within the step
-    # (`_turned`); set on every row, read on a manifold's first (in the record's padding: no cost)
+    # friction anchors that turn with their body within the step (`_turned`, `_turns`): 1 a's, 2 b's,
+    # 3 both; set on every row, read on a manifold's first (in the record's padding: no cost)
     turning: wp.int32
     restitution: float_t
     impulse_n: float_t  # accumulated impulses of one substep [N s]
@@ -344,9 +351,6 @@ def _prepare(
         n = c.normal[k]
         r.body_a = ia
         r.body_b = ib
-        r.turning = wp.int32(0)
-        if _turning(b, ia) or _turning(b, ib):
-            r.turning = wp.int32(1)
         r.normal = n
         r.separation = c.separation[k]
         qa = b.orientation[ia]
@@ -391,6 +395,11 @@ def _prepare(
         r.twist_arm = float_t(patch) * wp.length(arm - n * wp.dot(arm, n))
         r.centre_a = fa
         r.centre_b = fb
+        r.turning = wp.int32(0)
+        if _turns(b, ia, fa, fb):
+            r.turning = wp.int32(1)
+        if _turns(b, ib, fb, fa):
+            r.turning = r.turning + wp.int32(2)
         # tangent basis orthogonal to n
         t1 = wp.cross(n, vec3(float_t(1.0), float_t(0.0), float_t(0.0)))
         if wp.length_sq(t1) < float_t(0.01):
@@ -512,9 +521,15 @@ class Pair:
 
 
 @wp.func(inline=True)
-def _turning(b: BodyArrays, i: int):
-    """Whether body i is kinematic (or static) and turning: its friction anchors turn within the step."""
-    return b.inv_mass[i] == float_t(0.0) and wp.length_sq(b.angular_velocity[i]) > float_t(0.0)
+def _turns(b: BodyArrays, i: int, own: vec3, other: vec3):
+    """Whether body i's friction anchor `own` (from its centre; `other` the other body's) turns with
+    it within the step: the body turns, and it is kinematic, or its anchor is more than
+    FAR_ANCHOR_RATIO times as far from its centre as the other's (a turntable under a rider)."""
+    if wp.length_sq(b.angular_velocity[i]) == float_t(0.0):
+        return False
+    if b.inv_mass[i] == float_t(0.0):
+        return True
+    return wp.length_sq(own) > FAR_ANCHOR_RATIO * FAR_ANCHOR_RATIO * wp.length_sq(other)
 
 
 @wp.func(inline=True)
@@ -680,17 +695,17 @@ def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: 
     dthb = b.delta_rotation[ib]
     dv = Delta()
     static = pair.ima == float_t(0.0) or pair.imb == float_t(0.0)
-    # friction's anchors on a kinematic body turn with it within the step (a turntable's surface
-    # velocity at the contact turns with the table); on a dynamic body they stay as prepared. Only
-    # a pair with a turning kinematic body pays for it, flagged by `_prepare` (deciding it here, and
-    # the turns made always, cost pile_1k 5 %)
+    # friction's anchors on a turning kinematic body, or on a turning dynamic one far from the contact
+    # beside the other, turn with it within the step (a turntable's surface velocity at the contact
+    # turns with the table); other anchors stay as prepared. Only such pairs pay for it, flagged by
+    # `_prepare` (deciding it here, and the turns made always, cost pile_1k 5 %)
     turning = rows[k].turning != 0
     turn_a = vec3()
     turn_b = vec3()
     if turning:
-        if pair.ima == float_t(0.0):
+        if rows[k].turning % 2 == 1:
             turn_a = dtha
-        if pair.imb == float_t(0.0):
+        if rows[k].turning >= 2:
             turn_b = dthb
 
     if size == 1:
