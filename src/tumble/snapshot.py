@@ -41,11 +41,12 @@ from .launch import LaunchCache
 from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 7  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+FORMAT = 8  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
 # 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state;
 # 6: the world's precision (a format 5 file is float64); 7: the contact solver's per-step quantities are
-# scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade` reads formats 5 and 6)
-_READS = {5: "float64", 6: None, 7: None}  # formats read, and the precision of those that did not save one
+# scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade_contacts` reads formats 5 and 6);
+# 8: the hinges' angle counting whole turns is joint state (`_upgrade_joints` reads formats 5 to 7)
+_READS = {5: "float64", 6: None, 7: None, 8: None}  # formats read, and the precision of those that did not save one
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
@@ -527,6 +528,8 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         time = float.fromhex(manifest["time"]) if isinstance(manifest.get("time"), str) else math.nan
         if manifest["format"] < 7:
             _upgrade_contacts(manifest["values"], arrays)
+        if manifest["format"] < 8:
+            _upgrade_joints(manifest["values"], arrays)
         return Snapshot(
             arrays,
             manifest["values"],
@@ -567,6 +570,19 @@ def _upgrade_contacts(values: dict, arrays: dict[str, np.ndarray]) -> None:
     if jt is not None:
         arrays["contacts/jn_warm"] = np.zeros(len(jt), dtype=jt.dtype)
         values["contacts/jn_warm/:dtype"] = "float32" if jt.dtype == np.float32 else "float64"
+
+
+def _upgrade_joints(values: dict, arrays: dict[str, np.ndarray]) -> None:
+    """A format 5 to 7 file as format 8 reads it: its joints had no `joint_angle` (a hinge's angle
+    counting whole turns); it starts at 0, so each hinge counts on from its angle in (-pi, pi], the
+    angle those formats' limits were on."""
+    fields = values.get("state/joints/:fields")
+    upper = arrays.get("state/joints/joint_impulse_upper")
+    if not isinstance(fields, list) or upper is None or "joint_angle" in fields:
+        return
+    at = fields.index("joint_impulse_upper") + 1 if "joint_impulse_upper" in fields else len(fields)
+    values["state/joints/:fields"] = [*fields[:at], "joint_angle", *fields[at:]]
+    arrays["state/joints/joint_angle"] = np.zeros_like(upper)
 
 
 def _saved_precision(manifest: dict, path: Path) -> str:

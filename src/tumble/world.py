@@ -624,8 +624,9 @@ class World:
                 (world points, or body-frame points with frame="body"; either wins over anchor for its
                 body). Default: a's centre (distance and rope: each body's centre).
             axis: hinge / slider axis, world (or a's frame with frame="body"); default (0, 0, 1).
-            lower, upper: hinge angle limits [rad], within [-pi, pi] (an infinite one: no limit on that side),
-                or slider translation limits [m] (from creation).
+            lower, upper: hinge angle limits [rad] on the angle turned since creation, whole turns
+                counted (a range may span turns; an infinite or missing side is no limit there), or
+                slider translation limits [m] (from creation); lower == upper locks the joint there.
             motor_speed: hinge [rad/s] / slider [m/s] target speed of b relative to a, with max_torque [N m]
                 (hinge) or max_force [N] (slider).
             length, min_length, max_length: distance joint rest length (default: the current distance)

@@ -403,6 +403,57 @@ def test_hinge_motor_swings_a_light_bob_at_its_torque():
     assert world.joint_error.max() < 1e-5
 
 
+def test_hinge_with_one_limit_turns_freely_the_other_way_and_counts_turns():
+    """upper = 1 rad and no lower limit: a wheel spun the free way at 3 rad/s keeps turning (no
+    gravity, no torque: its speed exactly), past half a turn and on for turns; spun back it stops
+    at the limit only after unwinding every turn, 1 rad past its start. (The angle was measured in
+    (-pi, pi]: an infinite side became a stop at -pi, where the wheel stopped dead.)"""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    wheel = world.add_box(position=(0, 0, 1), half_extents=(0.2, 0.2, 0.05), mass=2.0, angular_velocity=(0, 0, -3.0))
+    world.add_joint("hinge", None, wheel, anchor=(0, 0, 1), axis=(0, 0, 1), upper=1.0)
+    world.run(duration=3.0)  # 9 rad, nearly a turn and a half
+    assert world.body_angular_velocity[wheel.index, 2] == pytest.approx(-3.0, abs=1e-9)
+    angles = []
+
+    def turn(w):
+        x, y, z, q = w.body_orientation[wheel.index]
+        angles.append(2.0 * math.atan2(z, q))
+
+    world.set_body_state(wheel, angular_velocity=(0, 0, 6.0))
+    world.run(duration=2.0, callback=turn)  # back the 9 rad in 1.5 s, 1 rad more, then the stop
+    assert abs(world.body_angular_velocity[wheel.index, 2]) < 1e-6  # stopped on the limit
+    assert math.remainder(angles[-1] - 1.0, 2.0 * math.pi) == pytest.approx(0.0, abs=1e-3)
+    assert world.joint_error.max() < 1e-6
+
+
+@pytest.mark.parametrize("kind", ["hinge", "slider"])
+def test_equal_limits_lock_the_joint(kind):
+    """lower == upper locks a hinge's angle (a slider's travel) there: a box pushed along the joint's
+    axis (turned about it) by a constant 2 N (N m) stays put, the limit rows carrying the load at
+    their soft give, F h^2 / (m (pi / 2)^2) (the module's note on sag; I_x for the hinge)."""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    box = world.add_box(position=(0, 0, 1), half_extents=(0.2, 0.1, 0.1), mass=1.0)
+    world.add_joint(kind, None, box, anchor=(0, 0, 1), axis=(1, 0, 0), lower=0.0, upper=0.0)
+    for _ in range(240):
+        if kind == "hinge":  # a couple about +x: 2 N at +y, -2 N at the centre, both along +z
+            world.apply_force(box, (0, 0, 2.0), point=world.body_position[box.index] + (0, 1.0, 0))
+            world.apply_force(box, (0, 0, -2.0))
+        else:
+            world.apply_force(box, (2.0, 0, 0))
+        world.step()
+    h = DT / 8
+    x, y, z, w = world.body_orientation[box.index]
+    offset = world.body_position[box.index] - [0, 0, 1]
+    if kind == "hinge":
+        inertia = 1.0 / 12 * (0.2**2 + 0.2**2)
+        assert 2.0 * math.atan2(x, w) == pytest.approx(2.0 * h * h / (inertia * (math.pi / 2) ** 2), rel=0.01)
+        assert np.abs(offset).max() < 1e-9
+    else:
+        assert offset[0] == pytest.approx(2.0 * h * h / (1.0 * (math.pi / 2) ** 2), rel=0.01)
+        assert abs(2.0 * math.atan2(x, w)) < 1e-9
+    assert np.abs(world.body_velocity[box.index]).max() < 1e-9
+
+
 def test_joint_breaks_over_its_force():
     """A rope of break force 50 N snaps under 10 kg, and the weight falls freely; 200 N holds."""
     for limit, breaks in ((50.0, True), (200.0, False)):

@@ -183,6 +183,7 @@ JOINT_FIELDS: tuple[Field, ...] = (
     Field("joint_impulse_axial", float_t, _S, "", "motor or spring impulse along the axial row"),
     Field("joint_impulse_lower", float_t, _S, "", "lower limit impulse (>= 0)"),
     Field("joint_impulse_upper", float_t, _S, "", "upper limit impulse (>= 0)"),
+    Field("joint_angle", float_t, _S, "rad", "hinge: its angle at the last relax pass, whole turns counted"),
     Field("joint_sum_linear", vec3, _X, "N s", "the step's substep impulses summed, for the step's mean force"),
     Field("joint_sum_angular", vec3, _X, "N m s", "the step's angular substep impulses summed"),
     Field("joint_force", vec3, _S, "N", "mean force on b over the last step, world"),
@@ -570,6 +571,7 @@ def _make_solve(kind: int):
         mb: float_t,
         Ia: mat33,
         Ib: mat33,
+        last: float_t,
     ):
         g = _Geometry()
         ra = wp.quat_rotate(qa, local_a)
@@ -606,14 +608,16 @@ def _make_solve(kind: int):
         if wp.static(kind == _HINGE):
             # u_a x u_b is the swing of b's axis away from a's (small angles: the rotation vector across u_a)
             g.twist = wp.cross(axis, wp.quat_rotate(fb, vec3(one, zero, zero)))
-            # hinge angle: twist of f_b against f_a about the axis, from q_rel = f_a^-1 f_b
+            # hinge angle: twist of f_b against f_a about the axis, from q_rel = f_a^-1 f_b, in
+            # (-pi, pi]; counted on from the last relax pass's (`last`), whole turns included, so a
+            # limit is on the angle turned since creation (as a joint coordinate), not on a wrapped
+            # one: an infinite side is no limit (the wrapped angle jumping from -pi to pi read as a
+            # 2 rad violation of the other side), and a range may span turns. (A hinge turning more
+            # than half a turn within one substep, 1,500 rad/s at the default substep, would lose a turn.)
             rel = wp.quat_inverse(fa) * fb
-            angle = float_t(2.0) * wp.atan2(rel[0], rel[3])
-            if angle > float_t(math.pi):
-                angle = angle - float_t(2.0 * math.pi)
-            if angle < float_t(-math.pi):
-                angle = angle + float_t(2.0 * math.pi)
-            g.value = angle
+            turn = float_t(2.0) * wp.atan2(rel[0], rel[3]) - last
+            turn = turn - float_t(2.0 * math.pi) * wp.floor((turn + float_t(math.pi)) / float_t(2.0 * math.pi))
+            g.value = last + turn
             g.ja = axis
             g.jb = axis
         if wp.static(kind == _SLIDER):
@@ -736,7 +740,21 @@ def _make_solve(kind: int):
             ib = j.body_b[k]
             A = _load(ia, b, load, h)
             B = _load(ib, b, load, h)
-            g = geometry(A.x, A.q, B.x, B.q, j.local_a[k], j.local_b[k], j.frame_a[k], j.frame_b[k], A.m, B.m, A.I, B.I)
+            g = geometry(
+                A.x,
+                A.q,
+                B.x,
+                B.q,
+                j.local_a[k],
+                j.local_b[k],
+                j.frame_a[k],
+                j.frame_b[k],
+                A.m,
+                B.m,
+                A.I,
+                B.I,
+                j.angle[k],
+            )
             s0 = _Velocities()
             s0.va = A.v
             s0.wa = A.w
@@ -823,7 +841,12 @@ def _make_solve(kind: int):
                     s = _apply_axial(g, s, new - axial)
                     axial = new
                 j.impulse_axial[k] = axial
-                if j.limit[k] != 0 and j.lower[k] < j.upper[k]:
+                # both rows: a range, or (hinge, slider) lower == upper, the joint locked there; a
+                # distance joint with lower == upper is the rigid rod above
+                ranged = j.lower[k] < j.upper[k]
+                if wp.static(kind != _DISTANCE):
+                    ranged = j.lower[k] <= j.upper[k]
+                if j.limit[k] != 0 and ranged:
                     lo = j.impulse_lower[k]
                     new = _limit(
                         _projected_speed(g, blk, ax, s),
@@ -891,6 +914,7 @@ def _make_solve(kind: int):
                 spin = j.impulse_angular[k]
                 if wp.static(kind == _HINGE):
                     spin = spin + g.axis * axial  # a hinge's axial row is angular
+                    j.angle[k] = g.value  # the angle the next pass counts on from
                 j.sum_angular[k] = j.sum_angular[k] + spin
 
     return solve
@@ -1603,20 +1627,9 @@ def joint_rows(
     if kind in (JointKind.HINGE, JointKind.SLIDER):
         if lower is not None or upper is not None:
             limit = 1
-            bound = math.pi if kind == JointKind.HINGE else math.inf
-            lo = -bound if lower is None else _scalar(lower, "lower", allow_inf=True)
-            hi = bound if upper is None else _scalar(upper, "upper", allow_inf=True)
-            if kind == JointKind.HINGE:
-                # the hinge angle is measured in [-pi, pi]: a limit beyond would never be met (an
-                # infinite one is no limit on that side)
-                for key, value in (("lower", lo), ("upper", hi)):
-                    if math.isfinite(value) and abs(value) > math.pi * (1.0 + 1e-12):
-                        raise JointArgumentError(
-                            key,
-                            f"a hinge's angle runs from -180 to 180 degrees (-pi to pi rad), got {value:g} rad"
-                            f" ({math.degrees(value):g} degrees)",
-                        )
-                lo, hi = max(lo, -math.pi), min(hi, math.pi)
+            # a hinge's angle counts whole turns from creation: any range, an infinite side no limit
+            lo = -math.inf if lower is None else _scalar(lower, "lower", allow_inf=True)
+            hi = math.inf if upper is None else _scalar(upper, "upper", allow_inf=True)
             if lo > hi:
                 raise JointArgumentError("lower", f"lower {lo:g} > upper {hi:g}")
     elif lower is not None or upper is not None:

@@ -444,10 +444,18 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 "axis": Field(vector(3, nonzero=True), None, "", "hinge / slider axis", "[0, 0, 1]"),
                 "lower": Field(
-                    number(), None, "deg or m", "lower limit: hinge angle (deg, -180 to 180), slider offset (m)", "none"
+                    number(),
+                    None,
+                    "deg or m",
+                    "lower limit: hinge angle turned since creation (deg, whole turns counted), slider offset (m)",
+                    "none",
                 ),
                 "upper": Field(
-                    number(), None, "deg or m", "upper limit: hinge angle (deg, -180 to 180), slider offset (m)", "none"
+                    number(),
+                    None,
+                    "deg or m",
+                    "upper limit: hinge angle turned since creation (deg, whole turns counted), slider offset (m)",
+                    "none",
                 ),
                 "motor_speed": Field(
                     number(), None, "deg/s or m/s", "motor target speed of b relative to a", "no motor"
