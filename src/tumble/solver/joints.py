@@ -284,20 +284,20 @@ def _push(bias: vec3):
     return vec3(wp.clamp(bias[0], -top, top), wp.clamp(bias[1], -top, top), wp.clamp(bias[2], -top, top))
 
 
+@wp.struct
+class _Pass:
+    """A solve pass as a joint's one-sided rows take it: the soft coefficients (see `softness`)."""
+
+    inv_h: float_t  # 1 / substep
+    use_bias: int  # 1: the pass with bias; 0: the relax pass
+    bias_rate: float_t
+    mass_scale: float_t
+    impulse_scale: float_t
+    relax: float_t  # the joint's impulse scale (1 on the CPU)
+
+
 @wp.func
-def _limit(
-    speed: float_t,
-    mass: float_t,
-    C: float_t,
-    sign: float_t,
-    accumulated: float_t,
-    inv_h: float_t,
-    use_bias: int,
-    bias_rate: float_t,
-    mass_scale: float_t,
-    impulse_scale: float_t,
-    relax: float_t,
-):
+def _limit(speed: float_t, mass: float_t, C: float_t, sign: float_t, accumulated: float_t, p: _Pass):
     """New accumulated impulse (>= 0) of a one-sided row keeping C >= 0; `sign` -1 for an upper limit.
 
     `speed` is the axial row's speed and `mass` its effective mass (as the block sees them, see
@@ -307,13 +307,13 @@ def _limit(
     ms = float_t(1.0)
     isc = float_t(0.0)
     if C > float_t(0.0):
-        bias = C * inv_h
-    elif use_bias != 0:
-        bias = bias_rate * C
-        ms = mass_scale
-        isc = impulse_scale
+        bias = C * p.inv_h
+    elif p.use_bias != 0:
+        bias = p.bias_rate * C
+        ms = p.mass_scale
+        isc = p.impulse_scale
     j = -mass * ms * (sign * speed + bias) - isc * accumulated
-    return wp.max(accumulated + j * relax, float_t(0.0))
+    return wp.max(accumulated + j * p.relax, float_t(0.0))
 
 
 @wp.func
@@ -847,36 +847,19 @@ def _make_solve(kind: int):
                 if wp.static(kind != _DISTANCE):
                     ranged = j.lower[k] <= j.upper[k]
                 if j.limit[k] != 0 and ranged:
+                    p = _Pass()
+                    p.inv_h = inv_h
+                    p.use_bias = use_bias
+                    p.bias_rate = bias_rate
+                    p.mass_scale = ms
+                    p.impulse_scale = isc
+                    p.relax = relax
                     lo = j.impulse_lower[k]
-                    new = _limit(
-                        _projected_speed(g, blk, ax, s),
-                        ax.mass,
-                        g.value - j.lower[k],
-                        float_t(1.0),
-                        lo,
-                        inv_h,
-                        use_bias,
-                        bias_rate,
-                        ms,
-                        isc,
-                        relax,
-                    )
+                    new = _limit(_projected_speed(g, blk, ax, s), ax.mass, g.value - j.lower[k], float_t(1.0), lo, p)
                     s = _apply_axial(g, s, new - lo)
                     j.impulse_lower[k] = new
                     hi = j.impulse_upper[k]
-                    new = _limit(
-                        _projected_speed(g, blk, ax, s),
-                        ax.mass,
-                        j.upper[k] - g.value,
-                        float_t(-1.0),
-                        hi,
-                        inv_h,
-                        use_bias,
-                        bias_rate,
-                        ms,
-                        isc,
-                        relax,
-                    )
+                    new = _limit(_projected_speed(g, blk, ax, s), ax.mass, j.upper[k] - g.value, float_t(-1.0), hi, p)
                     s = _apply_axial(g, s, hi - new)
                     j.impulse_upper[k] = new
 
