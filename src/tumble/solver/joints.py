@@ -223,9 +223,15 @@ class _Geometry:
 
 
 @wp.func
+def _axial_k(g: _Geometry):
+    """The axial row's J M^-1 J^T: |n|^2 (1/m_a + 1/m_b) + ja.I_a^-1 ja + jb.I_b^-1 jb."""
+    return wp.dot(g.n, g.n) * (g.ma + g.mb) + wp.dot(g.ja, g.Ia * g.ja) + wp.dot(g.jb, g.Ib * g.jb)
+
+
+@wp.func
 def _axial_mass(g: _Geometry):
-    """Effective mass of the axial row: 1 / (|n|^2 (1/m_a + 1/m_b) + ja.I_a^-1 ja + jb.I_b^-1 jb)."""
-    k = wp.dot(g.n, g.n) * (g.ma + g.mb) + wp.dot(g.ja, g.Ia * g.ja) + wp.dot(g.jb, g.Ib * g.jb)
+    """Effective mass of the axial row on its own: 1 / `_axial_k`."""
+    k = _axial_k(g)
     if k > float_t(0.0):
         return float_t(1.0) / k
     return float_t(0.0)
@@ -467,7 +473,7 @@ def _axial_with_block(g: _Geometry, blk: _Block, f: _Factor, bias_lin: vec3, bia
     c1 = _axial_coupling(g, blk.lin)
     c2 = _axial_coupling(g, blk.ang)
     u1, u2 = _block_solve(f, c1, c2)
-    k = wp.dot(g.n, g.n) * (g.ma + g.mb) + wp.dot(g.ja, g.Ia * g.ja) + wp.dot(g.jb, g.Ib * g.jb)
+    k = _axial_k(g)
     schur = k - wp.dot(c1, u1) - wp.dot(c2, u2)
     if schur > float_t(1.0e-9) * k:
         a.u_lin = u1
@@ -638,6 +644,13 @@ def _make_solve(kind: int):
         return g
 
     @wp.func
+    def axial_speed(g: _Geometry, blk: _Block, ax: _Axial, s: _Velocities):
+        """The axial row's speed as the block sees it (`_projected_speed`); a distance joint has no block."""
+        if wp.static(kind == _DISTANCE):
+            return _axial_speed(g, s.va, s.wa, s.vb, s.wb)
+        return _projected_speed(g, blk, ax, s)
+
+    @wp.func
     def block(g: _Geometry):
         """The rows solved together: point (world axes) and swing (hinge), point and angular lock
         (fixed, world axes), line (across the axis) and angular lock (slider)."""
@@ -805,7 +818,7 @@ def _make_solve(kind: int):
                 axial0 = axial + j.impulse_lower[k] - j.impulse_upper[k]
                 if j.motor[k] != 0 and (wp.static(kind == _HINGE or kind == _SLIDER)):
                     # drive the joint speed to the target; |impulse| <= max torque (force) * h
-                    cdot = _projected_speed(g, blk, ax, s) - j.motor_speed[k]
+                    cdot = axial_speed(g, blk, ax, s) - j.motor_speed[k]
                     cap = j.motor_max[k] * h
                     new = wp.clamp(axial - ax.mass * cdot * relax, -cap, cap)
                     s = _apply_axial(g, s, new - axial)
@@ -827,7 +840,7 @@ def _make_solve(kind: int):
                         sms = a2 / (float_t(1.0) + a2)
                         sis = float_t(1.0) / (float_t(1.0) + a2)
                         sbias = j.stiffness[k] / kc * (g.value - j.length[k])
-                        cdot = _projected_speed(g, blk, ax, s)
+                        cdot = axial_speed(g, blk, ax, s)
                         new = axial + (-meff * sms * (cdot + sbias) - sis * axial) * relax
                         s = _apply_axial(g, s, new - axial)
                         axial = new
@@ -836,7 +849,7 @@ def _make_solve(kind: int):
                     bias = zero
                     if use_bias != 0:
                         bias = bias_rate * (g.value - j.lower[k])
-                    cdot = _projected_speed(g, blk, ax, s)
+                    cdot = axial_speed(g, blk, ax, s)
                     new = axial + (-ax.mass * ms * (cdot + bias) - isc * axial) * relax
                     s = _apply_axial(g, s, new - axial)
                     axial = new
@@ -855,11 +868,11 @@ def _make_solve(kind: int):
                     p.impulse_scale = isc
                     p.relax = relax
                     lo = j.impulse_lower[k]
-                    new = _limit(_projected_speed(g, blk, ax, s), ax.mass, g.value - j.lower[k], float_t(1.0), lo, p)
+                    new = _limit(axial_speed(g, blk, ax, s), ax.mass, g.value - j.lower[k], float_t(1.0), lo, p)
                     s = _apply_axial(g, s, new - lo)
                     j.impulse_lower[k] = new
                     hi = j.impulse_upper[k]
-                    new = _limit(_projected_speed(g, blk, ax, s), ax.mass, j.upper[k] - g.value, float_t(-1.0), hi, p)
+                    new = _limit(axial_speed(g, blk, ax, s), ax.mass, j.upper[k] - g.value, float_t(-1.0), hi, p)
                     s = _apply_axial(g, s, hi - new)
                     j.impulse_upper[k] = new
 
