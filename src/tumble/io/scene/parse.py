@@ -268,7 +268,15 @@ def read_scene(path) -> Scene:
         if path.read_bytes()[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
             raise SceneError(_NOT_A_SCENE, path=path) from None
         raise SceneError(f"not a UTF-8 text file ({exc.reason})", path=path) from None
-    return parse_scene(text, path=path)
+    scene = parse_scene(text, path=path)
+    if not scene.tables:  # a zero-byte file (cut short, or never written) would run as an empty world
+        what = "empty" if not text.strip() else "only comments"
+        raise SceneError(
+            f"the file is {what}, not a scene: a scene has at least one table, such as [world] or [[sphere]] "
+            "(docs/scenes.md)",
+            path=path,
+        )
+    return scene
 
 
 def resolve_scene_path(path) -> Path:

@@ -181,6 +181,22 @@ def test_a_file_named_npz_is_never_read_as_a_scene(tmp_path, content):
         tumble.load_scene(path)
 
 
+@pytest.mark.parametrize(
+    "content, what", [(b"", "empty"), (b"  \n\n", "empty"), (b"# a scene, some day\n", "only comments")]
+)
+def test_an_empty_scene_file_is_refused(tmp_path, content, what):
+    """A scene file with no table in it (zero bytes, blank lines, comments) is refused by name: it ran
+    as a world of nothing, and `tumble check` said ok, where the file was most likely cut short."""
+    path = tmp_path / "cut.toml"
+    path.write_bytes(content)
+    with pytest.raises(SceneError, match=rf"cut.toml: the file is {what}, not a scene"):
+        scene_io.read_scene(path)
+    with pytest.raises(SceneError, match="not a scene"):
+        tumble.load_scene(path)
+    path.write_bytes(content + b"[world]\n")  # a world and nothing in it yet is a scene
+    assert scene_io.read_scene(path).table("world") is not None
+
+
 def test_missing_file_is_an_oserror(tmp_path):
     """Raise FileNotFoundError (mapped to exit 2 by the CLI) for a missing scene file."""
     with pytest.raises(FileNotFoundError, match="no such scene file"):
