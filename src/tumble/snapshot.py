@@ -52,9 +52,10 @@ _READS = {5: "float64", 6: None, 7: None, 8: None}  # formats read, and the prec
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
 # and the stages' table of the body rows, whose sets the model, state and control parts hold
 # (the solver's scratch rows are reset every step)
-# and the precision (saved as `Snapshot.precision`) with its kernel modules
+# and the precision (saved as `Snapshot.precision`) with its kernel modules, and the views of the
+# state that the step's finiteness check keeps
 _WORLD_SKIP = frozenset(
-    {"_key", "metadata", "profile", "_lap", "device", "_launch_sizes", "bodies", "_precision", "_k"}
+    {"_key", "metadata", "profile", "_lap", "device", "_launch_sizes", "bodies", "_precision", "_k", "_finite_held"}
 )
 
 
