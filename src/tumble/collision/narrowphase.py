@@ -1270,6 +1270,9 @@ def _sphere_mesh(
     higher, +23 % energy in 20 s; a capsule, whose ends and middle are such spheres, too).
     Contacts on edges and vertices are left to the nearest point, so a sphere on a flat or
     convex part of a mesh keeps one contact (neighbours of the touched face meet it on their edges).
+    With r = 0 it is a point: a box's or a hull's vertex (`collide_vertices_mesh`), which takes
+    its concave neighbours also when it is inside the surface, as a resting vertex is by its
+    contact's give (a sphere's centre never is).
     """
     found, q, n, d = _mesh_point(mesh, B, centre, r + max_sep)
     if not found:
@@ -1306,7 +1309,7 @@ def _sphere_mesh(
                 )
                 # strictly inside (by 1e-4 of each altitude), or concave and within the step's reach of it
                 take = wp.min(wp.min(l1, l2), l0) > float_t(1e-4)
-                if not take and d > _ZERO and inside > -max_sep:
+                if not take and (d > _ZERO or r == _ZERO) and inside > -max_sep:
                     take = dist >= d - _CONCAVE_TOLERANCE * (_ONE + wp.length(p))
                 if take:
                     nw = wp.quat_rotate(B.q, nf)
@@ -1553,7 +1556,11 @@ def collide_vertices_mesh(
 
     The deepest vertex, the one farthest from it across the normal, then the largest triangles
     either side; then one contact at the deepest point of the mesh edges inside the body, when
-    that is deeper than the deepest vertex (`_mesh_edges_into_solid`).
+    that is deeper than the deepest vertex (`_mesh_edges_into_solid`). Each vertex touches as a
+    sphere of radius 0 (`_sphere_mesh`): its nearest mesh point, and the concave faces next to
+    it that it can reach within the step. With the nearest point alone, a box sliding in a
+    finely tessellated half-pipe sank its edges into each next face along the one they left and
+    was pushed out after, raised without being slowed: it gained 1 % of its energy in 4 s.
     """
     nv = int(8)
     if shape != int(ShapeType.BOX):
@@ -1572,9 +1579,7 @@ def collide_vertices_mesh(
         i = _pick(k, i0, i1, i2, i3)
         if i >= 0 and (k == 0 or i != i0):
             pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
-            found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
-            if found:
-                emit(c, a, b, A, B, -n, pi, q, max_sep)
+            _sphere_mesh(c, a, b, A, B, pi, _ZERO, mesh, max_sep)  # the vertex as a point, creases included
 
 
 # ---------------------------------------------------------------------------- dispatch
