@@ -75,6 +75,66 @@ def test_sphere_released_on_a_bowl_side_oscillates_about_the_lowest_point():
     assert np.diff(crossings[:3]).sum() == pytest.approx(period, rel=0.05)
 
 
+def test_box_lying_across_a_tessellated_ridge_rests_level():
+    """A box lowered flat onto a roof's ridge (z = -0.3 |x|, a grid of 0.02 m cells: the ridge is 100
+    collinear mesh edges) rests on the whole ridge line under it, level.
+
+    The ridge presses into the box's bottom face between its corners (the mesh-edge contact). Its
+    stretch under the face was one mesh edge's, the first found of equals: the box stood on the
+    2 cm of the ridge under one end, tipped about the ridge at up to 4.3 rad/s and came to rest
+    11 mm aside and tilted. Mirror-symmetric about its own mid-plane, it must not turn at all: the
+    bound is a tilt speed of 1e-3 rad/s (its ends moving 0.05 mm/s) and 1e-4 of its start aside.
+    """
+    v, t = grid_mesh(lambda x, y: -0.3 * np.abs(x), n=101)
+    w = tumble.World()
+    w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=0.5)
+    h, y0 = 0.05, 0.003  # (its ends off the mesh's vertices)
+    w.add_box(position=(0.0, y0, h + 0.001), half_extents=(h, h, h), restitution=0.0, friction=0.5)
+    spin = []
+    w.run(1.0, callback=lambda world: spin.append(world.body_angular_velocity[1].copy()))
+    assert np.abs(spin).max() <= 1e-3
+    assert abs(w.body_position[1, 1] - y0) <= 1e-4
+    assert w.body_position[1, 2] == pytest.approx(h, abs=1e-4)  # on the ridge, not tipped onto a side
+
+
+def test_box_landing_on_a_mesh_incline_turns_as_on_the_plane():
+    """A frictionless box dropped square onto an incline (slope 0.3) made of a grid mesh of 0.02 m
+    cells lands and slides as on the same incline as a plane: it tips onto the slope about y only.
+
+    The mesh beyond the box's leading bottom edge, rising with the slope, looked nearer than the
+    box's corners to the edge contact's lower bound on the distance outside the box: one mesh
+    edge of the many there took a contact beside the box, which rolled it at 0.1 rad/s and spun it
+    about the vertical at 0.03 (on a curved hill, 6.6 and 9.2 rad/s). Mirror-symmetric about its
+    own mid-plane, it must not turn about x or z; the bound, 0.01 rad/s, is 1/500 of its 5 rad/s
+    landing turn about y, which must match the plane's to the same 0.01 rad/s.
+    """
+    slope, h = 0.3, 0.05
+
+    def spins(as_mesh):
+        w = tumble.World()
+        if as_mesh:
+            v, t = grid_mesh(lambda x, y: slope * x, n=101)
+            w.add_mesh(vertices=v, triangles=t, restitution=0.0, friction=0.0)
+        else:
+            w.add_plane(normal=(-slope, 0.0, 1.0), restitution=0.0, friction=0.0)
+        # its lower corners 6 mm above the incline, its sides off the mesh's vertices
+        w.add_box(
+            position=(-0.3, 0.003, -0.25 * slope + h + 0.006),
+            half_extents=(h, h, h),
+            velocity=(0.8, 0.0, -0.041),
+            restitution=0.0,
+            friction=0.0,
+        )
+        out = []
+        w.run(0.5, callback=lambda world: out.append(world.body_angular_velocity[1].copy()))
+        return np.array(out)
+
+    mesh, plane = spins(True), spins(False)
+    assert np.abs(plane[:, 1]).max() > 4.0  # it did tip onto the slope
+    assert np.abs(mesh[:, [0, 2]]).max() <= 0.01
+    assert np.abs(mesh[:, 1] - plane[:, 1]).max() <= 0.01
+
+
 @pytest.mark.parametrize("yaw_deg", [0.0, 30.0])
 def test_box_sliding_in_a_finely_tessellated_half_pipe_gains_no_energy(yaw_deg):
     """A frictionless box (0.1 m, e = 0) sliding across a half-pipe z = x^2 / 2 of 0.02 m cells

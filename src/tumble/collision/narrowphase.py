@@ -1433,6 +1433,49 @@ def _pick(k: int, i0: int, i1: int, i2: int, i3: int):
 
 
 @wp.func
+def _edge_face(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3, u: vec3, tol: float_t):
+    """`_face_depth` of a point p on an edge of direction u, the face chosen among those within tol
+    of the largest distance as the one the edge runs most along (least |n . u|): a ridge lying in a
+    box's bottom face, near a side face, is under the bottom face (taken as under the side face, its
+    contact pushed the box sideways). Returns (that face's distance, its outward normal)."""
+    depth, normal = _face_depth(H, f0, nf, sc, p)
+    along = wp.normalize(u)
+    least = float_t(2.0)
+    dist = depth
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        df = wp.dot(n, p) - d
+        if df >= depth - tol and wp.abs(wp.dot(n, along)) < least:
+            least = wp.abs(wp.dot(n, along))
+            normal = n
+            dist = df
+    return dist, normal
+
+
+@wp.func
+def _over_face(H: Hulls, f0: int, nf: int, sc: vec3, s0: vec3, u: vec3, t: float_t, tol: float_t):
+    """The point of the edge s0 + t' u nearest t that lies over the face it is deepest from: within
+    tol of every other face plane of the hull (hull frame). Returns (False, _) when there is none.
+
+    Outside the body the face-plane depth is a lower bound, least where two planes cross beyond
+    the body's rim: a mesh rising past a box's bottom edge (an incline, a hill) looked nearer than
+    the box's own corners there, and one edge of the many under the box, in BVH order, took a
+    contact beside the rim that spun the box as it landed (7.6 rad/s about the vertical, from a
+    frictionless landing on a hill). Over the face the depth is exact; a point inside the body is
+    within every plane and stays where it is.
+    """
+    p = s0 + u * t
+    _depth, face = _edge_face(H, f0, nf, sc, p, u, tol)
+    lo = _ZERO
+    hi = _ONE
+    for f in range(f0, f0 + nf):
+        n, d = _hull_face(H, f, sc)
+        if wp.dot(n, face) < _COPLANAR:
+            lo, hi = _clip_interval(lo, hi, wp.dot(n, s0) - d - tol, wp.dot(n, u), float_t(1e-30))
+    return hi >= lo, s0 + u * wp.clamp(t, lo, wp.max(lo, hi))
+
+
+@wp.func
 def _mesh_edges_into_solid(
     c: Contacts,
     a: int,
@@ -1496,9 +1539,9 @@ def _mesh_edges_into_solid(
                 if bound_lo < best:
                     # golden-section search of the depth along the edge (convex, piecewise linear)
                     lo, hi = _deepest_along(s0, u, lo, hi, 30, H, f0, nf, sc, vec3())
-                    pt = s0 + u * ((lo + hi) * float_t(0.5))
-                    depth, normal = _face_depth(H, f0, nf, sc, pt)
-                    if depth < best:
+                    over, pt = _over_face(H, f0, nf, sc, s0, u, (lo + hi) * float_t(0.5), tol)
+                    depth, normal = _edge_face(H, f0, nf, sc, pt, u, tol)
+                    if over and depth < best:
                         best = depth
                         best_p = pt
                         best_n = normal
@@ -1507,19 +1550,43 @@ def _mesh_edges_into_solid(
                         found = True
     if not found:
         return
-    # the stretch of the deepest edge within tol of the deepest point: clip it to the face planes
-    # pushed out by best + tol
-    lo = _ZERO
-    hi = _ONE
+    # the stretch within tol of the deepest point along the deepest edge's line: the line clipped to
+    # the face planes pushed out by best + tol (the others, outside the body, by tol: over the face,
+    # as above), then what the mesh edges on that line cover of it. A ridge is often many collinear
+    # edges (a grid's line): the deepest one, the first found of equals, held a stretch of a third
+    # of a box's width and tipped the box sideways as it lay across the ridge
+    lo = float_t(-1.0e30)
+    hi = float_t(1.0e30)
     for f in range(f0, f0 + nf):
         n, d = _hull_face(H, f, sc)
-        g0 = wp.dot(n, best_s0) - d - (best + tol)
-        gu = wp.dot(n, best_u)
-        if wp.abs(gu) > float_t(1e-30):
-            if gu > _ZERO:
-                hi = wp.min(hi, -g0 / gu)
-            else:
-                lo = wp.max(lo, -g0 / gu)
+        reach_f = wp.min(best, _ZERO) + tol
+        if wp.dot(n, best_n) >= _COPLANAR:
+            reach_f = best + tol
+            # and no deeper than best - tol: an edge running into the face is deepest at one point
+            lo, hi = _clip_interval(lo, hi, best - tol - (wp.dot(n, best_s0) - d), -wp.dot(n, best_u), float_t(1e-30))
+        lo, hi = _clip_interval(lo, hi, wp.dot(n, best_s0) - d - reach_f, wp.dot(n, best_u), float_t(1e-30))
+    uu = wp.dot(best_u, best_u)
+    first = float_t(1.0e30)
+    last = float_t(-1.0e30)
+    query = wp.mesh_query_aabb(mesh, lower, upper)
+    tri = int(0)
+    while wp.mesh_query_aabb_next(query, tri):
+        for k in range(3):
+            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + k)) - A.x)
+            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + (k + 1) % 3)) - A.x)
+            # on the line: both ends within tol of it
+            r0 = s0 - best_s0
+            r1 = s1 - best_s0
+            if wp.length(wp.cross(r0, best_u)) <= tol * wp.sqrt(uu) and wp.length(wp.cross(r1, best_u)) <= tol * wp.sqrt(uu):
+                t0 = wp.dot(r0, best_u) / uu
+                t1 = wp.dot(r1, best_u) / uu
+                ta = wp.max(wp.min(t0, t1), lo)
+                tb = wp.min(wp.max(t0, t1), hi)
+                if tb >= ta:
+                    first = wp.min(first, ta)
+                    last = wp.max(last, tb)
+    lo = first
+    hi = last
     d_best = wp.dot(best_n, best_p) - best
     # normal a -> b: the face's outward normal; a's surface point is the mesh point moved onto the face
     n = wp.quat_rotate(A.q, best_n)
