@@ -1226,12 +1226,16 @@ def _mesh_point(mesh: wp.uint64, M: Pose, p: vec3, max_dist: float_t):
     nf = wp.mesh_eval_face_normal(mesh, query.face)
     n = wp.normalize(vec3(float_t(nf[0]), float_t(nf[1]), float_t(nf[2])))
     # inside a face the face normal is exact (the direction to a float32 closest point is not,
-    # for a point nearly on the surface); at an edge or a corner the direction to it is the normal
+    # for a point nearly on the surface); at an edge or a corner the direction to it is the normal,
+    # unless that direction is the face's normal but for rounding (within 1.4e-3 rad: a point over
+    # a vertex or an edge of a flat region). A box's corners landing on a flat grid mesh's vertices
+    # got normals tilted 4e-5 by the float32 closest point, differing, so not one patch: the corners
+    # were solved one by one and the box bounced off spinning at 0.84 rad/s
     bw = wp.float32(1.0) - query.u - query.v
     dist = wp.dot(d, n)
     if wp.min(wp.min(query.u, query.v), bw) < wp.float32(1e-4):
         length = wp.length(d)
-        if length > float_t(1e-6) * (_ONE + wp.length(pl)):
+        if length > float_t(1e-6) * (_ONE + wp.length(pl)) and wp.abs(dist) < (_ONE - float_t(1e-6)) * length:
             face = n
             n = d / length
             dist = length
