@@ -1581,7 +1581,8 @@ def _mesh_edges_into_solid(
             # on the line: both ends within tol of it
             r0 = s0 - best_s0
             r1 = s1 - best_s0
-            if wp.length(wp.cross(r0, best_u)) <= tol * wp.sqrt(uu) and wp.length(wp.cross(r1, best_u)) <= tol * wp.sqrt(uu):
+            off = tol * wp.sqrt(uu)  # |r x u| / |u| <= tol
+            if wp.length(wp.cross(r0, best_u)) <= off and wp.length(wp.cross(r1, best_u)) <= off:
                 t0 = wp.dot(r0, best_u) / uu
                 t1 = wp.dot(r1, best_u) / uu
                 ta = wp.max(wp.min(t0, t1), lo)
