@@ -25,6 +25,18 @@ def grid_mesh(height, n=41, half=1.0):
     return v, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
 
 
+def energy_and_x(w, duration):
+    """Run `w` for `duration` seconds; its total energy and body 1's x after every step."""
+    energy, xs = [], []
+
+    def record(world):
+        energy.append(world.kinetic_energy() + world.potential_energy())
+        xs.append(world.body_position[1, 0])
+
+    w.run(duration, callback=record)
+    return np.array(energy), np.array(xs)
+
+
 def slab_mesh(hx, hy, hz):
     """A closed box mesh (12 triangles, outward) of half sizes hx, hy, hz."""
     v = np.array([[x, y, z] for z in (-hz, hz) for y in (-hy, hy) for x in (-hx, hx)])
@@ -193,13 +205,7 @@ def test_box_sliding_in_a_finely_tessellated_half_pipe_gains_no_energy(yaw_deg):
         friction=0.0,
     )
     m, e0 = w.body_mass[1], w.kinetic_energy() + w.potential_energy()
-    energy, xs = [], []
-
-    def record(world):
-        energy.append(world.kinetic_energy() + world.potential_energy())
-        xs.append(world.body_position[1, 0])
-
-    w.run(4.0, callback=record)
+    energy, xs = energy_and_x(w, 4.0)
     assert max(energy) <= e0 + m * G * 1e-4
     assert max(xs) > 0.15 and min(xs) < -0.15  # it swung up both sides (to 0.19 m without losses)
 
@@ -230,13 +236,7 @@ def test_ball_in_a_finely_tessellated_bowl_gains_no_energy(friction, shape):
         q = (np.sin(np.pi / 4), 0.0, 0.0, np.cos(np.pi / 4))
         w.add_capsule(position=start, radius=r, half_height=0.05, orientation=q, restitution=0.0, friction=friction)
     m, e0 = w.body_mass[1], w.kinetic_energy() + w.potential_energy()
-    energy, xs = [], []
-
-    def record(world):
-        energy.append(world.kinetic_energy() + world.potential_energy())
-        xs.append(world.body_position[1, 0])
-
-    w.run(5.0, callback=record)
+    energy, xs = energy_and_x(w, 5.0)
     assert max(energy) <= e0 + m * G * 1e-4
     assert np.abs(xs[-round(2.0 / w.dt) :]).max() <= x0 + 5e-4  # the last 2 s hold a turning point
     assert np.abs(xs).min() < 0.01  # it did swing through the middle

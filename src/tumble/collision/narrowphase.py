@@ -1437,6 +1437,14 @@ def _pick(k: int, i0: int, i1: int, i2: int, i3: int):
 
 
 @wp.func
+def _mesh_edge_in(A: Pose, B: Pose, mesh: wp.uint64, tri: int, k: int):
+    """Edge k of mesh triangle `tri` (mesh B), from vertex k to the next, in the frame of body A."""
+    s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + k)) - A.x)
+    s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + (k + 1) % 3)) - A.x)
+    return s0, s1
+
+
+@wp.func
 def _edge_face(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3, u: vec3, tol: float_t):
     """`_face_depth` of a point p on an edge of direction u, the face chosen among those within tol
     of the largest distance as the one the edge runs most along (least |n . u|): a ridge lying in a
@@ -1526,9 +1534,7 @@ def _mesh_edges_into_solid(
     tri = int(0)
     while wp.mesh_query_aabb_next(query, tri):
         for k in range(3):
-            # the edge in the body's frame
-            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + k)) - A.x)
-            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + (k + 1) % 3)) - A.x)
+            s0, s1 = _mesh_edge_in(A, B, mesh, tri, k)
             u = s1 - s0
             lo = _ZERO
             hi = _ONE
@@ -1576,8 +1582,7 @@ def _mesh_edges_into_solid(
     tri = int(0)
     while wp.mesh_query_aabb_next(query, tri):
         for k in range(3):
-            s0 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + k)) - A.x)
-            s1 = wp.quat_rotate_inv(A.q, B.x + wp.quat_rotate(B.q, _mesh_vertex(mesh, tri * 3 + (k + 1) % 3)) - A.x)
+            s0, s1 = _mesh_edge_in(A, B, mesh, tri, k)
             # on the line: both ends within tol of it
             r0 = s0 - best_s0
             r1 = s1 - best_s0

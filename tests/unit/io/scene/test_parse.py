@@ -169,16 +169,20 @@ def test_a_npz_archive_given_as_a_scene_says_what_it_is(tmp_path):
         scene_io.read_scene(junk)
 
 
+def assert_refused(path, content, match):
+    """A file holding `content` at `path` is refused as a scene by both readers, with `match`."""
+    path.write_bytes(content)
+    with pytest.raises(SceneError, match=match):
+        scene_io.read_scene(path)
+    with pytest.raises(SceneError, match=match):
+        tumble.load_scene(path)
+
+
 @pytest.mark.parametrize("content", [b"", b"\n", b"[world]\n"], ids=["empty", "newline", "toml"])
 def test_a_file_named_npz_is_never_read_as_a_scene(tmp_path, content):
     """A .npz path is a recording or a saved state even when it is empty or holds text: it was read
     as TOML, so a zero-byte one ran as an empty scene and `tumble check` said ok."""
-    path = tmp_path / "cut.npz"
-    path.write_bytes(content)
-    with pytest.raises(SceneError, match=r"cut.npz: a .npz archive .*not a scene file"):
-        scene_io.read_scene(path)
-    with pytest.raises(SceneError, match="not a scene file"):
-        tumble.load_scene(path)
+    assert_refused(tmp_path / "cut.npz", content, r"cut.npz: a .npz archive .*not a scene file")
 
 
 @pytest.mark.parametrize(
@@ -188,11 +192,7 @@ def test_an_empty_scene_file_is_refused(tmp_path, content, what):
     """A scene file with no table in it (zero bytes, blank lines, comments) is refused by name: it ran
     as a world of nothing, and `tumble check` said ok, where the file was most likely cut short."""
     path = tmp_path / "cut.toml"
-    path.write_bytes(content)
-    with pytest.raises(SceneError, match=rf"cut.toml: the file is {what}, not a scene"):
-        scene_io.read_scene(path)
-    with pytest.raises(SceneError, match="not a scene"):
-        tumble.load_scene(path)
+    assert_refused(path, content, rf"cut.toml: the file is {what}, not a scene")
     path.write_bytes(content + b"[world]\n")  # a world and nothing in it yet is a scene
     assert scene_io.read_scene(path).table("world") is not None
 
