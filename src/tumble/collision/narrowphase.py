@@ -1467,7 +1467,8 @@ def _edge_face(H: Hulls, f0: int, nf: int, sc: vec3, p: vec3, u: vec3, tol: floa
 @wp.func
 def _over_face(H: Hulls, f0: int, nf: int, sc: vec3, s0: vec3, u: vec3, t: float_t, tol: float_t):
     """The point of the edge s0 + t' u nearest t that lies over the face it is deepest from: within
-    tol of every other face plane of the hull (hull frame). Returns (False, _) when there is none.
+    tol of every other face plane of the hull (hull frame). Returns (whether there is one, the
+    point, and its `_edge_face` distance and normal there).
 
     Outside the body the face-plane depth is a lower bound, least where two planes cross beyond
     the body's rim: a mesh rising past a box's bottom edge (an incline, a hill) looked nearer than
@@ -1477,14 +1478,18 @@ def _over_face(H: Hulls, f0: int, nf: int, sc: vec3, s0: vec3, u: vec3, t: float
     within every plane and stays where it is.
     """
     p = s0 + u * t
-    _depth, face = _edge_face(H, f0, nf, sc, p, u, tol)
+    depth, face = _edge_face(H, f0, nf, sc, p, u, tol)
     lo = _ZERO
     hi = _ONE
     for f in range(f0, f0 + nf):
         n, d = _hull_face(H, f, sc)
         if wp.dot(n, face) < _COPLANAR:
             lo, hi = _clip_interval(lo, hi, wp.dot(n, s0) - d - tol, wp.dot(n, u), float_t(1e-30))
-    return hi >= lo, s0 + u * wp.clamp(t, lo, wp.max(lo, hi))
+    tc = wp.clamp(t, lo, wp.max(lo, hi))
+    if tc != t:  # moved over the face: its depth there
+        p = s0 + u * tc
+        depth, face = _edge_face(H, f0, nf, sc, p, u, tol)
+    return hi >= lo, p, depth, face
 
 
 @wp.func
@@ -1549,8 +1554,7 @@ def _mesh_edges_into_solid(
                 if bound_lo < best:
                     # golden-section search of the depth along the edge (convex, piecewise linear)
                     lo, hi = _deepest_along(s0, u, lo, hi, 30, H, f0, nf, sc, vec3())
-                    over, pt = _over_face(H, f0, nf, sc, s0, u, (lo + hi) * float_t(0.5), tol)
-                    depth, normal = _edge_face(H, f0, nf, sc, pt, u, tol)
+                    over, pt, depth, normal = _over_face(H, f0, nf, sc, s0, u, (lo + hi) * float_t(0.5), tol)
                     if over and depth < best:
                         best = depth
                         best_p = pt
@@ -1576,6 +1580,7 @@ def _mesh_edges_into_solid(
             lo, hi = _clip_interval(lo, hi, best - tol - (wp.dot(n, best_s0) - d), -wp.dot(n, best_u), float_t(1e-30))
         lo, hi = _clip_interval(lo, hi, wp.dot(n, best_s0) - d - reach_f, wp.dot(n, best_u), float_t(1e-30))
     uu = wp.dot(best_u, best_u)
+    off = tol * wp.sqrt(uu)  # an edge on the line: |r x u| / |u| <= tol at both ends
     first = float_t(1.0e30)
     last = float_t(-1.0e30)
     query = wp.mesh_query_aabb(mesh, lower, upper)
@@ -1583,10 +1588,8 @@ def _mesh_edges_into_solid(
     while wp.mesh_query_aabb_next(query, tri):
         for k in range(3):
             s0, s1 = _mesh_edge_in(A, B, mesh, tri, k)
-            # on the line: both ends within tol of it
             r0 = s0 - best_s0
             r1 = s1 - best_s0
-            off = tol * wp.sqrt(uu)  # |r x u| / |u| <= tol
             if wp.length(wp.cross(r0, best_u)) <= off and wp.length(wp.cross(r1, best_u)) <= off:
                 t0 = wp.dot(r0, best_u) / uu
                 t1 = wp.dot(r1, best_u) / uu
