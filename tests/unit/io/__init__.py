@@ -32,3 +32,14 @@ def open_stage(path):
     assert stage is not None
     _OPEN_STAGES.append(stage)
     return stage
+
+
+def validation_errors(path) -> list[str]:
+    """What USD's own validators (every one `pxr.UsdValidation` registers: stage metadata, composition,
+    attribute types, UsdGeom, UsdShade and UsdPhysics rules, packages) report of the stage at
+    `path`: one "name: message" line each, none for a clean stage."""
+    from pxr import UsdValidation
+
+    registry = UsdValidation.ValidationRegistry()
+    context = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
+    return [f"{e.GetName()}: {e.GetMessage()}" for e in context.Validate(open_stage(path))]

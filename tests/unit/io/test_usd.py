@@ -16,7 +16,7 @@ from tumble.io import usd
 from tumble.limits import LimitError
 from tumble.npmath import quat_to_matrix
 
-from . import open_stage, record_scene
+from . import open_stage, record_scene, validation_errors
 
 FPS = 30.0
 FRAMES = 16  # 0.5 s
@@ -300,6 +300,15 @@ def test_physics_schemas(recording, tmp_path):
         if p.HasAPI(UsdPhysics.MaterialAPI)
     )
     assert restitutions == pytest.approx([0.5, 0.8])
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".usdz"])
+@pytest.mark.parametrize("bodies", ["instancer", "xforms"])
+def test_usd_validators_find_nothing_wrong(recording, tmp_path, bodies, suffix):
+    """Every validator USD registers passes the stage (bodies either way, with the physics schemas;
+    the package rules too for .usdz): what Blender, Houdini and Omniverse read is well-formed USD."""
+    path = usd.export(recording, tmp_path / f"take{suffix}", bodies=bodies, physics=True)
+    assert validation_errors(path) == []
 
 
 def test_lower_fps_takes_every_other_frame(recording, tmp_path):

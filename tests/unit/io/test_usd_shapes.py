@@ -15,6 +15,8 @@ import tumble  # noqa: E402
 from tumble.io import usd  # noqa: E402
 from tumble.io.record import Recorder, load_recording  # noqa: E402
 
+from . import validation_errors  # noqa: E402
+
 FRAMES = 6
 ROCK = np.array([[0, 0, 0], [0.2, 0, 0], [0, 0.15, 0], [0, 0, 0.1], [0.12, 0.1, 0.08]], dtype=float)
 _OPEN: list = []
@@ -230,3 +232,16 @@ def test_physics_densities_of_capsule_and_hull_prototypes(rec, tmp_path):
         prim = stage.GetPrimAtPath(targets[index[ids.index(body)]])
         assert prim.HasAPI(UsdPhysics.RigidBodyAPI) and prim.HasAPI(UsdPhysics.CollisionAPI)
         assert UsdPhysics.MassAPI(prim).GetDensityAttr().Get() == pytest.approx(1000.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("bodies", ["instancer", "xforms"])
+def test_usd_validators_pass_the_shapes_and_joints(rec, tmp_path, bodies):
+    """USD's own validators (UsdPhysics' joint, collider and rigid-body rules among them) pass the
+    capsules, hulls, mesh and joints; and they are live: a joint pointed at no prim is reported."""
+    path = usd.export(rec, tmp_path / "shapes.usda", bodies=bodies, physics=True)
+    assert validation_errors(path) == []
+    stage = Usd.Stage.Open(str(path))
+    joint = next(p for p in stage.Traverse() if p.IsA(UsdPhysics.Joint))
+    UsdPhysics.Joint(joint).GetBody0Rel().SetTargets(["/Root/Nowhere"])
+    stage.GetRootLayer().Export(str(tmp_path / "broken.usda"))
+    assert [e.split(":")[0] for e in validation_errors(tmp_path / "broken.usda")] == ["JointInvalidPrimRel"]
