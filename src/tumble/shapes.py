@@ -40,7 +40,8 @@ class SolidOptions(TypedDict, total=False):
         angular_velocity: initial angular velocity, world frame [rad/s], shape (3,).
         restitution: coefficient of restitution in [0, 1].
         friction: Coulomb friction coefficient (>= 0).
-        static: if True the body never moves (inverse mass 0).
+        static: if True the body never moves (inverse mass 0); a velocity or angular velocity
+            other than 0 is refused (a kinematic body is the one that moves by a velocity).
         kinematic: if True the body moves only with the velocity it is given (at creation or by
             `World.set_body_state` / `World.set_kinematic_target`), unaffected by gravity and
             contacts, and pushes dynamic bodies as a body of infinite mass would.

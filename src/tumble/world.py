@@ -972,8 +972,13 @@ class World:
         if static or kinematic:
             kind = BodyKind.STATIC if static else BodyKind.KINEMATIC
             mass, inertia = np.zeros(n), np.zeros((n, 3))
-        if static:
-            v, w = np.zeros((n, 3)), np.zeros((n, 3))
+        if static and (np.any(v) or np.any(w)):
+            # (as set_body_state: a velocity given to a static body would be dropped without a word)
+            name = "velocity" if np.any(v) else "angular_velocity"
+            raise ValueError(
+                f"{name}: a static body never moves, so it cannot be given a velocity; "
+                "add it with kinematic=True to move it by a velocity"
+            )
         return self._add_bodies(
             shape=shape,
             position=position,

@@ -202,6 +202,32 @@ def test_static_bodies_refuse_velocities_but_may_be_moved():
     assert floor.kind == BodyKind.STATIC and block.kind == BodyKind.STATIC
 
 
+@pytest.mark.parametrize(
+    "adder, size",
+    [
+        ("add_box", {"half_extents": (1, 1, 0.1)}),
+        ("add_sphere", {"radius": 0.1}),
+        ("add_capsule", {"radius": 0.1, "half_height": 0.2}),
+        ("add_convex", {"points": np.eye(3).tolist() + [[0, 0, 0]]}),
+    ],
+)
+def test_a_static_body_is_refused_a_velocity_when_it_is_added_too(adder, size):
+    """As set_body_state refuses it: a static body added with a velocity or a spin other than 0 is an
+    error naming the key (before, the velocity was dropped and the body stood still); zeros are taken."""
+    w = tumble.World()
+    add = getattr(w, adder)
+    for key in ("velocity", "angular_velocity"):
+        with pytest.raises(ValueError, match=rf"^{key}: a static body never moves.*kinematic=True"):
+            add(position=(0, 0, 0), static=True, **{key: (0, 0.5, 0)}, **size)
+    assert w.body_count == 0  # nothing half-added
+    body = add(position=(0, 0, 0), static=True, velocity=(0, 0, 0), angular_velocity=(0, 0, 0), **size)
+    assert body.kind == BodyKind.STATIC
+    moving = add(position=(3, 0, 0), kinematic=True, velocity=(0, 0.5, 0), **size)  # what was meant
+    y0 = w.body_position[moving][1]
+    w.step()
+    assert w.body_position[moving][1] - y0 == pytest.approx(0.5 * w.dt)
+
+
 def test_moving_a_resting_body_keeps_the_others_resting():
     """Teleporting the top box of a resting stack away leaves the lower box at rest on the floor."""
     w = tumble.World()

@@ -274,7 +274,7 @@ def scale_factor() -> Check:
 
 
 def convex_rules(values: dict) -> None:
-    mass_or_density(values)
+    solid_rules(values)
     if (values.get("points") is None) == (values.get("file") is None):
         raise KeyBad("points", "give points or file (one of them)")
 
@@ -336,6 +336,19 @@ def mass_or_density(values: dict) -> None:
     if values.get("mass") is not None and values.get("density") is not None:
         raise KeyBad("density", "give mass or density, not both")
     _mass_representable(values)
+
+
+def solid_rules(values: dict) -> None:
+    """The cross-key rules of a solid body's table: mass or density, and a static body given no velocity."""
+    mass_or_density(values)
+    if values.get("static"):
+        for key in ("velocity", "angular_velocity"):
+            if any(values.get(key) or ()):
+                raise KeyBad(
+                    key,
+                    "a static body never moves, so it cannot be given a velocity; "
+                    "set kinematic = true (not static) to move it by a velocity",
+                )
 
 
 def _extremes(value) -> list[float]:

@@ -31,7 +31,6 @@ from .checks import (
     file_name,
     integer,
     joint_rules,
-    mass_or_density,
     number,
     per_spring,
     pins,
@@ -42,6 +41,7 @@ from .checks import (
     shape_list,
     show,
     size_or_range,
+    solid_rules,
     value_or_range,
     vector,
 )
@@ -147,7 +147,12 @@ def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
         "velocity": Field(vector(3), _solid("velocity"), "m/s", "initial linear velocity"),
         **_MASS,
         **_material(_solid),
-        "static": Field(boolean(), _solid("static"), "", "immovable (inverse mass 0)"),
+        "static": Field(
+            boolean(),
+            _solid("static"),
+            "",
+            "immovable (inverse mass 0; a velocity other than 0 is refused: use kinematic)",
+        ),
         "orientation": Field(quaternion(), _solid("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
         "angular_velocity": Field(
             vector(3), _solid("angular_velocity"), "rad/s", "initial angular velocity, world frame"
@@ -222,7 +227,7 @@ SCHEMA: dict[str, TableSpec] = {
             True,
             "Solid spheres.",
             _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius")),
-            mass_or_density,
+            solid_rules,
         ),
         TableSpec(
             "box",
@@ -232,7 +237,7 @@ SCHEMA: dict[str, TableSpec] = {
                 "half_extents",
                 Field(vector(3, positive=True), REQUIRED, "m", "half sizes along the body axes"),
             ),
-            mass_or_density,
+            solid_rules,
         ),
         TableSpec(
             "capsule",
@@ -240,7 +245,7 @@ SCHEMA: dict[str, TableSpec] = {
             "Solid capsules: the points within radius of a segment of length 2 half_height along the body z axis.",
             _body_fields("radius", Field(number(low=0, low_open=True), REQUIRED, "m", "radius"))
             | {"half_height": Field(number(low=0, low_open=True), REQUIRED, "m", "half length of the segment")},
-            mass_or_density,
+            solid_rules,
         ),
         TableSpec(
             "convex",
@@ -261,7 +266,12 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 **_MASS,
                 **_material(_solid),
-                "static": Field(boolean(), _solid("static"), "", "immovable (inverse mass 0)"),
+                "static": Field(
+                    boolean(),
+                    _solid("static"),
+                    "",
+                    "immovable (inverse mass 0; a velocity other than 0 is refused: use kinematic)",
+                ),
             },
             convex_rules,
         ),
