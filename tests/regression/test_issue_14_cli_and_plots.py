@@ -181,7 +181,7 @@ def test_empty_panels_say_so():
     for name, words in (
         ("Kinetic energy", "zero throughout"),
         ("Linear momentum", "zero throughout"),
-        ("Contact count", "no contacts"),
+        ("Contact count", "no contacts at the recorded frames"),
     ):
         ax = by_title[name]
         assert words in [t.get_text() for t in ax.texts], name

@@ -268,7 +268,8 @@ def build_figure(record: dict, *, name: str | None = None):
         values = np.asarray(data, dtype=np.float64)
         if not np.isfinite(values).any() or np.all(values[np.isfinite(values)] == 0.0):
             # nothing to draw: say so, on an axis with whole ticks around zero
-            what = {"contacts": "no contacts", "strain": "no strain"}.get(key, "zero throughout")
+            # (contacts are counted at the frames: a bounce shorter than a frame's interval leaves none)
+            what = {"contacts": "no contacts at the recorded frames", "strain": "no strain"}.get(key, "zero throughout")
             if not np.isfinite(values).any():
                 what = "no finite values"
             ax.axhline(0.0, color="0.6", lw=1.0)
