@@ -139,6 +139,13 @@ _MASS = {
 }
 
 
+def _static_field() -> Field:
+    """The `static` key of a solid body's table (spheres, boxes, capsules, convex bodies)."""
+    return Field(
+        boolean(), _solid("static"), "", "immovable (inverse mass 0; a velocity other than 0 is refused: use kinematic)"
+    )
+
+
 def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
     """The keys of a solid body's table; the defaults are the body adders' (`SOLID_DEFAULTS`)."""
     return {
@@ -147,12 +154,7 @@ def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
         "velocity": Field(vector(3), _solid("velocity"), "m/s", "initial linear velocity"),
         **_MASS,
         **_material(_solid),
-        "static": Field(
-            boolean(),
-            _solid("static"),
-            "",
-            "immovable (inverse mass 0; a velocity other than 0 is refused: use kinematic)",
-        ),
+        "static": _static_field(),
         "orientation": Field(quaternion(), _solid("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
         "angular_velocity": Field(
             vector(3), _solid("angular_velocity"), "rad/s", "initial angular velocity, world frame"
@@ -266,12 +268,7 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 **_MASS,
                 **_material(_solid),
-                "static": Field(
-                    boolean(),
-                    _solid("static"),
-                    "",
-                    "immovable (inverse mass 0; a velocity other than 0 is refused: use kinematic)",
-                ),
+                "static": _static_field(),
             },
             convex_rules,
         ),
