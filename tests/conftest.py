@@ -19,17 +19,30 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
+def pytest_addoption(parser):
+    parser.addoption(
+        "--precision",
+        choices=("float32", "float64"),
+        default=None,
+        help="the precision of the tests' worlds (default: Tumble's default); tests marked float64 keep float64",
+    )
+
+
 @pytest.fixture(autouse=True)
 def _float64_marker(request, monkeypatch):
     """`@pytest.mark.float64("why")`: the test's worlds default to float64, for bookkeeping that float32
-    cannot keep (momentum or energy to ~1e-12). Every other test runs in Tumble's default precision."""
+    cannot keep (momentum or energy to ~1e-12). Every other test runs in Tumble's default precision,
+    or in the one `--precision` names (`pytest --precision float32 tests/physics`)."""
     marker = request.node.get_closest_marker("float64")
+    precision = request.config.getoption("--precision")
     if marker is not None:
         if not (marker.args and isinstance(marker.args[0], str) and marker.args[0]):
             raise pytest.UsageError(f"{request.node.nodeid}: @pytest.mark.float64 needs a reason")
+        precision = "float64"
+    if precision is not None:
         import tumble.precision
 
-        monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", "float64")
+        monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", precision)
 
 
 @pytest.fixture
