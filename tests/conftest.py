@@ -29,7 +29,7 @@ def pytest_addoption(parser):
 
 
 @pytest.fixture(autouse=True)
-def _float64_marker(request, monkeypatch):
+def _precision(request, monkeypatch):
     """`@pytest.mark.float64("why")`: the test's worlds default to float64, for bookkeeping that float32
     cannot keep (momentum or energy to ~1e-12). Every other test runs in Tumble's default precision,
     or in the one `--precision` names (`pytest --precision float32 tests/physics`)."""
