@@ -1182,17 +1182,20 @@ class World:
             )
             lap("cloth")
 
-        # substeps: integrate velocities (+ warm start) -> impacts (restitution) -> solve -> integrate positions
-        # -> relax -> cloth
+        # substeps: integrate velocities (+ warm start) -> solve -> integrate positions -> impacts (restitution,
+        # for the next substep) -> relax -> cloth; the first substep's impacts come before its gravity kick, as
+        # every later one's do (an impulse between a substep's kick and its position update adds energy)
         for substep in range(self.substeps):
+            if substep == 0:
+                contact_solver.impacts(
+                    bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True, cache=launches
+                )
+                lap("solver")
             integrate.integrate_velocities(bodies, self.gravity, h, warm=substep > 0, cache=launches)
             lap("integrate")
             if substep == 0:
                 contact_solver.warm_start(bodies, contacts)
                 self.joints.warm_start(bodies, h, cache=launches)
-                contact_solver.impacts(
-                    bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=False, cache=launches
-                )
             self.joints.solve(bodies, h, use_bias=True, cache=launches)
             contact_solver.solve(bodies, contacts, h, use_bias=True, cache=launches)
             lap("solver")

@@ -1375,9 +1375,11 @@ def impacts(
 ) -> None:
     """Collide the contacts that close within the substep faster than `threshold` [m/s] (restitution).
 
-    Called before the first substep's solve (`ahead` False: the contacts that close within it)
-    and before every relax pass (`ahead` True: those that close within the next substep, its
-    gravity kick included), so that no speculative clamp lands a bouncing contact first.
+    The step calls it before the first substep's gravity kick and before every relax pass
+    (`ahead` True: the contacts that close within the next substep, its kick included), so that
+    no speculative clamp lands a bouncing contact first, and no impulse falls between a
+    substep's kick and its position update (there, a box's corner striking in the first
+    substep gained energy). With `ahead` False the velocities have the substep's kick already.
 
     On the CPU one thread sweeps the contacts forward then backward (Gauss-Seidel); on CUDA one
     thread per contact, with atomics and the Jacobi scale.
