@@ -1170,7 +1170,7 @@ class World:
 
         # contact prepare: match last step's contacts for warm starting, effective masses
         contacts.match_previous(bodies)
-        contact_solver.prepare(bodies, contacts)
+        contact_solver.prepare(bodies, contacts, dt)
         integrate.begin_step(bodies)
         lap("solver")
 

@@ -458,6 +458,45 @@ def test_free_gas_of_boxes_and_spheres_keeps_momentum_and_energy():
     assert abs(w.kinetic_energy() - e0) <= float(contacts.MANIFOLD_TOLERANCE) * scale
 
 
+def _off_centre_hit(shape: str, e: float, mu: float, dt: float):
+    """Two 1 kg blocks 20 cm across (boxes, or hulls of a stretched cube), the second turned 0.6 rad
+    about z and 5 cm aside, meeting at 4 m/s along x across a 2 m/s shear along y, no gravity."""
+    w = tumble.World(gravity=(0, 0, 0), dt=dt)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * [0.12, 0.1, 0.08]
+    turned = (0.0, 0.0, math.sin(0.3), math.cos(0.3))
+    bodies = []
+    for x, v, q in (((-0.3, 0, 0), (2, 1, 0), (0, 0, 0, 1)), ((0.3, 0.05, 0), (-2, -1, 0), turned)):
+        o = dict(position=x, mass=1.0, velocity=v, orientation=q, restitution=e, friction=mu)
+        if shape == "box":
+            bodies.append(w.add_box(half_extents=(0.1, 0.1, 0.1), **o))
+        else:
+            bodies.append(w.add_convex(points=corners, **o))
+    return w, bodies
+
+
+@pytest.mark.parametrize("dt", [1 / 240, 1 / 60])
+@pytest.mark.parametrize("e, mu", [(0.0, 0.0), (0.5, 0.5)])
+@pytest.mark.parametrize("shape", ["box", "hull"])
+def test_off_centre_hit_of_two_blocks_keeps_angular_momentum(shape, e, mu, dt):
+    """Two blocks hit off-centre in free space, sticking or bouncing, with friction or without: the
+    momentum is kept to rounding and the angular momentum about the origin to 1e-7 of |x| m v.
+
+    An impulse whose anchors on the two bodies are apart by g changes L by g x P. The contact is
+    found up to a step's approach early and collides later in the step, when the bodies have slid
+    across each other, so its anchors are made to meet where the bodies collide (solver/contacts.py,
+    `_impact_anchors`, `_met`). With the anchors where the step began, these hits lost 0.1 to 1.8 %
+    of |x| m v. What is left is second order: the soft push-out of the overlap, taken back a
+    substep later with the centres moved by v h (measured 1e-9 at most).
+    """
+    w, (a, b) = _off_centre_hit(shape, e, mu, dt)
+    p0, l0 = w.momentum(), _total_angular_momentum(w)
+    scale = 0.3 * 1.0 * math.hypot(2.0, 1.0) * 2  # |x| m |v| of the two bodies [kg m^2/s]
+    w.run(0.5)
+    assert np.linalg.norm(w.body_state(a).velocity - [2, 1, 0]) > 0.5  # they did collide
+    assert np.linalg.norm(w.momentum() - p0) <= rounding() * scale
+    assert np.linalg.norm(_total_angular_momentum(w) - l0) <= resolution(1e-7 * scale, scale)
+
+
 @pytest.mark.parametrize("e", [0.3, 0.6, 0.9])
 def test_ball_bouncing_on_a_static_box_rises_to_e_squared(e):
     """A ball dropped 1 m onto a static box's top face rises to e^2, e^4, e^6 m (within 3 v h per bounce)."""

@@ -36,7 +36,7 @@ def prepared(world: tumble.World):
     bodies, contacts = world.bodies, world.contacts
     contacts.begin_solve(bodies)
     integrate.begin_step(bodies)
-    solver.prepare(bodies, contacts)
+    solver.prepare(bodies, contacts, DT)
     return bodies, contacts
 
 
