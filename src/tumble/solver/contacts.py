@@ -28,7 +28,7 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   do not jitter; a manifold's rows have no slop (their corners share the load evenly, see
   `_normal_target`): a resting row under load F settles at F / (m_n omega^2)
   (tests/physics/test_stacks.py);
-- restitution is a collision pass at the start of every substep, before the solve (`impacts`,
+- restitution is a collision pass at the start of every substep, before its gravity kick and the solve (`impacts`,
   as in the collision/contact split of Guendelman, Bridson & Fedkiw, SIGGRAPH 2003): every
   contact that closes within the substep faster than the threshold collides once, as a
   two-body collision with its own impact speed (normal impulse to -e v_impact, then Coulomb
