@@ -348,7 +348,8 @@ def _emit_manifold(
 def _face_contacts(
     c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, ref_is_a: bool, axis: int, max_sep: float_t
 ):
-    """Manifold for a face axis: `axis` of the reference box (A if ref_is_a) against the other box."""
+    """Manifold for a face axis: `axis` of the reference box (A if ref_is_a) against the other box;
+    returns the number of points kept (0: the incident face clips to nothing within reach)."""
     R = A
     I = B
     hr = ha
@@ -425,10 +426,10 @@ def _face_contacts(
                 v2[m] = v[k]
                 d2[m] = d[k]
                 m += 1
-    if m == 0:
-        return
-    # reduce to at most four: deepest, farthest from it, then the largest triangles either side
-    _emit_manifold(c, a, b, A, B, n, face, U, V, u2, v2, d2, m, ref_is_a, max_sep)
+    if m > 0:
+        # reduce to at most four: deepest, farthest from it, then the largest triangles either side
+        _emit_manifold(c, a, b, A, B, n, face, U, V, u2, v2, d2, m, ref_is_a, max_sep)
+    return m
 
 
 @wp.func
@@ -482,8 +483,6 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
     best_sep = float_t(-1.0e30)
     best_kind = int(-1)  # 0: face of A, 1: face of B, 2: edge-edge
     best_i = int(0)
-    best_j = int(0)
-    best_axis = vec3()
     # face axes of A then of B
     for k in range(6):
         axis = vec3()
@@ -504,9 +503,12 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
             if k >= 3:
                 best_kind = 1
             best_i = k % 3
-            best_axis = axis
     face_sep = best_sep
     # edge-edge axes; prefer faces unless an edge axis separates clearly more (stable manifolds)
+    edge_sep = float_t(-1.0e30)
+    edge_i = int(-1)
+    edge_j = int(0)
+    edge_axis = vec3()
     for i in range(3):
         for j in range(3):
             axis = wp.cross(_axis(A.q, i), _axis(B.q, j))
@@ -516,18 +518,23 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
                 s = wp.abs(wp.dot(T, axis)) - _box_projection(A.q, ha, axis) - _box_projection(B.q, hb, axis)
                 if s > max_sep:
                     return
-                if s > float_t(0.95) * face_sep + float_t(0.001) and s > best_sep:
-                    best_sep = s
-                    best_kind = 2
-                    best_i = i
-                    best_j = j
-                    best_axis = axis
+                if s > edge_sep:
+                    edge_sep = s
+                    edge_i = i
+                    edge_j = j
+                    edge_axis = axis
+    if edge_i >= 0 and edge_sep > float_t(0.95) * face_sep + float_t(0.001) and edge_sep > face_sep:
+        best_kind = 2
+    if best_kind != 2:
+        kept = _face_contacts(c, a, b, A, B, ha, hb, best_kind == 0, best_i, max_sep)
+        if kept == 0 and edge_i >= 0:
+            # the face preferred for a steady manifold clips to nothing within reach: the boxes
+            # meet edge to edge (a crossed edge sunk 0.74 mm into a resting box had no contact)
+            best_kind = 2
     if best_kind == 2:
-        if wp.dot(best_axis, T) < _ZERO:
-            best_axis = -best_axis
-        _edge_contact(c, a, b, A, B, ha, hb, best_i, best_j, best_axis, max_sep)
-    else:
-        _face_contacts(c, a, b, A, B, ha, hb, best_kind == 0, best_i, max_sep)
+        if wp.dot(edge_axis, T) < _ZERO:
+            edge_axis = -edge_axis
+        _edge_contact(c, a, b, A, B, ha, hb, edge_i, edge_j, edge_axis, max_sep)
 
 
 # ---------------------------------------------------------------------------- capsules

@@ -211,6 +211,41 @@ def test_box_box_edge_edge():
     np.testing.assert_allclose(points[0], [0, 0, e - 0.002], atol=1e-9)
 
 
+def _sat_depth(x, q, half):
+    """Penetration depth of two equal boxes and its axis, by the 15 separating axes (independent of Tumble)."""
+    frames = [np.array([rotate(qi, e) for e in np.eye(3)]).T for qi in q]
+    axes = [f[:, k] for f in frames for k in range(3)]
+    axes += [np.cross(frames[0][:, i], frames[1][:, j]) for i in range(3) for j in range(3)]
+    d = x[1] - x[0]
+    best = (np.inf, None)
+    for axis in axes:
+        if np.linalg.norm(axis) < 1e-6:
+            continue
+        axis = axis / np.linalg.norm(axis)
+        reach = sum(half[k] * abs(f[:, k] @ axis) for f in frames for k in range(3))
+        best = min(best, (reach - abs(d @ axis), tuple(axis)), key=lambda b: b[0])
+    return best[0], np.array(best[1])
+
+
+def test_box_box_crossed_edge_sunk_into_a_face_is_a_contact():
+    """A tilted box whose edge has sunk 0.74 mm across a resting box's top edge (a pair from the rain
+    of 1,000 boxes) touches it there: the face axis, preferred for a steady manifold, clips the
+    incident face to nothing within reach, and the edge pair takes over, at the separating-axis depth."""
+    x = np.array([[0.211061, 0.367465, 0.049996], [0.175925, 0.419842, 0.185327]])
+    q = np.array([[5.95194e-06, -3.08525e-06, -0.0210845, 0.999778], [0.631580, 0.624097, -0.00569906, 0.459975]])
+    q = q / np.linalg.norm(q, axis=1)[:, None]
+    half = np.full(3, 0.05)
+    w = tumble.World(gravity=(0, 0, 0))
+    for k in range(2):
+        w.add_box(position=x[k], orientation=q[k], half_extents=half, mass=1)
+    depth, axis = _sat_depth(x, q, half)
+    assert 0.0005 < depth < 0.001  # an edge-edge overlap, smaller than the face axes' (1.27 mm and more)
+    _, normals, depths, _ = contacts(w)
+    assert len(depths) == 1
+    assert depths[0] == pytest.approx(depth, abs=1e-9)
+    np.testing.assert_allclose(np.abs(normals[0] @ axis), 1.0, atol=1e-9)
+
+
 @pytest.mark.parametrize("swapped", [False, True])
 def test_box_box_normal_points_from_a_to_b(swapped):
     """Whichever body comes first, the normal points from body a to body b."""
