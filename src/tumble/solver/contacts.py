@@ -364,7 +364,9 @@ def _meeting_share(b: BodyArrays, ia: int, ib: int):
 
 
 @wp.func
-def _impact_anchors(b: BodyArrays, ia: int, ib: int, n: vec3, ra: vec3, rb: vec3, s0: float_t, dt: float_t):
+def _impact_anchors(
+    b: BodyArrays, ia: int, ib: int, n: vec3, ra: vec3, rb: vec3, s0: float_t, load: float_t, dt: float_t
+):
     """(r_a, r_b, share, turn) of a speculative contact between two dynamic bodies: its anchors made to
     meet where the bodies will be when it collides, rather than where they were at the step's start.
 
@@ -378,12 +380,15 @@ def _impact_anchors(b: BodyArrays, ia: int, ib: int, n: vec3, ra: vec3, rb: vec3
     anchors; the gap still follows the surface points found by the narrow phase, through `share`
     and `turn` = d x n, d the move (`ContactRow.gap_turn`): moved anchors turning with their
     bodies would misjudge it (a rain of boxes overlapped up to 12 mm, against 8). A contact that
-    touches at the start keeps its anchors (share and turn 0): its bodies barely slide within a
-    step, and its impulses act all through it.
+    touches at the start, or carried load last step (`load`, its warm-start impulse: a resting or
+    rolling contact that opened a little), keeps its anchors (share and turn 0): its bodies barely
+    slide within a step, and its impulses act all through it. (Moved, such contacts kept a
+    capsule rolling in a hollow for seconds: the gap follows the surface points while the
+    impulses act at the anchors, and under rolling the two part.)
     """
     none = vec3()
     share = _meeting_share(b, ia, ib)
-    if share < float_t(0.0) or s0 <= float_t(0.0):
+    if share < float_t(0.0) or s0 <= float_t(0.0) or load > float_t(0.0):
         return ra, rb, float_t(0.0), none
     vn = _speed_along(b, ia, ib, ra, rb, n)
     if vn >= float_t(0.0):
@@ -435,7 +440,15 @@ def _prepare(
         qb = b.orientation[ib]
         # anchors in the world frame, where the contact collides if it is ahead (`_impact_anchors`)
         ra, rb, share, turn = _impact_anchors(
-            b, ia, ib, n, wp.quat_rotate(qa, c.local_a[k]), wp.quat_rotate(qb, c.local_b[k]), c.separation[k], dt
+            b,
+            ia,
+            ib,
+            n,
+            wp.quat_rotate(qa, c.local_a[k]),
+            wp.quat_rotate(qb, c.local_b[k]),
+            c.separation[k],
+            jn_warm[k],
+            dt,
         )
         r.separation = c.separation[k]
         r.gap_share = share
@@ -470,6 +483,7 @@ def _prepare(
                     wp.quat_rotate(qa, c.local_a[kk]),
                     wp.quat_rotate(qb, c.local_b[kk]),
                     c.separation[kk],
+                    jn_warm[kk],
                     dt,
                 )
                 fa = fa + pa
