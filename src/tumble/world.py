@@ -1182,15 +1182,13 @@ class World:
             )
             lap("cloth")
 
-        # substeps: integrate velocities (+ warm start) -> solve -> integrate positions -> impacts (restitution,
-        # for the next substep) -> relax -> cloth; the first substep's impacts come before its gravity kick, as
-        # every later one's do (an impulse between a substep's kick and its position update adds energy)
+        # impacts (restitution) for the first substep, before its gravity kick, as every later one's come
+        # (an impulse between a substep's kick and its position update adds energy); then the substeps:
+        # integrate velocities (+ warm start) -> solve -> integrate positions -> impacts (for the next
+        # substep) -> relax -> cloth
+        contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, cache=launches)
+        lap("solver")
         for substep in range(self.substeps):
-            if substep == 0:
-                contact_solver.impacts(
-                    bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True, cache=launches
-                )
-                lap("solver")
             integrate.integrate_velocities(bodies, self.gravity, h, warm=substep > 0, cache=launches)
             lap("integrate")
             if substep == 0:
@@ -1202,9 +1200,7 @@ class World:
             integrate.integrate_positions(bodies, h, cache=launches)
             lap("integrate")
             self.joints.solve(bodies, h, use_bias=False, cache=launches)
-            contact_solver.impacts(
-                bodies, contacts, self.gravity, h, self.restitution_threshold, ahead=True, cache=launches
-            )
+            contact_solver.impacts(bodies, contacts, self.gravity, h, self.restitution_threshold, cache=launches)
             contact_solver.solve(bodies, contacts, h, use_bias=False, cache=launches)
             lap("solver")
             if cloth is not None:

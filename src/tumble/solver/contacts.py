@@ -394,9 +394,10 @@ def _impact_anchors(
     if vn >= float_t(0.0):
         return ra, rb, float_t(0.0), none  # opening: no impulse expected
     t = wp.min(s0 / -vn, dt)
-    # as `_met`, at the centres predicted for t
+    # the anchors' gap at the centres predicted for t, closed as `_met` closes it now
     g = (b.position[ib] + b.velocity[ib] * t) - (b.position[ia] + b.velocity[ia] * t) + rb - ra
-    return ra + g * share, rb - g * (float_t(1.0) - share), share, wp.cross(g, n)
+    ra_t, rb_t = _closed(share, ra, rb, g)
+    return ra_t, rb_t, share, wp.cross(g, n)
 
 
 @wp.func
@@ -411,7 +412,12 @@ def _met(share: float_t, ra: vec3, rb: vec3, centres: vec3):
     they are), with b's centre at `centres` [m] from a's."""
     if share < float_t(0.0):
         return ra, rb
-    g = centres + rb - ra
+    return _closed(share, ra, rb, centres + rb - ra)
+
+
+@wp.func
+def _closed(share: float_t, ra: vec3, rb: vec3, g: vec3):
+    """The anchors ra, rb [m], b's apart from a's by g [m], moved to meet: a's by `share` of g, b's by the rest."""
     return ra + g * share, rb - g * (float_t(1.0) - share)
 
 
@@ -968,7 +974,6 @@ class ImpactPass:
     h: float_t  # substep [s]
     threshold: float_t  # approach speed [m/s] below which a contact carrying load does not bounce
     floor: float_t  # the same for a contact carrying none: the approach gravity gives in two substeps
-    ahead: int  # 1: the velocities are the next substep's but for its gravity kick
 
 
 @wp.struct
@@ -988,8 +993,8 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     anchors the collision acts at (`_met` with `share` and `centres`, as in `_impact`), so that u
     never exceeds the approach there; the gap at the row's own (`_normal_target`).
 
-    `ahead`: the velocities are those of the next substep but for its gravity kick (the pass
-    before the relax, whose speculative clamp would otherwise land the contact inelastically).
+    The velocities are those of the next substep but for its gravity kick (the pass runs before
+    the kick, so that no impulse falls between a substep's kick and its position update).
     """
     e = rows[k].restitution
     if e == float_t(0.0):
@@ -1011,8 +1016,6 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     if b.inv_mass[ib] > float_t(0.0):
         gb = float_t(1.0)
     gn = wp.min((gb - ga) * wp.dot(p.gravity, n), float_t(0.0))
-    kick = float_t(1 - p.ahead) * gn * p.h
-    vp = vn - kick
     # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
     # contact that carries none is a fresh impact and bounces down to `floor`, the approach
     # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
@@ -1020,11 +1023,11 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     if rows[k].impulse_n == float_t(0.0):
         limit = wp.min(p.threshold, p.floor)
     # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
-    # s), and a contact that collides has s <= -(v_n + ahead g_n h) h (the closing test), so a
+    # s), and a contact that collides has s <= -(v_n + g_n h) h (the closing test), so a
     # contact whose bound at that largest gap is well under the limit would return 0 there too
     # (resting contacts under load; the factor 2 is far beyond any rounding)
-    gap = -(vn + float_t(p.ahead) * gn * p.h) * p.h
-    if vp * vp - float_t(2.0) * gn * gap + gn * p.h * vp < float_t(0.5) * limit * limit:
+    gap = -(vn + gn * p.h) * p.h
+    if vn * vn - float_t(2.0) * gn * gap + gn * p.h * vn < float_t(0.5) * limit * limit:
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
     s = rows[k].separation + _gap_turn(rows, k, b.delta_rotation[ia], b.delta_rotation[ib])
@@ -1035,7 +1038,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
         - b.delta_position[ia]
         - wp.cross(b.delta_rotation[ia], ra),
     )
-    if s + (vn + float_t(p.ahead) * gn * p.h) * p.h > float_t(0.0):
+    if s + (vn + gn * p.h) * p.h > float_t(0.0):
         return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
     # acceleration g_n (v' = v + g_n h, then s' = s + v' h) keeps E = v^2 / 2 - g_n s + g_n h v / 2
@@ -1045,9 +1048,8 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     # times the last, wherever in the substep the impact falls and whatever h is:
     #   u^2 / 2 + g_n h u / 2 = e^2 E_b + g_n s,   E_b = v^2 / 2 - g_n s + g_n h v / 2,
     # and never faster than the elastic rebound |v_n| (no kinetic energy gain). Without
-    # gravity along n this is u = e |v_n|. Before the first solve the velocity has this
-    # substep's kick already: take it off for the pair (s, v), put it back on u.
-    eb = float_t(0.5) * vp * vp - gn * s + float_t(0.5) * gn * p.h * vp
+    # gravity along n this is u = e |v_n|.
+    eb = float_t(0.5) * vn * vn - gn * s + float_t(0.5) * gn * p.h * vn
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
     if vi2 <= limit * limit:
         return float_t(-1.0)
@@ -1055,7 +1057,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     u = float_t(0.0)
     if rhs > float_t(0.0):
         gh = gn * p.h
-        u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)) + kick
+        u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs))
     u = wp.min(wp.max(u, float_t(0.0)), -vn)
     rows[k].relative_velocity = -wp.sqrt(vi2)
     return u
@@ -1148,8 +1150,8 @@ def _impact(k: int, size: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, 
                 j = load
                 ra = rows[k].centre_a
                 rb = rows[k].centre_b
-        ra, rb = _met(share, ra, rb, centres)
         if j > float_t(0.0) and rows[kk].friction > float_t(0.0):
+            ra, rb = _met(share, ra, rb, centres)
             relax = rows[kk].scale
             t1 = rows[kk].tangent1
             t2 = rows[kk].tangent2
@@ -1496,16 +1498,15 @@ def impacts(
     h: float,
     threshold: float,
     *,
-    ahead: bool,
     cache: LaunchCache | None = None,
 ) -> None:
     """Collide the contacts that close within the substep faster than `threshold` [m/s] (restitution).
 
-    The step calls it before the first substep's gravity kick and before every relax pass
-    (`ahead` True: the contacts that close within the next substep, its kick included), so that
-    no speculative clamp lands a bouncing contact first, and no impulse falls between a
-    substep's kick and its position update (there, a box's corner striking in the first
-    substep gained energy). With `ahead` False the velocities have the substep's kick already.
+    The step calls it before the first substep's gravity kick and before every relax pass, so
+    with the velocities of the next substep but for its kick: the contacts that close within
+    that substep, its kick included, collide. So no speculative clamp lands a bouncing contact
+    first, and no impulse falls between a substep's kick and its position update (there, a
+    box's corner striking in the first substep gained energy).
 
     On the CPU one thread sweeps the contacts forward then backward (Gauss-Seidel); on CUDA one
     thread per contact, with atomics and the Jacobi scale.
@@ -1518,10 +1519,9 @@ def impacts(
         p = ImpactPass()
         p.gravity, p.h, p.threshold = vec3(*gravity), float_t(h), float_t(threshold)
         p.floor = float_t(2.0 * float(np.linalg.norm(gravity)) * h)  # the approach speed gravity gives in two substeps
-        p.ahead = int(ahead)
         return p
 
-    p = _parameters(contacts, ("impacts", tuple(map(float, gravity)), h, threshold, ahead), parameters)
+    p = _parameters(contacts, ("impacts", tuple(map(float, gravity)), h, threshold), parameters)
     serial = _serial(contacts)
     args = [contacts.rows, contacts._structs.bodies, p, contacts._structs.ticks, contacts.counts]
     launch(_IMPACTS[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)

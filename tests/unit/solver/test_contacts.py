@@ -204,7 +204,7 @@ def test_impact_of_two_spheres_is_the_one_dimensional_collision(e):
     a = world.add_sphere(position=(0.0, 0.0, 0.0), radius=0.5, mass=m1, velocity=(v1, 0, 0), restitution=e)
     b = world.add_sphere(position=(1.0, 0.0, 0.0), radius=0.5, mass=m2, velocity=(v2, 0, 0), restitution=e)
     bodies, contacts = prepared(world)
-    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.5, ahead=False)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.5)
     if e == 0.0:  # no restitution: impacts leave the contact to the inelastic solve
         assert a.velocity[0] == v1 and b.velocity[0] == v2
         return
@@ -222,7 +222,7 @@ def test_impact_slower_than_the_threshold_of_a_loaded_contact_does_not_bounce():
     bodies, contacts = prepared(world)
     solver.solve(bodies, contacts, DT, use_bias=False)  # carries load now, at rest
     ball.velocity = (0.0, 0.0, -0.3)
-    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=1.0, ahead=False)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=1.0)
     assert ball.velocity[2] == pytest.approx(-0.3)
-    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.1, ahead=False)
+    solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.1)
     assert ball.velocity[2] == pytest.approx(0.8 * 0.3, rel=1e-12)
