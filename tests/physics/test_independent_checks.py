@@ -238,6 +238,34 @@ def test_a_box_turned_on_an_incline_slides_straight_down(yaw_deg):
     assert np.linalg.norm(turn) < 2 * mu * G / ((2 * omega) ** 2 * 0.1)
 
 
+@pytest.mark.parametrize("body, floor", [("box", "box"), ("hull", "box"), ("hull", "hull")])
+def test_a_block_slides_across_the_seam_of_two_coplanar_blocks_as_on_one(body, floor):
+    """A frictionless cube sliding at 2 m/s over two static blocks side by side, tops flush: no catch at the seam.
+
+    Nothing acts along the slide, so the speed stays v0 to rounding; the cube rests on the tops by
+    its contact's give, g / (2 omega)^2 against a static body, and neither dips nor hops more than
+    twice that crossing the seam. (It sank that much into the first block and met the second's side
+    as a wall: 2 m/s -> 0.7 m/s, a 4 cm hop and 12 rad/s of tumble.)
+    """
+    v0, half = 2.0, 0.1
+    w = tumble.World()
+    h = w.dt / w.substeps
+    for x in (-2.2, 2.8):  # the seam at x = 0.3
+        if floor == "box":
+            w.add_box(position=(x, 0, -0.5), half_extents=(2.5, 5, 0.5), static=True, friction=0.0, restitution=0.0)
+        else:
+            w.add_convex(points=CUBE * [25, 50, 5], position=(x, 0, -0.5), static=True, friction=0.0, restitution=0.0)
+    o = dict(position=(-0.3, 0.3, half), mass=1.0, velocity=(v0, 0, 0), friction=0.0, restitution=0.0)
+    cube = w.add_box(half_extents=(half,) * 3, **o) if body == "box" else w.add_convex(points=CUBE, **o)
+    give = G / (2 * contact_omega(h)) ** 2
+    z = []
+    w.run(0.8, callback=lambda world: z.append(world.body_position[cube, 2] - half))  # over the seam at 0.25 s
+    assert w.body_position[cube, 0] > 1.0
+    np.testing.assert_allclose(w.body_velocity[cube], [v0, 0, 0], atol=resolution(1e-9, v0), rtol=0)
+    assert np.abs(w.body_angular_velocity[cube]).max() < resolution(1e-9, v0 / half)
+    assert max(z) <= 2 * give and min(z) >= -2 * give
+
+
 @pytest.mark.parametrize("spin", [-10.0, -40.0])
 def test_a_ball_with_backspin_ends_rolling_at_5v0_minus_2_r_w0_over_7(spin):
     """A ball sliding at 3 m/s with backspin w0 ends rolling at (5 v0 + 2 r w0) / 7 (angular momentum about the contact)."""

@@ -38,6 +38,8 @@ wp.set_module_options({"enable_backward": False})
 
 #: speculative distance added to the relative motion of a pair in one step [m]
 SPECULATIVE_MARGIN = 0.002
+#: a step lower than this part of the smaller body's inner half size is flush (`_ghost_step`)
+GHOST_STEP = 0.01
 
 vec8 = wp.types.vector(length=8, dtype=float_t)
 
@@ -49,6 +51,7 @@ _HALF_SQRT2 = wp.constant(float_t(0.7071067811865476))  # cos 45 degrees
 # position error (relative 6e-8, a margin of 16 times it)
 _COPLANAR = wp.constant(float_t(1.0 - 1.0e-6))
 _CONCAVE_TOLERANCE = wp.constant(float_t(1.0e-6))
+_GHOST_STEP = wp.constant(float_t(GHOST_STEP))
 
 
 #: the contact arrays the narrow phase appends to, one row a contact point (the solver's `ContactSet`
@@ -477,9 +480,38 @@ def _edge_contact(
     emit(c, a, b, A, B, L, pa + da * s, pb + db * t, max_sep)
 
 
+#: face normals within this cosine of each other are one axis (`_ghost_step`)
+_PARALLEL = wp.constant(float_t(0.99))
+
+
 @wp.func
-def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, max_sep: float_t):
+def _ghost_step(apart: float_t, thinnest: float_t, inner: float_t):
+    """Whether two bodies meet only at an edge where a step no higher than their contact's give
+    begins, to be passed over: no contact this step.
+
+    `apart` is the largest separation over the two bodies' face axes (> 0: apart along it, a
+    speculative contact), `thinnest` their smallest overlap along another face axis, not parallel
+    to that one (the largest separation <= 0 there), `inner` the smaller body's least half size.
+    Bodies that overlap along both axes by less than GHOST_STEP of `inner` (or are apart along the
+    first) meet on a sliver at most that thin: a body resting on a face sinks by its contact's give
+    (1 um at dt = 1/240 s and 8 substeps, 0.3 mm at 1/30 s and 4), so sliding across the seam of
+    two coplanar boxes it met the next box's side as a wall of that height, face to face (as a
+    speculative contact, or once it touched, as the axis of least overlap) and stopped: a cube at
+    2 m/s lost 1.3 m/s and hopped 4 cm. Once the body is over the next face by more than the give,
+    that face's manifold carries it (its axis then separates least). Only pairs with a static or
+    kinematic body (`seams`, the blocks a level is built of) take the rule: a moving body's corner
+    landing on a sliver of another's edge would go a step deep (the rain of 1,000 boxes overlapped
+    12.5 mm during its impacts with the rule on every pair, against 9.1 mm without).
+    """
+    tol = _GHOST_STEP * inner
+    return apart > -tol and thinnest > -tol
+
+
+@wp.func
+def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb: vec3, max_sep: float_t, seams: bool):
     T = B.x - A.x
+    apart = float_t(-1.0e30)  # the largest separation over the face axes, and its axis
+    apart_axis = vec3()
     best_sep = float_t(-1.0e30)
     best_kind = int(-1)  # 0: face of A, 1: face of B, 2: edge-edge
     best_i = int(0)
@@ -493,6 +525,9 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
         s = wp.abs(wp.dot(T, axis)) - _box_projection(A.q, ha, axis) - _box_projection(B.q, hb, axis)
         if s > max_sep:
             return
+        if s > apart:
+            apart = s
+            apart_axis = axis
         # B's faces must beat A's clearly, so the reference face does not flip between steps
         better = s > best_sep
         if k >= 3:
@@ -504,6 +539,22 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
                 best_kind = 1
             best_i = k % 3
     face_sep = best_sep
+    inner = wp.min(wp.min(wp.min(ha[0], ha[1]), ha[2]), wp.min(wp.min(hb[0], hb[1]), hb[2]))
+    if seams and apart > -_GHOST_STEP * inner:
+        # the smallest overlap along a face axis across the largest separation's
+        thinnest = float_t(-1.0e30)
+        for k in range(6):
+            axis = vec3()
+            if k < 3:
+                axis = _axis(A.q, k)
+            else:
+                axis = _axis(B.q, k - 3)
+            if wp.abs(wp.dot(axis, apart_axis)) < _PARALLEL:
+                s = wp.abs(wp.dot(T, axis)) - _box_projection(A.q, ha, axis) - _box_projection(B.q, hb, axis)
+                if s <= _ZERO:
+                    thinnest = wp.max(thinnest, s)
+        if _ghost_step(apart, thinnest, inner):
+            return
     # edge-edge axes; prefer faces unless an edge axis separates clearly more (stable manifolds)
     edge_sep = float_t(-1.0e30)
     edge_i = int(-1)
@@ -1106,12 +1157,15 @@ def _hull_face_contacts(
 
 @wp.func
 def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq: vec3):
-    """Largest separation over P's face normals of Q from P, and that face: min over Q's vertices."""
+    """Largest separation over P's face normals of Q from P, and that face: min over Q's vertices.
+    Also P's least face offset from its centre (its inner half size, for `_ghost_step`)."""
     best = float_t(-1.0e30)
     fbest = H.hull_face_start[hp]
+    inner = float_t(1.0e30)
     q0 = H.vertex_start[hq]
     for f in range(H.hull_face_start[hp], H.hull_face_start[hp] + H.hull_face_count[hp]):
         nl, dl = _hull_face(H, f, sp)
+        inner = wp.min(inner, dl)
         n = wp.quat_rotate(P.q, nl)
         nq = wp.quat_rotate_inv(Q.q, n)
         lowest = float_t(1.0e30)
@@ -1121,22 +1175,66 @@ def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq:
         if s > best:
             best = s
             fbest = f
-    return best, fbest
+    return best, fbest, inner
+
+
+@wp.func
+def _hull_thinnest(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq: vec3, across: vec3):
+    """The largest separation <= 0 of Q from P over P's face normals not parallel to `across` (world):
+    the thinnest overlap along another axis, for `_ghost_step`."""
+    thinnest = float_t(-1.0e30)
+    q0 = H.vertex_start[hq]
+    for f in range(H.hull_face_start[hp], H.hull_face_start[hp] + H.hull_face_count[hp]):
+        nl, dl = _hull_face(H, f, sp)
+        n = wp.quat_rotate(P.q, nl)
+        if wp.abs(wp.dot(n, across)) < _PARALLEL:
+            nq = wp.quat_rotate_inv(Q.q, n)
+            lowest = float_t(1.0e30)
+            for i in range(q0, q0 + H.vertex_count[hq]):
+                lowest = wp.min(lowest, wp.dot(nq, _hull_vertex(H, i, sq)))
+            s = lowest + wp.dot(n, Q.x - P.x) - dl
+            if s <= _ZERO:
+                thinnest = wp.max(thinnest, s)
+    return thinnest
 
 
 @wp.func
 def collide_hulls(
-    c: Contacts, a: int, b: int, A: Pose, B: Pose, H: Hulls, ha: int, sa: vec3, hb: int, sb: vec3, max_sep: float_t
+    c: Contacts,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    H: Hulls,
+    ha: int,
+    sa: vec3,
+    hb: int,
+    sb: vec3,
+    max_sep: float_t,
+    seams: bool,
 ):
     """Separating axis test over both hulls' face normals and their Minkowski-face edge pairs
     (Gregorius, "The Separating Axis Test between Convex Polyhedra", GDC 2013), then face
     clipping (up to four points) or the closest points of two edges."""
-    sep_a, fa = _hull_face_query(H, A, ha, sa, B, hb, sb)
+    sep_a, fa, inner_a = _hull_face_query(H, A, ha, sa, B, hb, sb)
     if sep_a > max_sep:
         return
-    sep_b, fb = _hull_face_query(H, B, hb, sb, A, ha, sa)
+    sep_b, fb, inner_b = _hull_face_query(H, B, hb, sb, A, ha, sa)
     if sep_b > max_sep:
         return
+    inner = wp.min(inner_a, inner_b)
+    apart = wp.max(sep_a, sep_b)
+    if seams and apart > -_GHOST_STEP * inner:
+        na, _da = _hull_face(H, fa, sa)
+        nb, _db = _hull_face(H, fb, sb)
+        across = wp.quat_rotate(A.q, na)
+        if sep_b > sep_a:
+            across = wp.quat_rotate(B.q, nb)
+        thinnest = wp.max(
+            _hull_thinnest(H, A, ha, sa, B, hb, sb, across), _hull_thinnest(H, B, hb, sb, A, ha, sa, across)
+        )
+        if _ghost_step(apart, thinnest, inner):
+            return
     # B's faces must beat A's clearly, so the reference face does not flip between steps
     ref_is_a = bool(True)
     face_sep = sep_a
@@ -1714,6 +1812,8 @@ def _collide_pairs(
             reach += wp.length(w[a]) * bound[a]
         reach += wp.length(w[b]) * bound[b]
         max_sep = dt * reach + margin
+        # a pair with a static or kinematic body may meet at a seam of the level's blocks (`_ghost_step`)
+        seams = body.inv_mass[a] == float_t(0.0) or body.inv_mass[b] == float_t(0.0)
         one = vec3(_ONE, _ONE, _ONE)
         if sa == int(ShapeType.PLANE):
             if sb == int(ShapeType.SPHERE):
@@ -1737,12 +1837,12 @@ def _collide_pairs(
                 collide_sphere_hull(c, a, b, A, B, radius[a], hulls, geometry[b], max_sep)
         elif sa == int(ShapeType.BOX):
             if sb == int(ShapeType.BOX):
-                collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep)
+                collide_box_box(c, a, b, A, B, half_extents[a], half_extents[b], max_sep, seams)
             elif sb == int(ShapeType.CAPSULE):
                 collide_box_capsule(c, a, b, A, B, half_extents[a], radius[b], half_extents[b], max_sep)
             elif sb == int(ShapeType.CONVEX):
                 # the box as the unit-cube hull (prototype 0) scaled by its half extents
-                collide_hulls(c, a, b, A, B, hulls, 0, half_extents[a], geometry[b], one, max_sep)
+                collide_hulls(c, a, b, A, B, hulls, 0, half_extents[a], geometry[b], one, max_sep, seams)
         elif sa == int(ShapeType.CAPSULE):
             if sb == int(ShapeType.CAPSULE):
                 collide_capsule_capsule(c, a, b, A, B, radius[a], half_extents[a], radius[b], half_extents[b], max_sep)
@@ -1750,7 +1850,7 @@ def _collide_pairs(
                 collide_capsule_hull(c, a, b, A, B, radius[a], half_extents[a], hulls, geometry[b], max_sep)
         elif sa == int(ShapeType.CONVEX):
             if sb == int(ShapeType.CONVEX):
-                collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep)
+                collide_hulls(c, a, b, A, B, hulls, geometry[a], one, geometry[b], one, max_sep, seams)
         if sb == int(ShapeType.MESH):
             mesh = mesh_ids[geometry[b]]
             if sa == int(ShapeType.SPHERE):

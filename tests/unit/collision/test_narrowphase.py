@@ -270,3 +270,20 @@ def test_small_box_on_huge_box_keeps_four_corners():
     assert len(depths) == 4
     np.testing.assert_allclose(depths, 1e-4, atol=1e-12)
     np.testing.assert_allclose(np.sort(points[:, 0]), [0.95, 0.95, 1.05, 1.05], atol=1e-12)
+
+
+@pytest.mark.parametrize("static", [True, False])
+def test_a_corner_over_a_sliver_of_an_edge_touches_only_a_moving_box(static):
+    """A cube 1 mm above another's top, over its edge by 0.5 mm (under GHOST_STEP of its 0.1 m half
+    size), falling at 1 m/s: against a static block that is a seam of flush blocks and passes
+    (`_ghost_step`); against a moving box it is a contact, else the corner would go a step deep."""
+    w = tumble.World(gravity=(0, 0, 0))
+    w.add_box(position=(0, 0, 0), half_extents=(0.1, 0.1, 0.1), mass=1, static=static)
+    w.add_box(position=(0.1995, 0, 0.201), half_extents=(0.1, 0.1, 0.1), mass=1, velocity=(0, 0, -1))
+    _, normals, depths, _ = contacts(w)
+    if static:
+        assert len(depths) == 0
+    else:
+        assert len(depths) > 0
+        np.testing.assert_allclose(normals[:, 2], 1.0, atol=1e-9)
+        np.testing.assert_allclose(depths, -0.001, atol=1e-9)
