@@ -36,7 +36,13 @@ def grid_positions(size, resolution, position, orientation) -> np.ndarray:
 
 
 def grid_triangles(nx: int, ny: int) -> np.ndarray:
-    """Two triangles per grid quad, counter-clockwise seen from +z (normal +z), shape (T, 3), int32."""
+    """Two triangles per grid quad, counter-clockwise seen from +z (normal +z), shape (T, 3), int32.
+
+    Each triangle starts at its right-angle corner (the quad corner it does not share with the
+    other triangle of its quad): a load spread over the triangle's area reaches the quad's four
+    corners in equal quarters when the first corner takes half of it and the other two a quarter
+    each (`TRIANGLE_LOAD_SHARES`), as the particles' masses are spread (`grid_area_shares`).
+    """
     if nx < 2 or ny < 2:
         return np.zeros((0, 3), dtype=np.int32)
     i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
@@ -44,9 +50,55 @@ def grid_triangles(nx: int, ny: int) -> np.ndarray:
     b, c, d = a + 1, a + nx + 1, a + nx
     # alternate the diagonal in a checkerboard so the mesh has no preferred shear direction
     flip = ((i + j) % 2 == 1).ravel()
-    t1 = np.where(flip[:, None], np.stack([a, b, d], 1), np.stack([a, b, c], 1))
-    t2 = np.where(flip[:, None], np.stack([b, c, d], 1), np.stack([a, c, d], 1))
+    t1 = np.where(flip[:, None], np.stack([a, b, d], 1), np.stack([b, c, a], 1))
+    t2 = np.where(flip[:, None], np.stack([c, d, b], 1), np.stack([d, a, c], 1))
     return np.concatenate([t1, t2]).astype(np.int32)
+
+
+#: how a load spread evenly over a grid triangle (its air force) is shared by its three corners,
+#: the right-angle corner first (`grid_triangles`): the quad's quarters, as the masses
+TRIANGLE_LOAD_SHARES = (0.5, 0.25, 0.25)
+
+
+def grid_area_shares(nx: int, ny: int) -> np.ndarray:
+    """Each particle's share of the cloth's area, shape (nx * ny,), summing to 1: a quarter of each
+    quad it is a corner of (so an edge particle holds half an inner one's, a corner a quarter).
+
+    A cloth of even areal density has these as its particles' shares of the mass; a single row or
+    column (no quads) shares its length the same way, half a segment at each end.
+    """
+
+    shares = np.outer(_line_shares(ny), _line_shares(nx)).ravel()
+    return shares / shares.sum()
+
+
+def _line_shares(n: int) -> np.ndarray:
+    """Weights of the n grid lines across one direction: 1, and 1/2 for the two border lines (n > 1)."""
+    w = np.ones(n)
+    if n > 1:
+        w[[0, -1]] = 0.5
+    return w
+
+
+def grid_spring_shares(nx: int, ny: int) -> dict[str, np.ndarray]:
+    """The scale of each spring's stiffness and damping, kind -> shape (m,), in `grid_springs`' order.
+
+    A structural or bend spring along a border line stands for half the strip of cloth an inner
+    one does, so it is half as stiff: the cloth then resists stretch and bending evenly across its
+    width, and every particle, a border one carrying half the mass and a corner a quarter
+    (`grid_area_shares`), has the same stiffness per mass (so the stable substep is an inner
+    particle's). Shear springs each span one quad: 1. A single row or column is a line: 1.
+    """
+    rows, cols = _line_shares(ny), _line_shares(nx)
+    along_i = np.repeat(rows, max(nx - 1, 0))  # (i, j)-(i+1, j), row j
+    along_j = np.tile(cols, max(ny - 1, 0))  # (i, j)-(i, j+1), column i
+    bend_i = np.repeat(rows, max(nx - 2, 0))
+    bend_j = np.tile(cols, max(ny - 2, 0))
+    return {
+        "structural": np.concatenate([along_i, along_j]),
+        "shear": np.ones(2 * max(nx - 1, 0) * max(ny - 1, 0)),
+        "bend": np.concatenate([bend_i, bend_j]),
+    }
 
 
 def grid_springs(nx: int, ny: int) -> dict[str, np.ndarray]:

@@ -311,8 +311,9 @@ class ClothSystem:
             resolution: (nx, ny) particles (a 2 x 1 "cloth" is a single spring, handy for tests).
             position: centre [m], shape (3,).
             orientation: rotation of the cloth (x, y, z, w).
-            mass: total mass [kg], spread evenly over the particles. Give `mass` or
-                `areal_density`; with neither, the areal density is 0.2 kg/m^2.
+            mass: total mass [kg], spread as an even areal density: each particle carries a quarter of
+                each grid quad it is a corner of (an edge particle half an inner one's, a corner a
+                quarter). Give `mass` or `areal_density`; with neither, the areal density is 0.2 kg/m^2.
             areal_density: [kg/m^2].
             stiffness: spring stiffness ks [N/m], one number for every kind or a mapping with keys
                 structural, shear, bend (missing kinds get no springs). Default 12 / 1.2 / 0.3.
@@ -366,7 +367,8 @@ class ClothSystem:
         count = nx * ny
         start = self.particles.count
         x = grid.grid_positions(size, (nx, ny), position, q)
-        m = np.full(count, total / count)
+        # an even areal density: each particle carries the area around it (edges half, corners a quarter)
+        m = total * grid.grid_area_shares(nx, ny)
         inv_m = 1.0 / m
         inv_m[pinned] = 0.0
         jj, ii = np.divmod(np.arange(count), nx)
@@ -385,7 +387,9 @@ class ClothSystem:
         }
 
         # springs: every kind with ks > 0 or kd > 0; structural ones also get the stretch limit
+        # (border springs at half strength, as the border particles carry half the mass)
         kinds = grid.grid_springs(nx, ny)
+        shares = grid.grid_spring_shares(nx, ny)
         ids, rest, stiff, damp = [], [], [], []
         for kind, pairs in kinds.items():
             if ks[kind] == 0.0 and kd[kind] == 0.0:
@@ -393,8 +397,8 @@ class ClothSystem:
             length = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
             ids.append(pairs + start)
             rest.append(length)
-            stiff.append(np.full(len(pairs), ks[kind]))
-            damp.append(np.full(len(pairs), kd[kind]))
+            stiff.append(ks[kind] * shares[kind])
+            damp.append(kd[kind] * shares[kind])
         structural = kinds["structural"]
         structural_rest = np.linalg.norm(x[structural[:, 1]] - x[structural[:, 0]], axis=1)
         limited = structural if max_stretch is not None else structural[:0]

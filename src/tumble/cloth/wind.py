@@ -13,7 +13,10 @@ over distances of about `scale` [m]; it is smooth in space and time, not white n
 Stages:
 - `sample_wind` evaluates u at every particle once per world step (cost O(P K)).
 - `accumulate_air_forces` adds, per triangle, the air force of its relative velocity
-  u_rel = u - v (averaged over its three particles) to its particles (cost O(T) per substep).
+  u_rel = u - v (averaged over its three particles) to its particles (cost O(T) per substep),
+  half to the triangle's right-angle corner (its first) and a quarter to each other corner, so
+  each particle takes the air force on the area it carries the mass of (`grid.grid_area_shares`):
+  a flat cloth in a steady face-on flow accelerates evenly and stays flat.
   With n the unit normal, A the area, u_n = u_rel . n and rho the air density:
 
       drag  F_d = 1/2 rho C_d A |u_n| u_n n                 (pressure on the face)
@@ -146,10 +149,12 @@ def _air_forces(
         if speed2 > float_t(1.0e-20):
             speed = wp.sqrt(speed2)
             force = force + (n - rel * (un / speed2)) * (half_rho_cl * area * speed * un)
-        share = force * third
-        wp.atomic_add(particles.force, a, share)
-        wp.atomic_add(particles.force, b, share)
-        wp.atomic_add(particles.force, c, share)
+        # the right-angle corner (first) takes half, the others a quarter each: the quad's
+        # quarters, as the particles' masses (grid.TRIANGLE_LOAD_SHARES, grid.grid_area_shares)
+        quarter = force * float_t(0.25)
+        wp.atomic_add(particles.force, a, quarter + quarter)
+        wp.atomic_add(particles.force, b, quarter)
+        wp.atomic_add(particles.force, c, quarter)
 
 
 def sample_wind(particles: Particles, mean, modes: Modes, t, *, cache: LaunchCache | None = None):
@@ -168,7 +173,8 @@ def sample_wind(particles: Particles, mean, modes: Modes, t, *, cache: LaunchCac
 def accumulate_air_forces(
     particles: Particles, triangles, drag, lift, air_density, *, cache: LaunchCache | None = None
 ):
-    """Add the drag and lift of every triangle, a third to each of its particles, into `particles.force` [N].
+    """Add the drag and lift of every triangle into `particles.force` [N]: half to its first (right-angle)
+    corner, a quarter to each other one.
 
     Args:
         particles: the particle arrays (reads `position`, `velocity` and the `wind` at each particle).

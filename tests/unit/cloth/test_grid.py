@@ -72,3 +72,43 @@ def test_tethers_tie_free_particles_to_nearest_pins():
     assert len(particle) == 2 * 7
     k = np.nonzero((particle == 0) & (pin == 6))[0][0]
     assert limit[k] == pytest.approx(1.1 * 1.0)
+
+
+@pytest.mark.parametrize("nx, ny", [(2, 2), (6, 4), (7, 5)])
+def test_triangle_shares_give_each_particle_the_area_it_carries(nx, ny):
+    """Each triangle starts at its right angle, and half of its area to that corner and a quarter to
+    each other one gives every particle the area share its mass is given (a quarter of each quad)."""
+    size = (1.2, 0.7)
+    x = grid.grid_positions(size, (nx, ny), (0, 0, 0), np.array([0.0, 0.0, 0.0, 1.0]))
+    t = grid.grid_triangles(nx, ny)
+    e1, e2 = x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]]
+    np.testing.assert_allclose(np.einsum("ij,ij->i", e1, e2), 0.0, atol=1e-12)  # right angle first
+    area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+    carried = np.zeros(nx * ny)
+    for corner, share in enumerate(grid.TRIANGLE_LOAD_SHARES):
+        np.add.at(carried, t[:, corner], share * area)
+    np.testing.assert_allclose(carried / (size[0] * size[1]), grid.grid_area_shares(nx, ny), rtol=1e-12)
+
+
+@pytest.mark.parametrize("nx, ny", [(2, 1), (6, 1), (5, 5), (7, 6)])
+def test_no_particle_has_more_spring_stiffness_per_mass_than_an_inner_one(nx, ny):
+    """Border springs at half strength against border particles of half the mass (corners a quarter):
+    structural and shear springs give every particle the same stiffness per mass, and with the bend
+    springs (which particles next to a border have fewer of) none has more than an inner particle,
+    so the stable substep is an inner particle's, as with even masses and full-strength springs."""
+    springs, shares, mass = grid.grid_springs(nx, ny), grid.grid_spring_shares(nx, ny), grid.grid_area_shares(nx, ny)
+    for kind in ("structural", "shear", "bend"):
+        assert len(shares[kind]) == len(springs[kind])
+
+    def per_mass(kinds) -> np.ndarray:
+        stiffness = np.zeros(nx * ny)
+        for kind, k in kinds:
+            for end in (0, 1):
+                np.add.at(stiffness, springs[kind][:, end], k * shares[kind])
+        return stiffness / mass
+
+    lines = per_mass([("structural", 12.0), ("shear", 1.2)])
+    np.testing.assert_allclose(lines, lines.max(), rtol=1e-12)
+    full = per_mass([("structural", 12.0), ("shear", 1.2), ("bend", 0.3)])
+    inner = full[(ny // 2) * nx + nx // 2]
+    assert full.max() == pytest.approx(inner, rel=1e-12)
