@@ -64,6 +64,32 @@ def test_cloth_on_its_stretch_limit_hangs_its_weight_on_the_body():
     assert np.mean(forces) == pytest.approx((2.0 + 0.2) * G, rel=0.02)
 
 
+@pytest.mark.parametrize("gravity, velocity", [((0, 0, -G), (0, 0, 0)), ((0, 0, 0), (1.0, 0.5, 0.0))])
+def test_a_bar_carrying_a_pinned_cloth_keeps_the_momentum_of_bar_and_cloth(gravity, velocity):
+    """A free bar with a cloth pinned along it: p(t) = p0 + (m_bar + m_cloth) g t, to rounding.
+
+    The pins ride on the bar, so the bar carries their weight and their inertia. Before, it was
+    handed their weight alone: in free fall the pins' momentum grew as the bar's did and the bar
+    took their weight besides, so p gained m_pins g t (the whole fell at 10.00 m/s^2, p -7.998
+    against -7.848 N s after 1 s). In free flight (no gravity) the pins, set at rest when pinned,
+    were brought up to the bar's speed with momentum from nowhere (+0.015 N s, 2 %).
+    """
+    world = tumble.World(gravity=gravity, dt=DT)
+    bar = world.add_box(position=(0, 0, 2), half_extents=(0.55, 0.02, 0.02), mass=0.5, velocity=velocity)
+    index = world.add_cloth(size=(1, 1), resolution=(11, 11), position=(0, 0, 1.5), orientation=FACING_Y, mass=0.3)
+    cloth = world.cloth.cloths[index]
+    world.cloth.set_state(velocity=np.tile(velocity, (world.cloth.particle_count, 1)))
+    world.cloth.pin_to_body([cloth.particle(i, cloth.ny - 1) for i in range(cloth.nx)], bar)
+
+    def momentum():
+        return world.momentum() + world.cloth.particle_mass @ world.cloth.particle_velocity
+
+    p0 = momentum()
+    world.run(1.0)
+    expected = p0 + (0.5 + 0.3) * np.asarray(gravity) * world.time
+    np.testing.assert_allclose(momentum(), expected, rtol=0, atol=1e-12 * (1 + G))
+
+
 def _drop_cloth_on(world, z_top):
     """A 1 m cloth, 24 x 24, 0.3 m above a collider whose top is at z_top; 2 s."""
     thickness = 0.01

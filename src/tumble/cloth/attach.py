@@ -10,7 +10,12 @@ cloth substep, after the spring and air forces are summed and before integration
   contacts push bodies);
 and after integration:
 - follow: the particle is put on the body point x_b + R_b r (its target too), so its velocity
-  (x - x_prev) / h is the point's.
+  (x - x_prev) / h is the point's; the momentum m (v_point - v_last) that gives it is taken from
+  the body at the point (J = -m (v_point - v_last): dv = J / m_b, dw = I^-1 (r x J)). The pin
+  rides on the body, so the body carries its inertia as well as its weight: at rest
+  v_point = v_last and the body holds m g; in free fall the two cancel, and bar and
+  cloth fall together at g, keeping p = p0 + M g t (with the weight alone they fell at
+  (1 + m_pins / m_body) g, momentum gained m_pins g t).
 The body's response to the pins comes one cloth substep late, which is stable while the cloth
 is much lighter than the body (a flag on a pole).
 """
@@ -62,11 +67,19 @@ def _reaction(
 
 
 @wp.kernel
-def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, serial: int):
+def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, h: float_t, serial: int):
     for k in range(wp.tid(), each_end(wp.tid(), serial, pins.particle.shape[0])):
         b = pins.body[k]
         p = pins.particle[k]
-        point = bodies.position[b] + wp.quat_rotate(bodies.orientation[b], pins.local[k])
+        r = wp.quat_rotate(bodies.orientation[b], pins.local[k])
+        point = bodies.position[b] + r
+        # the particle's velocity over this substep will be the point's: the momentum it gains, the
+        # body gives (its inertia, as its weight in `_reaction`, is the body's to carry)
+        im = bodies.inv_mass[b]
+        if im != float_t(0.0):
+            J = (particles.velocity[p] - (point - particles.position_prev[p]) / h) * particles.mass[p]
+            dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, J))
+            add_velocity(b, J * im, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
         particles.position[p] = point
         particles.pin_target[p] = point
 
@@ -175,8 +188,10 @@ class BodyPins:
         lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
         self._react(particles.pin_load, particles, bodies, (0.0, 0.0, 0.0), 1.0 / h)
 
-    def follow(self, particles: Particles, bodies) -> None:
-        """Put the pinned particles (and their targets) on their body points."""
+    def follow(self, particles: Particles, bodies, h: float) -> None:
+        """Put the pinned particles (and their targets) on their body points, at the end of a cloth
+        substep of `h` seconds; the momentum that takes from each particle's last velocity to the
+        point's over the substep is taken from its body."""
         if self.count == 0:
             return
-        launch_each(_follow, self.count, [self._struct(), self._body_struct(bodies), particles], self.device)
+        launch_each(_follow, self.count, [self._struct(), self._body_struct(bodies), particles, h], self.device)

@@ -667,7 +667,7 @@ class ClothSystem:
         remaining = max(1, total - self._substep_index)
         springs.integrate(particles, gravity, hi, 1.0 / remaining, cache=cache)
         self._substep_index += 1
-        self.body_pins.follow(particles, bodies)  # body pins sit on their body points
+        self.body_pins.follow(particles, bodies, hi)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over the

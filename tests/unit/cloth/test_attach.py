@@ -60,12 +60,36 @@ def test_pinned_particles_sit_on_their_body_points():
     assert pins.count == 2
     arrays = particles(4)
     arrays["particle_position"].assign(np.full((4, 3), 7.0))
-    pins.follow(struct(arrays), bodies)
+    pins.follow(struct(arrays), bodies, 0.01)
     x, R = bodies.numpy("body_position")[1], quat_matrix(bodies.numpy("body_orientation")[1])
     out = arrays["particle_position"].numpy()
     np.testing.assert_allclose(out[[1, 3]], x + local @ R.T, atol=1e-12)
     np.testing.assert_allclose(arrays["particle_pin_target"].numpy()[[1, 3]], out[[1, 3]], atol=0)
     np.testing.assert_array_equal(out[[0, 2]], np.full((2, 3), 7.0))
+
+
+def test_a_pin_takes_the_momentum_it_gains_from_its_body():
+    """follow gives the pin the point's velocity over the substep, (point - x_prev) / h, and the body the
+    opposite of the momentum that adds, J = m (v_last - v_new) at R r: dv = J / m_b, dw = I^-1 (R r x J)."""
+    bodies = two_bodies()
+    pins = BodyPins("cpu")
+    local = np.array([0.0, -0.2, 0.3])
+    pins.add(np.array([0]), 1, local[None])
+    arrays = particles(1)
+    h, v_last = 0.01, np.array([0.3, -0.1, 0.2])
+    x, R = bodies.numpy("body_position")[1], quat_matrix(bodies.numpy("body_orientation")[1])
+    point = x + R @ local
+    prev = point - np.array([0.01, 0.02, -0.005])
+    arrays["particle_position_prev"].assign(prev[None])
+    arrays["particle_velocity"].assign(v_last[None])
+    pins.follow(struct(arrays), bodies, h)
+    J = 0.1 * (v_last - (point - prev) / h)
+    np.testing.assert_allclose(bodies.numpy("body_velocity")[1], J * 0.5, atol=1e-15)
+    inv_inertia = R @ np.diag([1.0, 0.5, 0.25]) @ R.T
+    np.testing.assert_allclose(
+        bodies.numpy("body_angular_velocity")[1], inv_inertia @ np.cross(R @ local, J), atol=1e-15
+    )
+    assert not bodies.numpy("body_velocity")[0].any()  # the static body takes nothing
 
 
 def test_the_pull_on_a_pin_moves_its_body_and_not_a_static_one():
@@ -104,7 +128,7 @@ def test_a_particle_follows_the_body_it_was_pinned_to_last_and_remove_releases_i
     pins.remove([1])
     assert pins.count == 0
     bodies = two_bodies()
-    pins.follow(struct(particles(2)), bodies)  # nothing pinned: no launch, nothing moves
+    pins.follow(struct(particles(2)), bodies, 0.01)  # nothing pinned: no launch, nothing moves
     pins.react(struct(particles(2)), bodies, G, 0.01)
     assert not bodies.numpy("body_velocity").any()
 
