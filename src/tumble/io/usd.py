@@ -503,6 +503,9 @@ class Take:
         orientation = quat[:, moving][src, cols]
         position = np.nan_to_num(position)
         orientation = np.where(np.isfinite(orientation), orientation, [0.0, 0.0, 0.0, 1.0])
+        # unit quaternions: pxr turns an orient op into a rotation through acos of the real part, so
+        # one 1e-5 too long (a pebble just released) lost a rotation of a few mrad (0.3 degrees)
+        orientation = orientation / np.linalg.norm(orientation, axis=2, keepdims=True)
         lo, hi = cls._bounds(rec, frames, pos, finite, moving, static)
         return cls(rec, np.asarray(frames), float(fps), planes, static, moving, visible, position, orientation, lo, hi)
 
@@ -623,12 +626,22 @@ class _Writer:
             mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(self._f3(np.reshape(color, (1, 3))))
         return mesh
 
+    def _orient_op(self, xformable):
+        """An orient op of double precision: pxr takes the rotation angle from acos of the real part,
+        which in float loses rotations of a few mrad (1e-4 rad came out as none at all)."""
+        return xformable.AddOrientOp(self.UsdGeom.XformOp.PrecisionDouble)
+
+    def _quat(self, xyzw):
+        """A unit Gf.Quatd from Tumble's (x, y, z, w)."""
+        q = np.asarray(xyzw, dtype=np.float64)
+        x, y, z, w = (q / np.linalg.norm(q)).tolist()
+        return self.Gf.Quatd(w, x, y, z)
+
     def _place(self, xformable, position, orientation, scale=None) -> None:
         """Constant translate, orient (x, y, z, w) and scale ops."""
         Gf = self.Gf
         xformable.AddTranslateOp().Set(Gf.Vec3d(*map(float, position)))
-        x, y, z, w = map(float, orientation)
-        xformable.AddOrientOp().Set(Gf.Quatf(w, x, y, z))
+        self._orient_op(xformable).Set(self._quat(orientation))
         if scale is not None:
             xformable.AddScaleOp().Set(Gf.Vec3f(*map(float, scale)))
 
@@ -817,7 +830,7 @@ class _Writer:
                 self.stage.GetPrimAtPath("/Root/Prototypes").SetSpecifier(self.Sdf.SpecifierOver)
             for b, s in zip(use.bodies, use.scales):
                 xf = UsdGeom.Xform.Define(self.stage, f"{root}/body_{b:06d}")
-                ops = (xf.AddTranslateOp(), xf.AddOrientOp())
+                ops = (xf.AddTranslateOp(), self._orient_op(xf))
                 geom = self.stage.DefinePrim(f"{root}/body_{b:06d}/geom")
                 geom.GetReferences().AddInternalReference(proto_path)
                 if np.any(s != 1.0):
@@ -839,11 +852,11 @@ class _Writer:
 
         def frame(k: int, t) -> None:
             pos = take.position[k]
-            quat = take.orientation[k].astype(np.float32)
+            quat = take.orientation[k]
             for row, xf, (translate, orient) in prims:
                 translate.Set(Gf.Vec3d(*pos[row].tolist()), t)
                 x, y, z, w = quat[row].tolist()
-                orient.Set(Gf.Quatf(w, x, y, z), t)
+                orient.Set(Gf.Quatd(w, x, y, z), t)
                 seen = bool(take.visible[k, row])
                 if k == 0 or seen != bool(take.visible[k - 1, row]):
                     xf.CreateVisibilityAttr().Set(vis_tokens[seen], t)

@@ -450,3 +450,26 @@ def test_a_dict_that_is_not_a_recording_is_refused_by_name(tmp_path):
     with pytest.raises(TumbleError, match="the recording given has no time, fps, orientation"):
         usd.export({"position": np.zeros((1, 1, 3))}, tmp_path / "x.usda")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.0 + 1e-5])
+def test_small_rotations_survive_the_orient_ops(recording, tmp_path, scale):
+    """A body or static prim turned by a few mrad keeps that turn in pxr's (and Blender's) transform.
+    The orient ops were float quaternions, and pxr takes an orient op's angle from acos of the real
+    part: 1e-4 rad came out as no turn, 2e-3 rad as 1.95e-3; a quaternion 1e-5 too long (as a pebble
+    of the pebbles sample had just after release) lost 2e-3 rad altogether, in any precision."""
+    rec = dict(recording)
+    moving = _moving(rec)
+    pole = int(np.flatnonzero((rec["shape_names"][rec["shape"]] == "box") & (rec["mass"] == 0))[0])
+    body = int(moving[0])
+    angles = {body: 2e-3, pole: 1e-4}
+    orientation = rec["orientation"].copy()
+    for b, a in angles.items():
+        orientation[:, b] = scale * np.array([np.sin(a / 2), 0.0, 0.0, np.cos(a / 2)])
+    rec["orientation"] = orientation
+    stage = open_stage(usd.export(rec, tmp_path / "turn.usda", bodies="xforms"))
+    cache = UsdGeom.XformCache(Usd.TimeCode(FRAMES - 1))
+    for b, path in ((body, f"/Root/Bodies/body_{body:06d}"), (pole, f"/Root/Static/box_{pole}")):
+        m = np.array(cache.GetLocalToWorldTransform(stage.GetPrimAtPath(path)))
+        m = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=1)[:, None]  # rows: the rotated axes
+        assert np.arctan2(m[1, 2], m[1, 1]) == pytest.approx(angles[b], rel=1e-6), path
