@@ -25,7 +25,7 @@ What the stage holds (Z up, metres, `timeCodesPerSecond` = fps, frame k at time 
       PhysicsScene, Materials   with `physics=True`: UsdPhysics colliders, rigid bodies, masses
 
 With `bodies="xforms"`, `Bodies` holds one animated Xform per body instead (`body_000042`,
-translate + orient time-sampled, visibility off until release), for tools that take instancers
+translate + orient time-sampled, visibility off and geom scale 0 until release), for tools that take instancers
 poorly. Colours are the viewer's (`tumble.render.colors`), as `primvars:displayColor`, turned
 from sRGB into the linear values USD colours are (so that a renderer shows the viewer's shade).
 
@@ -833,7 +833,13 @@ class _Writer:
                 ops = (xf.AddTranslateOp(), self._orient_op(xf))
                 geom = self.stage.DefinePrim(f"{root}/body_{b:06d}/geom")
                 geom.GetReferences().AddInternalReference(proto_path)
-                if np.any(s != 1.0):
+                # a body that does not exist at some frame (not released yet, or removed) also gets
+                # scale 0 there, for tools that ignore visibility (Blender draws it all the same)
+                hides = not take.visible[:, slot[int(b)]].all()
+                scale = None
+                if hides:
+                    scale = UsdGeom.Xformable(geom).AddScaleOp()
+                elif np.any(s != 1.0):
                     UsdGeom.Xformable(geom).AddScaleOp().Set(Gf.Vec3f(*map(float, s)))
                 self._body_prims[int(b)] = xf.GetPath()
                 UsdGeom.Gprim(geom).CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
@@ -847,19 +853,23 @@ class _Writer:
                     if use.prototype.capsule is None:
                         UsdPhysics.MeshCollisionAPI.Apply(geom).CreateApproximationAttr(use.prototype.collision)
                     self._bind_material(geom, int(b))
-                prims.append((slot[int(b)], xf, ops))
+                size = Gf.Vec3f(*map(float, s))
+                prims.append((slot[int(b)], xf, ops, None if scale is None else (scale, size)))
         vis_tokens = (UsdGeom.Tokens.invisible, UsdGeom.Tokens.inherited)
+        nothing = Gf.Vec3f(0.0, 0.0, 0.0)
 
         def frame(k: int, t) -> None:
             pos = take.position[k]
             quat = take.orientation[k]
-            for row, xf, (translate, orient) in prims:
+            for row, xf, (translate, orient), scaling in prims:
                 translate.Set(Gf.Vec3d(*pos[row].tolist()), t)
                 x, y, z, w = quat[row].tolist()
                 orient.Set(Gf.Quatd(w, x, y, z), t)
                 seen = bool(take.visible[k, row])
                 if k == 0 or seen != bool(take.visible[k - 1, row]):
                     xf.CreateVisibilityAttr().Set(vis_tokens[seen], t)
+                if scaling is not None:  # every frame, as the instancer's scales: no ramp over frames
+                    scaling[0].Set(scaling[1] if seen else nothing, t)
 
         return frame
 

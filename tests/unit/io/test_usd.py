@@ -473,3 +473,28 @@ def test_small_rotations_survive_the_orient_ops(recording, tmp_path, scale):
         m = np.array(cache.GetLocalToWorldTransform(stage.GetPrimAtPath(path)))
         m = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=1)[:, None]  # rows: the rotated axes
         assert np.arctan2(m[1, 2], m[1, 1]) == pytest.approx(angles[b], rel=1e-6), path
+
+
+def test_xforms_mode_scales_bodies_to_nothing_before_release(recording, tmp_path):
+    """--bodies xforms: a body not released yet is drawn nowhere, also by a tool that ignores
+    `visibility`. Blender 5.0.1 imports neither an Xform's nor a Mesh's animated visibility, so
+    it drew every emitted pebble of the pebbles sample at its release point from frame 0; the
+    geom's scale is 0 until the release now, as the instancer's scales are, and the body's size after."""
+    rec = recording
+    moving = _moving(rec)
+    exists = np.isfinite(rec["position"][:, moving, 0])
+    stage = open_stage(usd.export(rec, tmp_path / "xf.usdc", bodies="xforms"))
+    cache = UsdGeom.XformCache()
+    later = 0
+    for k in range(FRAMES):
+        cache.SetTime(k)
+        for b, there in zip(moving, exists[k]):
+            geom = stage.GetPrimAtPath(f"/Root/Bodies/body_{b:06d}/geom")
+            size = np.linalg.norm(np.array(cache.GetLocalToWorldTransform(geom))[:3, :3], axis=1)
+            if there:
+                want = rec["radius"][b] if rec["shape_names"][rec["shape"][b]] == "sphere" else rec["half_extents"][b]
+                np.testing.assert_allclose(size, np.broadcast_to(want, 3), rtol=1e-6)
+            else:
+                np.testing.assert_array_equal(size, 0.0)
+                later += 1
+    assert later >= 3
