@@ -371,8 +371,8 @@ def _check_rows(rec: dict[str, np.ndarray], path: Path) -> None:
                         f"frames, {count} {entity} as {first!r} has): the file is damaged or was edited"
                     )
     shape = rec.get("shape")
-    if shape is not None and shape.size:
-        odd = shape[(shape < 0) | (shape >= len(SHAPE_NAMES))]
+    if shape is not None and shape.size:  # -1: a body removed during the run (`World.remove_body`)
+        odd = shape[(shape < -1) | (shape >= len(SHAPE_NAMES))]
         if odd.size:
             raise RecordingError(f"{path}: recording array 'shape' holds {int(odd[0])}, which names no shape")
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import tumble
+from tumble.cli import main
 from tumble.cloth.system import PARTICLE_FIELDS
 from tumble.errors import TumbleError
 from tumble.io.atomic import OutputError
@@ -244,3 +245,17 @@ def test_arrays_that_disagree_or_name_no_shape_are_refused(tmp_path):
     np.savez(tmp_path / "odd.npz", **odd)
     with pytest.raises(RecordingError, match="'shape' holds 57, which names no shape"):
         load_recording(tmp_path / "odd.npz")
+
+
+def test_a_recording_with_a_removed_body_reads(tmp_path):
+    """A body removed during a run leaves its row with shape -1 (`World.remove_body`); such a
+    recording is not damaged: it reads, plots and exports (it was refused as naming no shape)."""
+    world = small_world()
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.25, callback=recorder)
+    world.remove_body(1)
+    world.run(0.25, callback=recorder)
+    path = recorder.save(tmp_path / "removed.npz")
+    rec = load_recording(path)
+    assert list(rec["shape"]) == [0, -1, 2]
+    assert main(["plot", str(path), "-o", str(tmp_path / "removed.png")]) == 0
