@@ -332,12 +332,17 @@ def load_recording(path) -> dict[str, np.ndarray]:
     if time is None or time.ndim != 1 or len(time) == 0:
         raise RecordingError(f"{p}: a recording needs a non-empty 1-D 'time' array")
     _check_rows(out, p)
-    version = int(out.get("format_version", 1))
-    if version > FORMAT_VERSION:
+    version = out.get("format_version", np.int32(1))
+    if version.shape != () or version.dtype.kind not in "iu":
+        raise RecordingError(
+            f"{p}: recording array 'format_version' is not an integer: the file is damaged or was edited"
+        )
+    if int(version) > FORMAT_VERSION:
         raise TumbleError(
-            f"{path}: recording format version {version} is newer than this Tumble reads "
+            f"{path}: recording format version {int(version)} is newer than this Tumble reads "
             f"(up to {FORMAT_VERSION}); upgrade Tumble"
         )
+    _check_tables(out, p)
     return out
 
 
@@ -349,14 +354,64 @@ def frame_bytes(world) -> tuple[int, int, int]:
     return bodies * limits.BYTES_PER_BODY_FRAME + particles * limits.BYTES_PER_PARTICLE_FRAME, bodies, particles
 
 
+#: the joints' arrays in a recording, per frame and once, with the trailing shape of one joint's row
+JOINT_STATE = {"joint_force": (3,), "joint_torque": (3,), "joint_broken": ()}
+JOINT_MODEL = {
+    "joint_bodies": (2,),
+    "joint_kind": (),
+    "joint_local": (2, 3),
+    "joint_frame": (2, 4),
+    "joint_limit": (),
+    "joint_lower": (),
+    "joint_upper": (),
+    "joint_break_force": (),
+    "joint_collide": (),
+}
+#: arrays of one value or one vector (the trailing shape), when present
+_FIXED = {
+    "dt": (),
+    "fps": (),
+    "gravity": (3,),
+    "camera_position": (3,),
+    "camera_target": (3,),
+    "camera_up": (3,),
+    "camera_fov": (),
+}
+#: arrays written together: a file holding one of a group holds all of them (readers take them as one)
+_TOGETHER = (
+    ("camera_position", "camera_target", "camera_up", "camera_fov"),
+    ("restitution", "friction"),
+    (*JOINT_STATE, "joint_bodies"),
+    tuple(name for name in JOINT_MODEL if name != "joint_bodies"),  # (written since later than the rest)
+    *((f"{k}_points", f"{k}_triangles", f"{k}_point_start", f"{k}_triangle_start") for k in ("hull", "mesh")),
+)
+#: arrays of indices (NumPy integer types only)
+_INDICES = (
+    "shape",
+    "geometry",
+    "joint_bodies",
+    "joint_kind",
+    "cloth_triangles",
+    *(f"{k}_{a}" for k in ("hull", "mesh") for a in ("triangles", "point_start", "triangle_start")),
+)
+
+
 def _check_rows(rec: dict[str, np.ndarray], path: Path) -> None:
-    """Refuse a recording whose declared arrays disagree on the frame, body or particle count (an edited
-    or damaged file), or whose `shape` names no shape, before a reader indexes one by another."""
+    """Refuse a recording whose declared arrays disagree on the frame, body, particle or joint count
+    (an edited or damaged file), or whose `shape` names no shape, before a reader indexes one by another."""
     frames = len(rec["time"])
-    for entity, state, model in (("bodies", BODY_STATE, BODY_MODEL), ("particles", PARTICLE_STATE, PARTICLE_MODEL)):
+    body_state = {name: f.shape for name, f in BODY_STATE.items()}
+    body_model = {name: f.shape for name, f in BODY_MODEL.items()}
+    particle_state = {name: f.shape for name, f in PARTICLE_STATE.items()}
+    particle_model = {name: f.shape for name, f in PARTICLE_MODEL.items()}
+    for entity, state, model in (
+        ("bodies", body_state, body_model),
+        ("particles", particle_state, particle_model),
+        ("joints", JOINT_STATE, JOINT_MODEL),
+    ):
         count, first = None, ""  # rows of this entity, from the first array found
         for per_frame, fields in ((True, state), (False, model)):
-            for name, field in fields.items():
+            for name, tail in fields.items():
                 a = rec.get(name)
                 if a is None:
                     continue
@@ -364,17 +419,106 @@ def _check_rows(rec: dict[str, np.ndarray], path: Path) -> None:
                 rows = a.shape[len(lead)] if a.ndim > len(lead) else -1
                 if count is None:
                     count, first = rows, name
-                want = (*lead, count, *field.shape)
+                want = (*lead, count, *tail)
                 if a.shape != want:
                     raise RecordingError(
                         f"{path}: recording array {name!r} has shape {a.shape}, expected {want} ({frames} "
                         f"frames, {count} {entity} as {first!r} has): the file is damaged or was edited"
                     )
     shape = rec.get("shape")
-    if shape is not None and shape.size:  # -1: a body removed during the run (`World.remove_body`)
+    if shape is not None and shape.size and shape.dtype.kind in "iu":  # -1: a body removed (`World.remove_body`)
         odd = shape[(shape < -1) | (shape >= len(SHAPE_NAMES))]
         if odd.size:
             raise RecordingError(f"{path}: recording array 'shape' holds {int(odd[0])}, which names no shape")
+
+
+def _check_tables(rec: dict[str, np.ndarray], path: Path) -> None:
+    """Refuse a recording whose other arrays an exporter or a plot reads are damaged or edited: a
+    value of the wrong type or shape, one of a group of arrays missing, or an index (a shape, a hull or
+    mesh row, a triangle's corner, a joint's body) out of its table, before a reader indexes by it."""
+
+    def bad(name: str, why: str) -> RecordingError:
+        return RecordingError(f"{path}: recording array {name!r} {why}: the file is damaged or was edited")
+
+    for group in _TOGETHER:
+        if "joint_kind" in group and "joint_kind" in rec:  # the joints' model came later, never without these
+            group = (*group, *JOINT_STATE, "joint_bodies")
+        held = [name for name in group if name in rec]
+        if held and len(held) < len(group):
+            missing = next(name for name in group if name not in rec)
+            raise RecordingError(
+                f"{path}: recording array {missing!r} is missing (the file has {held[0]!r}): "
+                "the file is damaged or was edited"
+            )
+    for name, a in rec.items():
+        if name == "shape_names":
+            if a.ndim != 1 or a.dtype.kind != "U":
+                raise bad(name, f"has shape {a.shape} and type {a.dtype}, expected strings")
+        elif name in _INDICES:
+            if a.dtype.kind not in "iu":
+                raise bad(name, f"has type {a.dtype}, expected integers")
+        elif a.dtype.kind not in "biuf":
+            raise bad(name, f"has type {a.dtype}, expected numbers")
+    for name, tail in _FIXED.items():
+        if name in rec and rec[name].shape != tail:
+            raise bad(name, f"has shape {rec[name].shape}, expected {tail}")
+    if "shape" in rec and "shape_names" in rec and rec["shape"].size:
+        if rec["shape"].max() >= len(rec["shape_names"]):
+            raise bad("shape", f"holds {int(rec['shape'].max())}, past the {len(rec['shape_names'])} shape names")
+    tables = {}
+    for kind in ("hull", "mesh"):
+        if f"{kind}_points" in rec:
+            tables[kind] = _check_table(rec, kind, bad)
+    bodies = len(rec["shape"]) if "shape" in rec else None
+    if "geometry" in rec and "shape" in rec:
+        for kind, rows in tables.items():
+            row = rec["geometry"][rec["shape"] == SHAPE_NAMES.index("convex" if kind == "hull" else "mesh")]
+            if row.size and (row.min() < 0 or row.max() >= rows):
+                raise bad("geometry", f"names {kind} row {int(row.min() if row.min() < 0 else row.max())} of {rows}")
+    if "cloth_triangles" in rec:
+        tri = rec["cloth_triangles"]
+        particles = rec["cloth_position"].shape[1] if "cloth_position" in rec else 0
+        if tri.ndim != 2 or tri.shape[1] != 3 or (particles and not len(tri)):
+            raise bad("cloth_triangles", f"has shape {tri.shape}, expected (T, 3) with T > 0")
+        if tri.size and (tri.min() < 0 or tri.max() >= particles):
+            raise bad("cloth_triangles", f"names particles outside the {particles} recorded")
+    if "joint_bodies" in rec and bodies is not None:
+        ends = rec["joint_bodies"]
+        if ends.size and (ends.min() < -1 or ends.max() >= bodies):
+            raise bad("joint_bodies", f"names bodies outside the {bodies} recorded (-1 is the world)")
+    if "joint_kind" in rec:
+        from ..solver.joints import JointKind
+
+        kinds = rec["joint_kind"]
+        if kinds.size and (kinds.min() < 0 or kinds.max() > max(JointKind)):
+            raise bad(
+                "joint_kind", f"holds {int(kinds.min() if kinds.min() < 0 else kinds.max())}, which names no joint"
+            )
+
+
+def _check_table(rec: dict[str, np.ndarray], kind: str, bad) -> int:
+    """Check the flat hull or mesh table `kind` (points, triangles and their row starts); return its rows."""
+    points, triangles = rec[f"{kind}_points"], rec[f"{kind}_triangles"]
+    ps, ts = rec[f"{kind}_point_start"], rec[f"{kind}_triangle_start"]
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise bad(f"{kind}_points", f"has shape {points.shape}, expected (V, 3)")
+    if triangles.ndim != 2 or triangles.shape[1] != 3:
+        raise bad(f"{kind}_triangles", f"has shape {triangles.shape}, expected (T, 3)")
+    if ps.ndim != 1:
+        raise bad(f"{kind}_point_start", f"has shape {ps.shape}, expected (rows + 1,)")
+    for name, start, total in (
+        (f"{kind}_point_start", ps, len(points)),
+        (f"{kind}_triangle_start", ts, len(triangles)),
+    ):
+        if start.ndim != 1 or len(start) != len(ps) or len(start) < 1:
+            raise bad(name, f"has shape {start.shape}, expected ({len(ps)},) like {kind}_point_start")
+        if start[0] != 0 or start[-1] != total or np.any(np.diff(start) < 0):
+            raise bad(name, f"does not run from 0 up to {total}")
+    for row in range(len(ps) - 1):
+        corners = triangles[ts[row] : ts[row + 1]]
+        if corners.size and (corners.min() < 0 or corners.max() >= ps[row + 1] - ps[row]):
+            raise bad(f"{kind}_triangles", f"names points outside {kind} row {row}'s {ps[row + 1] - ps[row]}")
+    return len(ps) - 1
 
 
 def _describe(path: Path, head: bytes) -> str:

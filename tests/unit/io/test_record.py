@@ -259,3 +259,62 @@ def test_a_recording_with_a_removed_body_reads(tmp_path):
     rec = load_recording(path)
     assert list(rec["shape"]) == [0, -1, 2]
     assert main(["plot", str(path), "-o", str(tmp_path / "removed.png")]) == 0
+
+
+def _everything(tmp_path):
+    """A recording with every optional table: cloth, a hull, a mesh, a joint and a camera."""
+    world = tumble.World(dt=DT, substeps=2)
+    world.add_plane()
+    world.add_cloth(size=(0.5, 0.5), resolution=(3, 3), position=(0.0, 0.0, 1.0), pins="top-corners")
+    cube = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.1, 0.1) for z in (-0.1, 0.1)])
+    hull = world.add_convex(points=cube, position=(1.0, 0.0, 0.5), mass=1.0)
+    world.add_mesh(vertices=[(0, 0, 0), (1, 0, 0), (0, 1, 0)], triangles=[(0, 1, 2)], position=(3, 0, 0))
+    world.add_joint("ball", None, hull, anchor=(1.0, 0.0, 1.0))
+    world.metadata["camera"] = {"position": [3.0, -3.0, 2.0], "target": [0.0, 0.0, 0.5], "fov": 30.0}
+    recorder = Recorder(world, fps=FPS)
+    world.run(0.125, callback=recorder)
+    return recorder.save(tmp_path / "all.npz")
+
+
+#: an edit -> a fragment of the message: each made `tumble export` (and some `tumble plot`) fail
+#: with an internal error (exit 1: IndexError, KeyError, TypeError) instead of refusing the file
+EDITS = {
+    "hull_triangles": (lambda r: r["hull_triangles"] + 99, "names points outside hull row 0"),
+    "mesh_point_start": (lambda r: r["mesh_point_start"][:1], "does not run from 0 up to 3"),
+    "geometry": (lambda r: np.full_like(r["geometry"], 7), "names hull row 7 of 2"),
+    "cloth_triangles": (lambda r: np.full_like(r["cloth_triangles"], 1000), "names particles outside the 9"),
+    "joint_bodies": (lambda r: np.full_like(r["joint_bodies"], 50), "names bodies outside"),
+    "joint_kind": (lambda r: np.full_like(r["joint_kind"], 9), "holds 9, which names no joint"),
+    "joint_lower": (lambda r: None, "'joint_lower' is missing"),
+    "camera_up": (lambda r: None, "'camera_up' is missing"),
+    "camera_fov": (lambda r: np.zeros(2), "has shape (2,), expected ()"),
+    "fps": (lambda r: np.zeros(0), "has shape (0,), expected ()"),
+    "gravity": (lambda r: np.float64(9.81), "has shape (), expected (3,)"),
+    "shape": (lambda r: r["shape"].astype(np.float64), "has type float64, expected integers"),
+    "shape_names": (lambda r: np.array(["plane"]), "past the 1 shape names"),
+    "camera_position": (lambda r: np.array(["x", "y", "z"]), "expected numbers"),
+    "format_version": (lambda r: np.zeros(1, np.int32), "'format_version' is not an integer"),
+}
+
+
+@pytest.mark.parametrize("name", list(EDITS))
+def test_edited_tables_are_refused_before_export_reads_them(name, tmp_path):
+    """An edited or damaged recording whose joints, hulls, meshes, cloth triangles, camera or scalars
+    are of the wrong type or shape, missing from their group or indexing past their table: one
+    RecordingError naming the array, and `tumble export` and `plot` exit 2 (export crashed, exit 1)."""
+    path = _everything(tmp_path)
+    rec = dict(np.load(path))
+    assert load_recording(path)  # the unedited file reads
+    edit, fragment = EDITS[name]
+    changed = edit(rec)
+    if changed is None:
+        del rec[name]
+    else:
+        rec[name] = changed
+    np.savez(tmp_path / "edited.npz", **rec)
+    with pytest.raises(RecordingError, match="the file is damaged or was edited") as info:
+        load_recording(tmp_path / "edited.npz")
+    assert fragment in str(info.value)
+    assert main(["export", str(tmp_path / "edited.npz"), "-o", str(tmp_path / "x.usda"), "--physics"]) == 2
+    assert main(["plot", str(tmp_path / "edited.npz"), "-o", str(tmp_path / "x.png")]) == 2
+    assert not (tmp_path / "x.usda").exists() and not (tmp_path / "x.png").exists()
