@@ -49,6 +49,9 @@ MAX_PARTICLES_INT32 = (2**31 - 1) // 8
 BYTES_PER_BODY = 2048
 #: memory per cloth particle [bytes]: 3,000-3,900 measured (64 x 64 and 400 x 400), doubled
 BYTES_PER_PARTICLE = 8192
+#: memory of one local wedge worker process [bytes]: 220 MB measured (Python, NumPy, Warp, Dask and a
+#: small scene), doubled for larger scenes and the final frame's rendering
+BYTES_PER_WORKER = 512 * 2**20
 #: recording memory per body per frame [bytes]: 13 float64 held per frame plus the padded copy saved
 BYTES_PER_BODY_FRAME = 256
 #: recording memory per cloth particle per frame [bytes]: its state (position, velocity, pin target), held and copied

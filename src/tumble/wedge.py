@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeGuard
 
+from . import limits, validate
 from .errors import TumbleError
 from .io.atomic import atomic_path
 from .progress import new_bar
@@ -1015,6 +1016,11 @@ def wedge(
         if _is_done(r, v, settings, retry_failed):
             results[v.name] = r
     todo = [v for v in plan.variants if v.name not in results]
+    if address is None and todo:  # a local cluster: no more processes than variants to run, each in memory
+        if workers is not None:
+            workers = validate.integer(workers, "workers", low=1)
+        workers = min(workers or os.cpu_count() or 1, len(todo))
+        limits.check_memory("--workers", "worker processes", workers, limits.BYTES_PER_WORKER)
 
     report = _Progress(len(plan.variants), len(results), progress)
     write = _ManifestWriter(plan, settings, out)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import importlib
 import tomllib
 
 import pytest
 
 from tumble.io.scene import parse_scene
+from tumble.limits import LimitError
 from tumble.wedge import (
     MAX_VARIANTS,
     KeyPath,
@@ -219,3 +221,30 @@ def test_variant_folder_names_are_readable_and_unique(scene_file):
         "world.gravity=0,0,-9.81__plane.friction=0.5",
         "world.gravity=0,0,-1.62__plane.friction=0.5",
     ]
+
+
+def test_local_workers_are_capped_and_checked_before_the_cluster_starts(scene_file, tmp_path, monkeypatch):
+    """`--workers 1000000` asked Dask for a million worker processes (no answer until killed, then a
+    traceback at exit): a local cluster gets no more workers than variants to run, and workers beyond
+    the available memory are refused in one line before anything starts or is written."""
+    wedge_module = importlib.import_module("tumble.wedge")  # (`tumble.wedge` is also the function)
+    started = []
+
+    class Started(Exception):
+        pass
+
+    def cluster(address=None, *, workers=None, timeout=None):
+        started.append(workers)
+        raise Started
+
+    monkeypatch.setattr(wedge_module, "cluster", cluster)
+    out = tmp_path / "out"
+    with pytest.raises(Started):
+        wedge_module.wedge(scene_file, {"seed": "0..2"}, out=out, workers=1_000_000, progress=False)
+    assert started == [3]
+    monkeypatch.setenv("TUMBLE_MEMORY", "1G")
+    with pytest.raises(LimitError, match="--workers: 3 worker processes need about 1.6 GB of memory"):
+        wedge_module.wedge(scene_file, {"seed": "0..2"}, out=out, workers=3, progress=False)
+    with pytest.raises(ValueError, match="workers must be an integer >= 1, got 0"):
+        wedge_module.wedge(scene_file, {"seed": "0..2"}, out=out, workers=0, progress=False)
+    assert started == [3] and not out.exists()

@@ -70,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="worker processes of the local cluster (default: one per core)",
+        help="worker processes of the local cluster (default: one per core; at most one per variant)",
     )
     parser.add_argument("--size", default="320x180", metavar="WxH", help="size of each final frame (default 320x180)")
     parser.add_argument("--yes", action="store_true", help=f"run more than {MAX_VARIANTS:,} variants")
