@@ -333,7 +333,14 @@ class Emitter:
     def add_hulls(self, hulls: HullSet) -> None:
         """Store the scaled hull copies in the `HullSet` `hulls` (`World.add_emitter` does, before any step)."""
         if self.hull is not None:
-            self.hull_rows = np.array([hulls.add(self.hull.scaled(float(s))) for s in self.hull_scales], dtype=np.int32)
+            copies = [self.hull.scaled(float(s)) for s in self.hull_scales]
+            for s, copy in zip(self.hull_scales, copies):  # all checked before the first is added
+                if not validate.mass_properties_usable(copy.volume, copy.inertia):
+                    raise ValueError(
+                        f"scale {s:g} gives the hull a volume of {copy.volume:g} m^3 and unit-density moments "
+                        f"down to {float(np.min(copy.inertia)):g} m^5; both must be finite and > 0 in float64"
+                    )
+            self.hull_rows = np.array([hulls.add(copy) for copy in copies], dtype=np.int32)
 
     # ------------------------------------------------------------------ emission
 

@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 
+import tumble
 import tumble.cli
 from tumble import limits
 from tumble.cli import main
@@ -298,6 +299,44 @@ def test_sizes_whose_mass_is_not_representable_are_refused(body, key):
     """A mass or inertia that overflows or vanishes in float64 is a SceneError naming the size key."""
     with pytest.raises(ValueError, match=f"{key}: a size of .* must be finite and > 0"):
         parse_scene(body)
+
+
+EMITTER = "[[plane]]\n[[emitter]]\nrate = 10\ncount = 2\nposition = [0, 0, 1]\n"
+TETRAHEDRON = "[[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]"
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        # each ran (a box's state went NaN at step 25, exit 2 only then; spheres never fitted) or crashed
+        # (a convex one: OverflowError, exit 1): the emitter's scale multiplies every size
+        ('shape = "convex"\npoints = ' + TETRAHEDRON + "\nscale = 1e100\n", "scale: a size of [0.5, 0.5, 0.5] m"),
+        ('shape = "convex"\npoints = ' + TETRAHEDRON + "\nscale = 1e-200\n", "times scale 1e-200"),
+        ("radius = 0.1\nscale = [0.1, 1e200]\n", "scale: a size of 0.1 m times scale 1e+200"),
+        ('shape = "box"\nhalf_extents = 0.1\nscale = 1e200\n', "times scale 1e+200 gives a mass of inf kg"),
+        ('shape = "capsule"\nradius = 0.1\nhalf_height = 0.1\nscale = 1e-200\n', "gives a mass of 0 kg"),
+        (
+            'shape = "convex"\npoints = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]\n',
+            "points: the points span no volume",
+        ),
+    ],
+)
+def test_emitter_scales_whose_mass_is_not_representable_are_refused(body, message, write_scene, capsys):
+    """An emitter's sizes times its `scale` (and a convex one's points) are held to the same rule as
+    a body's size, by `tumble check` as by `run`: one line naming the key, exit 2."""
+    path = write_scene(EMITTER + body)
+    for command in ("check", "run"):
+        assert main([command, str(path), "--duration", "0.3"][: 2 if command == "check" else 4]) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_convex_emitter_scaled_beyond_float64_from_python_is_a_value_error():
+    """World.add_emitter: a hull scaled by 1e100 (moments s^5 overflow) raised OverflowError."""
+    world = tumble.World()
+    with pytest.raises(ValueError, match="scale 1e\\+100 gives the hull a volume of .* must be finite and > 0"):
+        world.add_emitter(shape="convex", points=np.eye(4, 3, -1), scale=1e100, rate=10, count=2, position=(0, 0, 1))
+    assert not world.emitters
 
 
 def test_thin_but_representable_boxes_are_accepted():

@@ -57,15 +57,18 @@ class HullPrototype:
     rotation: np.ndarray
 
     def scaled(self, s: float) -> HullPrototype:
-        """The same hull scaled by s about its centre of mass (volume s^3, unit-density moments s^5)."""
-        return replace(
-            self,
-            vertex=self.vertex * s,
-            offset=self.offset * s,
-            volume=self.volume * s**3,
-            inertia=self.inertia * s**5,
-            offset_com=self.offset_com * s,
-        )
+        """The same hull scaled by s about its centre of mass (volume s^3, unit-density moments s^5;
+        inf where they overflow float64, as at s = 1e100, not an OverflowError)."""
+        s = np.float64(s)
+        with np.errstate(over="ignore"):
+            return replace(
+                self,
+                vertex=self.vertex * s,
+                offset=self.offset * s,
+                volume=float(self.volume * s**3),
+                inertia=self.inertia * s**5,
+                offset_com=self.offset_com * s,
+            )
 
     @property
     def bound_radius(self) -> float:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -332,10 +333,10 @@ def resolution() -> Check:
     return Check("[nx, ny] integers >= 2", convert)
 
 
-def mass_or_density(values: dict) -> None:
+def mass_or_density(values: dict, *, emitter: bool = False) -> None:
     if values.get("mass") is not None and values.get("density") is not None:
         raise KeyBad("density", "give mass or density, not both")
-    _mass_representable(values)
+    _mass_representable(values, emitter=emitter)
 
 
 def solid_rules(values: dict) -> None:
@@ -359,37 +360,50 @@ def _extremes(value) -> list[float]:
     return sorted({min(flat), max(flat)}) if flat else []  # one value when they are equal
 
 
-def _mass_representable(values: dict) -> None:
+def _mass_representable(values: dict, *, emitter: bool = False) -> None:
     """Refuse sizes or masses whose mass or inertia (or their inverses) overflow or vanish in float64.
 
     A sphere of radius 1e300 would weigh inf kg and one of radius 1e-300 nothing; the solver
     divides by both. A box is checked with its half extents; an emitter's ranges by their
-    extremes (as spheres or cubes).
+    extremes (as spheres or cubes), each times the extremes of its `scale`, and its `points` as
+    the box they span.
     """
     from ...shapes import DEFAULT_DENSITY, box_inertia, box_volume, sphere_inertia, sphere_volume
 
     mass, density = values.get("mass"), values.get("density")
+    scales = _extremes(1.0 if values.get("scale") is None else values["scale"]) if emitter else [1.0]
+    sizes: list[tuple[str, bool, str, Any]] = []  # (key, box or not, shown size, size)
     for key in ("radius", "half_extents"):
         size = values.get(key)
         if size is None:
             continue
-        exact_box = key == "half_extents" and isinstance(size, list) and len(size) == 3
-        shapes = [size] if exact_box else [[r, r, r] if key == "half_extents" else r for r in _extremes(size)]
-        with np.errstate(all="ignore"):
-            for h in shapes:
-                volume = float(box_volume(h) if key == "half_extents" else sphere_volume(h))
+        if key == "half_extents" and isinstance(size, list) and len(size) == 3:
+            sizes.append((key, True, show(size), size))  # a box's own half extents
+            continue
+        for r in _extremes(size):  # a range's extremes, as spheres or cubes
+            sizes.append((key, key == "half_extents", show(r), [r, r, r] if key == "half_extents" else r))
+    points = values.get("points")
+    if points is not None and emitter:
+        span = [float(v) for v in (np.max(points, axis=0) - np.min(points, axis=0)) / 2.0]
+        if min(span) == 0.0:  # (the hull, taken when the scene is built, finds any other flat set)
+            raise KeyBad("points", "the points span no volume (they are coplanar or collinear)")
+        sizes.append(("points", True, show(span), span))
+    with np.errstate(all="ignore"):
+        for key, box, shown, unscaled in sizes:
+            for s in scales:
+                h = np.multiply(unscaled, s)
+                volume = float(box_volume(h) if box else sphere_volume(h))
                 masses = (
                     _extremes(mass) if mass is not None else [d * volume for d in _extremes(density or DEFAULT_DENSITY)]
                 )
                 for m in masses:
-                    inertia = box_inertia(m, h) if key == "half_extents" else sphere_inertia(m, h)
+                    inertia = box_inertia(m, h) if box else sphere_inertia(m, h)
                     if not validate.mass_properties_usable(m, inertia):
-                        shown = show(h if exact_box else (h[0] if isinstance(h, list) else h))
                         raise KeyBad(
-                            key,
-                            f"a size of {shown} m gives a mass of {m:g} kg and moments of inertia "
-                            f"down to {float(np.min(inertia)):g} kg m^2; both (and their inverses) "
-                            "must be finite and > 0 in float64",
+                            key if s == 1.0 else "scale",
+                            f"a size of {shown} m{'' if s == 1.0 else f' times scale {s:g}'} gives a mass of "
+                            f"{m:g} kg and moments of inertia down to {float(np.min(inertia)):g} kg m^2; both "
+                            "(and their inverses) must be finite and > 0 in float64",
                         )
 
 
@@ -402,7 +416,7 @@ class KeyBad(Exception):
 
 
 def emitter_rules(values: dict) -> None:
-    mass_or_density(values)
+    mass_or_density(values, emitter=True)
     shapes = [values["shape"]] if isinstance(values["shape"], str) else values["shape"]
     if "sphere" in shapes and values.get("radius") is None:
         raise KeyBad("radius", "a sphere emitter needs radius (a value or [min, max])")
