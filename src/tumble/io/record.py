@@ -106,6 +106,10 @@ class Recorder:
 
             self.camera = Camera.for_world(world)
         self.frames: list[dict[str, Any]] = []  # per frame: name -> array or NumPy scalar
+        # each body id's model (shape, sizes, mass, ...) as last seen alive, so that a body removed
+        # during the recording keeps the shape it had in the frames before (the views show -1 for it)
+        self._model: dict[str, np.ndarray] = {}
+        self._model_seen: tuple[int, int] | None = None
         self.capture()
 
     @property
@@ -140,11 +144,33 @@ class Recorder:
             frame["joint_torque"] = np.array(w.joint_torque, dtype=np.float64)
             frame["joint_broken"] = np.array(w.joint_broken, dtype=bool)
         self.frames.append(frame)
+        self._note_model()
+
+    def _note_model(self) -> None:
+        """Keep the model of every live body id, when bodies were added or removed since the last look
+        (an id freed and given to a new body within one frame keeps the new body's)."""
+        w = self.world
+        alive = np.asarray(w.body_alive)
+        seen = (len(alive), int(np.count_nonzero(alive)))
+        if seen == self._model_seen:
+            return
+        self._model_seen = seen
+        for name, decl in BODY_MODEL.items():
+            now = np.array(w.body_values(decl.name))
+            old = self._model.get(name)
+            if old is None:
+                self._model[name] = now
+                continue
+            rows = max(len(old), len(now))
+            kept = np.concatenate([old, now[len(old) :]]) if len(now) > len(old) else old.copy()
+            kept[: len(now)][alive] = now[alive]
+            self._model[name] = kept[:rows]
 
     def arrays(self) -> dict[str, np.ndarray | np.generic]:
         """The recording as named arrays (what `save` writes)."""
         w = self.world
-        n = w.body_count
+        self._note_model()
+        n = max(w.body_count, len(self._model[next(iter(BODY_MODEL))]))
         f = len(self.frames)
         out: dict[str, np.ndarray | np.generic] = {
             "format_version": np.int32(FORMAT_VERSION),
@@ -156,8 +182,8 @@ class Recorder:
         # per-body state, padded with NaN for bodies created after the frame; the model once
         for name, decl in BODY_STATE.items():
             out[name] = _frames(self.frames, name, n, decl.shape)
-        for name, decl in BODY_MODEL.items():
-            out[name] = np.array(w.body_values(decl.name))
+        for name in BODY_MODEL:
+            out[name] = self._model[name]
         out["shape_names"] = np.array(SHAPE_NAMES)
         if self.camera is not None:
             out["camera_position"] = np.array(self.camera.position, dtype=np.float64)

@@ -247,18 +247,37 @@ def test_arrays_that_disagree_or_name_no_shape_are_refused(tmp_path):
         load_recording(tmp_path / "odd.npz")
 
 
-def test_a_recording_with_a_removed_body_reads(tmp_path):
-    """A body removed during a run leaves its row with shape -1 (`World.remove_body`); such a
-    recording is not damaged: it reads, plots and exports (it was refused as naming no shape)."""
+@pytest.mark.parametrize("removed", [1, 2], ids=["a middle id", "the highest id"])
+def test_a_body_removed_during_a_recording_keeps_its_shape_and_frames(tmp_path, removed):
+    """A body removed during a run is recorded as it was until then: its shape and sizes (the views
+    give -1 and NaN for its id now) and its frames before, NaN after; the recording reads, plots and
+    exports it. (The middle id's shape was -1, refused when read; the highest id shortens the views,
+    and the recorder failed on frames longer than the last: ValueError, could not broadcast.)"""
     world = small_world()
+    shapes, half = world.body_shape.copy(), world.body_half_extents.copy()
     recorder = Recorder(world, fps=FPS)
     world.run(0.25, callback=recorder)
-    world.remove_body(1)
+    before = recorder.frame_count
+    world.remove_body(removed)
     world.run(0.25, callback=recorder)
     path = recorder.save(tmp_path / "removed.npz")
     rec = load_recording(path)
-    assert list(rec["shape"]) == [0, -1, 2]
+    np.testing.assert_array_equal(rec["shape"], shapes)
+    np.testing.assert_array_equal(rec["half_extents"], half)
+    position = rec["position"][:, removed]
+    assert np.isfinite(position[:before]).all() and np.isnan(position[before:]).all()
     assert main(["plot", str(path), "-o", str(tmp_path / "removed.png")]) == 0
+    assert main(["export", str(path), "-o", str(tmp_path / "removed.usda")]) == 0
+
+
+def test_a_recording_whose_removed_body_has_shape_minus_one_reads(tmp_path):
+    """Recordings written before removed bodies kept their shape hold -1 there: they still read."""
+    world = small_world()
+    path = Recorder(world, fps=FPS).save(tmp_path / "old.npz")
+    arrays = dict(np.load(path))
+    arrays["shape"] = np.array([0, -1, 2], dtype=arrays["shape"].dtype)
+    np.savez(path, **arrays)
+    assert list(load_recording(path)["shape"]) == [0, -1, 2]
 
 
 def _everything(tmp_path):
