@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -1035,7 +1036,7 @@ def export(
         fps: frames per second; a world's default is 60, a recording's the rate it was recorded at
             (a lower rate takes the nearest recorded frames).
         duration: seconds to cover (frame 0 is the start, so duration * fps + 1 frames); default
-            the scene's `duration`, else 2 s, for a world, all of it for a recording.
+            2 s for a world, all of it for a recording.
         frames: number of frames, instead of `duration`.
         bodies: "instancer" (one PointInstancer) or "xforms" (one animated Xform per body).
         physics: also write UsdPhysics schemas (scene, colliders, rigid bodies, masses, materials).
@@ -1077,11 +1078,13 @@ def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance
     tmp: str | None
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
     os.close(fd)
-    layer_tmp = None
+    layer_dir = None
     try:
         if suffix == ".usdz":
-            fd, layer_tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".usdc")
-            os.close(fd)
+            # the package's root layer is named after the output (`rain.usdc` in `rain.usdz`), so it
+            # is written in a private folder beside it
+            layer_dir = tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.")
+            layer_tmp = os.path.join(layer_dir, f"{path.stem}.usdc")
             if not stage.GetRootLayer().Export(layer_tmp):
                 raise TumbleError(f"cannot write {str(path)!r}: pxr could not write the stage")
             os.remove(tmp)  # the packager refuses to overwrite
@@ -1096,9 +1099,10 @@ def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance
         message = str(exc).strip().splitlines()[-1] if str(exc).strip() else "pxr error"
         raise TumbleError(f"cannot write {str(path)!r}: {message}") from None
     finally:
-        for leftover in (tmp, layer_tmp):
-            if leftover is not None and os.path.exists(leftover):
-                os.remove(leftover)
+        if tmp is not None and os.path.exists(tmp):
+            os.remove(tmp)
+        if layer_dir is not None:
+            shutil.rmtree(layer_dir, ignore_errors=True)
 
 
 def _umask() -> int:

@@ -260,11 +260,12 @@ def test_xforms_mode_animates_one_xform_per_body(recording, tmp_path):
     "suffix, magic", [(".usd", b"PXR-USDC"), (".usdc", b"PXR-USDC"), (".usda", b"#usda"), (".usdz", b"PK")]
 )
 def test_every_extension_writes_its_format(recording, tmp_path, suffix, magic):
-    """.usd/.usdc write binary crate, .usda text, .usdz a package; each opens with all frames and no temp file left."""
+    """.usd/.usdc write binary crate, .usda text, .usdz a package (its layer named after it, not after a
+    temporary file); each opens with all frames and no temp file left."""
     path = usd.export(recording, tmp_path / f"shot{suffix}")
     assert path.read_bytes()[: len(magic)] == magic
     if suffix == ".usdz":
-        assert zipfile.ZipFile(path).namelist()[0].endswith(".usdc")
+        assert zipfile.ZipFile(path).namelist() == ["shot.usdc"]
     stage = open_stage(path)
     assert stage.GetEndTimeCode() == FRAMES - 1
     assert sorted(os.listdir(tmp_path)) == [path.name]
