@@ -238,6 +238,16 @@ def test_a_box_turned_on_an_incline_slides_straight_down(yaw_deg):
     assert np.linalg.norm(turn) < 2 * mu * G / ((2 * omega) ** 2 * 0.1)
 
 
+def _flush_blocks(w, floor: str, friction: float) -> None:
+    """Two static 5 x 10 x 1 m blocks (boxes or hulls) side by side, tops flush at z = 0, the seam at x = 0.3."""
+    for x in (-2.2, 2.8):
+        o = dict(position=(x, 0, -0.5), static=True, friction=friction, restitution=0.0)
+        if floor == "box":
+            w.add_box(half_extents=(2.5, 5, 0.5), **o)
+        else:
+            w.add_convex(points=CUBE * [25, 50, 5], **o)
+
+
 @pytest.mark.parametrize("body, floor", [("box", "box"), ("hull", "box"), ("hull", "hull")])
 def test_a_block_slides_across_the_seam_of_two_coplanar_blocks_as_on_one(body, floor):
     """A frictionless cube sliding at 2 m/s over two static blocks side by side, tops flush: no catch at the seam.
@@ -250,11 +260,7 @@ def test_a_block_slides_across_the_seam_of_two_coplanar_blocks_as_on_one(body, f
     v0, half = 2.0, 0.1
     w = tumble.World()
     h = w.dt / w.substeps
-    for x in (-2.2, 2.8):  # the seam at x = 0.3
-        if floor == "box":
-            w.add_box(position=(x, 0, -0.5), half_extents=(2.5, 5, 0.5), static=True, friction=0.0, restitution=0.0)
-        else:
-            w.add_convex(points=CUBE * [25, 50, 5], position=(x, 0, -0.5), static=True, friction=0.0, restitution=0.0)
+    _flush_blocks(w, floor, friction=0.0)
     o = dict(position=(-0.3, 0.3, half), mass=1.0, velocity=(v0, 0, 0), friction=0.0, restitution=0.0)
     cube = w.add_box(half_extents=(half,) * 3, **o) if body == "box" else w.add_convex(points=CUBE, **o)
     give = G / (2 * contact_omega(h)) ** 2
@@ -282,11 +288,7 @@ def test_a_ball_rolls_over_the_seam_of_two_coplanar_blocks_as_on_one(body, floor
     v0, r = 2.0, 0.1
     w = tumble.World(dt=1 / rate)
     h = w.dt / w.substeps
-    for x in (-2.2, 2.8):  # the seam at x = 0.3
-        if floor == "box":
-            w.add_box(position=(x, 0, -0.5), half_extents=(2.5, 5, 0.5), static=True, friction=0.8, restitution=0.0)
-        else:
-            w.add_convex(points=CUBE * [25, 50, 5], position=(x, 0, -0.5), static=True, friction=0.8, restitution=0.0)
+    _flush_blocks(w, floor, friction=0.8)
     o = dict(position=(-0.3, 0.3, r), mass=1.0, velocity=(v0, 0, 0), angular_velocity=(0, v0 / r, 0), friction=0.8)
     if body == "sphere":
         ball = w.add_sphere(radius=r, restitution=0.0, **o)

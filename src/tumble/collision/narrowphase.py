@@ -1244,22 +1244,27 @@ def _hull_face_contacts(
 
 
 @wp.func
+def _face_separation(H: Hulls, n: vec3, dl: float_t, P: Pose, Q: Pose, hq: int, sq: vec3):
+    """Separation of hull hq (pose Q, scale sq) from a face of P's with world normal n at offset dl
+    from P's centre: the least of its vertices' heights over the face's plane."""
+    nq = wp.quat_rotate_inv(Q.q, n)
+    lowest = float_t(1.0e30)
+    for i in range(H.vertex_start[hq], H.vertex_start[hq] + H.vertex_count[hq]):
+        lowest = wp.min(lowest, wp.dot(nq, _hull_vertex(H, i, sq)))
+    return lowest + wp.dot(n, Q.x - P.x) - dl
+
+
+@wp.func
 def _hull_face_query(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq: vec3):
     """Largest separation over P's face normals of Q from P, and that face: min over Q's vertices.
     Also P's least face offset from its centre (its inner half size, for `_ghost_step`)."""
     best = float_t(-1.0e30)
     fbest = H.hull_face_start[hp]
     inner = float_t(1.0e30)
-    q0 = H.vertex_start[hq]
     for f in range(H.hull_face_start[hp], H.hull_face_start[hp] + H.hull_face_count[hp]):
         nl, dl = _hull_face(H, f, sp)
         inner = wp.min(inner, dl)
-        n = wp.quat_rotate(P.q, nl)
-        nq = wp.quat_rotate_inv(Q.q, n)
-        lowest = float_t(1.0e30)
-        for i in range(q0, q0 + H.vertex_count[hq]):
-            lowest = wp.min(lowest, wp.dot(nq, _hull_vertex(H, i, sq)))
-        s = lowest + wp.dot(n, Q.x - P.x) - dl
+        s = _face_separation(H, wp.quat_rotate(P.q, nl), dl, P, Q, hq, sq)
         if s > best:
             best = s
             fbest = f
@@ -1271,16 +1276,11 @@ def _hull_thinnest(H: Hulls, P: Pose, hp: int, sp: vec3, Q: Pose, hq: int, sq: v
     """The largest separation <= 0 of Q from P over P's face normals not parallel to `across` (world):
     the thinnest overlap along another axis, for `_ghost_step`."""
     thinnest = float_t(-1.0e30)
-    q0 = H.vertex_start[hq]
     for f in range(H.hull_face_start[hp], H.hull_face_start[hp] + H.hull_face_count[hp]):
         nl, dl = _hull_face(H, f, sp)
         n = wp.quat_rotate(P.q, nl)
         if wp.abs(wp.dot(n, across)) < _PARALLEL:
-            nq = wp.quat_rotate_inv(Q.q, n)
-            lowest = float_t(1.0e30)
-            for i in range(q0, q0 + H.vertex_count[hq]):
-                lowest = wp.min(lowest, wp.dot(nq, _hull_vertex(H, i, sq)))
-            s = lowest + wp.dot(n, Q.x - P.x) - dl
+            s = _face_separation(H, n, dl, P, Q, hq, sq)
             if s <= _ZERO:
                 thinnest = wp.max(thinnest, s)
     return thinnest
