@@ -59,6 +59,10 @@ _WORLD_SKIP = frozenset(
 )
 
 
+# what a stage keeps of the world it belongs to (`World.key`, which handles carry): the identity of the
+# world that holds it, as the world's own `_key`, never state; a restore into another world keeps its own
+_IDENTITY = frozenset({"world_key"})
+
 # the World's parts (tumble.model), walked first in this order
 _PARTS = {"model": 0, "state": 1, "control": 2}
 
@@ -224,7 +228,10 @@ def _capture(value, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> 
 
 def _capture_member(owner, name: str, item, path: str, snap: Snapshot, seen: set[int], arrays: bool) -> None:
     """One attribute of an object of ours; those its class names in `SNAPSHOT_CACHES` (caches
-    rebuilt when needed, such as keys of array identities) are kept by name only, as derived."""
+    rebuilt when needed, such as keys of array identities) are kept by name only, as derived; the
+    world's identity (`_IDENTITY`) is left out."""
+    if name in _IDENTITY:
+        return
     if name in getattr(type(owner), "SNAPSHOT_CACHES", ()):
         snap.values[f"{path}/{name}/:derived"] = True
     else:
@@ -368,7 +375,7 @@ class _Restore:
         saved = self.children.get(path, set()) - skip
         caches = getattr(type(obj), "SNAPSHOT_CACHES", ())
         for name, value in _world_order(obj) if obj is self.world else sorted(vars(obj).items()):
-            if name in skip:
+            if name in skip or name in _IDENTITY:  # (an older file holds the saving world's key)
                 continue
             if name in caches:
                 # never taken from the file, whatever it holds (an older file may hold one: mesh BVH ids are

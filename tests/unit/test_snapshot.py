@@ -108,6 +108,27 @@ def test_snapshot_of_another_world_is_refused_and_changes_nothing():
         hammock.restore({"bodies": 1})
 
 
+def test_a_restored_world_keeps_its_own_handles(tmp_path):
+    """A snapshot of one world restored into another (or loaded from a file) leaves the other's emitters and
+    cloth its own: they took the first world's key, and refused the restored world's handles (HandleError)."""
+    rain = tumble.load_scene("rain")
+    _steps(rain, 0.1)
+    other = tumble.load_scene("rain")
+    emitter = other.emitters[0]
+    other.restore(rain.snapshot())
+    other.remove_emitter(emitter)
+    assert other.emitters == []
+
+    hammock = _cloth_and_joints_world()
+    _steps(hammock, 0.05)
+    path = snapshot.save(hammock.snapshot(), tmp_path / "s.npz")
+    world = _cloth_and_joints_world()
+    world.restore(snapshot.read(path))
+    assert world.snapshot() == snapshot.read(path)
+    assert world.cloth.cloth(tumble.ClothId(0, 0, world.key)).nx == 8
+    world.cloth.pin_to_body([1], world.body(1))
+
+
 def test_values_come_back_with_their_types(tmp_path):
     """Floats exactly (hex), infinities, tuples and generator states survive the file."""
     world = tumble.load_scene("rain")
