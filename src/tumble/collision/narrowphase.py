@@ -227,8 +227,9 @@ def collide_sphere_box(
     when the sphere, apart now, touches it within the step (`_first_touch`)."""
     # closest point of the box to the sphere centre (at impact), in the box frame
     p = wp.quat_rotate_inv(B.q, A.x - B.x)
-    t = _first_touch(p, wp.quat_rotate_inv(B.q, -dv), dt, r, Hulls(), -1, vec3(), h, max_sep)
-    q, out, d = box_closest(p + wp.quat_rotate_inv(B.q, -dv) * t, h)  # out: box -> sphere, box frame
+    u = wp.quat_rotate_inv(B.q, -dv)
+    t = _first_touch(p, u, dt, r, Hulls(), -1, vec3(), h, max_sep)
+    q, out, d = box_closest(p + u * t, h)  # out: box -> sphere, box frame
     n = -wp.quat_rotate(B.q, out)  # sphere (a) -> box (b)
     emit(c, a, b, A, B, n, A.x + n * r, B.x + wp.quat_rotate(B.q, q), max_sep)
 
@@ -520,6 +521,7 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
     best_sep = float_t(-1.0e30)
     best_kind = int(-1)  # 0: face of A, 1: face of B, 2: edge-edge
     best_i = int(0)
+    face_seps = vec8()  # each face axis's separation, for the seam rule
     # face axes of A then of B
     for k in range(6):
         axis = vec3()
@@ -530,6 +532,7 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
         s = wp.abs(wp.dot(T, axis)) - _box_projection(A.q, ha, axis) - _box_projection(B.q, hb, axis)
         if s > max_sep:
             return
+        face_seps[k] = s
         if s > apart:
             apart = s
             apart_axis = axis
@@ -554,10 +557,8 @@ def collide_box_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, ha: vec3, hb:
                 axis = _axis(A.q, k)
             else:
                 axis = _axis(B.q, k - 3)
-            if wp.abs(wp.dot(axis, apart_axis)) < _PARALLEL:
-                s = wp.abs(wp.dot(T, axis)) - _box_projection(A.q, ha, axis) - _box_projection(B.q, hb, axis)
-                if s <= _ZERO:
-                    thinnest = wp.max(thinnest, s)
+            if wp.abs(wp.dot(axis, apart_axis)) < _PARALLEL and face_seps[k] <= _ZERO:
+                thinnest = wp.max(thinnest, face_seps[k])
         if _ghost_step(apart, thinnest, inner):
             return
     # edge-edge axes; prefer faces unless an edge axis separates clearly more (stable manifolds)
@@ -718,9 +719,9 @@ def _golden_min(p0: vec3, u: vec3, lo: float_t, hi: float_t, H: Hulls, h: int, o
 
 @wp.func
 def _first_touch(p0: vec3, u: vec3, dt: float_t, r: float_t, H: Hulls, h: int, one: vec3, hb: vec3, max_sep: float_t):
-    """The time t in [0, dt] [s] at which a sphere of radius r, its centre moving as p0 + t u (the
-    frame of a box, h < 0, half extents hb, or of hull h), first touches it within the step; 0 when
-    it touches now, will not within the step, or is out of the speculative reach `max_sep`.
+    """The time t in [0, 2 dt] [s] at which a sphere of radius r, its centre moving as p0 + t u (the
+    frame of a box, h < 0, half extents hb, or of hull h), first touches it within two steps; 0 when
+    it touches now, will not within them, or is out of the speculative reach `max_sep`.
 
     A speculative contact keeps its normal for every substep, so the normal at the start pushes a
     sphere off its true path by the angle it turns about the feature it meets: rolling at 2 m/s
