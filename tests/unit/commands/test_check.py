@@ -70,6 +70,8 @@ def test_check_takes_exactly_one_scene(capsys):
 _SPHERE = "[[sphere]]\nposition = [0, 0, 1]\nradius = 0.1\n"
 _CLOTH = '[[cloth]]\nsize = [1, 1]\nposition = [0, 0, 1]\nresolution = [4, 4]\npins = "corners"\n'
 _JOINT = '[[joint]]\nkind = "ball"\nanchor = [0, 0, 1]\n'
+_FLAT = "[[convex]]\npoints = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1, 0]]\n"
+_SQUARE = "[[convex]]\npoints = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]]\n"
 
 
 @pytest.mark.parametrize(
@@ -93,11 +95,24 @@ _JOINT = '[[joint]]\nkind = "ball"\nanchor = [0, 0, 1]\n'
             ("[convex[0]]", "nothere.obj: no such mesh file"),
         ),
         ('[[mesh]]\nfile = "bad.stl"\n', {"bad.stl": "garbage\n"}, ("[mesh[0]]", "bad.stl: the mesh has no triangles")),
+        # a hull of points on one plane (also one that is flat only at its scale, and a convex emitter's)
+        (_FLAT + "position = [0, 0, 1]\n", {}, ("[convex[0]]", "points: the points span no volume")),
+        (_SQUARE + "position = [0, 0, 1]\nscale = [1, 1, 1e-13]\n", {}, ("[convex[0]]", "span no volume")),
+        (
+            _FLAT.replace("[[convex]]", '[[emitter]]\nshape = "convex"\nrate = 10\ncount = 2\nposition = [0, 0, 1]'),
+            {},
+            ("[emitter[0]]", "points: the points span no volume"),
+        ),
+        (
+            '[[convex]]\nfile = "flat.obj"\nposition = [0, 0, 1]\n',
+            {"flat.obj": "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n"},
+            ("[convex[0]]", "flat.obj: the points span no volume"),
+        ),
     ],
 )
 def test_check_refuses_what_run_refuses(write_scene, capsys, text, files, fragments):
-    """Bodies named by joints and cloth pins must be in the file and mesh files must read: `check`
-    refuses such a scene in the words `run` (which builds it) uses, with exit 2 and one line."""
+    """Bodies named by joints and cloth pins must be in the file, mesh files must read and convex
+    points must make a hull: `check` refuses such a scene in the words `run` (which builds it) uses, with exit 2 and one line."""
     path = write_scene(text, "refs.toml")
     for name, content in files.items():
         (path.parent / name).write_text(content)

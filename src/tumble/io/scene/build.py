@@ -146,9 +146,10 @@ def validate_scene(path) -> Scene:
     """Check a scene file as far as can be done without building it; returns the validated `Scene`.
 
     Beyond `read_scene` (keys, values, limits): every body a joint or a cloth's `pin_body` names
-    is in the file, and every mesh file reads as a mesh, so `tumble check` passes no scene that
-    `tumble run` refuses for these. What only the built world shows (a hull that spans no
-    volume, say) is left to `build_world`.
+    is in the file, every mesh file reads as a mesh, and every convex body's or convex emitter's
+    points (or file's vertices) make a hull (a volume, few enough vertices), so `tumble check`
+    passes no scene that `tumble run` refuses for these. What only the built world shows (bodies
+    released on top of each other, say) is left to `build_world` and `check_world`.
 
     Raises:
         SceneError: naming the file, the table and the key.
@@ -169,7 +170,28 @@ def validate_scene(path) -> Scene:
                     read_mesh_file(_file_path(scene.path, values["file"]))
                 except ValueError as exc:
                     raise SceneError(str(exc), path=scene.path, table=table_label(name, i), key="file") from None
+            _check_hull(scene.path, name, i, values)
     return scene
+
+
+def _check_hull(path, name: str, i: int, values: dict) -> None:
+    """The hull that a [[convex]] or a convex [[emitter]] makes of its points or file, made as `build_world`
+    makes it (the convex body's at its scale, the emitter's at scale 1), or a SceneError in its words."""
+    from ...collision.hulls import hull_from_points
+    from ..meshfile import hull_points
+
+    shapes = values.get("shape") or ()
+    convex = name == "convex" or (name == "emitter" and "convex" in ([shapes] if isinstance(shapes, str) else shapes))
+    points, file = values.get("points"), values.get("file")
+    if not convex or (points is None) == (file is None):
+        return  # not a hull, or one that the World API refuses for its arguments when the scene is built
+    try:
+        p, label = hull_points(points, None if file is None else _file_path(path, file))
+        scale = values.get("scale")
+        factor = validate.scale(1.0 if scale is None else scale) if name == "convex" else 1.0
+        hull_from_points(np.asarray(p, dtype=np.float64) * factor, name=label)
+    except ValueError as exc:
+        raise SceneError(str(exc), path=path, table=table_label(name, i)) from None
 
 
 def _add_joint(world, made: dict, values: dict, path, label: str) -> None:
