@@ -11,8 +11,44 @@ Public API::
 """
 
 import os as _os
+import sys as _sys
 from pathlib import Path as _Path
 from typing import TYPE_CHECKING as _TYPE_CHECKING
+
+
+def _started_as_command() -> bool:
+    """Whether this process is the `tumble` command: its console script, or `python -m tumble`
+    (while a `-m` module is being found, `sys.argv[0]` is "-m" and `sys.orig_argv` names it)."""
+    argv0 = _sys.argv[0] if _sys.argv else ""
+    if argv0 != "-m":
+        return _os.path.basename(argv0).removesuffix(".exe").removesuffix("-script.py") == "tumble"
+    orig = list(getattr(_sys, "orig_argv", ()))
+    for i, arg in enumerate(orig[1:], 1):
+        if arg.startswith("-m"):
+            module = arg[2:] or (orig[i + 1] if i + 1 < len(orig) else "")
+            return module in ("tumble", "tumble.__main__", "tumble.cli")
+    return False
+
+
+def _quiet_startup_interrupts() -> None:
+    """In the `tumble` command, a Ctrl-C that `tumble.cli.main` cannot catch yet (while Tumble,
+    Warp and NumPy import, a second or two, or while the arguments are parsed) ends it with one
+    line, "tumble: interrupted", and exit status 130, not a traceback. A program that imports
+    Tumble as a library keeps Python's own handling."""
+    if not _started_as_command():
+        return
+    previous = _sys.excepthook
+
+    def hook(kind, value, traceback) -> None:
+        if not issubclass(kind, KeyboardInterrupt):
+            previous(kind, value, traceback)
+            return
+        print(f"tumble: {'terminated' if kind.__name__ == 'Terminated' else 'interrupted'}", file=_sys.stderr)
+
+    _sys.excepthook = hook
+
+
+_quiet_startup_interrupts()  # before the imports that take the time
 
 import warp as _wp
 

@@ -1,0 +1,76 @@
+"""Ctrl-C at any moment of a command: one line on stderr, exit 130, never a traceback.
+
+Issue 13 (bad input, huge requests and failed writes), found by a reliability probe: a Ctrl-C in
+the first second or two of `tumble ...`, while Python imported Tumble and Warp and before
+`tumble.cli.main` could catch it, printed a KeyboardInterrupt traceback of 20 to 40 lines
+(`timeout -s INT 1 tumble run rain` showed it every time).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+
+def _with_warp_interrupted(tmp_path: Path, env: dict) -> dict:
+    """`env` in which `import warp` raises KeyboardInterrupt, as a Ctrl-C during the import does."""
+    fake = tmp_path / "fake"
+    fake.mkdir()
+    (fake / "warp.py").write_text("raise KeyboardInterrupt\n")
+    return dict(env, PYTHONPATH=os.pathsep.join([str(fake), env["PYTHONPATH"]]))
+
+
+@pytest.mark.parametrize("how", ["python -m tumble", "console script"])
+def test_ctrl_c_while_tumble_imports_is_one_line(tmp_path, tumble_subprocess_env, how):
+    """Interrupted in `import tumble` (Warp's import): "tumble: interrupted", status 130 (SIGINT)."""
+    env = _with_warp_interrupted(tmp_path, tumble_subprocess_env)
+    if how == "console script":  # what pip writes for [project.scripts] tumble = "tumble.cli:main"
+        script = tmp_path / "bin" / "tumble"
+        script.parent.mkdir()
+        script.write_text("import sys\nfrom tumble.cli import main\nsys.exit(main())\n")
+        command = [sys.executable, str(script)]
+    else:
+        command = [sys.executable, "-m", "tumble"]
+    result = subprocess.run([*command, "run", "bouncing_ball"], capture_output=True, text=True, env=env, timeout=120)
+    assert result.stderr == "tumble: interrupted\n"
+    assert result.returncode in (130, -signal.SIGINT)  # Python ends an unhandled Ctrl-C by SIGINT
+
+
+def test_a_program_importing_tumble_keeps_its_traceback(tmp_path, tumble_subprocess_env):
+    """Only the command is quiet: a program that imports Tumble sees Python's own KeyboardInterrupt."""
+    env = _with_warp_interrupted(tmp_path, tumble_subprocess_env)
+    result = subprocess.run(
+        [sys.executable, "-c", "import tumble"], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert "Traceback" in result.stderr and result.stderr.rstrip().endswith("KeyboardInterrupt")
+
+
+@pytest.mark.parametrize("delay", [0.3, 1.0])
+def test_an_early_ctrl_c_is_one_line(tmp_path, tumble_subprocess_env, delay):
+    """A real SIGINT soon after the start (in the imports, or just after): one line, no traceback."""
+    out = tmp_path / "ball.npz"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tumble", "run", "rain", "--duration", "60", "--record", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+    )
+    try:
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert "Traceback" not in err
+    lines = [line for line in err.splitlines() if line.strip() and not line.startswith("first step")]
+    assert len(lines) == 1 and "interrupted" in lines[0], err
+    assert proc.returncode in (130, -signal.SIGINT)
+    assert [p.name for p in tmp_path.iterdir() if p.name != "ball.npz"] == []
