@@ -840,24 +840,78 @@ def cluster(address=None, *, workers: int | None = None, timeout: float = CONNEC
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    local = LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-        env={"WARP_CACHE_PATH": warp_cache_dir()},
-    )
-    client = Client(local)
+    local: LocalCluster | None = None
+    local_client: Client | None = None
+    interrupted = False
     try:
-        yield client
+        with interrupt_after():  # a Ctrl-C stopping a cluster half started left it to fail at exit
+            local = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+                env={"WARP_CACHE_PATH": warp_cache_dir()},
+                preload=[__name__],  # dask_setup: a Ctrl-C is this process's to handle, not the workers'
+            )
+        local_client = Client(local)
+        yield local_client
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
     finally:
         # the results are in by now: a slow shutdown on a busy machine is waited for, then let go
-        # (Dask's own 5 s would raise TimeoutError after a finished wedge)
-        with contextlib.suppress(TimeoutError):
-            client.close(timeout=CLOSE_TIMEOUT)
-        with contextlib.suppress(TimeoutError):
-            local.close(timeout=CLOSE_TIMEOUT)
+        # (Dask's own 5 s would raise TimeoutError after a finished wedge); after a Ctrl-C, what
+        # Dask logs of the tasks it cancels is not the user's business (a traceback of CancelledError)
+        from distributed.utils import silence_logging_cmgr
+
+        with silence_logging_cmgr(logging.CRITICAL) if interrupted else contextlib.nullcontext():
+            if local_client is not None:
+                with contextlib.suppress(TimeoutError):
+                    local_client.close(timeout=CLOSE_TIMEOUT)
+            if local is not None:
+                with contextlib.suppress(TimeoutError):
+                    local.close(timeout=CLOSE_TIMEOUT)
+
+
+@contextlib.contextmanager
+def interrupt_after():
+    """Hold back a Ctrl-C until the block has run, then raise it (KeyboardInterrupt), also in place
+    of an error the block raised meanwhile.
+
+    Outside the main thread (where signals cannot be caught) nothing changes.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    interrupted = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+    try:
+        yield
+    except Exception:
+        if interrupted.is_set():  # what the Ctrl-C broke (a worker it stopped as it started)
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if interrupted.is_set():
+        raise KeyboardInterrupt
+
+
+def dask_setup(worker) -> None:
+    """Dask's preload hook, run in each worker of a local cluster as it starts: ignore SIGINT.
+
+    A terminal sends a Ctrl-C to every process of the command: each worker printed a
+    KeyboardInterrupt traceback. The wedge's own process stops it and closes the cluster.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def check_address(address: str | None) -> None:

@@ -74,3 +74,57 @@ def test_an_early_ctrl_c_is_one_line(tmp_path, tumble_subprocess_env, delay):
     assert len(lines) == 1 and "interrupted" in lines[0], err
     assert proc.returncode in (130, -signal.SIGINT)
     assert [p.name for p in tmp_path.iterdir() if p.name != "ball.npz"] == []
+
+
+# ------------------------------------------------------------------------------------------------ wedges
+
+BALLS = """
+[world]
+seed = 1
+
+[[plane]]
+normal = [0, 0, 1]
+
+[[emitter]]
+rate = 400
+count = 12
+position = [0, 0, 0.8]
+region = "box"
+extent = [0.3, 0.3, 0.1]
+radius = 0.04
+mass = 0.1
+"""
+
+
+def test_ctrl_c_of_a_running_wedge_is_one_line(tmp_path, tumble_subprocess_env):
+    """A terminal's Ctrl-C reaches every process of the command: each local worker printed a
+    KeyboardInterrupt traceback (and Dask logged a CancelledError one as it closed); now the wedge
+    says "interrupted" in one line, exit 130, and leaves no temporary file."""
+    scene = tmp_path / "balls.toml"
+    scene.write_text(BALLS, encoding="utf-8")
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tumble", "wedge", str(scene), "--vary", "world.seed=0..5", "-o", str(out)]
+        + ["--duration", "3", "--workers", "1", "--keep", "record"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        deadline = time.monotonic() + 180
+        seen = ""
+        while "wedge:" not in seen and time.monotonic() < deadline and proc.poll() is None:
+            seen += proc.stderr.readline()  # "wedge: 6 variants, on 1 worker ..." once the cluster is up
+        time.sleep(3)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    err = seen + err
+    assert "Traceback" not in err and "Exception" not in err, err
+    assert err.strip().splitlines()[-1] == "tumble wedge: interrupted", err
+    assert proc.returncode == 130
+    assert [p for p in out.rglob(".*")] == []
