@@ -1079,15 +1079,21 @@ def wedge(
     report = _Progress(len(plan.variants), len(results), progress)
     write = _ManifestWriter(plan, settings, out)
     runner = cluster(address, workers=workers, timeout=connect_timeout) if todo else contextlib.nullcontext()
-    with runner as client:
-        out.mkdir(exist_ok=True)
-        try:
-            if client is not None:
-                report.start(engine=_describe(client))
-                _run_all(client, plan, todo, settings, out, results, report, write)
-        finally:
-            report.stop()
-            rows = write(results, force=True)
+    try:
+        with runner as client:
+            out.mkdir(exist_ok=True)
+            try:
+                if client is not None:
+                    report.start(engine=_describe(client))
+                    _run_all(client, plan, todo, settings, out, results, report, write)
+            finally:
+                report.stop()
+                rows = write(results, force=True)
+    finally:
+        # a worker stopped in the middle of a write (Ctrl-C closes the cluster; a worker killed
+        # for memory) left its temporary file: the folders hold only whole files
+        for v in todo:
+            remove_partial_writes(out / v.name)
     if contact_sheet:
         message = write_contact_sheet(plan, rows, out)
         if message:
@@ -1095,6 +1101,33 @@ def wedge(
     if summary_figure or (summary_figure is None and "figures" in settings.keep):
         plot_wedge(out)
     return Table(rows, write.columns, out)
+
+
+#: the files of a variant's folder: its scene, its result and final frame, and those `keep` asks for
+VARIANT_FILES = ("scene.toml", "result.json", "final.png", "record.npz", "video.mp4", "scene.usdc", "plot.png")
+#: the temporary names they are written under: `tumble.io.atomic` (.NAME.XXXXXXXX.tmpSUFFIX) and
+#: `tumble.io.usd` (.STEM.XXXXXXXX.SUFFIX), XXXXXXXX being `tempfile`'s random letters
+_PARTIAL = re.compile(
+    "|".join(
+        [rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp{re.escape(Path(name).suffix)}" for name in VARIANT_FILES]
+        + [r"\.scene\.[a-z0-9_]{8}\.usdc"]
+    )
+)
+
+
+def remove_partial_writes(folder: Path) -> list[str]:
+    """Remove from a variant's `folder` the temporary files of writes that never finished; returns their names.
+
+    Only names `VARIANT_FILES` are written under are touched; anything else in the folder is left.
+    """
+    removed = []
+    with contextlib.suppress(OSError):
+        for path in folder.iterdir():
+            if _PARTIAL.fullmatch(path.name) and path.is_file():
+                with contextlib.suppress(OSError):
+                    path.unlink()
+                    removed.append(path.name)
+    return removed
 
 
 def _describe(client) -> str:

@@ -128,3 +128,23 @@ def test_ctrl_c_of_a_running_wedge_is_one_line(tmp_path, tumble_subprocess_env):
     assert err.strip().splitlines()[-1] == "tumble wedge: interrupted", err
     assert proc.returncode == 130
     assert [p for p in out.rglob(".*")] == []
+
+
+def test_a_wedge_removes_what_a_lost_worker_was_writing(tmp_path):
+    """A worker stopped in the middle of a write (the cluster closed on a Ctrl-C, a worker killed for
+    memory) left `.video.mp4.XXXXXXXX.tmp.mp4` in its variant's folder: the next wedge over it removes
+    such temporary files, and only those."""
+    import tumble
+
+    scene = tmp_path / "balls.toml"
+    scene.write_text(BALLS, encoding="utf-8")
+    out = tmp_path / "out"
+    folder = out / "world.seed=1"
+    folder.mkdir(parents=True)
+    partial = [".video.mp4.ehr6ts7g.tmp.mp4", ".record.npz.a1b2c3d_.tmp.npz", ".scene.k2j3h4g5.usdc"]
+    mine = [".scene.toml.swp", ".notes", "notes.tmp.mp4"]
+    for name in partial + mine:
+        (folder / name).write_bytes(b"half")
+    table = tumble.wedge(scene, {"world.seed": "1"}, out=out, duration=0.05, workers=1, progress=False)
+    assert [row["status"] for row in table] == ["ok"]
+    assert sorted(p.name for p in folder.iterdir() if p.name.startswith(".") or "tmp" in p.name) == sorted(mine)
