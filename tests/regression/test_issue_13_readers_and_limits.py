@@ -13,6 +13,7 @@ import pytest
 
 import tumble
 import tumble.cli
+import tumble.io.record
 from tumble import limits
 from tumble.cli import main
 from tumble.io.record import RecordingError, load_recording
@@ -65,6 +66,40 @@ def test_broken_recordings_raise_one_named_error(tmp_path):
         message = str(info.value)
         assert str(path) in message and fragment in message and "\n" not in message, (why, message)
         assert "pickled data" not in message or why == "pickled"
+
+
+@pytest.mark.parametrize(
+    "times", [[0.0, 0.5, 0.25, 1.0], [1.0, 0.5, 0.0], [0.0, float("nan"), 1.0], [0.0, float("inf")], [0.5, 0.5]]
+)
+def test_a_recording_whose_times_do_not_increase_is_refused(tmp_path, capsys, times):
+    """A recording with its times reversed made `tumble export` say only "attempt to get argmax of an
+    empty sequence" (and plot draw it); times out of order, NaN or infinite are refused naming the file."""
+    path = tmp_path / "edited.npz"
+    good = tumble.io.record.load_recording(_recording_of_ball(tmp_path, len(times)))
+    np.savez(path, **{**good, "time": np.array(times)})
+    with pytest.raises(RecordingError, match="'time' is not finite and increasing") as info:
+        load_recording(path)
+    assert str(path) in str(info.value)
+    for argv in (
+        ["export", str(path), "-o", str(tmp_path / "x.usda")],
+        ["plot", str(path), "-o", str(tmp_path / "x.png")],
+    ):
+        if argv[0] == "export":
+            pytest.importorskip("pxr")
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "'time' is not finite and increasing" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ball.npz", "edited.npz"]
+
+
+def _recording_of_ball(tmp_path, frames: int):
+    """A real recording of a ball, `frames` frames (every array a reader checks)."""
+    world = build_world(parse_scene(BALL))
+    recorder = tumble.io.record.Recorder(world, fps=1.0 / world.dt)
+    for _ in range(frames - 1):  # and the frame it takes of the start
+        world.step()
+        recorder(world)
+    return recorder.save(tmp_path / "ball.npz")
 
 
 def test_plot_of_broken_recordings_exits_2_with_one_line(tmp_path, tumble_subprocess_env):

@@ -313,7 +313,8 @@ def load_recording(path) -> dict[str, np.ndarray]:
 
     Raises:
         RecordingError: a missing, empty, truncated or corrupt file, a file of another kind (a
-            scene file, a single .npy array), or one without a non-empty 1-D `time` array.
+            scene file, a single .npy array), or one without a non-empty 1-D `time` array of
+            finite, increasing times.
         TumbleError: the file was written by a newer format version than this Tumble reads.
     """
     p = Path(path)
@@ -369,6 +370,10 @@ def load_recording(path) -> dict[str, np.ndarray]:
             f"(up to {FORMAT_VERSION}); upgrade Tumble"
         )
     _check_tables(out, p)
+    if not (np.all(np.isfinite(time)) and np.all(np.diff(time) > 0)):  # readers search it and divide by it
+        raise RecordingError(
+            f"{p}: recording array 'time' is not finite and increasing: the file is damaged or was edited"
+        )
     return out
 
 
