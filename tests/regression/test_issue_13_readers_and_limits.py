@@ -383,3 +383,20 @@ def test_thin_but_representable_boxes_are_accepted():
     assert inertia == pytest.approx([2.0 * mass / 3.0, mass / 3.0, mass / 3.0], rel=1e-12)  # m / 3 (b^2 + c^2), ...
     world.step()
     assert np.isfinite(world.body_position).all() and world.body_position[0, 2] < 1.0
+
+
+def test_resume_of_a_file_that_is_not_a_snapshot_says_what_it_is(tmp_path, capsys):
+    """`tumble run --resume scene.toml` said "not a Tumble snapshot file (ValueError: This file contains
+    pickled (object) data. If you trust the file you can load it unsafely using the `allow_pickle=`
+    keyword ...)", NumPy's advice to unpickle it; it now says what the file seems to be."""
+    scene = tmp_path / "ball.toml"
+    scene.write_text(BALL, encoding="utf-8")
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(bytes(range(256)))
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    for path, what in ((scene, "it is a text file (a scene?"), (junk, "unknown binary content"), (empty, "empty")):
+        assert main(["run", "--resume", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "pickle" not in err, err
+        assert err.startswith(f"tumble run: error: {path}: not a Tumble snapshot file (") and what in err, err
