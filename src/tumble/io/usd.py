@@ -1095,14 +1095,26 @@ def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance
         os.chmod(tmp, 0o644 & ~_umask())
         os.replace(tmp, path)
         tmp = None
-    except Tf.ErrorException as exc:
-        message = str(exc).strip().splitlines()[-1] if str(exc).strip() else "pxr error"
+    except (Tf.ErrorException, TumbleError) as exc:
+        if _disk_full(path.parent):  # pxr's own words for it are about a corrupt asset
+            raise TumbleError(f"cannot write {str(path)!r}: no space left on the device") from None
+        if isinstance(exc, TumbleError):
+            raise
+        message = " ".join(str(exc).strip().splitlines()[-1].split()) if str(exc).strip() else "pxr error"
         raise TumbleError(f"cannot write {str(path)!r}: {message}") from None
     finally:
         if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
         if layer_dir is not None:
             shutil.rmtree(layer_dir, ignore_errors=True)
+
+
+def _disk_full(folder: Path) -> bool:
+    """Whether the file system of `folder` has (next to) no room left, after a failed write."""
+    try:
+        return shutil.disk_usage(folder).free < 2**20
+    except OSError:
+        return False
 
 
 def _umask() -> int:

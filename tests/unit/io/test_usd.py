@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import resource
+import shutil
 import zipfile
 from pathlib import Path
 
@@ -353,6 +355,28 @@ def test_failed_write_leaves_the_old_file_and_no_temp(recording, tmp_path, monke
         usd.export(recording, target)
     assert target.read_text(encoding="utf-8") == "old"
     assert os.listdir(tmp_path) == ["keep.usda"]
+
+
+@pytest.mark.parametrize("suffix", [".usdc", ".usdz"])
+def test_a_full_disk_is_named_as_such(recording, tmp_path, monkeypatch, suffix):
+    """pxr reports a write cut short by a full disk as a corrupt asset ("exception thrown unpacking
+    a value", with a tab in it): the error says the device is full, the old file is kept, and no
+    temporary file is left. (The write is cut short by a 4 kB file-size limit on this process,
+    which Python turns into EFBIG, and the disk is made to report no free space.)"""
+    target = tmp_path / f"keep{suffix}"
+    target.write_bytes(b"old")
+    free = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(usd.shutil, "disk_usage", lambda folder: free._replace(free=0))
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4096, hard))
+    try:
+        with pytest.raises(TumbleError) as error:
+            usd.export(recording, target)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert str(error.value) == f"cannot write {str(target)!r}: no space left on the device"
+    assert target.read_bytes() == b"old"
+    assert os.listdir(tmp_path) == [target.name]
 
 
 def test_world_export_simulates_the_frames(tmp_path):
