@@ -1,23 +1,30 @@
 """Cloth pinned to bodies: pins that follow a body's motion, and pull on it (two-way).
 
 Reads body poses and the cloth's forces on its pinned particles; writes those particles'
-positions and pin targets, and body velocities. Costs O(body pins) per cloth substep.
+positions, velocities and pin targets, and body velocities. Costs O(body pins) per cloth substep.
 
-A body pin is a pinned particle (inverse mass 0) with a point fixed in a body's frame. Each
-cloth substep, after the spring and air forces are summed and before integration:
-- reaction: the force F the cloth exerts on the pin, plus the pin particle's own weight m g,
-  acts on the body for the cloth substep: v += F h / m, w += I^-1 (r x F) h (as the cloth's
-  contacts push bodies);
-and after integration:
-- follow: the particle is put on the body point x_b + R_b r (its target too), so its velocity
-  (x - x_prev) / h is the point's; the momentum m (v_point - v_last) that gives it is taken from
-  the body at the point (J = -m (v_point - v_last): dv = J / m_b, dw = I^-1 (r x J)). The pin
-  rides on the body, so the body carries its inertia as well as its weight: at rest
-  v_point = v_last and the body holds m g; in free fall the two cancel, and bar and
-  cloth fall together at g, keeping p = p0 + M g t (with the weight alone they fell at
-  (1 + m_pins / m_body) g, momentum gained m_pins g t).
-The body's response to the pins comes one cloth substep late, which is stable while the cloth
-is much lighter than the body (a flag on a pole).
+A body pin is a pinned particle (inverse mass 0) with a point fixed in a body's frame: it rides
+on the body, so the body carries its weight and its inertia. Each cloth substep:
+- reaction (after the spring and air forces are summed, and again after the stretch limit):
+  the force F the cloth exerts on the pin, plus the pin particle's own weight m g, acts on the
+  body for the cloth substep: v += F h / m, w += I^-1 (r x F) h (as the cloth's contacts push
+  bodies); the stretch limit's pull on the pin acts as its impulse;
+- follow (after integration): the particle is put on the body point x_b + R_b r (its target too);
+- weld (at the end, before the velocities from positions): each body and the pins on it take
+  the one rigid motion (v, w) that has their linear momentum and their angular momentum about
+  the body's centre (the pins' at their velocities u_i, as the last weld left them): a 6 x 6
+  solve (3 x 3 once the linear part is eliminated), whose (v, w) the body keeps; then the pins
+  take their points' velocities v + w x r_i (`ride`).
+So the pins' weight, the cloth's pull and whatever the body met in between (contacts, joints,
+its own weight) are shared by body and pins as by one rigid body, and momentum is kept to
+rounding (p = p0 + (m_body + m_cloth) g t for a bar carrying a cloth in free fall). Handing
+each pin's momentum change to the body one substep late instead (as before the weld)
+multiplied every velocity error by -m_pins / m_body a substep (about a thin rod's own axis,
+-I_pins / I_rod): a 1 kg curtain hung 0.1 m below the axis of a 0.5 kg hinged rod flew off.
+What is still explicit is the pull: the stretch limit moves the cloth as if its pins could not
+move and hands their body the whole impulse, which a body much lighter than its pins overshoots
+(a bar a third of its pins' mass, at a cloth's foot, breaks loose for a moment; it diverged
+before the weld).
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ import warp as wp
 
 from ..launch import LaunchCache, each_end, launch_each, vector
 from ..model import body_arrays
-from ..real import BodyArrays, float_t, vec3
+from ..real import BodyArrays, float_t, mat33, quat, vec3
 from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times
 from ..structs import array_struct, cached_struct
@@ -41,6 +48,9 @@ PIN_FIELDS = {
 }
 #: the body pins as the kernels take them
 Pins = array_struct("Pins", PIN_FIELDS, "", __name__)
+#: the pins grouped by body: `order` lists the pin rows body after body, `start` (one more row than
+#: there are bodies) where each body's begin
+PinGroups = array_struct("PinGroups", {"order": wp.int32, "start": wp.int32}, "", __name__)
 
 
 @wp.kernel
@@ -67,21 +77,75 @@ def _reaction(
 
 
 @wp.kernel
-def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, h: float_t, serial: int):
+def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, serial: int):
     for k in range(wp.tid(), each_end(wp.tid(), serial, pins.particle.shape[0])):
         b = pins.body[k]
         p = pins.particle[k]
-        r = wp.quat_rotate(bodies.orientation[b], pins.local[k])
-        point = bodies.position[b] + r
-        # the particle's velocity over this substep will be the point's: the momentum it gains, the
-        # body gives (its inertia, as its weight in `_reaction`, is the body's to carry)
-        im = bodies.inv_mass[b]
-        if im != float_t(0.0):
-            J = (particles.velocity[p] - (point - particles.position_prev[p]) / h) * particles.mass[p]
-            dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, J))
-            add_velocity(b, J * im, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
+        point = bodies.position[b] + wp.quat_rotate(bodies.orientation[b], pins.local[k])
         particles.position[p] = point
         particles.pin_target[p] = point
+
+
+@wp.func
+def _inv_inertia_matrix(q: quat, inv_i: vec3):
+    """The world-frame inverse inertia as a matrix (zero along a locked axis)."""
+    one = float_t(1.0)
+    zero = float_t(0.0)
+    return wp.matrix_from_cols(
+        inv_inertia_times(q, inv_i, vec3(one, zero, zero)),
+        inv_inertia_times(q, inv_i, vec3(zero, one, zero)),
+        inv_inertia_times(q, inv_i, vec3(zero, zero, one)),
+    )
+
+
+@wp.kernel
+def _weld(pins: Pins, groups: PinGroups, bodies: BodyArrays, particles: Particles, serial: int):
+    # one thread a body: its pins are groups.order[groups.start[g]:groups.start[g + 1]]
+    for g in range(wp.tid(), each_end(wp.tid(), serial, groups.start.shape[0] - 1)):
+        first = groups.start[g]
+        last = groups.start[g + 1]
+        b = pins.body[groups.order[first]]
+        im = bodies.inv_mass[b]
+        if im == float_t(0.0):
+            continue  # a static or kinematic body: its pins move with it, it does not feel them
+        q = bodies.orientation[b]
+        eye = wp.identity(n=3, dtype=float_t)
+        # the pins' mass M, first moment s, inertia about the body's centre Ip, momentum P and
+        # angular momentum Lp about the centre
+        M = float_t(0.0)
+        s = vec3()
+        P = vec3()
+        Lp = vec3()
+        Ip = mat33()
+        for e in range(first, last):
+            k = groups.order[e]
+            p = pins.particle[k]
+            m = particles.mass[p]
+            r = wp.quat_rotate(q, pins.local[k])
+            u = particles.velocity[p]
+            M += m
+            s += r * m
+            P += u * m
+            Lp += wp.cross(r, u) * m
+            Ip += (eye * wp.dot(r, r) - wp.outer(r, r)) * m
+        total = float_t(1.0) / im + M
+        P0 = bodies.velocity[b] / im + P  # the linear momentum of body and pins
+        # with v = (P0 + s x w) / total, the angular momentum I w_b + Lp about the centre gives
+        # (I + Ip - (|s|^2 - s s^T) / total) w = I w_b + Lp - s x P0 / total; times I^-1:
+        W = _inv_inertia_matrix(q, bodies.inv_inertia[b])
+        X = Ip - (eye * wp.dot(s, s) - wp.outer(s, s)) / total
+        w = wp.inverse(eye + W * X) * (bodies.angular_velocity[b] + W * (Lp - wp.cross(s, P0) / total))
+        v = (P0 + wp.cross(s, w)) / total
+        bodies.velocity[b] = v
+        bodies.angular_velocity[b] = w
+
+
+@wp.kernel
+def _ride(pins: Pins, bodies: BodyArrays, particles: Particles, serial: int):
+    for k in range(wp.tid(), each_end(wp.tid(), serial, pins.particle.shape[0])):
+        b = pins.body[k]
+        r = wp.quat_rotate(bodies.orientation[b], pins.local[k])
+        particles.velocity[pins.particle[k]] = bodies.velocity[b] + wp.cross(bodies.angular_velocity[b], r)
 
 
 @wp.kernel
@@ -128,6 +192,11 @@ class BodyPins:
     # the pin arrays as the kernels take them (`_struct`), built on first use and again when the arrays
     # change; a class default, so that pins restored from a snapshot older than it have it too
     _pins: tuple | None = None
+    # the pins grouped by body (`PinGroups`), made with the arrays; None in pins restored from an older
+    # snapshot, made on first use
+    order: wp.array | None = None
+    start: wp.array | None = None
+    _groups: tuple | None = None
 
     def __init__(self, device: str):
         self.device = device
@@ -161,6 +230,15 @@ class BodyPins:
         self.particle: wp.array = wp.array(np.resize(self._particle, n), dtype=wp.int32, device=self.device)
         self.body: wp.array = wp.array(np.resize(self._body, n), dtype=wp.int32, device=self.device)
         self.local: wp.array = wp.array(np.resize(self._local, (n, 3)), dtype=vec3, device=self.device)
+        self._group()
+
+    def _group(self) -> None:
+        """The pins grouped by body (`order`, `start`), from the host arrays."""
+        order = np.argsort(self._body, kind="stable")
+        bodies = self._body[order]
+        start = np.flatnonzero(np.r_[True, bodies[1:] != bodies[:-1]]) if len(order) else np.zeros(0, np.int64)
+        self.order = wp.array(order.astype(np.int32), dtype=wp.int32, device=self.device)
+        self.start = wp.array(np.r_[start, len(order)].astype(np.int32), dtype=wp.int32, device=self.device)
 
     def _struct(self) -> Pins:
         """The pin arrays as the kernels take them, built again only when the arrays were."""
@@ -188,10 +266,26 @@ class BodyPins:
         lambda u [kg m]) acts on their bodies as the impulse lambda u / h."""
         self._react(particles.pin_load, particles, bodies, (0.0, 0.0, 0.0), 1.0 / h)
 
-    def follow(self, particles: Particles, bodies, h: float) -> None:
-        """Put the pinned particles (and their targets) on their body points, at the end of a cloth
-        substep of `h` seconds; the momentum that takes from each particle's last velocity to the
-        point's over the substep is taken from its body."""
+    def follow(self, particles: Particles, bodies) -> None:
+        """Put the pinned particles (and their targets) on their body points."""
         if self.count == 0:
             return
-        launch_each(_follow, self.count, [self._struct(), self._body_struct(bodies), particles, h], self.device)
+        launch_each(_follow, self.count, [self._struct(), self._body_struct(bodies), particles], self.device)
+
+    def weld(self, particles: Particles, bodies) -> None:
+        """Give every dynamic body with pins the rigid motion that it and its pins (at their velocities, as the
+        last `ride` left them or as given) have together: their momentum and angular momentum."""
+        if self.count == 0:
+            return
+        if self.start is None:
+            self._group()
+        assert self.order is not None and self.start is not None
+        self._groups = cached_struct(PinGroups, {"order": self.order, "start": self.start}, "", self._groups)
+        inputs = [self._struct(), self._groups[0], self._body_struct(bodies), particles]
+        launch_each(_weld, self.start.shape[0] - 1, inputs, self.device)
+
+    def ride(self, particles: Particles, bodies) -> None:
+        """Set the pinned particles' velocities to their body points' (after the velocities from positions)."""
+        if self.count == 0:
+            return
+        launch_each(_ride, self.count, [self._struct(), self._body_struct(bodies), particles], self.device)

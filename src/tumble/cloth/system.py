@@ -667,7 +667,7 @@ class ClothSystem:
         remaining = max(1, total - self._substep_index)
         springs.integrate(particles, gravity, hi, 1.0 / remaining, cache=cache)
         self._substep_index += 1
-        self.body_pins.follow(particles, bodies, hi)  # body pins sit on their body points
+        self.body_pins.follow(particles, bodies)  # body pins sit on their body points
 
         # constraints, solved together by repeating them while bodies are near (position-based
         # dynamics): a stretch limit and a body contact solved once each would fight over the
@@ -714,8 +714,11 @@ class ClothSystem:
             top["pin_index"], particles.pin_load, particles, (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
         )
 
-        # velocities from the corrected positions
+        # each body and its pins take one rigid motion; then velocities from the corrected positions,
+        # the pins' from their bodies
+        self.body_pins.weld(particles, bodies)
         springs.update_velocities(particles, hi, cache=cache)
+        self.body_pins.ride(particles, bodies)
 
     def _limit(self, s: ClothStructs, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
         """The stretch limit: tethers to the pins (unless `tethers` is False), then Provot's sweeps
