@@ -1105,13 +1105,10 @@ def wedge(
 
 #: the files of a variant's folder: its scene, its result and final frame, and those `keep` asks for
 VARIANT_FILES = ("scene.toml", "result.json", "final.png", "record.npz", "video.mp4", "scene.usdc", "plot.png")
-#: the temporary names they are written under: `tumble.io.atomic` (.NAME.XXXXXXXX.tmpSUFFIX) and
-#: `tumble.io.usd` (.STEM.XXXXXXXX.SUFFIX), XXXXXXXX being `tempfile`'s random letters
+#: the temporary names they are written under (`tumble.io.atomic`, which the USD export uses too):
+#: .NAME.XXXXXXXX.tmpSUFFIX, XXXXXXXX being `tempfile`'s random letters
 _PARTIAL = re.compile(
-    "|".join(
-        [rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp{re.escape(Path(name).suffix)}" for name in VARIANT_FILES]
-        + [r"\.scene\.[a-z0-9_]{8}\.usdc"]
-    )
+    "|".join(rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}\.tmp{re.escape(Path(name).suffix)}" for name in VARIANT_FILES)
 )
 
 

@@ -141,7 +141,7 @@ def test_a_wedge_removes_what_a_lost_worker_was_writing(tmp_path):
     out = tmp_path / "out"
     folder = out / "world.seed=1"
     folder.mkdir(parents=True)
-    partial = [".video.mp4.ehr6ts7g.tmp.mp4", ".record.npz.a1b2c3d_.tmp.npz", ".scene.k2j3h4g5.usdc"]
+    partial = [".video.mp4.ehr6ts7g.tmp.mp4", ".record.npz.a1b2c3d_.tmp.npz", ".scene.usdc.k2j3h4g5.tmp.usdc"]
     mine = [".scene.toml.swp", ".notes", "notes.tmp.mp4"]
     for name in partial + mine:
         (folder / name).write_bytes(b"half")

@@ -53,6 +53,7 @@ from ..errors import TumbleError
 from ..npmath import quat_mul, quat_rotate
 from ..render.colors import CLOTH_COLOR, body_colors
 from ..render.solids import vertex_normals
+from .atomic import atomic_path
 
 #: file types `export` writes, chosen by the suffix (".usd" is binary crate, like ".usdc")
 EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
@@ -1068,33 +1069,29 @@ def export(
 
 
 def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance) -> None:
-    """Author the stage in memory, export it to a temporary file beside `path`, then rename it over."""
+    """Author the stage in memory, export it to a temporary file beside `path`, then rename it over
+    (`tumble.io.atomic.atomic_path`: flushed to disk first, with the permissions of the file it replaces)."""
     from pxr import Sdf, Tf, Usd, UsdUtils
 
     stage = Usd.Stage.CreateInMemory()
     _Writer(stage, take, bodies=bodies, physics=physics, advance=advance).write()
-    suffix = path.suffix.lower()
-    # pxr picks the file format from the extension, so the temporary names keep it
-    tmp: str | None
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
-    os.close(fd)
     layer_dir = None
     try:
-        if suffix == ".usdz":
-            # the package's root layer is named after the output (`rain.usdc` in `rain.usdz`), so it
-            # is written in a private folder beside it
-            layer_dir = tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.")
-            layer_tmp = os.path.join(layer_dir, f"{path.stem}.usdc")
-            if not stage.GetRootLayer().Export(layer_tmp):
+        # pxr picks the file format from the extension, which the temporary name ends in too
+        with atomic_path(path) as tmp_path:
+            tmp = str(tmp_path)
+            if path.suffix.lower() == ".usdz":
+                # the package's root layer is named after the output (`rain.usdc` in `rain.usdz`), so it
+                # is written in a private folder beside it
+                layer_dir = tempfile.mkdtemp(dir=path.parent, prefix=f".{path.stem}.")
+                layer_tmp = os.path.join(layer_dir, f"{path.stem}.usdc")
+                if not stage.GetRootLayer().Export(layer_tmp):
+                    raise TumbleError(f"cannot write {str(path)!r}: pxr could not write the stage")
+                os.remove(tmp)  # the packager refuses to overwrite
+                if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(layer_tmp), tmp):
+                    raise TumbleError(f"cannot write {str(path)!r}: pxr could not make the .usdz package")
+            elif not stage.GetRootLayer().Export(tmp):
                 raise TumbleError(f"cannot write {str(path)!r}: pxr could not write the stage")
-            os.remove(tmp)  # the packager refuses to overwrite
-            if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(layer_tmp), tmp):
-                raise TumbleError(f"cannot write {str(path)!r}: pxr could not make the .usdz package")
-        elif not stage.GetRootLayer().Export(tmp):
-            raise TumbleError(f"cannot write {str(path)!r}: pxr could not write the stage")
-        os.chmod(tmp, 0o644 & ~_umask())
-        os.replace(tmp, path)
-        tmp = None
     except (Tf.ErrorException, TumbleError) as exc:
         if _disk_full(path.parent):  # pxr's own words for it are about a corrupt asset
             raise TumbleError(f"cannot write {str(path)!r}: no space left on the device") from None
@@ -1103,8 +1100,6 @@ def _write_atomic(take: Take, path: Path, *, bodies: str, physics: bool, advance
         message = " ".join(str(exc).strip().splitlines()[-1].split()) if str(exc).strip() else "pxr error"
         raise TumbleError(f"cannot write {str(path)!r}: {message}") from None
     finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.remove(tmp)
         if layer_dir is not None:
             shutil.rmtree(layer_dir, ignore_errors=True)
 
@@ -1115,9 +1110,3 @@ def _disk_full(folder: Path) -> bool:
         return shutil.disk_usage(folder).free < 2**20
     except OSError:
         return False
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

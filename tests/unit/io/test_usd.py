@@ -379,6 +379,19 @@ def test_a_full_disk_is_named_as_such(recording, tmp_path, monkeypatch, suffix):
     assert os.listdir(tmp_path) == [target.name]
 
 
+@pytest.mark.parametrize("suffix", [".usda", ".usdz"])
+def test_an_export_over_a_file_keeps_its_permissions(recording, tmp_path, suffix):
+    """Exporting over an existing file replaces it with the permissions it had (0o640 here), as every
+    other output does (`tumble.io.atomic`); before, the new file always got 0o644 less the umask."""
+    target = tmp_path / f"shot{suffix}"
+    target.write_bytes(b"old")
+    os.chmod(target, 0o640)
+    usd.export(recording, target)
+    assert open_stage(target).GetEndTimeCode() == FRAMES - 1
+    assert target.stat().st_mode & 0o777 == 0o640
+    assert os.listdir(tmp_path) == [target.name]
+
+
 def test_world_export_simulates_the_frames(tmp_path):
     """Exporting a World steps it: frames = duration * fps + 1, the last at the world's end time."""
     world = tumble.World(dt=1 / 240)
