@@ -18,6 +18,12 @@ from pathlib import Path
 import pytest
 
 
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the child before it starts: SIGINT at its default, as a terminal's foreground command has it
+    (a test run started in the background of a shell has SIGINT ignored, and its children with it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _with_warp_interrupted(tmp_path: Path, env: dict) -> dict:
     """`env` in which `import warp` raises KeyboardInterrupt, as a Ctrl-C during the import does."""
     fake = tmp_path / "fake"
@@ -61,6 +67,7 @@ def test_an_early_ctrl_c_is_one_line(tmp_path, tumble_subprocess_env, delay):
         stderr=subprocess.PIPE,
         text=True,
         env=tumble_subprocess_env,
+        preexec_fn=_ctrl_c_as_in_a_terminal,
     )
     try:
         time.sleep(delay)
@@ -105,12 +112,13 @@ def test_ctrl_c_of_a_running_wedge_is_one_line(tmp_path, tumble_subprocess_env):
     out = tmp_path / "out"
     proc = subprocess.Popen(
         [sys.executable, "-m", "tumble", "wedge", str(scene), "--vary", "world.seed=0..5", "-o", str(out)]
-        + ["--duration", "3", "--workers", "1", "--keep", "record"],
+        + ["--duration", "100", "--workers", "1", "--keep", "record"],  # a variant: seconds, not 0.2 s
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env=tumble_subprocess_env,
         start_new_session=True,  # its own process group, as a terminal's foreground job
+        preexec_fn=_ctrl_c_as_in_a_terminal,
     )
     try:
         deadline = time.monotonic() + 180

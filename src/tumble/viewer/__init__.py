@@ -56,27 +56,31 @@ def run_viewer(
         ViewerUnavailable: when no window can be shown (no Qt, no OpenGL window and no EGL).
     """
     app = make_application()
+    from PySide6 import QtCore
+
     from .window import ViewerWindow
 
-    window = ViewerWindow(
-        world, factory=factory, title=title, size=size, paused=paused, view=view, output_dir=output_dir
-    )
-    window.show()
-    if app.platformName() not in ("offscreen", "minimal"):
-        window.raise_()
     # Ctrl-C and SIGTERM close the window: a handler that raised (KeyboardInterrupt, tumble.cli's
-    # Terminated) inside a Qt slot only printed a traceback, and the viewer ran on
+    # Terminated) inside a Qt slot only printed a traceback, and the viewer ran on. Caught from
+    # before the window is made, whose setup (seconds on a loaded machine) runs Qt callbacks too
     received: list[int] = []
     previous: dict[int, object] = {}
     if threading.current_thread() is threading.main_thread():
 
         def stop(signum: int, frame: object) -> None:
             received.append(signum)
-            app.quit()
+            app.quit()  # (nothing before the event loop runs: the timer below quits it then)
 
         for number in (signal.SIGINT, signal.SIGTERM):
             previous[number] = signal.signal(number, stop)
     try:
+        window = ViewerWindow(
+            world, factory=factory, title=title, size=size, paused=paused, view=view, output_dir=output_dir
+        )
+        window.show()
+        if app.platformName() not in ("offscreen", "minimal"):
+            window.raise_()
+        QtCore.QTimer.singleShot(0, lambda: app.quit() if received else None)
         status = int(app.exec())
     finally:
         for key, handler in previous.items():

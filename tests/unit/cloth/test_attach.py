@@ -1,7 +1,8 @@
 """cloth/attach.py on plain arrays: body pins follow their body points and pull on their bodies.
 
 References: the point of a body is x_b + R_b r; a force F on a pin (plus the pin's weight m g)
-acting for h changes the body's velocities by dv = F h / m_b and dw = I_b^-1 (R_b r x F) h.
+acting for h changes the body's velocities by dv = F h / m_b and dw = I_b^-1 (R_b r x F) h; a body
+welded to its pins keeps their joint momentum and angular momentum.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ def test_pinned_particles_sit_on_their_body_points():
     assert pins.count == 2
     arrays = particles(4)
     arrays["particle_position"].assign(np.full((4, 3), 7.0))
-    pins.follow(struct(arrays), bodies, 0.01)
+    pins.follow(struct(arrays), bodies)
     x, R = bodies.numpy("body_position")[1], quat_matrix(bodies.numpy("body_orientation")[1])
     out = arrays["particle_position"].numpy()
     np.testing.assert_allclose(out[[1, 3]], x + local @ R.T, atol=1e-12)
@@ -68,28 +69,47 @@ def test_pinned_particles_sit_on_their_body_points():
     np.testing.assert_array_equal(out[[0, 2]], np.full((2, 3), 7.0))
 
 
-def test_a_pin_takes_the_momentum_it_gains_from_its_body():
-    """follow gives the pin the point's velocity over the substep, (point - x_prev) / h, and the body the
-    opposite of the momentum that adds, J = m (v_last - v_new) at R r: dv = J / m_b, dw = I^-1 (R r x J)."""
+def test_weld_gives_a_body_and_its_pins_one_motion_with_their_momentum_and_angular_momentum():
+    """weld: the dynamic body and its two pins (0.1 kg, moving apart from it) take the rigid motion (v, w)
+    with their linear momentum m_b v_b + sum m u and their angular momentum I w_b + sum m r x u about the
+    body's centre; ride then gives the pins their points' velocities v + w x r. A pin on the static body
+    changes nothing. (Reference: the same balance written as one 6 x 6 system, solved by NumPy.)"""
     bodies = two_bodies()
+    v_b, w_b = np.array([0.2, -0.4, 0.1]), np.array([1.0, 0.3, -0.5])
+    bodies.arrays["body_velocity"].assign(np.array([[0.0, 0.0, 0.0], v_b]))
+    bodies.arrays["body_angular_velocity"].assign(np.array([[0.0, 0.0, 0.0], w_b]))
     pins = BodyPins("cpu")
-    local = np.array([0.0, -0.2, 0.3])
-    pins.add(np.array([0]), 1, local[None])
-    arrays = particles(1)
-    h, v_last = 0.01, np.array([0.3, -0.1, 0.2])
-    x, R = bodies.numpy("body_position")[1], quat_matrix(bodies.numpy("body_orientation")[1])
-    point = x + R @ local
-    prev = point - np.array([0.01, 0.02, -0.005])
-    arrays["particle_position_prev"].assign(prev[None])
-    arrays["particle_velocity"].assign(v_last[None])
-    pins.follow(struct(arrays), bodies, h)
-    J = 0.1 * (v_last - (point - prev) / h)
-    np.testing.assert_allclose(bodies.numpy("body_velocity")[1], J * 0.5, atol=1e-15)
-    inv_inertia = R @ np.diag([1.0, 0.5, 0.25]) @ R.T
-    np.testing.assert_allclose(
-        bodies.numpy("body_angular_velocity")[1], inv_inertia @ np.cross(R @ local, J), atol=1e-15
-    )
-    assert not bodies.numpy("body_velocity")[0].any()  # the static body takes nothing
+    local = np.array([[0.5, 0.0, 0.0], [0.0, -0.2, 0.3]])
+    pins.add(np.array([0, 2]), 1, local)
+    pins.add(np.array([1]), 0, np.array([[0.0, 0.0, 1.0]]))
+    arrays = particles(3)
+    u = np.array([[0.3, -0.1, 0.2], [5.0, 5.0, 5.0], [-1.0, 0.4, 0.0]])
+    arrays["particle_velocity"].assign(u)
+    pins.weld(struct(arrays), bodies)
+    pins.ride(struct(arrays), bodies)
+
+    R = quat_matrix(bodies.numpy("body_orientation")[1])
+    inertia = R @ np.diag([1.0, 2.0, 4.0]) @ R.T
+    r = local @ R.T
+    m = 0.1
+    # rows: linear momentum, angular momentum about the centre, of body and pins moving as (v, w)
+    A = np.zeros((6, 6))
+    A[:3, :3] = np.eye(3) * (2.0 + 2 * m)
+    rhs = np.concatenate([2.0 * v_b + m * u[[0, 2]].sum(axis=0), inertia @ w_b])
+    A[3:, 3:] = inertia
+    for ri, ui in zip(r, u[[0, 2]]):
+        cross = np.array([[0.0, -ri[2], ri[1]], [ri[2], 0.0, -ri[0]], [-ri[1], ri[0], 0.0]])
+        A[:3, 3:] -= m * cross  # m (w x r) = -m [r]x w
+        A[3:, :3] += m * cross  # m r x v
+        A[3:, 3:] -= m * cross @ cross  # m r x (w x r)
+        rhs[3:] += m * np.cross(ri, ui)
+    expected = np.linalg.solve(A, rhs)
+    np.testing.assert_allclose(bodies.numpy("body_velocity")[1], expected[:3], atol=1e-14)
+    np.testing.assert_allclose(bodies.numpy("body_angular_velocity")[1], expected[3:], atol=1e-14)
+    ride = expected[:3] + np.cross(expected[3:], r)
+    np.testing.assert_allclose(arrays["particle_velocity"].numpy()[[0, 2]], ride, atol=1e-14)
+    assert not bodies.numpy("body_velocity")[0].any() and not bodies.numpy("body_angular_velocity")[0].any()
+    np.testing.assert_array_equal(arrays["particle_velocity"].numpy()[1], [0.0, 0.0, 0.0])  # the static body's
 
 
 def test_the_pull_on_a_pin_moves_its_body_and_not_a_static_one():
@@ -128,7 +148,9 @@ def test_a_particle_follows_the_body_it_was_pinned_to_last_and_remove_releases_i
     pins.remove([1])
     assert pins.count == 0
     bodies = two_bodies()
-    pins.follow(struct(particles(2)), bodies, 0.01)  # nothing pinned: no launch, nothing moves
+    pins.follow(struct(particles(2)), bodies)  # nothing pinned: no launch, nothing moves
+    pins.weld(struct(particles(2)), bodies)
+    pins.ride(struct(particles(2)), bodies)
     pins.react(struct(particles(2)), bodies, G, 0.01)
     assert not bodies.numpy("body_velocity").any()
 
