@@ -518,10 +518,12 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
     """Read a snapshot file written by `save`. Raises `SnapshotError` naming the file on any problem."""
     path = Path(path)
     try:
+        from .io.record import file_kind
+
         with open(path, "rb") as f:
-            head = f.read(512)
-        if not head.startswith(b"PK"):  # not a zip archive: NumPy would try it as a pickle, and say so
-            raise SnapshotError(f"{path}: not a Tumble snapshot file ({_not_zip(head)})")
+            kind = file_kind(path, f.read(512))
+        if kind != "zip":  # NumPy would try it as a pickle, and say so
+            raise SnapshotError(f"{path}: not a Tumble snapshot file ({_NOT_A_SNAPSHOT[kind]})")
         with np.load(path, allow_pickle=False) as data:
             manifest = json.loads(bytes(data["manifest"]).decode())
             if not isinstance(manifest, dict) or "format" not in manifest:
@@ -584,15 +586,10 @@ def _upgrade_contacts(values: dict, arrays: dict[str, np.ndarray]) -> None:
         values["contacts/jn_warm/:dtype"] = "float32" if jt.dtype == np.float32 else "float64"
 
 
-def _not_zip(head: bytes) -> str:
-    """What a file that is not a zip archive seems to be, for the error message."""
-    if not head:
-        return "the file is empty"
-    try:
-        head.decode("utf-8")
-    except UnicodeDecodeError:
-        return "unknown binary content; a snapshot is a zip archive written by tumble run --save-state"
-    return "it is a text file (a scene? run it with tumble run SCENE); a snapshot is written by tumble run --save-state"
+_TEXT = "it is a text file (a scene? run it with tumble run SCENE); a snapshot is written by tumble run --save-state"
+_BINARY = "unknown binary content; a snapshot is a zip archive written by tumble run --save-state"
+#: what `read` says of a file that is not a zip archive, by `tumble.io.record.file_kind`
+_NOT_A_SNAPSHOT = {"empty": "the file is empty", "npy": _BINARY, "binary": _BINARY, "scene": _TEXT, "text": _TEXT}
 
 
 def _upgrade_joints(values: dict, arrays: dict[str, np.ndarray]) -> None:

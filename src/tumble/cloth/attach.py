@@ -34,9 +34,9 @@ import warp as wp
 
 from ..launch import LaunchCache, each_end, launch_each, vector
 from ..model import body_arrays
-from ..real import BodyArrays, float_t, mat33, quat, vec3
+from ..real import BodyArrays, float_t, mat33, vec3
 from ..solver.joints import add_velocity
-from ..solver.rigid import inv_inertia_times
+from ..solver.rigid import inv_inertia_times, inv_inertia_world
 from ..structs import array_struct, cached_struct
 from .arrays import Particles
 
@@ -86,18 +86,6 @@ def _follow(pins: Pins, bodies: BodyArrays, particles: Particles, serial: int):
         particles.pin_target[p] = point
 
 
-@wp.func
-def _inv_inertia_matrix(q: quat, inv_i: vec3):
-    """The world-frame inverse inertia as a matrix (zero along a locked axis)."""
-    one = float_t(1.0)
-    zero = float_t(0.0)
-    return wp.matrix_from_cols(
-        inv_inertia_times(q, inv_i, vec3(one, zero, zero)),
-        inv_inertia_times(q, inv_i, vec3(zero, one, zero)),
-        inv_inertia_times(q, inv_i, vec3(zero, zero, one)),
-    )
-
-
 @wp.kernel
 def _weld(pins: Pins, groups: PinGroups, bodies: BodyArrays, particles: Particles, serial: int):
     # one thread a body: its pins are groups.order[groups.start[g]:groups.start[g + 1]]
@@ -132,7 +120,7 @@ def _weld(pins: Pins, groups: PinGroups, bodies: BodyArrays, particles: Particle
         P0 = bodies.velocity[b] / im + P  # the linear momentum of body and pins
         # with v = (P0 + s x w) / total, the angular momentum I w_b + Lp about the centre gives
         # (I + Ip - (|s|^2 - s s^T) / total) w = I w_b + Lp - s x P0 / total; times I^-1:
-        W = _inv_inertia_matrix(q, bodies.inv_inertia[b])
+        W = inv_inertia_world(q, bodies.inv_inertia[b])
         X = Ip - (eye * wp.dot(s, s) - wp.outer(s, s)) / total
         w = wp.inverse(eye + W * X) * (bodies.angular_velocity[b] + W * (Lp - wp.cross(s, P0) / total))
         v = (P0 + wp.cross(s, w)) / total

@@ -331,10 +331,9 @@ def load_recording(path) -> dict[str, np.ndarray]:
             head = f.read(512)
     except OSError as exc:
         raise bad(f"cannot read it ({exc.strerror or exc})") from None
-    if not head:
-        raise bad("the file is empty")
-    if not head.startswith(_ZIP_MAGIC):
-        raise bad(_describe(p, head))
+    kind = file_kind(p, head)
+    if kind != "zip":
+        raise bad(_NOT_A_RECORDING[kind].format(path=p))
     try:
         with np.load(p, allow_pickle=False) as data:
             if not hasattr(data, "files"):
@@ -552,14 +551,30 @@ def _check_table(rec: dict[str, np.ndarray], kind: str, bad) -> int:
     return len(ps) - 1
 
 
-def _describe(path: Path, head: bytes) -> str:
-    """What a file that is not a zip archive seems to be, for the error message."""
+def file_kind(path: Path, head: bytes) -> str:
+    """What a file seems to be from its first bytes `head`: "zip" (an .npz archive, as recordings and
+    snapshots are), "empty", "npy" (a single NumPy array), "binary", "scene" (a text whose suffix or
+    first character says TOML) or "text"; for the messages of readers refusing it."""
+    if head.startswith(_ZIP_MAGIC):
+        return "zip"
+    if not head:
+        return "empty"
     if head.startswith(_NPY_MAGIC):
-        return "it is a single NumPy array (.npy), not a recording"
+        return "npy"
     try:
         head.decode("utf-8")
     except UnicodeDecodeError:
-        return "unknown binary content (a recording is a zip archive of arrays)"
+        return "binary"
     if path.suffix.lower() == ".toml" or head.lstrip().startswith((b"[", b"#")):
-        return f"it is a text file (a scene?); record a scene with `tumble run {path} --record FILE.npz`"
-    return "it is a text file; a recording is written by `tumble run SCENE --record FILE.npz`"
+        return "scene"
+    return "text"
+
+
+#: what `load_recording` says of a file that is not a zip archive, by `file_kind`
+_NOT_A_RECORDING = {
+    "empty": "the file is empty",
+    "npy": "it is a single NumPy array (.npy), not a recording",
+    "binary": "unknown binary content (a recording is a zip archive of arrays)",
+    "scene": "it is a text file (a scene?); record a scene with `tumble run {path} --record FILE.npz`",
+    "text": "it is a text file; a recording is written by `tumble run SCENE --record FILE.npz`",
+}

@@ -165,28 +165,30 @@ def validate_scene(path) -> Scene:
                 _body_ref(values[key], counts, scene.path, table_label("joint", i), key)
     for name in (*BODY_TABLES, "emitter"):
         for i, values in enumerate(scene.items(name)):
+            vertices = None
             if values.get("file") is not None:
                 try:
-                    read_mesh_file(_file_path(scene.path, values["file"]))
+                    vertices = read_mesh_file(_file_path(scene.path, values["file"]))[0]
                 except ValueError as exc:
                     raise SceneError(str(exc), path=scene.path, table=table_label(name, i), key="file") from None
-            _check_hull(scene.path, name, i, values)
+            _check_hull(scene.path, name, i, values, vertices)
     return scene
 
 
-def _check_hull(path, name: str, i: int, values: dict) -> None:
-    """The hull that a [[convex]] or a convex [[emitter]] makes of its points or file, made as `build_world`
-    makes it (the convex body's at its scale, the emitter's at scale 1), or a SceneError in its words."""
+def _check_hull(path, name: str, i: int, values: dict, vertices) -> None:
+    """The hull that a [[convex]] or a convex [[emitter]] makes of its points or its file's `vertices` (read
+    by the caller), made as `build_world` makes it (the convex body's at its scale, the emitter's at scale
+    1), or a SceneError in its words."""
     from ...collision.hulls import hull_from_points
-    from ..meshfile import hull_points
 
     shapes = values.get("shape") or ()
     convex = name == "convex" or (name == "emitter" and "convex" in ([shapes] if isinstance(shapes, str) else shapes))
     points, file = values.get("points"), values.get("file")
     if not convex or (points is None) == (file is None):
         return  # not a hull, or one that the World API refuses for its arguments when the scene is built
+    # named as `meshfile.hull_points` names them, for the World API's words
+    p, label = (points, "points") if file is None else (vertices, str(_file_path(path, file)))
     try:
-        p, label = hull_points(points, None if file is None else _file_path(path, file))
         scale = values.get("scale")
         factor = validate.scale(1.0 if scale is None else scale) if name == "convex" else 1.0
         hull_from_points(np.asarray(p, dtype=np.float64) * factor, name=label)
