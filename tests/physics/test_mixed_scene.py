@@ -41,8 +41,26 @@ def test_mixed_rain_stays_on_the_floor_and_out_of_the_wall():
     assert not in_wall.any()
     w.collide()
     assert w.contact_depth.max() < 5e-3
-    # boxes have come to rest; spheres may still roll (no rolling resistance), but slower
-    speed = np.linalg.norm(w.body_velocity[6:], axis=1)
-    boxes = w.body_shape[6:] == tumble.ShapeType.BOX
-    assert speed[boxes].max() < 0.1
-    assert speed.max() < 2.0
+    # Boxes have come to rest, but for those that rolling spheres move. The spheres have no rolling
+    # resistance and still roll at 3 s (up to 1.7 m/s), so a box they strike, or a box resting on
+    # two of them (a line of support it topples off as they roll), moves at any time: with the
+    # world's seed changed, 2 to 4 of 24 seeds had a box moving at 3 s (0.12 to 1.16 m/s), each in
+    # contact with a sphere. So the boxes joined to a sphere by contacts, through other dynamic
+    # bodies, are left out, and every other box is at rest (42 to 63 of about 155 in those runs).
+    speed = np.linalg.norm(w.body_velocity, axis=1)
+    boxes = w.body_shape == tumble.ShapeType.BOX
+    boxes[:6] = False
+    pair = w.contact_pair
+    moved = w.body_shape == tumble.ShapeType.SPHERE  # bodies a rolling sphere can move
+    while True:
+        touching = moved[pair[:, 0]] | moved[pair[:, 1]]
+        reached = moved.copy()
+        reached[pair[touching].ravel()] = True
+        reached[:6] = False  # the static floor and walls pass on no motion
+        if (reached == moved).all():
+            break
+        moved = reached
+    still = boxes & ~moved
+    assert still.sum() >= 30
+    assert speed[still].max() < 0.1
+    assert speed[6:].max() < 2.0
