@@ -865,36 +865,14 @@ def _sticking_point(
 
 
 @wp.func(inline=False)
-def _lone_lever(
-    k: int,
-    rows: wp.array(dtype=ContactRow),
-    p: SolvePass,
-    static: bool,
-    pair: Pair,
-    dxa: vec3,
-    dtha: vec3,
-    dxb: vec3,
-    dthb: vec3,
-):
+def _lone_lever(k: int, rows: wp.array(dtype=ContactRow), bias: float_t, ms: float_t, isc: float_t, pair: Pair):
     """One pass over the lone contact k whose anchor has a lever (a corner, a capsule's end; its
-    anchors not turning within the step): the sticking block of its three rows
-    (`_sticking_point`), or where that would leave the friction cone, its friction row then its
-    normal row, as any lone contact. Returns the pair's velocity changes."""
+    anchors not turning within the step), its normal row's target `bias, ms, isc`
+    (`_normal_target`): the sticking block of its three rows (`_sticking_point`), or where that
+    would leave the friction cone, its friction row then its normal row, as any lone contact.
+    Returns the pair's velocity changes."""
     ra = rows[k].r_a
     rb = rows[k].r_b
-    bias, ms, isc = _normal_target(
-        rows[k].separation + _gap_turn(rows, k, dtha, dthb),
-        rows[k].normal,
-        ra,
-        rb,
-        dxa,
-        dtha,
-        dxb,
-        dthb,
-        p,
-        static,
-        False,
-    )
     dv, held = _sticking_point(rows, k, bias, ms, isc, pair, Delta())
     if held == 0:
         dv, _ = _friction_row(rows, k, ra, rb, rows[k].friction * rows[k].impulse_n, pair, dv)
@@ -1044,24 +1022,25 @@ def _make_solve_manifold(exact_pair: bool):
             # that the loop a sphere's contact runs stays as it was: its anchor is on the normal through
             # its centre, no lever but for rounding); the test is one product of fields read anyway
             lever = rows[k].mass_n * (pair.ima + pair.imb) < float_t(1.0) - float_t(1.0e-6)
+            # (the normal row's target depends on the positions only, not on the friction row's impulse)
+            bias, ms, isc = _normal_target(
+                rows[k].separation + _gap_turn(rows, k, dtha, dthb),
+                rows[k].normal,
+                ra,
+                rb,
+                dxa,
+                dtha,
+                dxb,
+                dthb,
+                p,
+                static,
+                False,
+            )
             if serial == 0 or not lever or turning or rows[k].friction == float_t(0.0):
                 dv, _ = _friction_row(rows, k, fa, fb, rows[k].friction * rows[k].impulse_n, pair, dv)
-                bias, ms, isc = _normal_target(
-                    rows[k].separation + _gap_turn(rows, k, dtha, dthb),
-                    rows[k].normal,
-                    ra,
-                    rb,
-                    dxa,
-                    dtha,
-                    dxb,
-                    dthb,
-                    p,
-                    static,
-                    False,
-                )
                 dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
             else:
-                dv = _lone_lever(k, rows, p, static, pair, dxa, dtha, dxb, dthb)
+                dv = _lone_lever(k, rows, bias, ms, isc, pair)
         else:
             # each normal row's target, fixed for the pass
             bias4 = vec4()
