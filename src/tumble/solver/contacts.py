@@ -919,22 +919,16 @@ def _normal_pair(rows: wp.array(dtype=ContactRow), k: int, bias4: vec4, ms4: vec
     done: sweep it) and the largest |dj|.
     """
     n = rows[k].normal  # a manifold's rows share their normal (a patch)
-    v = pair.vb + dv.vb - pair.va - dv.va
-    v0 = (
-        wp.dot(v, n)
-        + wp.dot(pair.wb + dv.wb, wp.cross(rows[k].r_b, n))
-        - wp.dot(pair.wa + dv.wa, wp.cross(rows[k].r_a, n))
-    )
-    v1 = (
-        wp.dot(v, n)
-        + wp.dot(pair.wb + dv.wb, wp.cross(rows[k + 1].r_b, n))
-        - wp.dot(pair.wa + dv.wa, wp.cross(rows[k + 1].r_a, n))
-    )
-    im = pair.ima + pair.imb
     ca0 = wp.cross(rows[k].r_a, n)
     cb0 = wp.cross(rows[k].r_b, n)
     ca1 = wp.cross(rows[k + 1].r_a, n)
     cb1 = wp.cross(rows[k + 1].r_b, n)
+    v = pair.vb + dv.vb - pair.va - dv.va
+    wa = pair.wa + dv.wa
+    wb = pair.wb + dv.wb
+    v0 = wp.dot(v, n) + wp.dot(wb, cb0) - wp.dot(wa, ca0)
+    v1 = wp.dot(v, n) + wp.dot(wb, cb1) - wp.dot(wa, ca1)
+    im = pair.ima + pair.imb
     k00 = im + wp.dot(ca0, rows[k].angular_a_n) + wp.dot(cb0, rows[k].angular_b_n)
     k11 = im + wp.dot(ca1, rows[k + 1].angular_a_n) + wp.dot(cb1, rows[k + 1].angular_b_n)
     k01 = im + wp.dot(ca0, rows[k + 1].angular_a_n) + wp.dot(cb0, rows[k + 1].angular_b_n)
@@ -1289,8 +1283,7 @@ def _impact_pair(
     singular (nothing applied: swept instead). Gauss-Seidel converges on two coupled rows by
     a01^2 / (a00 a11) a sweep pair only: a 1 m x 2 cm rod landing on its end at 60 degrees, e = 1,
     was left after the sixteen sweeps with its corners' impulses 0.1 % apart, spinning at 0.11 rad/s
-    about its own axis. (A function of its own, not inlined: in `_impact`, which every contact's
-    test inlines, it slowed the collision pass of a pile of spheres.)
+    about its own axis. (Called by `_impact_pair_first` alone, the collision of two-row patches.)
     """
     ia = rows[k].body_a
     ib = rows[k].body_b
