@@ -316,10 +316,12 @@ class SimulationThread:
     def submit(self, change: Callable[[], None]) -> bool:
         """Run `change()` (which may change the world) between two steps. Returns True if it ran now.
 
-        When no step is in progress it runs at once, here; else the worker runs it after that step.
+        When no step is in progress it runs at once, here, after any changes still posted (so changes
+        apply in the order they were made); else the worker runs it after that step.
         """
         if self.clock.lock.acquire(blocking=False):
             try:
+                self._run_posted()
                 change()
                 self.publish()
             finally:
@@ -349,8 +351,10 @@ class SimulationThread:
     def _run(self) -> None:
         while not self._stop.is_set():
             start = time.perf_counter()
-            with self.clock.lock:
-                changed = self._run_posted()
+            changed = False
+            if self._posted:  # the lock is left free while paused, so the window's changes run at once
+                with self.clock.lock:
+                    changed = self._run_posted()
             if self.clock.playing and (self.ready is None or self.ready()):
                 try:
                     changed |= self.clock.tick() > 0

@@ -150,3 +150,75 @@ def test_submit_during_a_step_is_run_by_the_worker_after_it():
         release.set()
         thread.stop()
     assert not thread.running
+
+
+def _hold(lock):
+    """Hold `lock` from another thread; returns (release, thread): call release.set() to let it go."""
+    held, release = threading.Event(), threading.Event()
+
+    def run():
+        with lock:
+            held.set()
+            release.wait(10.0)
+
+    holder = threading.Thread(target=run)
+    holder.start()
+    assert held.wait(10.0)
+    return release, holder
+
+
+def test_changes_apply_in_the_order_they_were_made():
+    """A change queued during a step, then one run at once after it: the later change is the one that stays."""
+    world = _ball_world()
+    clock = SimulationClock(world)
+    thread = SimulationThread(clock, period=0.005)
+    release, holder = _hold(clock.lock)
+    assert thread.submit(lambda: setattr(world, "gravity", (0.0, 0.0, -5.0))) is False  # queued: a step holds the world
+    release.set()
+    holder.join(10.0)
+    assert thread.submit(lambda: setattr(world, "gravity", (0.0, 0.0, -7.0))) is True
+    thread.start()  # the worker would run anything still queued
+    thread.stop()
+    np.testing.assert_allclose(world.gravity, [0.0, 0.0, -7.0])
+
+
+class CountingLock:
+    """A re-entrant lock that counts acquisitions by threads other than the one that made it."""
+
+    def __init__(self):
+        self._lock, self._owner, self.foreign = threading.RLock(), threading.get_ident(), 0
+
+    def acquire(self, blocking=True, timeout=-1):
+        got = self._lock.acquire(blocking, timeout)
+        if got and threading.get_ident() != self._owner:
+            self.foreign += 1
+        return got
+
+    def release(self):
+        self._lock.release()
+
+    __enter__ = acquire
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+def test_a_paused_worker_leaves_the_world_to_the_window():
+    """Paused with nothing queued, the worker never takes the step lock, so the window's changes run at once."""
+    world = _ball_world()
+    clock = SimulationClock(world)
+    clock.lock = lock = CountingLock()
+    thread = SimulationThread(clock, period=0.002)
+    thread.start()
+    try:
+        threading.Event().wait(0.1)  # about 50 idle periods
+        assert thread.running and lock.foreign == 0
+        assert thread.submit(lambda: setattr(world, "gravity", (0.0, 0.0, -3.0))) is True
+        clock.play()
+        for _ in range(1000):  # playing, the worker steps under the lock
+            if lock.foreign:
+                break
+            threading.Event().wait(0.01)
+        assert lock.foreign > 0
+    finally:
+        thread.stop()
