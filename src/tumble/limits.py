@@ -41,6 +41,9 @@ MAX_RELEASE_PER_STEP = 1_000
 MAX_IMAGE_SIDE = 8192
 #: most frames one `tumble render` writes (an hour of video at 30 fps is 108,000)
 MAX_FRAMES = 1_000_000
+#: largest scene file [bytes]: a scene is a page of text; meshes go in their own files (a device
+#: such as /dev/zero, or a log given by mistake, would otherwise be read until memory ran out)
+MAX_SCENE_BYTES = 64_000_000
 #: particle, spring and triangle indices are int32: at most this many cloth particles (~6 springs each)
 MAX_PARTICLES_INT32 = (2**31 - 1) // 8
 

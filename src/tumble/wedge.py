@@ -446,8 +446,7 @@ def plan_wedge(
     from .io.scene import parse_scene, read_scene, resolve_scene_path
 
     source = resolve_scene_path(scene)
-    read_scene(source)  # the unchanged file must load first, with its own errors
-    doc = tomllib.loads(source.read_text(encoding="utf-8"))
+    doc = tomllib.loads(read_scene(source).text or "")  # the unchanged file must load first, with its own errors
     items = list(vary.items()) if isinstance(vary, Mapping) else list(vary)
     if not items:
         raise WedgeError("nothing to vary: give at least one --vary KEY=VALUES")

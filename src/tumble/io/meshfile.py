@@ -40,6 +40,8 @@ def read_mesh_file(path) -> tuple[np.ndarray, np.ndarray, object]:
         raise ValueError(f"{path}: no such mesh file")
     if p.is_dir():
         raise ValueError(f"{path}: is a directory, not a mesh file")
+    if not p.is_file():  # a device or a pipe: its size says nothing, and /dev/zero never ends
+        raise ValueError(f"{path}: not a regular file (a device or a pipe), not a mesh file")
     ext = p.suffix.lower().lstrip(".")
     if ext not in FORMATS:
         raise ValueError(

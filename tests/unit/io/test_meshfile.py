@@ -29,7 +29,7 @@ def test_mesh_files_load_through_trimesh(tmp_path, ext):
 
 
 def test_mesh_bad_files(tmp_path):
-    """Name the file: missing, unknown format, unreadable, no triangles."""
+    """Name the file: missing, unknown format, unreadable, no triangles, a device."""
     w = tumble.World()
     with pytest.raises(ValueError, match=r"nothing\.obj: no such mesh file"):
         w.add_mesh(file=tmp_path / "nothing.obj")
@@ -39,6 +39,9 @@ def test_mesh_bad_files(tmp_path):
     (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     with pytest.raises(ValueError, match=r"points\.obj: .*no triangles"):
         w.add_mesh(file=tmp_path / "points.obj")
+    (tmp_path / "zero.obj").symlink_to("/dev/zero")  # a device: its size is 0 and it never ends
+    with pytest.raises(ValueError, match=r"zero\.obj: not a regular file"):
+        w.add_mesh(file=tmp_path / "zero.obj")
 
 
 def test_mesh_drops_nan_and_degenerate_triangles_with_counts(caplog):

@@ -262,10 +262,18 @@ def read_scene(path) -> Scene:
     path = resolve_scene_path(path)
     if path.suffix.lower() == ".npz":  # even an empty or broken one: never read as an (empty) scene
         raise SceneError(_NOT_A_SCENE, path=path)
+    with open(path, "rb") as f:  # at most the limit and one byte: a device or a huge file is not read to its end
+        data = f.read(limits.MAX_SCENE_BYTES + 1)
+    if len(data) > limits.MAX_SCENE_BYTES:
+        raise SceneError(
+            f"larger than {show_bytes(limits.MAX_SCENE_BYTES)}, too large for a scene file (a scene is text; "
+            "meshes go in their own files, docs/scenes.md#limits)",
+            path=path,
+        )
     try:
-        text = path.read_text(encoding="utf-8")
+        text = data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")  # newlines as text mode reads them
     except UnicodeDecodeError as exc:
-        if path.read_bytes()[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
+        if data[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
             raise SceneError(_NOT_A_SCENE, path=path) from None
         raise SceneError(f"not a UTF-8 text file ({exc.reason})", path=path) from None
     scene = parse_scene(text, path=path)

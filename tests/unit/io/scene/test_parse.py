@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -209,6 +211,33 @@ def test_an_empty_scene_file_is_refused(tmp_path, content, what):
     assert_refused(path, content, rf"cut.toml: the file is {what}, not a scene")
     path.write_bytes(content + b"[world]\n")  # a world and nothing in it yet is a scene
     assert scene_io.read_scene(path).table("world") is not None
+
+
+def test_a_scene_file_over_the_size_limit_is_refused_without_reading_it_to_the_end(tmp_path, monkeypatch):
+    """A file or device larger than limits.MAX_SCENE_BYTES is refused by size: /dev/zero given as a scene
+    was read until the machine ran out of memory. A file at the limit still reads."""
+    from tumble import limits
+
+    monkeypatch.setattr(limits, "MAX_SCENE_BYTES", 1000)
+    text = b"[world]\ndt = 0.01\n"
+    path = tmp_path / "big.toml"
+    assert_refused(path, text + b"#" * (1001 - len(text)), r"big.toml: larger than 1.0 kB, too large for a scene file")
+    path.write_bytes(text + b"#" * (1000 - len(text)))
+    assert scene_io.read_scene(path).table("world")["dt"] == 0.01
+    if Path("/dev/zero").exists():
+        with pytest.raises(SceneError, match="/dev/zero: larger than 1.0 kB"):
+            scene_io.read_scene("/dev/zero")
+
+
+def test_a_scene_reads_any_newlines(tmp_path):
+    """Windows (CR LF) and old Mac (CR) line ends read like LF ones."""
+    for newline in (b"\r\n", b"\r"):
+        path = tmp_path / "ends.toml"
+        path.write_bytes(
+            newline.join([b"[world]", b"dt = 0.01", b"[[sphere]]", b"position = [0, 0, 1]", b"radius = 0.1"])
+        )
+        scene = scene_io.read_scene(path)
+        assert scene.table("world")["dt"] == 0.01 and len(scene.items("sphere")) == 1
 
 
 def test_missing_file_is_an_oserror(tmp_path):
