@@ -395,7 +395,10 @@ def test_resume_of_a_file_that_is_not_a_snapshot_says_what_it_is(tmp_path, capsy
     junk.write_bytes(bytes(range(256)))
     empty = tmp_path / "empty.npz"
     empty.write_bytes(b"")
-    for path, what in ((scene, "it is a text file (a scene?"), (junk, "unknown binary content"), (empty, "empty")):
+    zeros = tmp_path / "zeros.npz"  # valid UTF-8, but not text (was called a text file)
+    zeros.write_bytes(bytes(4096))
+    cases = [(scene, "it is a text file (a scene?"), (junk, "unknown binary content"), (empty, "empty")]
+    for path, what in cases + [(zeros, "unknown binary content")]:
         assert main(["run", "--resume", str(path)]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "pickle" not in err, err

@@ -565,6 +565,8 @@ def file_kind(path: Path, head: bytes) -> str:
         head.decode("utf-8")
     except UnicodeDecodeError:
         return "binary"
+    if b"\x00" in head:  # valid UTF-8, but no text holds NUL (a file of zeros, /dev/zero)
+        return "binary"
     if path.suffix.lower() == ".toml" or head.lstrip().startswith((b"[", b"#")):
         return "scene"
     return "text"
