@@ -38,6 +38,7 @@ from .errors import TumbleError
 if TYPE_CHECKING:
     from .world import World
 from .launch import LaunchCache
+from .limits import LimitError
 from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
@@ -518,12 +519,18 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
     """Read a snapshot file written by `save`. Raises `SnapshotError` naming the file on any problem."""
     path = Path(path)
     try:
-        from .io.record import file_kind
+        from .io.record import ArchiveError, check_archive, file_kind
 
         with open(path, "rb") as f:
             kind = file_kind(path, f.read(512))
         if kind != "zip":  # NumPy would try it as a pickle, and say so
             raise SnapshotError(f"{path}: not a Tumble snapshot file ({_NOT_A_SNAPSHOT[kind]})")
+        try:
+            check_archive(path)
+        except LimitError as exc:
+            raise SnapshotError(f"{path}: {exc}") from None
+        except ArchiveError as exc:
+            raise SnapshotError(f"{path}: not a Tumble snapshot file ({exc})") from None
         with np.load(path, allow_pickle=False) as data:
             manifest = json.loads(bytes(data["manifest"]).decode())
             if not isinstance(manifest, dict) or "format" not in manifest:

@@ -5,8 +5,10 @@ Issue 13 (bad input, huge requests and failed writes).
 
 from __future__ import annotations
 
+import io
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import pytest
@@ -55,7 +57,46 @@ def _bad_recordings(tmp_path) -> dict[str, tuple[object, str]]:
     cases["no time"] = (tmp_path / "notime.npz", "'time'")
     (tmp_path / "folder.npz").mkdir()
     cases["directory"] = (tmp_path / "folder.npz", "directory")
+    _lying_archive(tmp_path / "lying.npz", shape=(10**6, 10**6, 3))
+    cases["header declares more than it holds"] = (
+        tmp_path / "lying.npz",
+        "'position' declares 24.0 TB of data but holds",
+    )
+    with zipfile.ZipFile(tmp_path / "text_member.npz", "w") as archive:
+        archive.writestr("time.npy", b"0.0 1.0\n")
+    cases["a member not an array"] = (tmp_path / "text_member.npz", "member 'time' is not a valid .npy array")
     return cases
+
+
+def _lying_archive(path, shape, data=b"\0" * 64, compression=zipfile.ZIP_STORED):
+    """An .npz with a good 'time' and a 'position' member whose header declares `shape` of float64
+    over `data`: NumPy allocated what the header said before reading a byte."""
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    with zipfile.ZipFile(path, "w", compression=compression) as archive:
+        time = io.BytesIO()
+        np.save(time, np.array([0.0, 0.1]))
+        archive.writestr("time.npy", time.getvalue())
+        archive.writestr("position.npy", header.getvalue() + data)
+    return path
+
+
+def test_a_recording_too_large_for_the_memory_is_refused_before_it_is_read(tmp_path, monkeypatch, capsys):
+    """An archive of well-compressed zeros (20 MB of arrays in a few kB, consistent headers) is refused by
+    its declared size against the memory available ($TUMBLE_MEMORY here), by every reader, before it is
+    expanded: one of 19 GB took tumble export 100 s and 19 GB of memory before it said a key was missing."""
+    bodies = 20 * 10**6 // 48  # two frames of positions
+    path = _lying_archive(tmp_path / "zeros.npz", (2, bodies, 3), bytes(48 * bodies), zipfile.ZIP_DEFLATED)
+    assert path.stat().st_size < 100_000
+    monkeypatch.setenv("TUMBLE_MEMORY", "30M")  # the arrays hold 20 MB; reading needs about twice that
+    with pytest.raises(RecordingError, match=r"zeros.npz: its arrays hold 20.0 MB, .* about 40.0 MB of memory"):
+        load_recording(path)
+    for command in (["plot", str(path), "-o", str(tmp_path / "e.png")], ["run", "--resume", str(path)]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "its arrays hold 20.0 MB" in err, err
+    monkeypatch.setenv("TUMBLE_MEMORY", "50M")
+    assert load_recording(path)["position"].shape == (2, bodies, 3)
 
 
 def test_broken_recordings_raise_one_named_error(tmp_path):

@@ -306,6 +306,63 @@ _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 _NPY_MAGIC = b"\x93NUMPY"
 
 
+#: memory a reader needs per byte of an archive's arrays: the arrays, and what is made of them (a
+#: recording's padded rows, the USD or plot values, a snapshot's digest and world)
+READ_COPIES = 2
+
+
+class ArchiveError(ValueError):
+    """An .npz archive whose arrays cannot be what they declare (see `check_archive`)."""
+
+
+def check_archive(path: Path) -> None:
+    """Check an .npz archive's arrays before loading any: each member's .npy header must declare
+    exactly the bytes the member holds, and twice their bytes must fit in the memory available
+    (`READ_COPIES`).
+
+    Reading a damaged header (one declaring 10^12 rows) asked NumPy for terabytes, and an archive
+    of well-compressed zeros expanded to tens of gigabytes before anything was checked.
+
+    Raises:
+        ArchiveError: one line (without the path): the member and what is wrong.
+        limits.LimitError: the arrays need more memory than is available.
+        zipfile.BadZipFile: the archive itself is damaged.
+    """
+    total = 0
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            name = info.filename.removesuffix(".npy")
+            with archive.open(info) as f:
+                try:
+                    version = np.lib.format.read_magic(f)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                    elif version == (2, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                    else:
+                        raise ValueError(f"unsupported .npy version {version}")
+                except (ValueError, SyntaxError, EOFError) as exc:
+                    raise ArchiveError(f"member {name!r} is not a valid .npy array ({exc})") from None
+                header = f.tell()
+            if dtype.hasobject:
+                raise ArchiveError("it holds object (pickled) arrays, which Tumble never loads")
+            declared = dtype.itemsize
+            for n in shape:
+                declared *= int(n)
+            if header + declared != info.file_size:
+                raise ArchiveError(
+                    f"array {name!r} declares {limits.show_bytes(declared)} of data but holds "
+                    f"{limits.show_bytes(info.file_size - header)}: the file is damaged or was edited"
+                )
+            total += declared
+    have = limits.available_memory()
+    if READ_COPIES * total > have:
+        raise limits.LimitError(
+            f"its arrays hold {limits.show_bytes(total)}, and reading them needs about "
+            f"{limits.show_bytes(READ_COPIES * total)} of memory; {limits.show_bytes(have)} is available"
+        )
+
+
 def load_recording(path) -> dict[str, np.ndarray]:
     """Read a recording written by `Recorder.save` into a dict of arrays.
 
@@ -335,6 +392,7 @@ def load_recording(path) -> dict[str, np.ndarray]:
     if kind != "zip":
         raise bad(_NOT_A_RECORDING[kind].format(path=p))
     try:
+        check_archive(p)
         with np.load(p, allow_pickle=False) as data:
             if not hasattr(data, "files"):
                 raise bad("it holds a single array, not named arrays")
@@ -343,6 +401,10 @@ def load_recording(path) -> dict[str, np.ndarray]:
         raise bad(
             f"corrupt ({exc})" if "CRC" in str(exc) else "truncated or corrupt (not a complete zip archive)"
         ) from None
+    except limits.LimitError as exc:
+        raise RecordingError(f"{p}: {exc}") from None
+    except ArchiveError as exc:
+        raise bad(str(exc)) from None
     except ValueError as exc:
         if "pickle" in str(exc):
             raise bad("it holds object (pickled) arrays, which Tumble never loads") from None
