@@ -391,6 +391,7 @@ class Variant:
     name: str
     values: dict[str, object]
     text: str
+    dt: float = 1.0 / 240.0  # the variant's time step (its steps are checked against limits.MAX_STEPS)
 
     @property
     def scene_sha(self) -> str:
@@ -494,7 +495,7 @@ def plan_wedge(
         header = f"variant of {source} with " + ", ".join(f"{k} = {format_value(v)}" for k, v in chosen.items())
         text = scene_text(trial, header)
         try:
-            parse_scene(text, path=source)
+            dt = parse_scene(text, path=source).dt
         except SceneError as exc:
             raise WedgeError(
                 f"variant {', '.join(f'{k}={format_value(v)}' for k, v in chosen.items())}: {exc}"
@@ -503,7 +504,7 @@ def plan_wedge(
         if name in names:
             name += "-" + hashlib.sha1(json.dumps(combo).encode()).hexdigest()[:8]
         names.add(name)
-        plan.variants.append(Variant(name, chosen, text))
+        plan.variants.append(Variant(name, chosen, text, dt))
     return plan
 
 
@@ -1057,6 +1058,12 @@ def wedge(
     if not (math.isfinite(connect_timeout) and connect_timeout > 0):
         raise WedgeError(f"connect timeout must be a positive number of seconds, got {connect_timeout:g}")
     plan = plan_wedge(scene, vary, yes=yes)
+    smallest = min(plan.variants, key=lambda v: v.dt)  # the most steps
+    try:
+        limits.check_steps("duration", settings.duration, smallest.dt)
+    except limits.LimitError as exc:
+        where = f" (variant {smallest.name})" if len(plan.variants) > 1 else ""
+        raise WedgeError(f"{exc}{where}") from None
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise WedgeError(f"-o {out}: exists and is not a folder")

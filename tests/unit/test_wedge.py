@@ -248,3 +248,18 @@ def test_local_workers_are_capped_and_checked_before_the_cluster_starts(scene_fi
     with pytest.raises(ValueError, match="workers must be an integer >= 1, got 0"):
         wedge_module.wedge(scene_file, {"seed": "0..2"}, out=out, workers=0, progress=False)
     assert started == [3] and not out.exists()
+
+
+def test_a_duration_of_too_many_steps_is_refused_before_the_cluster_starts(scene_file, tmp_path, monkeypatch):
+    """`--duration 1e12` started every variant on a run of 10^14 steps that never ended (`tumble run`
+    refuses it): the steps at the smallest dt of the plan are checked against limits.MAX_STEPS first."""
+    wedge_module = importlib.import_module("tumble.wedge")
+    started = []
+    monkeypatch.setattr(wedge_module, "cluster", lambda *a, **k: started.append(1))
+    out = tmp_path / "out"
+    vary = {"world.dt": "0.01,0.001"}
+    with pytest.raises(WedgeError, match=r"duration: 2e\+06 s at dt 0.001 s is 2,000,000,000 steps; .*\(variant "):
+        wedge_module.wedge(scene_file, vary, out=out, duration=2e6, progress=False)
+    assert not started and not out.exists()
+    assert min(v.dt for v in plan_wedge(scene_file, vary).variants) == 0.001
+    assert [v.dt for v in plan_wedge(scene_file, {"seed": "0..1"}).variants] == [1 / 240, 1 / 240]  # the default

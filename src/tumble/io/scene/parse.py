@@ -50,6 +50,11 @@ class Scene:
         """A single table's values, or None when the file does not have it."""
         return self.tables.get(name)
 
+    @property
+    def dt(self) -> float:
+        """The time step the scene runs at: its [world] dt, or the default."""
+        return float((self.table("world") or {}).get("dt", SCHEMA["world"].fields["dt"].default))
+
     def counts(self) -> dict[str, int]:
         """Number of entries per table present in the file."""
         return {
@@ -175,8 +180,7 @@ def check_limits(scene: Scene, *, dt: float | None = None) -> None:
         SceneError: naming the table and key asking too much, the request and the limit.
     """
     path = scene.path
-    world = scene.table("world") or {}
-    dt = float(world.get("dt", SCHEMA["world"].fields["dt"].default) if dt is None else dt)
+    dt = scene.dt if dt is None else float(dt)
 
     # solver limits: bodies released in one step, steps of the check run
     for i, e in enumerate(scene.items("emitter")):
