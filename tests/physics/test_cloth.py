@@ -59,6 +59,64 @@ def test_spring_period_matches_analytic():
     assert period == pytest.approx(expected, rel=0.01)
 
 
+def test_an_undamped_spring_keeps_its_kinetic_plus_elastic_energy():
+    """One spring, no gravity or damping, particle 0 pinned: cloth.elastic_energy() is 1/2 k d^2 at a
+    stretch d, and KE + elastic energy stays within the symplectic Euler band, |dE| <= omega h E."""
+    k, m, d = 10.0, 0.01, 0.002
+    world = tumble.World(gravity=(0, 0, 0), dt=DT, substeps=4)
+    world.add_cloth(
+        size=(0.1, 0.1), resolution=(2, 1), mass=2 * m, pins=[[0, 0]], max_stretch=None,
+        stiffness={"structural": k}, damping=0.0,
+    )  # fmt: skip
+    cloth = world.cloth
+    x = np.array(cloth.particle_position)
+    x[1, 0] += d
+    cloth.set_state(position=x)
+    e0 = cloth.elastic_energy()
+    assert e0 == pytest.approx(0.5 * k * d * d, rel=1e-9)
+    assert cloth.kinetic_energy() == 0.0
+    h = DT / cloth.substeps_for(DT)
+    omega = math.sqrt(k / m)
+    energies, kinetic = [], []
+    for _ in range(240):
+        world.step()
+        kinetic.append(cloth.kinetic_energy())
+        energies.append(kinetic[-1] + cloth.elastic_energy())
+    assert max(kinetic) > 0.9 * e0  # it swung through its rest length, five periods
+    assert np.max(np.abs(np.array(energies) - e0)) <= omega * h * e0
+
+
+@pytest.mark.parametrize("case", ["pinned at its corners from rest", "released from its pins after hanging"])
+def test_a_cloth_never_has_more_energy_than_it_started_with(case):
+    """Kinetic, gravitational and spring energy together never exceed their value at the start: a flat
+    cloth held at its four corners falling from rest, and a cloth hung by its top edge until still,
+    then unpinned (its springs' stored energy turns into motion; without it KE + gravity rose 0.045 J).
+    The stretch limit's corrections and the springs' damping only take energy out, over the run."""
+    world = tumble.World(dt=DT)
+    cloth = world.cloth
+    if case.startswith("pinned"):
+        world.add_cloth(size=(1, 1), resolution=(11, 11), position=(0, 0, 1), mass=1.0, pins="corners")
+    else:
+        upright = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))
+        world.add_cloth(size=(1, 1), resolution=(11, 11), position=(0, 0, 1), mass=1.0, pins="top-edge",
+                        orientation=upright)  # fmt: skip
+        world.run(3.0)
+        for i in range(cloth.particle_count):
+            cloth.unpin(i)
+
+    def energy():
+        return cloth.kinetic_energy() + cloth.potential_energy() + cloth.elastic_energy()
+
+    e0 = energy()
+    assert case.startswith("pinned") or cloth.elastic_energy() > 0.01  # hung, it stored energy
+    energies = []
+    for _ in range(480):
+        world.step()
+        energies.append(energy())
+    assert max(energies) <= e0 + 1e-9 * abs(e0)  # rounding of sums over 121 particles
+    assert energies[-1] < e0 - 0.01  # damped: energy went somewhere
+
+
 def test_hanging_cloth_respects_stretch_limit_and_settles():
     """32 x 32 cloth from two corners for 5 s: strain <= 10 %, kinetic energy bounded and decaying."""
     world = tumble.World(dt=DT, substeps=4)

@@ -1088,6 +1088,18 @@ class ClothSystem:
         v = self._view("particle_velocity")
         return 0.5 * float(np.sum(self._host("particle_mass") * np.einsum("ij,ij->i", v, v)))
 
+    def elastic_energy(self) -> float:
+        """Energy stored in the springs [J]: sum 1/2 ks (|x_j - x_i| - l0)^2 over every spring
+        (structural, shear, bend). With `kinetic_energy` and `potential_energy`, the cloth's total:
+        a cloth released from its pins turns this into motion."""
+        ids = self._host("spring_ids")
+        if len(ids) == 0 or self.particles.count == 0:
+            return 0.0
+        x = self._view("particle_position")
+        length = np.linalg.norm(x[ids[:, 1]] - x[ids[:, 0]], axis=1)
+        stretch = length - self._host("spring_rest_length")
+        return 0.5 * float(np.sum(self._host("spring_stiffness") * stretch * stretch))
+
     def momentum(self) -> np.ndarray:
         """Linear momentum of the cloth [kg m/s]: sum m v, shape (3,)."""
         if self.particles.count == 0:
