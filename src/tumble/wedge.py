@@ -844,7 +844,9 @@ def cluster(address=None, *, workers: int | None = None, timeout: float = CONNEC
     local_client: Client | None = None
     interrupted = False
     try:
-        with interrupt_after():  # a Ctrl-C stopping a cluster half started left it to fail at exit
+        # a Ctrl-C stopping a cluster half started left it to fail at exit; one reaching a worker
+        # still importing printed its traceback
+        with interrupt_after(), _spawned_without_sigint():
             local = LocalCluster(
                 n_workers=n,
                 threads_per_worker=1,
@@ -899,6 +901,40 @@ def interrupt_after():
         signal.signal(signal.SIGINT, previous)
     if interrupted.is_set():
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _spawned_without_sigint():
+    """Processes that multiprocessing spawns in the block start with SIGINT blocked, for good.
+
+    A terminal sends a Ctrl-C to every process of the command. A local cluster's worker that got it
+    while still importing (about 2 s, before its preload `dask_setup` ignores it) printed a
+    KeyboardInterrupt traceback. The mask a thread has when it starts a process is the new process's
+    (and stays through exec, where a handler would not), so the spawning call blocks SIGINT in its
+    own thread around the start (Dask starts workers from threads of its own, where no handler can be
+    set). The wedge's own process still gets the Ctrl-C, stops, and closes the cluster.
+    """
+    import multiprocessing.util as mp_util
+    import signal
+
+    spawn = getattr(mp_util, "spawnv_passfds", None)
+    mask = getattr(signal, "pthread_sigmask", None)
+    if spawn is None or mask is None:  # (not POSIX)
+        yield
+        return
+
+    def spawn_blocked(*args, **kwargs):
+        before = mask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            return spawn(*args, **kwargs)
+        finally:
+            mask(signal.SIG_SETMASK, before)
+
+    mp_util.spawnv_passfds = spawn_blocked
+    try:
+        yield
+    finally:
+        mp_util.spawnv_passfds = spawn
 
 
 def dask_setup(worker) -> None:

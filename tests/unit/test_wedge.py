@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import os
 import tomllib
 
 import pytest
@@ -263,3 +265,37 @@ def test_a_duration_of_too_many_steps_is_refused_before_the_cluster_starts(scene
     assert not started and not out.exists()
     assert min(v.dt for v in plan_wedge(scene_file, vary).variants) == 0.001
     assert [v.dt for v in plan_wedge(scene_file, {"seed": "0..1"}).variants] == [1 / 240, 1 / 240]  # the default
+
+
+def _blocked_signals(pid: int) -> int:
+    """The signal mask of process `pid`'s main thread (Linux), as a bit set: bit n - 1 for signal n."""
+    with open(f"/proc/{pid}/status") as f:
+        return int(next(line for line in f if line.startswith("SigBlk:")).split()[1], 16)
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="reads the signal mask from /proc (Linux)")
+def test_processes_spawned_for_a_local_cluster_start_with_sigint_blocked():
+    """A Ctrl-C reaching a worker of a local cluster while it was still importing (before its preload
+    ignores SIGINT) printed a KeyboardInterrupt traceback: processes spawned while the cluster starts
+    begin with SIGINT blocked; after it, spawning is as before, and the spawning thread's mask too."""
+    import multiprocessing
+    import signal
+    import time
+
+    from tumble.wedge import _spawned_without_sigint
+
+    context = multiprocessing.get_context("spawn")
+    sigint = 1 << (signal.SIGINT - 1)
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    masks = []
+    for protected in (True, False):
+        child = context.Process(target=time.sleep, args=(30,))
+        with _spawned_without_sigint() if protected else contextlib.nullcontext():
+            child.start()
+        try:
+            masks.append(_blocked_signals(child.pid) & sigint)
+        finally:
+            child.kill()
+            child.join()
+    assert masks == [sigint, 0]
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before
