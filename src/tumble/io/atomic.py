@@ -67,9 +67,9 @@ def check_output(path, *, suffixes: Sequence[str] = (), folder: bool = False, op
         raise OutputError(f"{where}: no such directory {str(parent)!r}")
     if not parent.is_dir():
         raise OutputError(f"{where}: {str(parent)!r} is not a folder")
-    _probe(parent, where)
+    probe_folder(parent, where)
     if folder and p.is_dir():
-        _probe(p, where)
+        probe_folder(p, where)
     return p
 
 
@@ -79,12 +79,13 @@ def check_folder(path, *, option: str) -> Path:
     where = f"{option} {str(path)!r}"
     if not p.is_dir():
         raise OutputError(f"{where}: {'is not a folder' if p.exists() else 'no such directory'}")
-    _probe(p, where)
+    probe_folder(p, where)
     return p
 
 
-def _probe(folder: Path, where: str) -> None:
-    """Create and remove a file in `folder`, the only reliable test that it is writable."""
+def probe_folder(folder: Path, where: str) -> None:
+    """Create and remove a file in `folder`, the only reliable test that it is writable (an existing
+    file there need not be: it is replaced by a rename). Raises OutputError "{where}: cannot write in ..."."""
     try:
         fd, name = tempfile.mkstemp(dir=folder, prefix=".tumble-probe-")
         os.close(fd)

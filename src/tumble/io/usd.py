@@ -53,7 +53,7 @@ from ..errors import TumbleError
 from ..npmath import quat_mul, quat_rotate
 from ..render.colors import CLOTH_COLOR, body_colors
 from ..render.solids import vertex_normals
-from .atomic import atomic_path
+from .atomic import atomic_path, probe_folder
 
 #: file types `export` writes, chosen by the suffix (".usd" is binary crate, like ".usdc")
 EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
@@ -81,8 +81,8 @@ def check_output(path) -> Path:
     """The output path, after checking its suffix and that its folder exists and is writable.
 
     Raises:
-        TumbleError: a suffix other than .usd/.usda/.usdc/.usdz, a missing or read-only folder,
-            an existing directory.
+        TumbleError: a suffix other than .usd/.usda/.usdc/.usdz, a missing folder or one where no
+            file can be created, an existing directory.
     """
     path = Path(path)
     if path.suffix.lower() not in EXTENSIONS:
@@ -93,8 +93,9 @@ def check_output(path) -> Path:
     if path.is_dir():
         # (the stage was authored, then renaming the temporary file over the folder failed)
         raise TumbleError(f"cannot write {str(path)!r}: is a directory, not a file")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise TumbleError(f"cannot write {str(path)!r}: permission denied")
+    # a probe file, as for every output (permission bits say little when running as root); an existing
+    # read-only file is replaced by the rename, as `run --record` and `render` replace theirs
+    probe_folder(folder, f"cannot write {str(path)!r}")
     return path
 
 

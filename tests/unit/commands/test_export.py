@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ pytest.importorskip("pxr")
 
 
 from tumble.cli import main  # noqa: E402
-from tumble.io import usd  # noqa: E402
+from tumble.io import atomic, usd  # noqa: E402
 from tumble.io.record import FORMAT_VERSION  # noqa: E402
 
 from ..io import open_stage, record_scene  # noqa: E402
@@ -74,15 +75,36 @@ def test_cli_bad_output_is_one_line(write_scene, tmp_path, capsys, monkeypatch, 
 
 
 def test_cli_unwritable_folder_is_one_line(recording, tmp_path, capsys, monkeypatch):
-    """A folder the user may not write to: one line, exit 2 (os.access is faked, since root may write anywhere)."""
+    """A folder the user may not write to: one line, exit 2 (creating a file there is made to fail, since
+    root may write anywhere: the same probe every output gets)."""
     np.savez_compressed(tmp_path / "r.npz", **recording)
-    real = os.access
-    monkeypatch.setattr(usd.os, "access", lambda p, mode: False if str(p) == str(tmp_path / "ro") else real(p, mode))
+    real = tempfile.mkstemp
+
+    def mkstemp(*args, dir=None, **kwargs):
+        if str(dir) == str(tmp_path / "ro"):
+            raise PermissionError(13, "Permission denied")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(atomic.tempfile, "mkstemp", mkstemp)
     (tmp_path / "ro").mkdir()
     assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "ro" / "x.usd")]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "permission denied" in err
+    assert len(err.splitlines()) == 1 and f"cannot write in {str(tmp_path / 'ro')!r} (Permission denied)" in err
     assert os.listdir(tmp_path / "ro") == []
+
+
+def test_cli_replaces_a_read_only_stage_as_run_replaces_a_recording(recording, tmp_path, capsys, monkeypatch):
+    """An existing read-only file is replaced by the rename, as `run --record` and `render` replace theirs
+    (export refused it, by its permission bits: faked here for the file, since root may write anything)."""
+    np.savez_compressed(tmp_path / "r.npz", **recording)
+    target = tmp_path / "x.usda"
+    target.write_text("old", encoding="utf-8")
+    target.chmod(0o444)
+    real = os.access
+    monkeypatch.setattr(usd.os, "access", lambda p, mode: False if str(p) == str(target) else real(p, mode))
+    assert main(["export", str(tmp_path / "r.npz"), "-o", str(target), "--no-progress"]) == 0
+    assert open_stage(target).GetTimeCodesPerSecond() > 0
+    assert target.stat().st_mode & 0o777 == 0o444  # its permissions kept, as every replaced output's
 
 
 def test_cli_newer_recording_is_one_line(recording, tmp_path, capsys):
