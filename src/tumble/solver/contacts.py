@@ -140,6 +140,9 @@ class ContactRow:
     # points, s += gap_turn . (gap_share dtheta_a + (1 - gap_share) dtheta_b) (0 for other contacts)
     gap_share: float_t
     gap_turn: vec3
+    # two spheres: the sum of their radii [m], and their gap follows their centres exactly
+    # (`_round_gap`); 0 for other pairs
+    radii: float_t
     normal: vec3  # unit, a -> b
     r_a: vec3  # anchor offsets from the centres, world frame at step start [m]
     r_b: vec3
@@ -407,6 +410,27 @@ def _gap_turn(rows: wp.array(dtype=ContactRow), k: int, dtha: vec3, dthb: vec3):
 
 
 @wp.func
+def _round_gap(rows: wp.array(dtype=ContactRow), k: int, dxa: vec3, dxb: vec3):
+    """The part of two spheres' gap [m] that the linear update leaves out, after moves dxa, dxb of
+    their centres since the step began (>= 0; 0 for other pairs).
+
+    The passes follow a gap linearised along the step start's normal, s = s0 + n . (dx_b - dx_a): a
+    ball moving along another's surface moves along that tangent plane, which the sphere curves away
+    from, and the contact held it there, pushing it out a little every substep. A ball sliding off
+    the top of a sphere so left it early, bouncing along a gap of a few tenths of a millimetre.
+    Between two spheres the gap is exact from their centres: |(R + s0) n + dx_b - dx_a| - R, R the
+    sum of their radii.
+    """
+    radii = rows[k].radii
+    if radii == float_t(0.0):
+        return float_t(0.0)
+    n = rows[k].normal
+    d = dxb - dxa
+    reach = radii + rows[k].separation
+    return wp.length(n * reach + d) - reach - wp.dot(n, d)
+
+
+@wp.func
 def _met(share: float_t, ra: vec3, rb: vec3, centres: vec3):
     """The anchors ra, rb [m] moved to meet, a's by `share` of the way (`_meeting_share`; < 0: left as
     they are), with b's centre at `centres` [m] from a's."""
@@ -459,6 +483,9 @@ def _prepare(
         r.separation = c.separation[k]
         r.gap_share = share
         r.gap_turn = turn
+        r.radii = float_t(0.0)
+        if b.shape[ia] == int(ShapeType.SPHERE) and b.shape[ib] == int(ShapeType.SPHERE):
+            r.radii = b.radius[ia] + b.radius[ib]
         r.r_a = ra
         r.r_b = rb
         # manifold: the first row holds its row count, the others 0. It is a patch when its rows
@@ -1018,7 +1045,7 @@ def _make_solve_manifold(exact_pair: bool):
             lever = rows[k].mass_n * (pair.ima + pair.imb) < float_t(1.0) - float_t(1.0e-6)
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
             bias, ms, isc = _normal_target(
-                rows[k].separation + _gap_turn(rows, k, dtha, dthb),
+                rows[k].separation + _gap_turn(rows, k, dtha, dthb) + _round_gap(rows, k, dxa, dxb),
                 rows[k].normal,
                 ra,
                 rb,
@@ -1235,6 +1262,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
     s = rows[k].separation + _gap_turn(rows, k, b.delta_rotation[ia], b.delta_rotation[ib])
+    s = s + _round_gap(rows, k, b.delta_position[ia], b.delta_position[ib])
     s = s + wp.dot(
         n,
         b.delta_position[ib]
