@@ -410,24 +410,23 @@ def _gap_turn(rows: wp.array(dtype=ContactRow), k: int, dtha: vec3, dthb: vec3):
 
 
 @wp.func
-def _round_gap(rows: wp.array(dtype=ContactRow), k: int, dxa: vec3, dxb: vec3):
-    """The part of two spheres' gap [m] that the linear update leaves out, after moves dxa, dxb of
-    their centres since the step began (>= 0; 0 for other pairs).
+def _round_gap(rows: wp.array(dtype=ContactRow), k: int, b: BodyArrays, dxa: vec3, dxb: vec3):
+    """The part of two spheres' gap [m] that the linear update leaves out, with their centres where
+    they are now, dxa and dxb from where the step began (0 for other pairs).
 
     The passes follow a gap linearised along the step start's normal, s = s0 + n . (dx_b - dx_a): a
     ball moving along another's surface moves along that tangent plane, which the sphere curves away
     from, and the contact held it there, pushing it out a little every substep. A ball sliding off
     the top of a sphere so left it early, bouncing along a gap of a few tenths of a millimetre.
-    Between two spheres the gap is exact from their centres: |(R + s0) n + dx_b - dx_a| - R, R the
-    sum of their radii.
+    Between two spheres the gap is exact from their centres, |x_b - x_a| - R (R the sum of their
+    radii). For a speculative contact whose normal is the line of centres at impact
+    (`collide_sphere_sphere`) both reach 0 at that moment.
     """
     radii = rows[k].radii
     if radii == float_t(0.0):
         return float_t(0.0)
-    n = rows[k].normal
-    d = dxb - dxa
-    reach = radii + rows[k].separation
-    return wp.length(n * reach + d) - reach - wp.dot(n, d)
+    exact = wp.length(b.position[rows[k].body_b] - b.position[rows[k].body_a]) - radii
+    return exact - rows[k].separation - wp.dot(rows[k].normal, dxb - dxa)
 
 
 @wp.func
@@ -1045,7 +1044,7 @@ def _make_solve_manifold(exact_pair: bool):
             lever = rows[k].mass_n * (pair.ima + pair.imb) < float_t(1.0) - float_t(1.0e-6)
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
             bias, ms, isc = _normal_target(
-                rows[k].separation + _gap_turn(rows, k, dtha, dthb) + _round_gap(rows, k, dxa, dxb),
+                rows[k].separation + _gap_turn(rows, k, dtha, dthb) + _round_gap(rows, k, b, dxa, dxb),
                 rows[k].normal,
                 ra,
                 rb,
@@ -1262,7 +1261,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
         return float_t(-1.0)
     # current gap, linearised in the motion since the step began (as in _solve)
     s = rows[k].separation + _gap_turn(rows, k, b.delta_rotation[ia], b.delta_rotation[ib])
-    s = s + _round_gap(rows, k, b.delta_position[ia], b.delta_position[ib])
+    s = s + _round_gap(rows, k, b, b.delta_position[ia], b.delta_position[ib])
     s = s + wp.dot(
         n,
         b.delta_position[ib]
