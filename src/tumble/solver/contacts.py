@@ -141,7 +141,7 @@ class ContactRow:
     gap_share: float_t
     gap_turn: vec3
     # two spheres: the sum of their radii [m], and their gap follows their centres exactly
-    # (`_round_gap`); 0 for other pairs
+    # (`_gap`); 0 for other pairs
     radii: float_t
     normal: vec3  # unit, a -> b
     r_a: vec3  # anchor offsets from the centres, world frame at step start [m]
@@ -410,23 +410,28 @@ def _gap_turn(rows: wp.array(dtype=ContactRow), k: int, dtha: vec3, dthb: vec3):
 
 
 @wp.func
-def _round_gap(rows: wp.array(dtype=ContactRow), k: int, b: BodyArrays, dxa: vec3, dxb: vec3):
-    """The part of two spheres' gap [m] that the linear update leaves out, with their centres where
-    they are now, dxa and dxb from where the step began (0 for other pairs).
+def _gap(rows: wp.array(dtype=ContactRow), k: int, b: BodyArrays, dxa: vec3, dtha: vec3, dxb: vec3, dthb: vec3):
+    """Row k's gap [m] now, its bodies moved by dxa, dtha and dxb, dthb since the step began.
 
-    The passes follow a gap linearised along the step start's normal, s = s0 + n . (dx_b - dx_a): a
-    ball moving along another's surface moves along that tangent plane, which the sphere curves away
-    from, and the contact held it there, pushing it out a little every substep. A ball sliding off
-    the top of a sphere so left it early, bouncing along a gap of a few tenths of a millimetre.
-    Between two spheres the gap is exact from their centres, |x_b - x_a| - R (R the sum of their
-    radii). For a speculative contact whose normal is the line of centres at impact
+    Linearised in that motion along the step start's normal, from the anchors:
+    s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a)) (plus `_gap_turn`). Between
+    two spheres it is exact from their centres instead, |x_b - x_a| - R (R the sum of their radii):
+    a ball moving along another's surface moves along the start's tangent plane, which the sphere
+    curves away from, and the linearised contact held it there, pushing it out a little every
+    substep; a ball sliding off the top of a sphere so left it early, bouncing along a gap of a few
+    tenths of a millimetre. For a speculative contact whose normal is the line of centres at impact
     (`collide_sphere_sphere`) both reach 0 at that moment.
+
+    (The spheres' gap is written as the part the linear one leaves out, added to it: the same value
+    but for rounding, and the rounding the trajectories of piles and samples have.)
     """
+    n = rows[k].normal
+    s0 = rows[k].separation + _gap_turn(rows, k, dtha, dthb)
     radii = rows[k].radii
-    if radii == float_t(0.0):
-        return float_t(0.0)
-    exact = wp.length(b.position[rows[k].body_b] - b.position[rows[k].body_a]) - radii
-    return exact - rows[k].separation - wp.dot(rows[k].normal, dxb - dxa)
+    if radii != float_t(0.0):
+        exact = wp.length(b.position[rows[k].body_b] - b.position[rows[k].body_a]) - radii
+        s0 = s0 + (exact - rows[k].separation - wp.dot(n, dxb - dxa))
+    return s0 + wp.dot(n, dxb + wp.cross(dthb, rows[k].r_b) - dxa - wp.cross(dtha, rows[k].r_a))
 
 
 @wp.func
@@ -729,27 +734,14 @@ class SolvePass:
 
 
 @wp.func
-def _normal_target(
-    s0: float_t,
-    n: vec3,
-    ra: vec3,
-    rb: vec3,
-    dxa: vec3,
-    dtha: vec3,
-    dxb: vec3,
-    dthb: vec3,
-    p: SolvePass,
-    static: bool,
-    block: bool,
-):
-    """(bias, mass scale, impulse scale) of a normal row for this pass (`block`: a row of a manifold).
+def _normal_target(s: float_t, p: SolvePass, static: bool, block: bool):
+    """(bias, mass scale, impulse scale) of a normal row for this pass at its current gap s [m] (`_gap`;
+    `block`: a row of a manifold).
 
-    The current separation, linearised in the motion since the step began:
-    s = s0 + n . ((dx_b + dtheta_b x r_b) - (dx_a + dtheta_a x r_a)). Speculative (s > 0) lets
-    the gap close in one substep; overlap beyond the slop is pushed out softly (bias) and only in
-    the biased pass; against a static body twice as stiff (it carries the whole pile).
+    Speculative (s > 0) lets the gap close in one substep; overlap beyond the slop is pushed out
+    softly (bias) and only in the biased pass; against a static body twice as stiff (it carries the
+    whole pile).
     """
-    s = s0 + wp.dot(n, dxb + wp.cross(dthb, rb) - dxa - wp.cross(dtha, ra))
     bias = float_t(0.0)
     ms = float_t(1.0)
     isc = float_t(0.0)
@@ -984,6 +976,13 @@ def _normal_pair(rows: wp.array(dtype=ContactRow), k: int, bias4: vec4, ms4: vec
     return out, 1, wp.max(wp.abs(d0), wp.abs(d1))
 
 
+@wp.func
+def _two_row_patch(rows: wp.array(dtype=ContactRow), k: int):
+    """Whether the manifold at row k is a patch of two rows (an edge, a rod's end): the one the
+    passes give to `_solve_manifold_pair` and `_impact_pair_first`."""
+    return rows[k].manifold == 2 and rows[k].mass_twist > float_t(0.0)
+
+
 def _make_solve_manifold(exact_pair: bool):
     """`_solve_manifold`, or with `exact_pair` `_solve_manifold_pair`: the same pass over a manifold,
     where a two-row patch has its normal rows solved exactly (`_normal_pair`) instead of swept. Two
@@ -1043,19 +1042,7 @@ def _make_solve_manifold(exact_pair: bool):
             # its centre, no lever but for rounding); the test is one product of fields read anyway
             lever = rows[k].mass_n * (pair.ima + pair.imb) < float_t(1.0) - float_t(1.0e-6)
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
-            bias, ms, isc = _normal_target(
-                rows[k].separation + _gap_turn(rows, k, dtha, dthb) + _round_gap(rows, k, b, dxa, dxb),
-                rows[k].normal,
-                ra,
-                rb,
-                dxa,
-                dtha,
-                dxb,
-                dthb,
-                p,
-                static,
-                False,
-            )
+            bias, ms, isc = _normal_target(_gap(rows, k, b, dxa, dtha, dxb, dthb), p, static, False)
             if serial == 0 or not lever or turning or rows[k].friction == float_t(0.0):
                 dv, _ = _friction_row(rows, k, fa, fb, rows[k].friction * rows[k].impulse_n, pair, dv)
                 dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
@@ -1068,10 +1055,7 @@ def _make_solve_manifold(exact_pair: bool):
             isc4 = vec4()
             for i in range(size):
                 kk = k + i
-                s0 = rows[kk].separation + _gap_turn(rows, kk, dtha, dthb)
-                bias, ms, isc = _normal_target(
-                    s0, rows[kk].normal, rows[kk].r_a, rows[kk].r_b, dxa, dtha, dxb, dthb, p, static, True
-                )
+                bias, ms, isc = _normal_target(_gap(rows, kk, b, dxa, dtha, dxb, dthb), p, static, True)
                 bias4[i] = bias
                 ms4[i] = ms
                 isc4[i] = isc
@@ -1184,7 +1168,7 @@ def _make_solve(serial: int):
                 _solve_manifold(k, rows, b, p, 0)
         else:
             for k in range(counts[0]):
-                if rows[k].manifold == 2 and rows[k].mass_twist > float_t(0.0):
+                if _two_row_patch(rows, k):
                     _solve_manifold_pair(k, rows, b, p, 1)  # an edge, a rod's end
                 else:
                     _solve_manifold(k, rows, b, p, 1)
@@ -1221,7 +1205,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
     substep faster than `threshold` [m/s]; else -1 (no collision). Speeds are measured at the
     anchors the collision acts at (`_met` with `share` and `centres`, as in `_impact`), so that u
-    never exceeds the approach there; the gap at the row's own (`_normal_target`).
+    never exceeds the approach there; the gap at the row's own (`_gap`).
 
     The velocities are those of the next substep but for its gravity kick (the pass runs before
     the kick, so that no impulse falls between a substep's kick and its position update).
@@ -1259,16 +1243,8 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     gap = -(vn + gn * p.h) * p.h
     if vn * vn - float_t(2.0) * gn * gap + gn * p.h * vn < float_t(0.5) * limit * limit:
         return float_t(-1.0)
-    # current gap, linearised in the motion since the step began (as in _solve)
-    s = rows[k].separation + _gap_turn(rows, k, b.delta_rotation[ia], b.delta_rotation[ib])
-    s = s + _round_gap(rows, k, b, b.delta_position[ia], b.delta_position[ib])
-    s = s + wp.dot(
-        n,
-        b.delta_position[ib]
-        + wp.cross(b.delta_rotation[ib], rb)
-        - b.delta_position[ia]
-        - wp.cross(b.delta_rotation[ia], ra),
-    )
+    # current gap, as the solve passes take it
+    s = _gap(rows, k, b, b.delta_position[ia], b.delta_rotation[ia], b.delta_position[ib], b.delta_rotation[ib])
     if s + (vn + gn * p.h) * p.h > float_t(0.0):
         return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
@@ -1534,7 +1510,7 @@ def _make_impacts(serial: int):
                             continue
                     t = t + one
                     ticks.tested[k] = t
-                    if size == 2 and rows[k].mass_twist > float_t(0.0):
+                    if _two_row_patch(rows, k):
                         hit = _impact_pair_first(k, size, rows, b, p, 1)  # an edge, a rod's end
                     else:
                         hit = _impact(k, size, rows, b, p, 1)
