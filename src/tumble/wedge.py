@@ -391,7 +391,7 @@ class Variant:
     name: str
     values: dict[str, object]
     text: str
-    dt: float = 1.0 / 240.0  # the variant's time step (its steps are checked against limits.MAX_STEPS)
+    dt: float  # the variant's time step (its steps are checked against limits.MAX_STEPS)
 
     @property
     def scene_sha(self) -> str:

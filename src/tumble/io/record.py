@@ -405,9 +405,7 @@ def load_recording(path) -> dict[str, np.ndarray]:
         raise RecordingError(f"{p}: {exc}") from None
     except ArchiveError as exc:
         raise bad(str(exc)) from None
-    except ValueError as exc:
-        if "pickle" in str(exc):
-            raise bad("it holds object (pickled) arrays, which Tumble never loads") from None
+    except ValueError as exc:  # (object arrays are refused by check_archive before NumPy sees them)
         raise bad(f"corrupt ({exc})") from None
     except (OSError, EOFError, KeyError, zlib.error) as exc:
         raise bad(f"truncated or corrupt ({type(exc).__name__}: {exc})") from None
