@@ -56,7 +56,19 @@ _READS = {5: "float64", 6: None, 7: None, 8: None}  # formats read, and the prec
 # and the precision (saved as `Snapshot.precision`) with its kernel modules, and the views of the
 # state that the step's finiteness check keeps
 _WORLD_SKIP = frozenset(
-    {"_key", "metadata", "profile", "_lap", "device", "_launch_sizes", "bodies", "_precision", "_k", "_finite_held"}
+    {
+        "_key",
+        "metadata",
+        "profile",
+        "_lap",
+        "device",
+        "_launch_sizes",
+        "bodies",
+        "_precision",
+        "_k",
+        "_finite_held",
+        "_issued_generation",  # the world's own history of handles: a restore must not lower it
+    }
 )
 
 

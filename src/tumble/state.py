@@ -334,7 +334,7 @@ class Handle(int):
 
     Args:
         index: the entity's index (body id, cloth index).
-        generation: how many entities held this index before (removals count them).
+        generation: how many handles its world made at this index before (a restore never lowers it).
         world_key: key of the world that made the handle; None: any world (a bare id).
     """
 

@@ -195,7 +195,11 @@ class World:
         self._slot_of_id: np.ndarray | None = None  # None while row i holds id i
         self._id_count = 0
         self._free_ids = 0
-        self._body_generation = np.zeros(16, dtype=np.int64)  # removals of each id so far
+        # each id's generation: that of the handle of the body holding it now (a snapshot keeps it), and
+        # the highest handed out at it in this world's life (a snapshot leaves it out: a restore never
+        # lowers it, so a handle made after a snapshot never names a body added after the restore)
+        self._body_generation = np.zeros(16, dtype=np.int64)
+        self._issued_generation = np.full(16, -1, dtype=np.int64)
         self._sorted_at = -SORT_INTERVAL
 
     # ------------------------------------------------------------------ settings
@@ -806,7 +810,7 @@ class World:
         """Remove bodies from the world, effective at once.
 
         Their contacts (and warm starts) go with them; other bodies keep their ids. A removed
-        body's id is given to the next body added, with its generation one higher, so its old
+        body's id is given to the next body added, with a new generation, so its old
         handle raises `HandleError`. Until then the id's row in the views is NaN (shape and
         kind -1) and `body_alive` is False there; removing the highest ids shortens the views.
         """
@@ -841,7 +845,6 @@ class World:
         live = of_id >= 0
         of_id = of_id.copy()
         of_id[live] = slot[of_id[live]]
-        self._body_generation[ids] += 1
         self._set_id_rows(of_id)
 
     def has_body(self, body: BodyId | int) -> bool:
@@ -895,11 +898,18 @@ class World:
         if self._free_ids and self._slot_of_id is not None:
             reused = np.flatnonzero(self._slot_of_id < 0)[:k]
         fresh = np.arange(self._id_count, self._id_count + k - len(reused))
-        if len(self._body_generation) < self._id_count + len(fresh):
-            grown = np.zeros(max(2 * len(self._body_generation), self._id_count + len(fresh)), dtype=np.int64)
-            grown[: len(self._body_generation)] = self._body_generation
-            self._body_generation = grown
-        return np.concatenate([reused, fresh])
+        ids = np.concatenate([reused, fresh])
+        end = self._id_count + len(fresh)
+        for name, blank in (("_body_generation", 0), ("_issued_generation", -1)):
+            table = getattr(self, name)
+            if len(table) < end:
+                grown = np.full(max(2 * len(table), end), blank, dtype=np.int64)
+                grown[: len(table)] = table
+                setattr(self, name, grown)
+        # a new generation at each id, above every handle ever made at it (so stale handles stay stale)
+        self._issued_generation[ids] += 1
+        self._body_generation[ids] = self._issued_generation[ids]
+        return ids
 
     def _row(self, body) -> int:
         """Row of one body in the body arrays, after checking its handle."""
@@ -1523,8 +1533,19 @@ class World:
         if not isinstance(state, Snapshot):
             raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")
         snapshot.restore(self, state)
+        self._keep_issued_generations()
         self.bodies.sync()  # the solver's scratch rows, which snapshots leave out, to the restored capacity
         self._launch_sizes = None  # derived from the arrays that the restore replaced
+
+    def _keep_issued_generations(self) -> None:
+        """After a restore: the generations handed out stay counted, and the restored ones too (the
+        snapshot may come from another world built the same way), so no id's next handle repeats one."""
+        generation, issued = self._body_generation, self._issued_generation
+        n = max(len(generation), len(issued))
+        high = np.full(n, -1, dtype=np.int64)
+        high[: len(issued)] = issued
+        high[: len(generation)] = np.maximum(high[: len(generation)], generation)
+        self._issued_generation = high  # (`_new_ids` grows the restored table when it needs to)
 
     def state_hash(self) -> str:
         """SHA-256 of the state arrays, to check determinism bit for bit."""

@@ -129,6 +129,38 @@ def test_a_restored_world_keeps_its_own_handles(tmp_path):
     world.cloth.pin_to_body([1], world.body(1))
 
 
+def test_a_handle_made_after_a_snapshot_never_names_a_body_added_after_the_restore():
+    """A restore takes the world back to fewer bodies, and the ids it frees are handed out again; the handles
+    made between the snapshot and the restore must not name the bodies that take those ids (they would act
+    on another body), while the handles made before the snapshot keep naming theirs."""
+    from tumble import HandleError
+
+    w = tumble.World()
+    w.add_plane()
+    ball = w.add_sphere(position=(0, 0, 1), radius=0.1, mass=1.0)
+    doomed = w.add_sphere(position=(0, 1, 1), radius=0.1, mass=1.0)
+    snap = w.snapshot()
+    later = w.add_sphere(position=(1, 0, 1), radius=0.1, mass=1.0)  # a new id
+    w.remove_body(doomed)
+    again = w.add_box(position=(0, 2, 1), half_extents=(0.1,) * 3, mass=1.0)  # doomed's id, reused
+    assert int(again) == int(doomed)
+
+    for _ in range(2):  # restore twice: the second time the ids were handed out after the first restore too
+        w.restore(snap)
+        assert w.has_body(ball) and w.has_body(doomed)  # made before the snapshot: theirs again
+        assert not w.has_body(later) and not w.has_body(again)
+        box = w.add_box(position=(2, 0, 1), half_extents=(0.1,) * 3, mass=1.0)
+        assert int(box) == int(later) and box != later
+        for stale in (later, again):
+            with pytest.raises(HandleError, match="removed"):
+                w.set_body_state(stale, velocity=(0, 0, 5))
+        np.testing.assert_array_equal(w.body_velocity[box], (0, 0, 0))
+        w.remove_body(doomed)
+        fresh = w.add_sphere(position=(0, 3, 1), radius=0.1, mass=1.0)
+        assert int(fresh) == int(doomed) and fresh not in (doomed, again)
+        later, again = box, fresh
+
+
 def test_values_come_back_with_their_types(tmp_path):
     """Floats exactly (hex), infinities, tuples and generator states survive the file."""
     world = tumble.load_scene("rain")

@@ -56,7 +56,7 @@ def test_a_handle_from_another_world_is_refused():
 
 
 def test_a_removed_handle_is_refused_even_after_its_id_is_reused():
-    """Removal bumps the id's generation: the old handle raises, the new body gets the id."""
+    """A reused id gets a new generation: the old handle raises, the new body gets the id."""
     w = _free_world()
     w.remove_body(1)
     with pytest.raises(HandleError, match="body 1 was removed"):
