@@ -42,12 +42,19 @@ from .limits import LimitError
 from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 8  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+FORMAT = 9  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
 # 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state;
 # 6: the world's precision (a format 5 file is float64); 7: the contact solver's per-step quantities are
 # scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade_contacts` reads formats 5 and 6);
-# 8: the hinges' angle counting whole turns is joint state (`_upgrade_joints` reads formats 5 to 7)
-_READS = {5: "float64", 6: None, 7: None, 8: None}  # formats read, and the precision of those that did not save one
+# 8: the hinges' angle counting whole turns is joint state (`_upgrade_joints` reads formats 5 to 7);
+# 9: the broad phase's grid is a cache (its last search: `_upgrade_broadphase` reads formats 5 to 8)
+_READS = {
+    5: "float64",
+    6: None,
+    7: None,
+    8: None,
+    9: None,
+}  # formats read, and the precision of those that did not save one
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
@@ -563,6 +570,8 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
             _upgrade_contacts(manifest["values"], arrays)
         if manifest["format"] < 8:
             _upgrade_joints(manifest["values"], arrays)
+        if manifest["format"] < 9:
+            _upgrade_broadphase(manifest["values"], arrays)
         return Snapshot(
             arrays,
             manifest["values"],
@@ -622,6 +631,20 @@ def _upgrade_joints(values: dict, arrays: dict[str, np.ndarray]) -> None:
     at = fields.index("joint_impulse_upper") + 1 if "joint_impulse_upper" in fields else len(fields)
     values["state/joints/:fields"] = [*fields[:at], "joint_angle", *fields[at:]]
     arrays["state/joints/joint_angle"] = np.zeros_like(upper)
+
+
+def _upgrade_broadphase(values: dict, arrays: dict[str, np.ndarray]) -> None:
+    """A format 5 to 8 file as format 9 reads it: it holds the broad phase's grid and cell edge as its
+    last search left them, which are caches now (`BroadPhase.SNAPSHOT_CACHES`: a restored world
+    searches afresh, with the same pairs); they are dropped and marked as caches."""
+    from .collision.broadphase import BroadPhase
+
+    for name in BroadPhase.SNAPSHOT_CACHES:
+        path = f"broadphase/{name}"
+        for held in (values, arrays):
+            for key in [k for k in held if k == path or k.startswith(path + "/")]:
+                del held[key]
+        values[path + "/:derived"] = True
 
 
 def _saved_precision(manifest: dict, path: Path) -> str:

@@ -1104,6 +1104,7 @@ class World:
         if self._cloth is not None:
             self._cloth.remap_bodies(slot)
         self.joints.remap_bodies(slot)
+        self.broadphase.rows_changed()
         of_id = np.full(self._id_count, -1, dtype=np.int64)
         of_id[self.bodies.numpy("body_id")] = np.arange(n)
         self._slot_of_id = of_id
@@ -1294,7 +1295,7 @@ class World:
                 bp.launch(bodies, dt),  # type: ignore[func-returns-value]
                 self._k.narrowphase.launch_pairs(bodies, bp, contacts, dt, self.hulls, self.meshes),
             ),
-            lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), meshes, hulls],
+            lambda: [*_arrays_of(bodies, bp, bp.grid, contacts), *bp.graph_arrays(), meshes, hulls],
             self.device,
         )
 
@@ -1534,6 +1535,7 @@ class World:
             raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")
         snapshot.restore(self, state)
         self._keep_issued_generations()
+        self.broadphase.bodies_changed()  # (it searches afresh: its grid and kept list are not in a snapshot)
         self.bodies.sync()  # the solver's scratch rows, which snapshots leave out, to the restored capacity
         self._launch_sizes = None  # derived from the arrays that the restore replaced
 

@@ -71,8 +71,10 @@ class Grid:
 
 
 @wp.kernel
-def _count(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
+def _count(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid, when: wp.array(dtype=wp.int32)):
     i = wp.tid()
+    if when[0] == 0:
+        return  # (a build skipped on the device: see `build_from`)
     if radius[i] > g.params[2]:
         g.point_cell[i] = -1  # left out of the grid (its owner queries it some other way)
         return
@@ -84,8 +86,10 @@ def _count(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
 
 
 @wp.kernel
-def _scatter(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
+def _scatter(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid, when: wp.array(dtype=wp.int32)):
     i = wp.tid()
+    if when[0] == 0:
+        return
     h = g.point_cell[i]
     if h >= 0:
         e = g.cell_start[h] + wp.atomic_add(g.cell_fill, h, 1)
@@ -94,6 +98,19 @@ def _scatter(x: wp.array(dtype=vec3), radius: wp.array(dtype=float_t), g: Grid):
         g.sorted_x[e] = x[i]
         g.sorted_radius[e] = radius[i]
         g.sorted_coord[e] = g.point_cell_coord[i]
+
+
+_ALWAYS: dict[str, wp.array] = {}
+
+
+def _always(device) -> wp.array:
+    """A flag that is always set, on `device`: `HashGrid.build_from`'s default `when` (one per device,
+    not per grid, so that a grid restored from an older snapshot needs no array it lacks)."""
+    key = str(device)
+    flag = _ALWAYS.get(key)
+    if flag is None:
+        flag = _ALWAYS[key] = wp.ones(1, dtype=wp.int32, device=device)
+    return flag
 
 
 class HashGrid:
@@ -170,19 +187,30 @@ class HashGrid:
         return self.build_from(x, count, self.params, radius, cache)
 
     def build_from(
-        self, x: wp.array, count: int, params: wp.array, radius: wp.array, cache: LaunchCache | None = None
+        self,
+        x: wp.array,
+        count: int,
+        params: wp.array,
+        radius: wp.array,
+        cache: LaunchCache | None = None,
+        when: wp.array | None = None,
     ) -> HashGrid:
         """`build` with the cell edge, its inverse and `max_radius` read by the kernels from the
         device array `params` (so that they may be computed there); `cell_size` and `inv_cell`
-        are then not updated. Call `reserve(count)` first."""
+        are then not updated. Call `reserve(count)` first.
+
+        `when` (int32, one value, read on the device): the points are sorted into the cells only
+        where it is not 0; else the table is left empty (a recorded build that runs only on the
+        steps that need it, `BroadPhase`)."""
         self.cell_count.zero_()
         self.cell_fill.zero_()
         if count == 0:
             return self
         grid = self.struct(params)
-        launch(_count, count, [x, radius, grid], self.device, cache)
+        when = _always(self.device) if when is None else when
+        launch(_count, count, [x, radius, grid, when], self.device, cache)
         wp.utils.array_scan(self.cell_count, self.cell_start, inclusive=False)
-        launch(_scatter, count, [x, radius, grid], self.device, cache)
+        launch(_scatter, count, [x, radius, grid, when], self.device, cache)
         return self
 
     def struct(self, params: wp.array | None = None) -> Grid:
