@@ -71,7 +71,7 @@ def build(name: str, substeps: int):
     return world
 
 
-def child(scenes: list[str], warmup: int, steps: int, rounds: int) -> None:
+def child(scenes: list[str], warmup: int, steps: int, rounds: int, clock=time.perf_counter) -> None:
     """Measure in this process; print one JSON line per round: {scene: µs/step}."""
     worlds = {}
     for key in scenes:
@@ -82,10 +82,10 @@ def child(scenes: list[str], warmup: int, steps: int, rounds: int) -> None:
     for _ in range(rounds):
         row = {}
         for key, world in worlds.items():
-            start = time.perf_counter()
+            start = clock()
             for _ in range(steps):
                 world.step()
-            row[key] = 1e6 * (time.perf_counter() - start) / steps
+            row[key] = 1e6 * (clock() - start) / steps
         print(json.dumps(row), flush=True)
 
 
@@ -103,6 +103,8 @@ def _run_child(tree: str, scenes: list[str], args, rounds: int) -> list[dict]:
         str(args.steps),
         "--rounds",
         str(rounds),
+        "--clock",
+        args.clock,
     ]
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     if out.returncode != 0:
@@ -127,6 +129,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=5, help="timed rounds (the median is reported)")
     parser.add_argument("--warmup", type=int, default=50, help="untimed steps first")
     parser.add_argument("--compare", default=None, help="another source tree (its src/) to time in turns")
+    parser.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="wall time, or the process's CPU time (leaves out time the machine gave other processes)",
+    )
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     scenes = [s for s in args.scenes.split(",") if s]
@@ -139,7 +147,13 @@ def main(argv: list[str] | None = None) -> int:
             )
             return 2
     if args.child:
-        child(scenes, args.warmup, args.steps, args.rounds)
+        child(
+            scenes,
+            args.warmup,
+            args.steps,
+            args.rounds,
+            time.process_time if args.clock == "cpu" else time.perf_counter,
+        )
         return 0
     here = str(HERE.parent / "src")
     trees = [here] + ([str(Path(args.compare).resolve())] if args.compare else [])
@@ -155,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     head = f"{'scene/substeps':<16}{'µs/step':>10}"
     if len(trees) > 1:
         head += f"{'compare':>10}{'ratio':>8}"
-    print(f"load average {load[0]:.2f} (1 min), {args.rounds} rounds of {args.steps} steps, median")
+    print(f"load average {load[0]:.2f} (1 min), {args.rounds} rounds of {args.steps} steps, median, {args.clock} time")
     print(head)
     for key in scenes:
         mine = _median([r[key] for r in rows[here]])
