@@ -219,46 +219,70 @@ def _query_grid(
 
 
 @wp.func
+def _sort_key(i: int, j: int, by: int, inv_mass: wp.array(dtype=float_t)):
+    """A pair's key for `_count_sort`: its lower row (`by` 0), its higher row (1), or 1 if it holds a
+    static or kinematic body, else 0 (2)."""
+    if by == 0:
+        return wp.min(i, j)
+    if by == 1:
+        return wp.max(i, j)
+    if inv_mass[i] == float_t(0.0) or inv_mass[j] == float_t(0.0):
+        return 1
+    return 0
+
+
+@wp.func
 def _count_sort(
-    key: wp.array(dtype=wp.int32),
-    other: wp.array(dtype=wp.int32),
+    a: wp.array(dtype=wp.int32),
+    b: wp.array(dtype=wp.int32),
     count: int,
     keys: int,
+    by: int,
+    inv_mass: wp.array(dtype=float_t),
     bucket: wp.array(dtype=wp.int32),
-    out_key: wp.array(dtype=wp.int32),
-    out_other: wp.array(dtype=wp.int32),
+    out_a: wp.array(dtype=wp.int32),
+    out_b: wp.array(dtype=wp.int32),
 ):
-    """Rows 0..count of (key, other) into (out_key, out_other), stably by key (0 <= key < keys)."""
+    """Rows 0..count of (a, b) into (out_a, out_b), stably by `_sort_key` (by `by`; keys 0 <= key < keys)."""
     for k in range(keys + 1):
         bucket[k] = 0
     for p in range(count):
-        bucket[key[p] + 1] += 1
+        bucket[_sort_key(a[p], b[p], by, inv_mass) + 1] += 1
     for k in range(keys):
         bucket[k + 1] += bucket[k]
     for p in range(count):
-        q = bucket[key[p]]
-        bucket[key[p]] = q + 1
-        out_key[q] = key[p]
-        out_other[q] = other[p]
+        key = _sort_key(a[p], b[p], by, inv_mass)
+        q = bucket[key]
+        bucket[key] = q + 1
+        out_a[q] = a[p]
+        out_b[q] = b[p]
 
 
 @wp.kernel
 def _sort_pairs(
     n: int,
+    b: BodyArrays,
     fat: PairList,
     f: Built,
     bucket: wp.array(dtype=wp.int32),
-    a: wp.array(dtype=wp.int32),
-    b: wp.array(dtype=wp.int32),
+    scratch_a: wp.array(dtype=wp.int32),
+    scratch_b: wp.array(dtype=wp.int32),
 ):
-    # one thread (the CPU): a fresh fat list in order of its first body's row, then its second's
-    # (two stable counting sorts, by b then by a, through the scratch rows a, b), so that its order
-    # is that of the pairs alone, not of the cells and threads that found them
+    # one thread (the CPU): a fresh fat list in an order of the pairs alone, not of the cells and threads
+    # that found them: the pairs of two moving bodies first, then those with a static or kinematic body
+    # (a plane's, a wall's), each part by its lower row, then its higher (three stable counting sorts
+    # through the scratch rows). So the solver's passes take the ground's contacts after the pile's, as
+    # the search's order had them (planes test every body after the grid's pairs): with the grounds'
+    # contacts first, the largest overlaps of four 2,000-sphere piles were 13 % deeper, the ground's 34 %
     if f.stale[0] == 0:
         return
     count = wp.min(fat.count[0], fat.a.shape[0])  # (an overflowed list is searched again, bigger)
-    _count_sort(fat.b, fat.a, count, n, bucket, b, a)
-    _count_sort(a, b, count, n, bucket, fat.a, fat.b)
+    _count_sort(fat.a, fat.b, count, n, 1, b.inv_mass, bucket, scratch_a, scratch_b)
+    _count_sort(scratch_a, scratch_b, count, n, 0, b.inv_mass, bucket, fat.a, fat.b)
+    _count_sort(fat.a, fat.b, count, 2, 2, b.inv_mass, bucket, scratch_a, scratch_b)
+    for p in range(count):
+        fat.a[p] = scratch_a[p]
+        fat.b[p] = scratch_b[p]
 
 
 @wp.kernel
@@ -472,7 +496,7 @@ class BroadPhase:
         launch_each(_query_grid, n, [n, *args], dev, cache)
         launch(_query_large, n, [n, *args], dev, cache)
         if dev == "cpu":  # (elsewhere the pairs keep the order the threads found them in)
-            launch(_sort_pairs, 1, [n, fat.pairs, built, fat.bucket, fat.scratch_a, fat.scratch_b], dev, cache)
+            launch(_sort_pairs, 1, [n, body, fat.pairs, built, fat.bucket, fat.scratch_a, fat.scratch_b], dev, cache)
         self.pair_count_array.zero_()
         launch_each(_keep_pairs, fat.capacity, [body, self.swept_radius, fat.pairs, self._pairs()], dev, cache)
         built.stale.zero_()
