@@ -48,13 +48,8 @@ FORMAT = 9  # 2: the body rows saved by part (model, state, control); 3: the joi
 # scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade_contacts` reads formats 5 and 6);
 # 8: the hinges' angle counting whole turns is joint state (`_upgrade_joints` reads formats 5 to 7);
 # 9: the broad phase's grid is a cache (its last search: `_upgrade_broadphase` reads formats 5 to 8)
-_READS = {
-    5: "float64",
-    6: None,
-    7: None,
-    8: None,
-    9: None,
-}  # formats read, and the precision of those that did not save one
+# formats read, and the precision of those that did not save one
+_READS = {5: "float64", 6: None, 7: None, 8: None, 9: None}
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),

@@ -100,7 +100,8 @@ def _check(n: int, b: BodyArrays, dt: float_t, margin: float_t, radius: wp.array
 def _fatten(
     n: int, b: BodyArrays, skin: float_t, radius: wp.array(dtype=float_t), f: Built, fat: PairList, serial: int
 ):
-    # a stale list: every body's fat radius, R + skin x bound + its motion in one more step, and its place now
+    # a stale list: every body's fat radius, R + skin x bound + (R - bound: its motion in one more step and
+    # the margin), and its place now
     if f.stale[0] == 0:
         return
     if wp.tid() == 0:
@@ -146,6 +147,27 @@ def _emits(i: int, j: int, ri: float_t, rj: float_t, inv_mass: wp.array(dtype=fl
 
 
 @wp.func
+def _above(b: BodyArrays, plane: int, j: int, rj: float_t):
+    """Whether body j's centre is within rj of the plane (its signed distance along the plane's normal)."""
+    nrm = wp.quat_rotate(b.orientation[plane], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
+    return wp.dot(nrm, b.position[j] - b.position[plane]) < rj
+
+
+@wp.func
+def _near(b: BodyArrays, i: int, j: int, ri: float_t, rj: float_t):
+    """The candidate test of bodies i and j with swept (or fat) radii ri, rj: their spheres overlap, or
+    the one that is not a plane has its centre within its radius of the plane. The search with fat radii
+    and each step's test of the kept pairs with swept ones take the same test, so that the kept list
+    holds every pair a fresh search would find."""
+    if b.shape[i] == int(ShapeType.PLANE):
+        return _above(b, i, j, rj)
+    if b.shape[j] == int(ShapeType.PLANE):
+        return _above(b, j, i, ri)
+    reach = ri + rj
+    return wp.length_sq(b.position[j] - b.position[i]) < reach * reach
+
+
+@wp.func
 def _push_pair(i: int, j: int, body_id: wp.array(dtype=wp.int32), pairs: PairList):
     # stored lower id first, so a pair keeps its order (and its warm start) from step to step,
     # even when the world renumbers its body rows
@@ -166,16 +188,9 @@ def _query_large(n: int, b: BodyArrays, radius: wp.array(dtype=float_t), g: Grid
     if f.stale[0] == 0 or g.point_cell[i] >= 0:
         return
     ri = radius[i]
-    xi = b.position[i]
-    nrm = wp.quat_rotate(b.orientation[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
     for j in range(n):
         if j != i and _emits(i, j, ri, radius[j], b.inv_mass):
-            near = False
-            if b.shape[i] == int(ShapeType.PLANE):
-                near = wp.dot(nrm, b.position[j] - xi) < radius[j]  # signed distance to the plane
-            else:
-                near = wp.length(b.position[j] - xi) < ri + radius[j]
-            if near:
+            if _near(b, i, j, ri, radius[j]):
                 _push_pair(i, j, b.id, pairs)
 
 
@@ -292,17 +307,7 @@ def _keep_pairs(b: BodyArrays, radius: wp.array(dtype=float_t), fat: PairList, p
     for k in range(wp.tid(), each_in_use(wp.tid(), serial, fat.count[0], fat.a.shape[0])):
         i = fat.a[k]
         j = fat.b[k]
-        near = False
-        if b.shape[i] == int(ShapeType.PLANE):
-            nrm = wp.quat_rotate(b.orientation[i], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
-            near = wp.dot(nrm, b.position[j] - b.position[i]) < radius[j]
-        elif b.shape[j] == int(ShapeType.PLANE):
-            nrm = wp.quat_rotate(b.orientation[j], vec3(float_t(0.0), float_t(0.0), float_t(1.0)))
-            near = wp.dot(nrm, b.position[i] - b.position[j]) < radius[i]
-        else:
-            reach = radius[i] + radius[j]
-            near = wp.length_sq(b.position[j] - b.position[i]) < reach * reach
-        if near:
+        if _near(b, i, j, radius[i], radius[j]):
             q = wp.atomic_add(pairs.count, 0, 1)
             if q < pairs.a.shape[0]:  # (as large as the fat list: `BroadPhase._grow`)
                 pairs.a[q] = i
