@@ -25,28 +25,11 @@ from scipy.spatial.transform import Rotation
 from scipy.special import ellipk
 
 import tumble
-from tumble import precision
+from tolerances import resolution, rounding
 from tumble.npmath import quat_to_matrix
 from tumble.solver import contacts, joints
 
 G = 9.81
-
-
-def _eps() -> float:
-    """Machine epsilon of the precision the test's worlds run in (Tumble's default, or `pytest --precision`)."""
-    return precision.types_of(precision.DEFAULT_PRECISION).eps
-
-
-def rounding() -> float:
-    """Relative bound on rounding accumulated over ~10^4 substeps: 1e-12 in float64 (~4,500 ulps at 1),
-    as many ulps of the precision the test's worlds run in."""
-    return 1e-12 * _eps() / precision.types_of("float64").eps
-
-
-def resolution(bound: float, scale: float, ulps: float = 16.0) -> float:
-    """`bound`, or `ulps` ulps of `scale` in the precision the test's worlds run in, the larger: a bound
-    written as "exact up to rounding" in float64 (1e-9 against ~1e-16) where float32 resolves ~1e-7."""
-    return max(bound, ulps * _eps() * abs(scale))
 
 
 def quat_axis_angle(axis, angle):
