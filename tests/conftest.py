@@ -45,6 +45,16 @@ def _precision(request, monkeypatch):
         monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", precision)
 
 
+@pytest.fixture(params=["float32", "float64"])
+def each_precision(request, monkeypatch):
+    """Run the test once in each precision (its worlds default to it, whatever `--precision` says):
+    for numerics float32 must hold as float64 does, in the default run too. Returns the precision."""
+    import tumble.precision
+
+    monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", request.param)
+    return request.param
+
+
 @pytest.fixture
 def write_scene(tmp_path):
     """Write TOML text to a file under tmp_path and return its path: write_scene(text, name="scene.toml")."""

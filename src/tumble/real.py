@@ -35,10 +35,12 @@ else:
     mat22 = TYPES.mat22
 
 #: quantities carried through many substeps that must not pick up float32's rounding bias (the free
-#: rotation: solver/integrate.py) are worked in float64 in both copies
+#: rotation: solver/integrate.py), and a joint's ill-conditioned block factor (solver/joints.py), are
+#: worked in float64 in both copies
 wide_t = wp.float64
 vec3w = wp.vec3d
 quatw = wp.quatd
+mat33w = wp.mat33d
 
 #: the body arrays the kernels read and write, as one struct (contacts, joints, cloth coupling and pins alike):
 #: `body_position` is `b.position`

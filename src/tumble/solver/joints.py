@@ -113,7 +113,7 @@ import warp as wp
 from .. import validate
 from ..launch import LaunchCache, launch
 from ..model import Field, Role, body_arrays, fields_of
-from ..real import BodyArrays, float_t, mat33, quat, vec3
+from ..real import BodyArrays, float_t, mat33, mat33w, quat, vec3, vec3w, wide_t
 from ..state import ArraySet, RowGroup, readonly
 from ..structs import array_struct, fill_struct
 from .rigid import add_to_velocity, inv_inertia_world, safe_inverse
@@ -374,34 +374,49 @@ class _Block:
 @wp.struct
 class _Factor:
     """The block's K = [[A, B], [B^T, C]] (A the linear group's 3 x 3, C the angular group's)
-    ready to solve: A^-1, B and the inverse of the Schur complement S = C - B^T A^-1 B."""
+    ready to solve: A^-1, B and the inverse of the Schur complement S = C - B^T A^-1 B.
 
-    A_inv: mat33
-    B: mat33
-    S_inv: mat33
+    Worked in float64 in both precisions (`real.wide_t`): K's condition number reaches m r^2 / I,
+    6,250 for a 2 cm bob on a 1 m arm, and the axial row's Schur complement against it (`_Axial`)
+    is ~1 left of two terms of ~6,250. In float32 that difference came out anywhere from negative
+    to 1e-3, so a hinge limit stopped the bob with up to a thousand times its impulse and the
+    pendulum flew apart (joint error 6 m); a few dozen float64 operations a joint and pass."""
+
+    A_inv: mat33w
+    B: mat33w
+    S_inv: mat33w
+
+
+@wp.func
+def _wide_group(x: _Rows):
+    """A group's rows, widened: n, ja, jb, on."""
+    return mat33w(x.n), mat33w(x.ja), mat33w(x.jb), vec3w(x.on)
 
 
 @wp.func
 def _group_coupling(g: _Geometry, x: _Rows, y: _Rows):
-    """J_x M^-1 J_y^T between two groups, masked to the rows in use."""
-    K = (x.n * wp.transpose(y.n)) * (g.ma + g.mb) + x.ja * g.Ia * wp.transpose(y.ja) + x.jb * g.Ib * wp.transpose(y.jb)
-    return wp.diag(x.on) * K * wp.diag(y.on)
+    """J_x M^-1 J_y^T between two groups, masked to the rows in use (in float64, see `_Factor`)."""
+    xn, xja, xjb, xon = _wide_group(x)
+    yn, yja, yjb, yon = _wide_group(y)
+    m = wide_t(g.ma) + wide_t(g.mb)
+    K = (xn * wp.transpose(yn)) * m + xja * mat33w(g.Ia) * wp.transpose(yja) + xjb * mat33w(g.Ib) * wp.transpose(yjb)
+    return wp.diag(xon) * K * wp.diag(yon)
 
 
 @wp.func
-def _inverse_or_zero(M: mat33):
+def _inverse_or_zero(M: mat33w):
     """M^-1; zero when M is singular (rows no body can move along)."""
-    if wp.determinant(M) == float_t(0.0):
-        return mat33()
+    if wp.determinant(M) == wide_t(0.0):
+        return mat33w()
     return wp.inverse(M)
 
 
 @wp.func
 def _factor(g: _Geometry, blk: _Block):
     """Factor the block's K (the identity on rows left out)."""
-    one = vec3(float_t(1.0), float_t(1.0), float_t(1.0))
-    A = _group_coupling(g, blk.lin, blk.lin) + wp.diag(one - blk.lin.on)
-    C = _group_coupling(g, blk.ang, blk.ang) + wp.diag(one - blk.ang.on)
+    one = vec3w(wide_t(1.0), wide_t(1.0), wide_t(1.0))
+    A = _group_coupling(g, blk.lin, blk.lin) + wp.diag(one - vec3w(blk.lin.on))
+    C = _group_coupling(g, blk.ang, blk.ang) + wp.diag(one - vec3w(blk.ang.on))
     f = _Factor()
     f.B = _group_coupling(g, blk.lin, blk.ang)
     f.A_inv = _inverse_or_zero(A)
@@ -410,11 +425,18 @@ def _factor(g: _Geometry, blk: _Block):
 
 
 @wp.func
-def _block_solve(f: _Factor, r1: vec3, r2: vec3):
-    """(x, y) with K (x, y) = (r1, r2), by the Schur complement."""
+def _block_solve_wide(f: _Factor, r1: vec3w, r2: vec3w):
+    """(x, y) with K (x, y) = (r1, r2), by the Schur complement, in float64."""
     y = f.S_inv * (r2 - wp.transpose(f.B) * (f.A_inv * r1))
     x = f.A_inv * (r1 - f.B * y)
     return x, y
+
+
+@wp.func
+def _block_solve(f: _Factor, r1: vec3, r2: vec3):
+    """(x, y) with K (x, y) = (r1, r2), in the world's precision."""
+    x, y = _block_solve_wide(f, vec3w(r1), vec3w(r2))
+    return vec3(x), vec3(y)
 
 
 @wp.func
@@ -461,24 +483,26 @@ class _Axial:
 
 @wp.func
 def _axial_coupling(g: _Geometry, x: _Rows):
-    """c = J_x M^-1 J_ax^T for the group x and the axial row, masked to the rows in use."""
-    c = x.n * g.n * (g.ma + g.mb) + x.ja * (g.Ia * g.ja) + x.jb * (g.Ib * g.jb)
-    return wp.cw_mul(c, x.on)
+    """c = J_x M^-1 J_ax^T for the group x and the axial row, masked to the rows in use (float64)."""
+    xn, xja, xjb, xon = _wide_group(x)
+    c = xn * vec3w(g.n) * (wide_t(g.ma) + wide_t(g.mb)) + xja * (mat33w(g.Ia) * vec3w(g.ja))
+    c = c + xjb * (mat33w(g.Ib) * vec3w(g.jb))
+    return wp.cw_mul(c, xon)
 
 
 @wp.func
 def _axial_with_block(g: _Geometry, blk: _Block, f: _Factor, bias_lin: vec3, bias_ang: vec3):
-    """The axial row coupled to the block (see `_Axial`)."""
+    """The axial row coupled to the block (see `_Axial`); its Schur complement in float64 (`_Factor`)."""
     a = _Axial()
     c1 = _axial_coupling(g, blk.lin)
     c2 = _axial_coupling(g, blk.ang)
-    u1, u2 = _block_solve(f, c1, c2)
-    k = _axial_k(g)
+    u1, u2 = _block_solve_wide(f, c1, c2)
+    k = wide_t(_axial_k(g))
     schur = k - wp.dot(c1, u1) - wp.dot(c2, u2)
-    if schur > float_t(1.0e-9) * k:
-        a.u_lin = u1
-        a.u_ang = u2
-        a.mass = float_t(1.0) / schur
+    if schur > wide_t(1.0e-9) * k:
+        a.u_lin = vec3(u1)
+        a.u_ang = vec3(u2)
+        a.mass = float_t(wide_t(1.0) / schur)
     else:
         # the block alone fixes the axial coordinate (both bodies' rows degenerate): the row on its own
         a.mass = _axial_mass(g)
