@@ -25,7 +25,7 @@ import warp as wp
 
 from ..launch import LaunchCache, each_in_use, launch_each
 from ..model import body_struct
-from ..real import BodyArrays, float_t, quat, vec3
+from ..real import TYPES, BodyArrays, float_t, quat, vec3
 from ..shapes import ShapeType
 from ..state import host_values, host_view
 from ..structs import array_struct
@@ -50,6 +50,9 @@ _HALF_SQRT2 = wp.constant(float_t(0.7071067811865476))  # cos 45 degrees
 # is that contact's plane again; a concave neighbour's plane is as far as the mesh within float32's
 # position error (relative 6e-8, a margin of 16 times it)
 _COPLANAR = wp.constant(float_t(1.0 - 1.0e-6))
+#: depths of mesh edges this close (relative to the body's bound) are equals: rounding, not geometry
+#: (64 ulps of the precision: a ridge's edge and a diagonal ending on it, `collide_mesh_edges`)
+_EDGE_TIE = wp.constant(float_t(64.0 * TYPES.eps))
 _CONCAVE_TOLERANCE = wp.constant(float_t(1.0e-6))
 _GHOST_STEP = wp.constant(float_t(GHOST_STEP))
 
@@ -1720,7 +1723,9 @@ def _mesh_edges_into_solid(
     nf = H.hull_face_count[hp]
     tol = float_t(1e-3) * bound + float_t(1e-5)
     best = wp.min(d0 - tol, max_sep)
+    tie = _EDGE_TIE * bound
     found = bool(False)
+    best_flat = float_t(1.0e30)  # the best edge's |n . u| / |u| (0: it lies along the face)
     best_p = vec3()
     best_n = vec3()
     best_s0 = vec3()
@@ -1745,12 +1750,17 @@ def _mesh_edges_into_solid(
                 for f in range(f0, f0 + nf):
                     n, d = _hull_face(H, f, sc)
                     bound_lo = wp.max(bound_lo, wp.min(wp.dot(n, s0 + u * lo), wp.dot(n, s0 + u * hi)) - d)
-                if bound_lo < best:
+                if bound_lo < best + tie:
                     # golden-section search of the depth along the edge (convex, piecewise linear)
                     lo, hi = _deepest_along(s0, u, lo, hi, 30, H, f0, nf, sc, vec3())
                     over, pt, depth, normal = _over_face(H, f0, nf, sc, s0, u, (lo + hi) * float_t(0.5), tol)
-                    if over and depth < best:
+                    # of equal depths (within rounding) the edge lying flattest along the face: a grid's
+                    # diagonal ending on a ridge is as deep at its end as the ridge's edges, and in float32
+                    # was found a hair deeper, so the line contact shrank to that end and tipped the box
+                    flat = wp.abs(wp.dot(normal, u)) / wp.length(u)
+                    if over and (depth < best - tie or (depth < best + tie and flat < best_flat)):
                         best = depth
+                        best_flat = flat
                         best_p = pt
                         best_n = normal
                         best_s0 = s0
