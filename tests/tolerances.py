@@ -12,6 +12,8 @@ sets it runs per test.
 
 from __future__ import annotations
 
+import numpy as np
+
 from tumble import precision
 
 
@@ -23,6 +25,25 @@ def eps() -> float:
 def is_float32() -> bool:
     """Whether the test's worlds run in float32."""
     return precision.DEFAULT_PRECISION == "float32"
+
+
+def dtype() -> type:
+    """The NumPy scalar type of the test's worlds' float arrays (np.float32 or np.float64)."""
+    return precision.types_of(precision.DEFAULT_PRECISION).numpy
+
+
+def stored(values) -> np.ndarray:
+    """`values` as a world in the test's precision holds them, as float64: rounded to its dtype (0.1 reads
+    back 0.10000000149 in float32), and a magnitude below the dtype's smallest normal (1.2e-38 in
+    float32, which a float32 world refuses) made 0. Inputs that Hypothesis draws near zero (1e-220)
+    are passed through it, so that a test of "any placement" places what the world can hold, and
+    computes its reference from that; in float64 it changes nothing."""
+    given = np.asarray(values, dtype=np.float64)
+    t = dtype()
+    if t is np.float64:
+        return given
+    flushed = np.where(np.abs(given) < np.finfo(t).tiny, 0.0, given)
+    return flushed.astype(t).astype(np.float64)
 
 
 def ulps(scale: float, n: float = 16.0) -> float:
