@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import tumble
+from tolerances import resolution, stored
 
 from ..reference import quat_axis_angle, rotate
 
@@ -45,11 +46,12 @@ def test_sphere_sphere_depth_and_normal(gap, expect, swapped):
     pairs, normals, depths, _ = contacts(w)
     assert len(depths) == expect
     if expect:
-        assert depths[0] == pytest.approx(-gap, abs=1e-12)
+        # r1 + r2 - |x2 - x1| from rounded inputs: a few ulps of the centres' distance
+        assert depths[0] == pytest.approx(-gap, abs=resolution(1e-12, r1 + r2, 4))
         a = pairs[0, 0]
         # normal points from body a to body b
         expected = np.array([1.0, 0, 0]) if (a == 0) != swapped else np.array([-1.0, 0, 0])
-        np.testing.assert_allclose(normals[0], expected, atol=1e-12)
+        np.testing.assert_allclose(normals[0], expected, atol=resolution(1e-12, 1.0, 4))
 
 
 def test_sphere_sphere_coincident_centres():
@@ -71,18 +73,20 @@ def test_sphere_sphere_coincident_centres():
 )
 def test_sphere_sphere_matches_distance(offset, r1, r2):
     """Depth equals r1 + r2 - |x2 - x1| for any placement that is near enough to report."""
-    d = np.asarray(offset)
+    d, r1, r2 = stored(offset), float(stored(r1)), float(stored(r2))
     w = tumble.World(gravity=(0, 0, 0))
     w.add_sphere(position=(0, 0, 0), radius=r1, mass=1)
     w.add_sphere(position=d, radius=r2, mass=1)
     _, normals, depths, _ = contacts(w)
     depth = r1 + r2 - np.linalg.norm(d)
-    if depth < -MARGIN - 1e-9:
+    scale = r1 + r2 + np.linalg.norm(d)  # one formula: a few ulps of the lengths it subtracts
+    band = resolution(1e-9, scale, 4)
+    if depth < -MARGIN - band:
         assert len(depths) == 0
-    elif depth > -MARGIN + 1e-9 and np.linalg.norm(d) > 1e-9:
+    elif depth > -MARGIN + band and np.linalg.norm(d) > 1e-9:
         assert len(depths) == 1
-        assert depths[0] == pytest.approx(depth, abs=1e-12)
-        np.testing.assert_allclose(normals[0], d / np.linalg.norm(d), atol=1e-12)
+        assert depths[0] == pytest.approx(depth, abs=resolution(1e-12, scale, 4))
+        np.testing.assert_allclose(normals[0], d / np.linalg.norm(d), atol=resolution(1e-12, 1.0, 4))
 
 
 # ------------------------------------------------------------------ plane-sphere, plane-box
@@ -100,8 +104,10 @@ def test_plane_sphere(height, expect):
     _, normals, depths, points = contacts(w)
     assert len(depths) == expect
     if expect:
-        assert depths[0] == pytest.approx(0.1 - height, abs=1e-12)
-        np.testing.assert_allclose(normals[0], n, atol=1e-12)
+        # r - (n . x - offset): a few ulps of the offset and the centre's distance it subtracts
+        scale = 0.5 + abs(0.5 + height)
+        assert depths[0] == pytest.approx(0.1 - height, abs=resolution(1e-12, scale, 8))
+        np.testing.assert_allclose(normals[0], n, atol=resolution(1e-12, 1.0, 4))
 
 
 @settings(max_examples=40, deadline=None)
@@ -110,7 +116,8 @@ def test_plane_sphere(height, expect):
 )
 def test_plane_box_deepest_corners(q, z):
     """Report up to four corners, the deepest ones, each at its true depth below the plane."""
-    q = np.asarray(q) / np.linalg.norm(q)
+    q = stored(np.asarray(q) / np.linalg.norm(q))
+    z = float(stored(z))
     h = np.array([0.1, 0.2, 0.05])
     w = tumble.World(gravity=(0, 0, 0))
     w.add_plane()
@@ -120,9 +127,11 @@ def test_plane_box_deepest_corners(q, z):
     heights = np.sort([z + rotate(q, c)[2] for c in corners])
     expected = -heights[heights <= MARGIN][:4]
     assert len(depths) == len(expected)
-    np.testing.assert_allclose(np.sort(depths)[::-1], np.sort(expected)[::-1], atol=1e-12)
+    # corners turned by the (normalised) quaternion's matrix: 16 ulps of the corner's reach
+    atol = resolution(1e-12, abs(z) + np.linalg.norm(h), 16)
+    np.testing.assert_allclose(np.sort(depths)[::-1], np.sort(expected)[::-1], atol=atol)
     if len(depths):
-        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (len(depths), 1)), atol=1e-12)
+        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (len(depths), 1)), atol=resolution(1e-12, 1.0, 4))
 
 
 # ------------------------------------------------------------------ sphere-box
@@ -135,10 +144,10 @@ def test_plane_box_deepest_corners(q, z):
 )
 def test_sphere_box_closest_point(centre, q):
     """Depth is r minus the distance to the box's closest point (or plus the depth inside)."""
-    q = np.asarray(q) / np.linalg.norm(q)
+    q = stored(np.asarray(q) / np.linalg.norm(q))
     h = np.array([0.2, 0.1, 0.15])
     r = 0.1
-    c = np.asarray(centre)
+    c = stored(centre)
     w = tumble.World(gravity=(0, 0, 0))
     w.add_box(position=(0, 0, 0), half_extents=h, orientation=q, mass=1)
     w.add_sphere(position=c, radius=r, mass=1)
@@ -149,17 +158,19 @@ def test_sphere_box_closest_point(centre, q):
         expected = r + np.min(h - np.abs(local))
     else:
         expected = r - np.linalg.norm(local - np.clip(local, -h, h))
-    if expected < -MARGIN - 1e-9:
+    # the centre turned into the box's frame, clipped, measured: 16 ulps of the lengths involved
+    atol = resolution(1e-9, np.linalg.norm(c) + np.linalg.norm(h) + r, 16)
+    if expected < -MARGIN - atol:
         assert len(depths) == 0
         return
-    if expected > -MARGIN + 1e-9:
+    if expected > -MARGIN + atol:
         assert len(depths) == 1
-        assert depths[0] == pytest.approx(expected, abs=1e-9)
+        assert depths[0] == pytest.approx(expected, abs=atol)
         # sphere is body a (SPHERE < BOX): the normal points from the sphere into the box
         assert tuple(pairs[0]) == (1, 0)
         if not inside:
             out = local - np.clip(local, -h, h)
-            np.testing.assert_allclose(normals[0], -rotate(q, out / np.linalg.norm(out)), atol=1e-9)
+            np.testing.assert_allclose(normals[0], -rotate(q, out / np.linalg.norm(out)), atol=atol)
 
 
 # ------------------------------------------------------------------ box-box
@@ -176,10 +187,12 @@ def test_box_box_face_manifold(gap, expect):
     pairs, normals, depths, points = contacts(w)
     assert len(depths) == expect
     if expect:
-        np.testing.assert_allclose(depths, -gap, atol=1e-12)
-        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (4, 1)), atol=1e-12)
+        # face clipping of axis-aligned boxes: a few ulps of the boxes' positions and sizes (~0.3)
+        atol = resolution(1e-12, 0.3, 8)
+        np.testing.assert_allclose(depths, -gap, atol=atol)
+        np.testing.assert_allclose(normals, np.tile([0, 0, 1.0], (4, 1)), atol=resolution(1e-12, 1.0, 4))
         # the manifold spans the upper box's bottom face
-        np.testing.assert_allclose(np.sort(points[:, 0]), [-0.05, -0.05, 0.15, 0.15], atol=1e-12)
+        np.testing.assert_allclose(np.sort(points[:, 0]), [-0.05, -0.05, 0.15, 0.15], atol=atol)
 
 
 def test_box_box_clipped_manifold_inside_both_faces():
@@ -190,10 +203,12 @@ def test_box_box_clipped_manifold_inside_both_faces():
     w.add_box(position=(0, 0, 0.199), half_extents=(0.1, 0.1, 0.1), orientation=q, mass=1)
     _, normals, depths, points = contacts(w)
     assert 1 <= len(depths) <= 4
-    np.testing.assert_allclose(depths, 0.001, atol=1e-9)
-    assert np.all(np.abs(points[:, :2]) <= 0.12 + 1e-9)
+    # a turned face clipped against another: 16 ulps of the boxes' positions and sizes (~0.3)
+    atol = resolution(1e-9, 0.3, 16)
+    np.testing.assert_allclose(depths, 0.001, atol=atol)
+    assert np.all(np.abs(points[:, :2]) <= 0.12 + atol)
     local = np.array([rotate(q * [-1, -1, -1, 1], p - [0, 0, 0.199]) for p in points])
-    assert np.all(np.abs(local[:, :2]) <= 0.1 + 1e-9)
+    assert np.all(np.abs(local[:, :2]) <= 0.1 + atol)
 
 
 def test_box_box_edge_edge():
@@ -206,9 +221,11 @@ def test_box_box_edge_edge():
     w.add_box(position=(0, 0, 2 * e - 0.004), half_extents=(0.1, 0.1, 0.1), orientation=qb, mass=1)
     _, normals, depths, points = contacts(w)
     assert len(depths) == 1
-    assert depths[0] == pytest.approx(0.004, abs=1e-9)
-    np.testing.assert_allclose(np.abs(normals[0]), [0, 0, 1], atol=1e-9)
-    np.testing.assert_allclose(points[0], [0, 0, e - 0.002], atol=1e-9)
+    # closest points of two turned edges: 16 ulps of the boxes' reach (2e ~ 0.3)
+    atol = resolution(1e-9, 2 * e, 16)
+    assert depths[0] == pytest.approx(0.004, abs=atol)
+    np.testing.assert_allclose(np.abs(normals[0]), [0, 0, 1], atol=resolution(1e-9, 1.0, 16))
+    np.testing.assert_allclose(points[0], [0, 0, e - 0.002], atol=atol)
 
 
 def _sat_depth(x, q, half):
@@ -242,8 +259,9 @@ def test_box_box_crossed_edge_sunk_into_a_face_is_a_contact():
     assert 0.0005 < depth < 0.001  # an edge-edge overlap, smaller than the face axes' (1.27 mm and more)
     _, normals, depths, _ = contacts(w)
     assert len(depths) == 1
-    assert depths[0] == pytest.approx(depth, abs=1e-9)
-    np.testing.assert_allclose(np.abs(normals[0] @ axis), 1.0, atol=1e-9)
+    # two turned boxes' edge pair: 16 ulps of their positions (~0.5)
+    assert depths[0] == pytest.approx(depth, abs=resolution(1e-9, 0.5, 16))
+    np.testing.assert_allclose(np.abs(normals[0] @ axis), 1.0, atol=resolution(1e-9, 1.0, 16))
 
 
 @pytest.mark.parametrize("swapped", [False, True])
@@ -255,7 +273,8 @@ def test_box_box_normal_points_from_a_to_b(swapped):
         w.add_box(half_extents=(0.1, 0.1, 0.1), mass=1, **kw)
     pairs, normals, depths, _ = contacts(w)
     assert len(depths) == 4
-    np.testing.assert_allclose(depths, 0.01, atol=1e-12)
+    # face clipping of axis-aligned boxes: a few ulps of the boxes' positions and sizes (~0.2)
+    np.testing.assert_allclose(depths, 0.01, atol=resolution(1e-12, 0.2, 8))
     x = w.body_position
     for (a, b), n in zip(pairs, normals):
         assert np.dot(n, x[b] - x[a]) > 0
@@ -268,8 +287,10 @@ def test_small_box_on_huge_box_keeps_four_corners():
     w.add_box(position=(1, 2, 0.0499), half_extents=(0.05, 0.05, 0.05), mass=0.1)
     _, normals, depths, points = contacts(w)
     assert len(depths) == 4
-    np.testing.assert_allclose(depths, 1e-4, atol=1e-12)
-    np.testing.assert_allclose(np.sort(points[:, 0]), [0.95, 0.95, 1.05, 1.05], atol=1e-12)
+    # face clipping of axis-aligned boxes: a few ulps of the positions involved (~1)
+    atol = resolution(1e-12, 1.0, 8)
+    np.testing.assert_allclose(depths, 1e-4, atol=atol)
+    np.testing.assert_allclose(np.sort(points[:, 0]), [0.95, 0.95, 1.05, 1.05], atol=atol)
 
 
 @pytest.mark.parametrize("static", [True, False])
@@ -285,5 +306,6 @@ def test_a_corner_over_a_sliver_of_an_edge_touches_only_a_moving_box(static):
         assert len(depths) == 0
     else:
         assert len(depths) > 0
-        np.testing.assert_allclose(normals[:, 2], 1.0, atol=1e-9)
-        np.testing.assert_allclose(depths, -0.001, atol=1e-9)
+        # 16 ulps of the boxes' positions (~0.3)
+        np.testing.assert_allclose(normals[:, 2], 1.0, atol=resolution(1e-9, 1.0, 16))
+        np.testing.assert_allclose(depths, -0.001, atol=resolution(1e-9, 0.3, 16))
