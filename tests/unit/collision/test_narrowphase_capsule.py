@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import tumble
+from tolerances import eps, resolution, stored
 from tumble import shapes
 
 from ..reference import quat_axis_angle, rotate
@@ -64,7 +65,8 @@ def test_add_capsule_uses_density_and_inertia():
     m = 500 * shapes.capsule_volume(0.1, 0.3)
     assert w.body_mass[c] == pytest.approx(m)
     i = np.diag(w.body_inertia_world[c])
-    np.testing.assert_allclose(i, shapes.capsule_inertia(m, 0.1, 0.3), rtol=1e-12)
+    # the stored inverse moments, inverted back: a few ulps
+    np.testing.assert_allclose(i, shapes.capsule_inertia(m, 0.1, 0.3), rtol=resolution(1e-12, 1.0, 4))
 
 
 @pytest.mark.parametrize(
@@ -93,9 +95,11 @@ def test_plane_capsule_lying_gives_two_contacts(gap, expect):
     pairs, normals, depths, points = contacts(w)
     assert len(depths) == expect
     if expect:
-        np.testing.assert_allclose(depths, -gap, atol=1e-12)
-        np.testing.assert_allclose(normals, [[0, 0, 1]] * 2, atol=1e-12)
-        np.testing.assert_allclose(sorted(points[:, 1]), [-0.3, 0.3], atol=1e-12)
+        # the end spheres turned by LYING: 8 ulps of the capsule's reach (0.4)
+        atol = resolution(1e-12, 0.4, 8)
+        np.testing.assert_allclose(depths, -gap, atol=atol)
+        np.testing.assert_allclose(normals, [[0, 0, 1]] * 2, atol=resolution(1e-12, 1.0, 4))
+        np.testing.assert_allclose(sorted(points[:, 1]), [-0.3, 0.3], atol=atol)
 
 
 def test_plane_capsule_standing_gives_one_contact():
@@ -104,7 +108,8 @@ def test_plane_capsule_standing_gives_one_contact():
     w.add_plane()
     w.add_capsule(position=(0, 0, 0.39), radius=0.1, half_height=0.3)
     _, normals, depths, _ = contacts(w)
-    assert depths == pytest.approx([0.01])
+    # r + a - z: 8 ulps of the capsule's reach (0.4), or approx's 1e-6 of the depth in float64
+    assert depths == pytest.approx([0.01], abs=resolution(1e-8, 0.4, 8))
     np.testing.assert_allclose(normals[0], [0, 0, 1])
 
 
@@ -126,11 +131,12 @@ def test_sphere_capsule(where, swapped):
         w.add_sphere(position=p, radius=r)
         w.add_capsule(position=(0, 0, 0), radius=rc, half_height=a)
     pairs, normals, depths, _ = contacts(w)
-    assert depths == pytest.approx([0.01], abs=1e-12)
+    # distance from the segment: 8 ulps of the positions (up to 0.44)
+    assert depths == pytest.approx([0.01], abs=resolution(1e-12, 0.5, 8))
     outward = np.array([1.0, 0, 0]) if where == "side" else np.array([0, 0, 1.0])
     sphere = 1 if swapped else 0
     expected = -outward if pairs[0, 0] == sphere else outward  # a -> b
-    np.testing.assert_allclose(normals[0], expected, atol=1e-12)
+    np.testing.assert_allclose(normals[0], expected, atol=resolution(1e-12, 1.0, 4))
 
 
 def test_sphere_on_capsule_axis_gets_a_perpendicular_normal():
@@ -163,9 +169,10 @@ def test_box_capsule_lying_on_face_gives_a_line_contact():
     w.add_box(position=(0, 0, 0), half_extents=(0.5, 0.2, 0.1), static=True)
     w.add_capsule(position=(0, 0, 0.19), radius=0.1, half_height=0.4, orientation=LYING)  # axis along y
     _, normals, depths, points = contacts(w)
-    np.testing.assert_allclose(depths, [0.01, 0.01], atol=1e-12)
-    np.testing.assert_allclose(normals, [[0, 0, 1]] * 2, atol=1e-12)
-    np.testing.assert_allclose(sorted(points[:, 1]), [-0.2, 0.2], atol=1e-9)  # clipped to the face
+    # the segment turned by LYING and clipped to the face: 8 ulps of the shapes' size (0.5)
+    np.testing.assert_allclose(depths, [0.01, 0.01], atol=resolution(1e-12, 0.5, 8))
+    np.testing.assert_allclose(normals, [[0, 0, 1]] * 2, atol=resolution(1e-12, 1.0, 4))
+    np.testing.assert_allclose(sorted(points[:, 1]), [-0.2, 0.2], atol=resolution(1e-9, 0.5, 8))  # clipped to the face
 
 
 def test_box_capsule_across_an_edge():
@@ -176,8 +183,12 @@ def test_box_capsule_across_an_edge():
     d = 0.1 + (0.1 - 0.005) / np.sqrt(2)
     w.add_capsule(position=(d, 0, d), radius=0.1, half_height=0.4, orientation=LYING)
     pairs, normals, depths, _ = contacts(w)
-    assert depths == pytest.approx([0.005], abs=1e-7)
-    np.testing.assert_allclose(normals[0], [2**-0.5, 0, 2**-0.5], atol=1e-6)
+    assert depths == pytest.approx([0.005], abs=resolution(1e-7, 0.3, 16))
+    # the segment runs parallel to the edge, so its distance from the box is flat along the 0.2 m
+    # over it: the golden-section search stops anywhere a comparison of distances cannot tell from
+    # the flat part, up to sqrt(2 eps) of the distance (0.095) past its end, and the normal tilts
+    # by as much along y (2e-8 in float64, 5e-4 in float32); the bound allows 3 times that
+    np.testing.assert_allclose(normals[0], [2**-0.5, 0, 2**-0.5], atol=max(1e-6, 3 * np.sqrt(2 * eps())))
 
 
 @settings(max_examples=80, deadline=None)
@@ -189,12 +200,13 @@ def test_box_capsule_across_an_edge():
 def test_box_capsule_deepest_matches_brute_force(centre, axis, box_angle):
     """Make the deepest box-capsule contact the brute-force smallest signed distance, less the radius."""
     r, hh, half = 0.08, 0.25, np.array([0.2, 0.15, 0.1])
-    qb = quat_axis_angle((1, 2, 3), box_angle)
+    qb = stored(quat_axis_angle((1, 2, 3), box_angle))
+    centre = stored(centre)
     u = np.asarray(axis) / np.linalg.norm(axis)
     z = np.array([0.0, 0.0, 1.0])
     c = np.cross(z, u)
     qc = np.r_[c, 1.0 + z @ u] if np.linalg.norm(c) > 1e-9 or z @ u > 0 else np.array([1.0, 0, 0, 0])
-    qc = qc / np.linalg.norm(qc)
+    qc = stored(qc / np.linalg.norm(qc))
     w = tumble.World(gravity=(0, 0, 0))
     w.add_box(position=(0, 0, 0), half_extents=half, orientation=qb, static=True)
     w.add_capsule(position=centre, radius=r, half_height=hh, orientation=qc)
@@ -209,7 +221,7 @@ def test_box_capsule_deepest_matches_brute_force(centre, axis, box_angle):
         return
     if expected < -0.001 or len(depths):
         assert len(depths) >= 1
-        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, rtol=resolution(1e-7, 1.0, 4))
         if expected > -r:
             # the segment is outside the box: the deepest contact is the true one (sampling: +-1e-4)
             assert -depths.max() == pytest.approx(expected, abs=2e-4)
@@ -228,8 +240,10 @@ def test_crossed_capsules_one_contact():
     w.add_capsule(position=(0, 0, 0.18), radius=0.1, half_height=0.3, orientation=LYING)
     pairs, normals, depths, points = contacts(w)
     assert depths == pytest.approx([0.02])
-    np.testing.assert_allclose(normals[0], [0, 0, 1] if pairs[0, 0] == 0 else [0, 0, -1], atol=1e-12)
-    np.testing.assert_allclose(points[0], [0, 0, 0.09], atol=1e-12)
+    # closest points of two turned segments: 8 ulps of their reach (0.3)
+    n = [0, 0, 1] if pairs[0, 0] == 0 else [0, 0, -1]
+    np.testing.assert_allclose(normals[0], n, atol=resolution(1e-12, 1.0, 8))
+    np.testing.assert_allclose(points[0], [0, 0, 0.09], atol=resolution(1e-12, 0.3, 8))
 
 
 @pytest.mark.parametrize("shift", [0.0, 0.2])
@@ -239,9 +253,11 @@ def test_parallel_capsules_two_contacts_at_the_overlap(shift):
     w.add_capsule(position=(0, 0, 0), radius=0.1, half_height=0.3, orientation=LYING)
     w.add_capsule(position=(0, shift, 0.19), radius=0.1, half_height=0.3, orientation=LYING)
     _, normals, depths, points = contacts(w)
-    np.testing.assert_allclose(depths, [0.01, 0.01], atol=1e-12)
-    np.testing.assert_allclose(np.abs(normals[:, 2]), 1.0, atol=1e-12)
-    np.testing.assert_allclose(sorted(points[:, 1]), [-0.3 + shift, 0.3], atol=1e-12)
+    # two segments turned by LYING, their overlap clipped: 8 ulps of their reach (0.5)
+    atol = resolution(1e-12, 0.5, 8)
+    np.testing.assert_allclose(depths, [0.01, 0.01], atol=atol)
+    np.testing.assert_allclose(np.abs(normals[:, 2]), 1.0, atol=resolution(1e-12, 1.0, 4))
+    np.testing.assert_allclose(sorted(points[:, 1]), [-0.3 + shift, 0.3], atol=atol)
 
 
 def brute_segments(pa, ua, la, pb, ub, lb):
@@ -264,8 +280,9 @@ def brute_segments(pa, ua, la, pb, ub, lb):
 def test_capsule_capsule_matches_brute_force(centre, qa, qb):
     """Make the deepest capsule-capsule contact the sampled segment distance less both radii."""
     ra, rb, la, lb = 0.1, 0.07, 0.3, 0.2
-    qa = np.asarray(qa) / np.linalg.norm(qa)
-    qb = np.asarray(qb) / np.linalg.norm(qb)
+    qa = stored(np.asarray(qa) / np.linalg.norm(qa))
+    qb = stored(np.asarray(qb) / np.linalg.norm(qb))
+    centre = stored(centre)
     w = tumble.World(gravity=(0, 0, 0))
     w.add_capsule(position=(0, 0, 0), radius=ra, half_height=la, orientation=qa)
     w.add_capsule(position=centre, radius=rb, half_height=lb, orientation=qb)
@@ -279,7 +296,7 @@ def test_capsule_capsule_matches_brute_force(centre, qa, qb):
     if expected < -0.001 or len(depths):
         assert -depths.max() == pytest.approx(expected, abs=1e-3)
         # normal from a to b: moving b along it separates the segments
-        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, rtol=resolution(1e-7, 1.0, 4))
 
 
 # ------------------------------------------------------------------ scene table
