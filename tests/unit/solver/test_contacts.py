@@ -20,9 +20,10 @@ import numpy as np
 import pytest
 
 import tumble
+from tolerances import resolution, ulps
 from tumble import shapes
-from tumble.solver import contacts as solver
-from tumble.solver import integrate
+from tumble.precision import kernels
+from tumble.solver.contacts import LINEAR_SLOP  # (a constant: the same in both precisions' copies)
 
 from ..reference import quat_matrix
 
@@ -30,13 +31,19 @@ DT = 2.0**-6  # one substep: h = dt
 ZERO_G = np.zeros(3)
 
 
+def solver_of(world: tumble.World):
+    """The contact solver (`tumble.solver.contacts`) in the world's own precision: its kernels take
+    only that precision's arrays (`tumble.precision.kernels`)."""
+    return kernels(world.precision).contacts
+
+
 def prepared(world: tumble.World):
     """The world's contacts found and prepared for one step of DT: (bodies, contacts)."""
     assert world.collide(DT) > 0
     bodies, contacts = world.bodies, world.contacts
     contacts.begin_solve(bodies)
-    integrate.begin_step(bodies)
-    solver.prepare(bodies, contacts, DT)
+    kernels(world.precision).integrate.begin_step(bodies)
+    solver_of(world).prepare(bodies, contacts, DT)
     return bodies, contacts
 
 
@@ -59,22 +66,26 @@ def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
     R = quat_matrix(q)
     corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
     lowest = (corners @ R.T)[:, 2].min()
-    world.add_box(
+    box = world.add_box(
         position=(0.0, 0.0, -lowest), half_extents=half, mass=mass, orientation=q, friction=0.2, restitution=0.6
     )
+    R = quat_matrix(box.orientation)  # the orientation the world holds (q rounded to its precision)
     bodies, contacts = prepared(world)
     k = contacts.count
     assert k >= 2  # the lowest edge of the box
     inv_i_world = R @ np.diag(1.0 / shapes.box_inertia(mass, half)) @ R.T
     n = contacts.numpy("contact_normal")
     r_b = contacts.row_values("r_b")
-    np.testing.assert_allclose(r_b, contacts.numpy("contact_local_b") @ R.T, atol=1e-12)  # anchors in the world frame
+    # anchors in the world frame: a vector of ~0.5 m turned, a few ulps
+    reach = resolution(1e-12, 0.5, 4)
+    np.testing.assert_allclose(r_b, contacts.numpy("contact_local_b") @ R.T, atol=reach)
     # the contacts share the normal, so they are one patch: its friction rows sit on its first row,
     # anchored at the patch centre (the mean anchor), the other rows have none (solver/contacts.py)
     centre = np.zeros_like(r_b)
     centre[0] = r_b.mean(axis=0)
-    np.testing.assert_allclose(contacts.row_values("centre_b")[0], centre[0], atol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("centre_b")[0], centre[0], atol=reach)
     first = (np.arange(k) == 0).astype(float)
+    # effective masses: cross products, the turned inverse inertia and a reciprocal, 16 ulps
     for name, d, at, on in (
         ("n", n, r_b, np.ones(k)),
         ("t1", contacts.row_values("tangent1"), centre, first),
@@ -82,20 +93,22 @@ def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
     ):
         c = np.cross(at, d)
         expected = 1.0 / (1.0 / mass + np.einsum("ki,ij,kj->k", c, inv_i_world, c)) * on
-        np.testing.assert_allclose(contacts.row_values(f"mass_{name}"), expected, rtol=1e-12)
+        np.testing.assert_allclose(contacts.row_values(f"mass_{name}"), expected, rtol=resolution(1e-12, 1.0, 16))
+        angular = (c @ inv_i_world.T) * on[:, None]
         np.testing.assert_allclose(
-            contacts.row_values(f"angular_b_{name}"), (c @ inv_i_world.T) * on[:, None], atol=1e-12
+            contacts.row_values(f"angular_b_{name}"), angular, atol=resolution(1e-12, np.abs(angular).max(), 16)
         )
     # and its twist row about n: effective mass 1 / (n . I^-1 n)
     twist = 1.0 / np.einsum("i,ij,j->", n[0], inv_i_world, n[0])
-    np.testing.assert_allclose(contacts.row_values("mass_twist"), twist * first, rtol=1e-12)
+    np.testing.assert_allclose(contacts.row_values("mass_twist"), twist * first, rtol=resolution(1e-12, 1.0, 16))
     # the tangents complete the normal to a right-handed orthonormal basis
     t1, t2 = contacts.row_values("tangent1"), contacts.row_values("tangent2")
-    np.testing.assert_allclose(np.einsum("ki,ki->k", t1, n), 0.0, atol=1e-12)
-    np.testing.assert_allclose(np.cross(n, t1), t2, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(t1, axis=1), 1.0, atol=1e-12)
-    # materials: mu = sqrt(mu_a mu_b), e = max(e_a, e_b)
-    np.testing.assert_allclose(contacts.row_values("friction"), math.sqrt(0.8 * 0.2), rtol=1e-12)
+    unit = resolution(1e-12, 1.0, 4)
+    np.testing.assert_allclose(np.einsum("ki,ki->k", t1, n), 0.0, atol=unit)
+    np.testing.assert_allclose(np.cross(n, t1), t2, atol=unit)
+    np.testing.assert_allclose(np.linalg.norm(t1, axis=1), 1.0, atol=unit)
+    # materials: mu = sqrt(mu_a mu_b), e = max(e_a, e_b) (the stored materials, a few ulps)
+    np.testing.assert_allclose(contacts.row_values("friction"), math.sqrt(0.8 * 0.2), rtol=resolution(1e-12, 1.0, 4))
     np.testing.assert_allclose(contacts.row_values("restitution"), 0.6)
 
 
@@ -103,6 +116,7 @@ def test_normal_impulse_stops_the_approach():
     """A ball touching the plane at 0.7 m/s: jn = m v, the ball stops along n; slip untouched (no jn yet)."""
     world, ball = ball_on_plane(velocity=(0.3, 0.0, -0.7))
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     assert contacts.count == 1
     solver.solve(bodies, contacts, DT, use_bias=False)
     assert contacts.row_values("impulse_n")[0] == pytest.approx(2.0 * 0.7, rel=1e-12)
@@ -114,6 +128,7 @@ def test_normal_impulse_never_pulls():
     """A ball leaving the plane: jn clamps at 0 and the velocity stays."""
     world, ball = ball_on_plane(velocity=(0.0, 0.0, 0.4))
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     for use_bias in (True, False):
         solver.solve(bodies, contacts, DT, use_bias=use_bias)
     assert contacts.row_values("impulse_n")[0] == 0.0
@@ -126,11 +141,16 @@ def test_speculative_contact_lets_the_gap_close_in_one_substep(speed):
     gap = 0.01
     world, ball = ball_on_plane(z=0.5 + gap, velocity=(0.0, 0.0, -speed))
     bodies, contacts = prepared(world)
-    assert contacts.numpy("contact_separation")[0] == pytest.approx(gap, rel=1e-12)
+    solver = solver_of(world)
+    # the gap is the difference of the centre's height and the radius: a few ulps of them
+    s = contacts.numpy("contact_separation")[0]
+    assert s == pytest.approx(gap, rel=1e-12, abs=ulps(0.5, 4))
     solver.solve(bodies, contacts, DT, use_bias=False)
-    jn = 2.0 * (speed - gap / DT)
-    assert jn > 0.0 and contacts.row_values("impulse_n")[0] == pytest.approx(jn, rel=1e-12)
-    assert ball.velocity[2] == pytest.approx(-gap / DT, rel=1e-12)
+    # the impulse and the arrival speed from the gap the contact holds (that rounding, magnified by
+    # m / h, is not the solver's): a few ulps of the speeds they cancel
+    jn = 2.0 * (speed - s / DT)
+    assert jn > 0.0 and contacts.row_values("impulse_n")[0] == pytest.approx(jn, rel=1e-12, abs=ulps(2.0 * speed, 4))
+    assert ball.velocity[2] == pytest.approx(-s / DT, rel=1e-12, abs=ulps(speed, 4))
 
 
 def test_friction_is_clamped_to_the_disc_against_the_slip():
@@ -139,6 +159,7 @@ def test_friction_is_clamped_to_the_disc_against_the_slip():
     slip = np.array([3.0, -4.0, 0.0])
     world, ball = ball_on_plane(velocity=(slip[0], slip[1], -1.0), friction=mu, mass=mass)
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     solver.solve(bodies, contacts, DT, use_bias=False)  # normal only: friction saw jn = 0
     jn = contacts.row_values("impulse_n")[0]
     assert jn == pytest.approx(mass * 1.0, rel=1e-12)
@@ -146,11 +167,15 @@ def test_friction_is_clamped_to_the_disc_against_the_slip():
     jt = contacts.row_values("impulse_t1")[0] * contacts.row_values("tangent1")[0]
     jt = jt + contacts.row_values("impulse_t2")[0] * contacts.row_values("tangent2")[0]
     direction = slip / np.linalg.norm(slip)
-    np.testing.assert_allclose(jt, -mu * jn * direction, atol=1e-12)
-    np.testing.assert_allclose(ball.velocity, slip - mu * jn / mass * direction, atol=1e-12)
+    # one friction row from the stored materials and speeds: 8 ulps of each quantity's size
+    np.testing.assert_allclose(jt, -mu * jn * direction, atol=resolution(1e-12, mu * jn, 8))
+    np.testing.assert_allclose(
+        ball.velocity, slip - mu * jn / mass * direction, atol=resolution(1e-12, np.linalg.norm(slip), 8)
+    )
     r = np.array([0.0, 0.0, -radius])
     inertia = 0.4 * mass * radius**2
-    np.testing.assert_allclose(ball.angular_velocity, np.cross(r, jt) / inertia, atol=1e-12)
+    spin = np.cross(r, jt) / inertia
+    np.testing.assert_allclose(ball.angular_velocity, spin, atol=resolution(1e-12, np.linalg.norm(spin), 8))
     assert contacts.row_values("impulse_n")[0] == pytest.approx(jn, rel=1e-12)  # the normal row is done
 
 
@@ -159,20 +184,27 @@ def test_a_sticking_ball_rolls_on_at_five_sevenths_of_its_speed():
     mass, radius = 2.0, 0.5
     world, ball = ball_on_plane(velocity=(0.05, 0.0, -2.0), friction=1.0, mass=mass)
     bodies, contacts = prepared(world)
-    np.testing.assert_allclose(contacts.row_values("mass_t1"), 2.0 * mass / 7.0, rtol=1e-12)
+    solver = solver_of(world)
+    # an effective mass and two passes of impulses: a few ulps
+    rel = resolution(1e-12, 1.0, 4)
+    np.testing.assert_allclose(contacts.row_values("mass_t1"), 2.0 * mass / 7.0, rtol=rel)
     for _ in range(2):
         solver.solve(bodies, contacts, DT, use_bias=False)
     v, w = ball.velocity, ball.angular_velocity
-    assert v[0] == pytest.approx(5.0 / 7.0 * 0.05, rel=1e-12)
-    assert w[1] == pytest.approx(v[0] / radius, rel=1e-12)  # rolling: v + w x r = 0 at the contact
-    np.testing.assert_allclose(v + np.cross(w, [0.0, 0.0, -radius]), 0.0, atol=1e-12)
+    assert v[0] == pytest.approx(5.0 / 7.0 * 0.05, rel=rel)
+    assert w[1] == pytest.approx(v[0] / radius, rel=rel)  # rolling: v + w x r = 0 at the contact
+    np.testing.assert_allclose(v + np.cross(w, [0.0, 0.0, -radius]), 0.0, atol=resolution(1e-12, 0.05, 4))
 
 
 def test_overlap_is_pushed_out_softly_and_the_relax_pass_removes_the_push():
     """Overlap d > slop against a static plane: v_n = -ms bias (soft step, twice as stiff); relax takes it back."""
-    depth = 2.0e-3
-    world, ball = ball_on_plane(z=0.5 - depth)
+    world, ball = ball_on_plane(z=0.5 - 2.0e-3)
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
+    # the overlap the contact holds: 0.5 - z, whose rounding (an ulp of 0.5, 1.5e-5 of the 2 mm in
+    # float32) is the narrow phase's, not the solver's
+    depth = -contacts.numpy("contact_separation")[0]
+    assert depth == pytest.approx(2.0e-3, rel=1e-9, abs=ulps(0.5, 4))
     solver.solve(bodies, contacts, DT, use_bias=True)
     # the soft step at stiffness 2 f (a static body), f = CONTACT_HERTZ_PER_SUBSTEP_RATE / h
     h = DT
@@ -182,16 +214,19 @@ def test_overlap_is_pushed_out_softly_and_the_relax_pass_removes_the_push():
     bias = max(omega / a1 * (-depth + solver.LINEAR_SLOP), -solver.MAX_PUSH_VELOCITY)
     push = -a2 / (1.0 + a2) * bias
     assert push > 0.0
-    assert ball.velocity[2] == pytest.approx(push, rel=1e-9)
+    # the soft-step coefficients and the push: 8 ulps
+    assert ball.velocity[2] == pytest.approx(push, rel=resolution(1e-9, 1.0, 8))
     solver.solve(bodies, contacts, DT, use_bias=False)
-    assert ball.velocity[2] == pytest.approx(0.0, abs=1e-12)
-    assert contacts.row_values("impulse_n")[0] == pytest.approx(0.0, abs=1e-12)
+    # the relax pass takes back what the push added, to a few ulps of it
+    assert ball.velocity[2] == pytest.approx(0.0, abs=resolution(1e-12, push, 4))
+    assert contacts.row_values("impulse_n")[0] == pytest.approx(0.0, abs=resolution(1e-12, 2.0 * push, 4))
 
 
 def test_overlap_within_the_slop_is_held_without_push():
     """Overlap under LINEAR_SLOP: the biased pass adds no velocity."""
-    world, ball = ball_on_plane(z=0.5 - 0.5 * solver.LINEAR_SLOP)
+    world, ball = ball_on_plane(z=0.5 - 0.5 * LINEAR_SLOP)
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     solver.solve(bodies, contacts, DT, use_bias=True)
     np.testing.assert_allclose(ball.velocity, 0.0, atol=1e-15)
 
@@ -204,6 +239,7 @@ def test_impact_of_two_spheres_is_the_one_dimensional_collision(e):
     a = world.add_sphere(position=(0.0, 0.0, 0.0), radius=0.5, mass=m1, velocity=(v1, 0, 0), restitution=e)
     b = world.add_sphere(position=(1.0, 0.0, 0.0), radius=0.5, mass=m2, velocity=(v2, 0, 0), restitution=e)
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.5)
     if e == 0.0:  # no restitution: impacts leave the contact to the inelastic solve
         assert a.velocity[0] == v1 and b.velocity[0] == v2
@@ -220,9 +256,11 @@ def test_impact_slower_than_the_threshold_of_a_loaded_contact_does_not_bounce():
     """A contact that already carries load (jn > 0) and closes below the threshold is left to the solve."""
     world, ball = ball_on_plane(velocity=(0.0, 0.0, -0.3), restitution=0.8)
     bodies, contacts = prepared(world)
+    solver = solver_of(world)
     solver.solve(bodies, contacts, DT, use_bias=False)  # carries load now, at rest
     ball.velocity = (0.0, 0.0, -0.3)
     solver.impacts(bodies, contacts, ZERO_G, DT, threshold=1.0)
     assert ball.velocity[2] == pytest.approx(-0.3)
     solver.impacts(bodies, contacts, ZERO_G, DT, threshold=0.1)
-    assert ball.velocity[2] == pytest.approx(0.8 * 0.3, rel=1e-12)
+    # e v from the stored restitution and speed: a few ulps
+    assert ball.velocity[2] == pytest.approx(0.8 * 0.3, rel=resolution(1e-12, 1.0, 4))
