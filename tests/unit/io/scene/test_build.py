@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import tumble
+from tolerances import stored
 
 from . import BALL
 
@@ -27,7 +28,7 @@ def test_load_scene_builds_the_world(write_scene):
     assert list(world.body_shape) == [tumble.ShapeType.PLANE, tumble.ShapeType.SPHERE, tumble.ShapeType.BOX]
     assert world.body_mass[1] == 1.0
     assert world.body_inv_mass[2] == 0.0  # static box
-    np.testing.assert_array_equal(world.body_half_extents[2], [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(world.body_half_extents[2], stored([0.1, 0.2, 0.3]))  # as the world holds them
     assert world.metadata["path"] == str(path)
     assert world.metadata["camera"] == {"position": [3.0, -3.0, 2.0], "target": [0.0, 0.0, 0.5], "fov": 60.0}
 
