@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import tumble
+from tolerances import resolution
 from tumble.viewer import picking
 
 TETRA = np.array([[0.0, 0.0, 0.0], [0.4, 0.0, 0.0], [0.0, 0.4, 0.0], [0.0, 0.0, 0.4]])
@@ -160,10 +161,13 @@ def test_picking_hits_capsules_and_hulls_exactly():
     grab = picking.pick(world, (0.45, 0.0, 1.0), down)  # over the capsule's cap: hits its top at z = r
     assert grab is not None and grab.index == capsule
     centre = np.asarray(world.body_position)[capsule]
-    assert grab.distance == pytest.approx(1.0 - (centre[2] + math.sqrt(0.1**2 - 0.05**2)), abs=1e-9)
+    # the ray against the capsule's turned segment, in the world's precision: 8 ulps of the ray's length (1 m)
+    reach = 1.0 - (centre[2] + math.sqrt(0.1**2 - 0.05**2))
+    assert grab.distance == pytest.approx(reach, abs=resolution(1e-9, 1.0, 8))
     assert picking.pick(world, (0.0, 0.3, 1.0), down) is None  # inside the bound (0.5), beside the capsule
     # the hull (tetrahedron of edge 0.8 at the origin of its user frame, moved to z = 2)
     along = np.array([0.0, 1.0, 0.0])
     grab = picking.pick(world, (0.1, -5.0, 2.1), along)
-    assert grab is not None and grab.index == hull and grab.distance == pytest.approx(5.0, abs=1e-9)
+    assert grab is not None and grab.index == hull
+    assert grab.distance == pytest.approx(5.0, abs=resolution(1e-9, 5.0, 8))  # 8 ulps of the ray's length
     assert picking.pick(world, (0.7, -5.0, 2.7), along) is None  # inside its bounding box, outside the hull
