@@ -41,19 +41,38 @@ position = [1.5, -1.5, 1.0]
 target = [0, 0, 0.2]
 """
 DURATION = 0.25
-# [0, 0, 1e300] m/s: the kinetic energy overflows to inf, so that variant fails in the run itself
-VARY = {"world.seed": "1..2", "sphere[0].velocity": "[0, 0, 0], [0, 0, 1e300]"}
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
+def precision(request):
+    """The precision of the tests' worlds (`pytest --precision`, else Tumble's default), written into the
+    scene: the wedge's workers are other processes, and `tumble run` builds its world from the file,
+    so neither sees the per-test default that tests/conftest.py sets."""
+    return request.config.getoption("--precision") or tumble.precision.DEFAULT_PRECISION
+
+
+@pytest.fixture(scope="module")
+def fast(precision):
+    """1e300 m/s (1e30 in float32): a speed whose square overflows the precision's floats, so that
+    the kinetic energy is inf and the variant launched at it fails in the run itself."""
+    return 1e300 if precision == "float64" else 1e30
+
+
+@pytest.fixture(scope="module")
+def vary(fast):
+    """The varied values: two seeds, and the ball at rest or launched at `fast`."""
+    return {"world.seed": "1..2", "sphere[0].velocity": f"[0, 0, 0], [0, 0, {fast:.0e}]"}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, precision, vary):
     """The wedge run once on 2 workers: (scene path, output folder, table)."""
     root = tmp_path_factory.mktemp("wedge")
     scene = root / "balls.toml"
-    scene.write_text(SCENE, encoding="utf-8")
+    scene.write_text(SCENE.replace("[world]\n", f'[world]\nprecision = "{precision}"\n'), encoding="utf-8")
     out = root / "out"
     keep = ["record", "usd"] if _has_pxr() else ["record"]
-    table = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=2, keep=keep, progress=False)
+    table = tumble.wedge(scene, vary, out=out, duration=DURATION, workers=2, keep=keep, progress=False)
     return scene, out, table
 
 
@@ -72,7 +91,7 @@ def _variant(table, seed, diverging):
     raise AssertionError("variant not found")
 
 
-def test_manifest_has_one_row_per_variant(run):
+def test_manifest_has_one_row_per_variant(run, fast):
     """Write manifest.csv and .json with every varied value, the status and the summary figures."""
     _, out, table = run
     assert len(table) == 4
@@ -95,7 +114,7 @@ def test_manifest_has_one_row_per_variant(run):
         "state_hash",
     }
     meta = json.loads((out / "manifest.json").read_text())
-    assert meta["vary"] == {"world.seed": [1, 2], "sphere[0].velocity": [[0, 0, 0], [0, 0, 1e300]]}
+    assert meta["vary"] == {"world.seed": [1, 2], "sphere[0].velocity": [[0, 0, 0], [0, 0, fast]]}
     assert [r["status"] for r in meta["variants"]] == [r["status"] for r in rows]
     good = _variant(table, 1, False)
     assert good["status"] == "ok" and good["steps"] == 60
@@ -143,7 +162,7 @@ def test_variant_matches_plain_tumble_run(run, capsys):
     assert _variant(table, 1, False)["state_hash"] != _variant(table, 2, False)["state_hash"]
 
 
-def test_rerun_resumes(run):
+def test_rerun_resumes(run, vary):
     """Skip the variants done before; run only one whose result went missing (a crash or Ctrl-C)."""
     scene, out, table = run
     lost = _variant(table, 2, False)["variant"]
@@ -151,7 +170,7 @@ def test_rerun_resumes(run):
     (out / lost / "result.json").unlink()
     stamp = os.stat(out / kept / "result.json").st_mtime_ns
     keep = json.loads((out / kept / "result.json").read_text())["settings"]["keep"]
-    again = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
+    again = tumble.wedge(scene, vary, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
     assert os.stat(out / kept / "result.json").st_mtime_ns == stamp  # not run again
     assert (out / lost / "result.json").is_file()
     assert again["state_hash"] == table["state_hash"]
@@ -159,7 +178,7 @@ def test_rerun_resumes(run):
 
     # nothing left to do: no cluster is started, and the table is read back
     stamps = {p: os.stat(p).st_mtime_ns for p in out.glob("*/result.json")}
-    third = tumble.wedge(scene, VARY, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
+    third = tumble.wedge(scene, vary, out=out, duration=DURATION, workers=1, keep=keep, progress=False)
     assert {p: os.stat(p).st_mtime_ns for p in out.glob("*/result.json")} == stamps
     assert third["state_hash"] == table["state_hash"]
 
