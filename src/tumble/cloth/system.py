@@ -49,7 +49,7 @@ from ..launch import LaunchCache
 from ..model import Role, body_arrays, fields_of
 from ..real import float_t, vec3
 from ..shapes import ShapeType
-from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, host_view, numpy_dtype, readonly
+from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, cast, host_view, numpy_dtype, readonly
 from ..structs import cached_struct, fill_struct
 from . import attach, collide, grid, springs
 from .arrays import PARTICLE_FIELDS, TOPOLOGY, Limits, Particles, Springs, Stretch, Structural, Tethers
@@ -404,6 +404,25 @@ class ClothSystem:
         limited = structural if max_stretch is not None else structural[:0]
         triangles = grid.grid_triangles(nx, ny) + start
 
+        rows = {
+            **new,
+            "spring_ids": np.concatenate(ids) if ids else np.zeros((0, 2), np.int32),
+            "spring_rest_length": np.concatenate(rest) if rest else np.zeros(0),
+            "spring_stiffness": np.concatenate(stiff) if stiff else np.zeros(0),
+            "spring_damping": np.concatenate(damp) if damp else np.zeros(0),
+            "structural_ids": structural + start,
+            "structural_rest_length": structural_rest,
+            "stretch_ids": limited + start,
+            "stretch_limit": (1.0 + (max_stretch or 0.0)) * structural_rest[: len(limited)],
+            "triangles": triangles,
+        }
+        # a value the world's precision cannot hold (a stiffness of 1e39 in float32) is refused by name
+        # here, before anything of the cloth is added
+        floats = numpy_dtype(float_t)[0]
+        for name, values in rows.items():
+            if values.dtype.kind == "f":
+                cast(values, floats, name)
+
         cloth = Cloth(
             index=len(self.cloths),
             particle_start=start,
@@ -415,20 +434,7 @@ class ClothSystem:
             max_stretch=max_stretch,
         )
         self.cloths.append(cloth)
-        self._append(
-            {
-                **new,
-                "spring_ids": np.concatenate(ids) if ids else np.zeros((0, 2), np.int32),
-                "spring_rest_length": np.concatenate(rest) if rest else np.zeros(0),
-                "spring_stiffness": np.concatenate(stiff) if stiff else np.zeros(0),
-                "spring_damping": np.concatenate(damp) if damp else np.zeros(0),
-                "structural_ids": structural + start,
-                "structural_rest_length": structural_rest,
-                "stretch_ids": limited + start,
-                "stretch_limit": (1.0 + (max_stretch or 0.0)) * structural_rest[: len(limited)],
-                "triangles": triangles,
-            }
-        )
+        self._append(rows)
         return cloth.index
 
     def set_wind(

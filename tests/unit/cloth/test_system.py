@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 import tumble
-from tolerances import resolution
+from tolerances import is_float32, resolution
 from tumble.precision import kernels
 
 
@@ -85,10 +87,13 @@ def test_cloth_substeps_follow_stiffness():
     assert stiff.cloth.substeps_for(stiff.dt) > 4
 
 
-@pytest.mark.parametrize("springs", [{"stiffness": 1e300}, {"damping": 1e300}, {"stiffness": 1e12}])
+@pytest.mark.parametrize("springs", [{"stiffness": "huge"}, {"damping": "huge"}, {"stiffness": 1e12}])
 def test_springs_too_stiff_for_any_substep_are_refused_when_the_step_starts(springs):
     """Springs needing more than limits.MAX_CLOTH_SUBSTEPS cloth substeps in a step are a LimitError
-    naming the count and the limit (stiffness 1e300 asked for 1e150 substeps: the step never ended)."""
+    naming the count and the limit (stiffness 1e300 asked for 1e150 substeps: the step never ended).
+    "huge" is 1e300 in float64 and 1e37 in float32, the largest a world of each precision holds."""
+    huge = 1e37 if is_float32() else 1e300
+    springs = {key: huge if value == "huge" else value for key, value in springs.items()}
     world = make_world()
     world.add_cloth(resolution=(8, 8), **springs)
     with pytest.raises(tumble.limits.LimitError, match=r"^cloth stiffness and damping: .* the limit is 10,000"):
@@ -111,6 +116,20 @@ def test_a_particle_mass_that_vanishes_or_overflows_is_refused(keywords):
     with pytest.raises(ValueError, match=r"^cloth mass: .* kg each; the mass or areal_density and size"):
         world.add_cloth(resolution=(4, 4), **keywords)
     assert not world.has_cloth
+
+
+def test_a_spring_constant_a_float32_world_cannot_hold_is_refused_by_name():
+    """Stiffness or damping beyond float32's 3.4e38 is a ValueError naming the spring array and the
+    precision, as for bodies; before, NumPy warned of an overflow in the cast and the springs held inf."""
+    world = tumble.World(precision="float32")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for springs in ({"stiffness": 1e39}, {"damping": {"bend": 1e300}}):
+            with pytest.raises(ValueError, match=r"^spring_(stiffness|damping): .* does not fit a float32 world"):
+                world.add_cloth(resolution=(4, 4), **springs)
+            assert not world.has_cloth
+    world.add_cloth(resolution=(4, 4), stiffness=1e30)  # large, but held
+    assert world.has_cloth
 
 
 def test_apply_force_lasts_one_step():
