@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import tumble
-from tolerances import eps, resolution, stored
+from tolerances import resolution, stored
 from tumble import shapes
 
 from ..reference import quat_axis_angle, rotate
@@ -185,10 +185,10 @@ def test_box_capsule_across_an_edge():
     pairs, normals, depths, _ = contacts(w)
     assert depths == pytest.approx([0.005], abs=resolution(1e-7, 0.3, 16))
     # the segment runs parallel to the edge, so its distance from the box is flat along the 0.2 m
-    # over it: the golden-section search stops anywhere a comparison of distances cannot tell from
-    # the flat part, up to sqrt(2 eps) of the distance (0.095) past its end, and the normal tilts
-    # by as much along y (2e-8 in float64, 5e-4 in float32); the bound allows 3 times that
-    np.testing.assert_allclose(normals[0], [2**-0.5, 0, 2**-0.5], atol=max(1e-6, 3 * np.sqrt(2 * eps())))
+    # over it: golden section stopped up to sqrt(2 eps) of the distance past the flat part, and the
+    # normal tilted by as much along y (2e-8 in float64, 4e-4 in float32) until the segment point
+    # was projected back over the edge (`_nearest_on_segment`): now square to it but for rounding
+    np.testing.assert_allclose(normals[0], [2**-0.5, 0, 2**-0.5], atol=resolution(1e-6, 1.0, 16))
 
 
 @settings(max_examples=80, deadline=None)
