@@ -28,13 +28,32 @@ def pytest_addoption(parser):
     )
 
 
+#: folders (under tests/) whose tests run in both precisions when `--precision` names none: the
+#: numerics float32 must hold as float64 does (collision, the solvers, the cloth)
+BOTH_PRECISIONS = ("unit/collision", "unit/solver", "unit/cloth")
+TESTS = Path(__file__).resolve().parent
+
+
+def pytest_generate_tests(metafunc):
+    """Tests in `BOTH_PRECISIONS` run once in each precision (ids [float32], [float64]), unless marked
+    float64, run with `--precision`, or asking for `each_precision` themselves."""
+    if "_precision" not in metafunc.fixturenames or "each_precision" in metafunc.fixturenames:
+        return
+    if metafunc.config.getoption("--precision") is not None or metafunc.definition.get_closest_marker("float64"):
+        return
+    folder = Path(str(metafunc.definition.fspath)).resolve().parent.relative_to(TESTS).as_posix()
+    if any(folder == d or folder.startswith(d + "/") for d in BOTH_PRECISIONS):
+        metafunc.parametrize("_precision", ["float32", "float64"], indirect=True)
+
+
 @pytest.fixture(autouse=True)
 def _precision(request, monkeypatch):
     """`@pytest.mark.float64("why")`: the test's worlds default to float64, for bookkeeping that float32
     cannot keep (momentum or energy to ~1e-12). Every other test runs in Tumble's default precision,
-    or in the one `--precision` names (`pytest --precision float32 tests/physics`)."""
+    or in the one `--precision` names (`pytest --precision float32 tests/physics`), or in each
+    (`BOTH_PRECISIONS`)."""
     marker = request.node.get_closest_marker("float64")
-    precision = request.config.getoption("--precision")
+    precision = getattr(request, "param", None) or request.config.getoption("--precision")
     if marker is not None:
         if not (marker.args and isinstance(marker.args[0], str) and marker.args[0]):
             raise pytest.UsageError(f"{request.node.nodeid}: @pytest.mark.float64 needs a reason")

@@ -40,7 +40,8 @@ def _pairs_found(w) -> list[tuple[int, int]]:
 
 
 def _must_find(w) -> set[tuple[int, int]]:
-    x, v, r = w.body_position, w.body_velocity, w.body_radius
+    # the reference in float64 whatever the world's precision
+    x, v, r = (np.asarray(a, np.float64) for a in (w.body_position, w.body_velocity, w.body_radius))
     n = w.body_count
     need = set()
     for j in range(1, n):  # the ground plane (body 0): lowest point over the step
