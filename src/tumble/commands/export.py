@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from . import add_precision_argument
+
 HELP = "simulate a scene (or convert a recording .npz) and write a USD stage (.usd, .usda, .usdc, .usdz)"
 
 
@@ -43,6 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=None, metavar="N", help="replace the scene's [world] seed")
     parser.add_argument("--no-progress", action="store_true", help="do not show the progress bars")
+    add_precision_argument(parser)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -53,12 +56,13 @@ def main(args: argparse.Namespace) -> int:
     usd.check_output(args.output)
     source = args.source
     if Path(source).suffix == ".npz":
-        if args.seed is not None:
-            raise ValueError("--seed applies to scenes, not to recordings")
+        for option, value in (("--seed", args.seed), ("--precision", args.precision)):
+            if value is not None:
+                raise ValueError(f"{option} applies to scenes, not to recordings")
     else:
         from ..io.scene import load_scene
 
-        source = load_scene(source, seed=args.seed)
+        source = load_scene(source, seed=args.seed, precision=args.precision)
     out = usd.export(
         source,
         args.output,

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from . import add_precision_argument
+
 HELP = "render a scene to an MP4, a GIF or a folder of PNG frames, without a display"
 
 
@@ -47,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="draw the joints: rods from each body's centre to its anchors, a dot on each anchor",
     )
     parser.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    add_precision_argument(parser)
 
 
 def camera_for(world, args, aspect: float):
@@ -112,7 +115,7 @@ def main(args: argparse.Namespace) -> int:
     ctx = create_context()
     renderer = Renderer(ctx, width, height, samples=4)
     try:
-        world = tumble.load_scene(args.scene)
+        world = tumble.load_scene(args.scene, precision=args.precision)
         prepare_kernels(world.device, report=lambda line: print(line, file=sys.stderr, flush=True))
         _check_limits(args, world, duration, kind, width, height)
         camera = camera_for(world, args, width / height)

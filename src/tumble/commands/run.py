@@ -13,9 +13,9 @@ import time
 from .. import limits, snapshot
 from ..errors import TumbleError
 from ..io.atomic import check_output
-from ..precision import DEFAULT_PRECISION, PRECISIONS
 from ..progress import progress_bar
 from ..runtime import init_warp, prepare_kernels
+from . import add_precision_argument
 
 HELP = "simulate a scene headless and print a summary"
 
@@ -79,12 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="the Warp device to run the kernels on (default cpu)"
     )
-    parser.add_argument(
-        "--precision",
-        choices=PRECISIONS,
-        default=None,
-        help=f"replace the scene's [world] precision, the float type of the arrays and kernels (default {DEFAULT_PRECISION})",
-    )
+    add_precision_argument(parser)
 
 
 def _check_arguments(args: argparse.Namespace) -> None:

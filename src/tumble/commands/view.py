@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from .. import validate
+from . import add_precision_argument
 
 HELP = "open a scene in the interactive viewer (orbit, play, tune parameters live, record)"
 
@@ -41,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out-dir", default=".", metavar="DIR", help="folder for screenshots and videos (default: the current folder)"
     )
+    add_precision_argument(parser)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -52,7 +54,7 @@ def main(args: argparse.Namespace) -> int:
     scene = args.scene
     # load once before opening any window, so that a missing or broken scene is one line on
     # stderr (from the CLI), not a window that opens and fails
-    world = tumble.load_scene(scene)
+    world = tumble.load_scene(scene, precision=args.precision)
     # compile any kernel not yet cached now, saying so, rather than in the window's first step
     from ..runtime import prepare_kernels
 
@@ -62,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
 
     return run_viewer(
         world,
-        factory=lambda: tumble.load_scene(scene),
+        factory=lambda: tumble.load_scene(scene, precision=args.precision),
         title=Path(scene).stem,
         size=args.size,
         paused=args.paused,

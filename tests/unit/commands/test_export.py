@@ -162,3 +162,28 @@ def test_a_recording_exports_every_recorded_frame_by_default(recording, tmp_path
     stage = open_stage(tmp_path / "all.usda")
     assert stage.GetTimeCodesPerSecond() == 30
     assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == FRAMES - 1
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_cli_precision_replaces_the_scenes_and_is_refused_for_a_recording(
+    write_scene, recording, tmp_path, capsys, monkeypatch, precision
+):
+    """`export SCENE --precision P` simulates the scene in P; a recording was simulated already, so
+    `export RECORDING.npz --precision` is one line and exit 2, as --seed is."""
+    import tumble.io.scene as scenes
+
+    load = scenes.load_scene
+    made = []
+    monkeypatch.setattr(
+        scenes, "load_scene", lambda path, **overrides: made.append(load(path, **overrides)) or made[-1]
+    )
+    scene = write_scene(BALL)
+    argv = ["export", str(scene), "-o", str(tmp_path / "a.usda"), "--frames", "3", "--no-progress"]
+    assert main([*argv, "--precision", precision]) == 0
+    assert [w.precision for w in made] == [precision]
+    capsys.readouterr()
+    np.savez_compressed(tmp_path / "r.npz", **recording)
+    assert main(["export", str(tmp_path / "r.npz"), "-o", str(tmp_path / "b.usda"), "--precision", precision]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["tumble export: error: --precision applies to scenes, not to recordings"]
+    assert not (tmp_path / "b.usda").exists()

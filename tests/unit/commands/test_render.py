@@ -46,6 +46,20 @@ def test_render_writes_an_mp4(tmp_path, cli, scene):
     assert scene[0].time == pytest.approx(0.2, abs=scene[0].dt)
 
 
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_render_precision_replaces_the_scenes(tmp_path, cli, monkeypatch, precision):
+    """--precision builds the rendered world in that precision (as `tumble run --precision`)."""
+    load = tumble.load_scene
+    made = []
+    monkeypatch.setattr(
+        tumble, "load_scene", lambda path, **overrides: made.append(load(path, **overrides)) or made[-1]
+    )
+    out = tmp_path / "ball.gif"
+    argv = ["render", "bouncing_ball", "-o", str(out), "--duration", "0.1", "--fps", "10", "--size", "32x24"]
+    assert cli([*argv, "--no-progress", "--precision", precision]) == 0
+    assert out.is_file() and [w.precision for w in made] == [precision]
+
+
 def test_render_camera_options_override_the_scene(tmp_path, cli, scene, monkeypatch):
     """--camera-position/--camera-target/--fov win over the scene's [camera] table."""
     import tumble.io.video as video

@@ -88,6 +88,22 @@ def test_view_command_opens_the_viewer_on_the_loaded_scene(monkeypatch, tmp_path
     assert seen["rebuilt"] is not seen["world"]
 
 
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_view_command_precision_replaces_the_scenes(monkeypatch, tmp_path, precision):
+    """--precision builds the viewed world, and the one its reset rebuilds, in that precision (the
+    sample names none: it would be Tumble's default)."""
+    pytest.importorskip("PySide6")
+    import tumble.viewer
+
+    seen = {}
+    monkeypatch.setattr(
+        tumble.viewer, "run_viewer", lambda world, **kw: seen.update(world=world, again=kw["factory"]())
+    )
+    main = _view_only(monkeypatch)
+    assert main(["view", "bouncing_ball", "--precision", precision, "--out-dir", str(tmp_path)]) == 0
+    assert seen["world"].precision == seen["again"].precision == precision
+
+
 def test_view_command_ends_on_sigterm_without_a_traceback(tmp_path):
     """SIGTERM closes the viewer with status 143 and one line: it printed a traceback from a Qt slot and ran on."""
     pytest.importorskip("PySide6")
