@@ -61,3 +61,10 @@ def rounding() -> float:
     """Relative bound on rounding accumulated over ~10^4 substeps: 1e-12 in float64 (~4,500 ulps at 1),
     as many ulps of the precision the test's worlds run in."""
     return 1e-12 * eps() / precision.types_of("float64").eps
+
+
+def in_float32(bound: float, term: float) -> float:
+    """`bound` as written in float64 (never loosened there); in float32 the larger of it and `term`, a
+    float32-only allowance (rounding accumulated over many substeps, or the float32 solver's documented
+    tolerances) whose float64 counterpart may exceed a bound written as "exact up to rounding"."""
+    return max(bound, term) if is_float32() else bound

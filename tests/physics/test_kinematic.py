@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import tumble
+from tolerances import resolution
 from tumble import BodyKind
 
 
@@ -36,7 +37,9 @@ def test_a_kinematic_box_pushes_a_sphere_as_an_infinite_mass(e):
     assert box.kind == BodyKind.KINEMATIC and w.body_mass[box] == 0.0 and w.body_inv_mass[box] == 0.0
     w.run(1.0)
     t = w.time
-    np.testing.assert_allclose(box.position, (t, 0, 0), rtol=0, atol=1e-12)
+    # x += V h in each of the run's substeps: up to an ulp of x (<= t) per substep
+    n = w.step_count * w.substeps
+    np.testing.assert_allclose(box.position, (t, 0, 0), rtol=0, atol=resolution(1e-12, t, n))
     np.testing.assert_array_equal(box.velocity, (1, 0, 0))
     np.testing.assert_array_equal(box.angular_velocity, (0, 0, 0))
     # ball: at rest until the box front (x = V t + 0.1) meets it (x = 0.4) at t = 0.3, then (1 + e) V
@@ -59,7 +62,9 @@ def test_a_kinematic_box_pushes_a_ball_along_the_floor():
     for _ in range(480):
         w.step()
         gaps.append(ball.position[0] - box.position[0] - 0.15)  # ball surface - box face
-    np.testing.assert_allclose(box.position, (0.5 * w.time, 0, 0.1), rtol=0, atol=1e-12)
+    # x += V h in each substep: up to an ulp of x (<= 0.5 * time) per substep; z = 0.1 as stored (within an ulp)
+    n = w.step_count * w.substeps
+    np.testing.assert_allclose(box.position, (0.5 * w.time, 0, 0.1), rtol=0, atol=resolution(1e-12, 0.5 * w.time, n))
     assert min(gaps) > -1e-4  # never pushed into the box by more than 0.1 mm
     assert max(gaps[240:]) < 1e-3  # kept touching the box once reached (at t = 0.3 s)
     assert ball.velocity[0] == pytest.approx(0.5, abs=1e-3)
@@ -83,7 +88,9 @@ def test_a_spinning_kinematic_body_turns_at_its_angular_velocity():
     spinner = w.add_box(position=(0, 0, 0), half_extents=(0.5, 0.1, 0.1), kinematic=True, angular_velocity=(0, 0, 2))
     w.run(1.0)
     angle = 2.0 * w.time
-    np.testing.assert_allclose(spinner.orientation, (0, 0, math.sin(angle / 2), math.cos(angle / 2)), atol=1e-12)
+    # one turn exp(w h / 2) q per substep, each rounding the unit quaternion by up to an ulp of 1
+    turned = resolution(1e-12, 1.0, w.step_count * w.substeps)
+    np.testing.assert_allclose(spinner.orientation, (0, 0, math.sin(angle / 2), math.cos(angle / 2)), atol=turned)
 
 
 def test_kinematic_targets_are_reached_in_one_step():
@@ -94,8 +101,10 @@ def test_kinematic_targets_are_reached_in_one_step():
     for position, orientation in targets:
         w.set_kinematic_target(arm, position=position, orientation=orientation)
         w.step()
-        np.testing.assert_allclose(arm.position, position, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(arm.orientation, orientation, rtol=0, atol=1e-12)
+        # v = (x* - x) / dt, then x += v h in each substep: an ulp of |x| per substep, two more for v
+        reach = resolution(1e-12, np.linalg.norm(position), w.substeps + 2)
+        np.testing.assert_allclose(arm.position, position, rtol=0, atol=reach)
+        np.testing.assert_allclose(arm.orientation, orientation, rtol=0, atol=resolution(1e-12, 1.0, w.substeps + 2))
 
 
 def test_a_kinematic_paddle_driven_each_step_sweeps_balls_aside():
