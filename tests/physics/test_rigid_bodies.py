@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import tumble
+from tolerances import in_float32, ulps
 from tumble.npmath import quat_to_matrix
 
 G = 9.81
@@ -28,9 +29,12 @@ def test_torque_free_spin_conserves_angular_momentum():
     e0 = w.kinetic_energy()
     w0 = w.body_angular_velocity[0].copy()
     w.run(5.0)
-    # L is carried exactly across each rotation, so only rounding remains
-    np.testing.assert_allclose(angular_momentum(w, 0), L0, rtol=1e-9, atol=1e-12)
-    assert np.linalg.norm(w.body_orientation[0]) == pytest.approx(1.0, abs=1e-12)
+    # L is carried exactly across each rotation, so only rounding remains: in float32 up to an ulp of |L| per
+    # substep, n = 9,600 (measured: 9.3e-6 of L, against 1.1e-3 allowed); |q| normalised: a few ulps of 1
+    n = w.step_count * w.substeps
+    kept = in_float32(1e-9, ulps(1.0, n))
+    np.testing.assert_allclose(angular_momentum(w, 0), L0, rtol=kept, atol=1e-12)
+    assert np.linalg.norm(w.body_orientation[0]) == pytest.approx(1.0, abs=in_float32(1e-12, ulps(1.0, 4)))
     # the spin axis moved (this is not a principal axis), the energy stayed within O(h)
     assert np.linalg.norm(w.body_angular_velocity[0] - w0) > 0.1
     h = w.dt / w.substeps
