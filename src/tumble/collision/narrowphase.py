@@ -53,6 +53,9 @@ _COPLANAR = wp.constant(float_t(1.0 - 1.0e-6))
 #: depths of mesh edges this close (relative to the body's bound) are equals: rounding, not geometry
 #: (64 ulps of the precision: a ridge's edge and a diagonal ending on it, `collide_mesh_edges`)
 _EDGE_TIE = wp.constant(float_t(64.0 * TYPES.eps))
+#: a distance computed from coordinates of size s is known to about 16 ulps of s: what `_first_touch`
+#: counts as touching (a ball resting at overlap 0 on one block touches the flush block it rolls onto)
+_TOUCH_ROUNDING = wp.constant(float_t(16.0 * TYPES.eps))
 _CONCAVE_TOLERANCE = wp.constant(float_t(1.0e-6))
 _GHOST_STEP = wp.constant(float_t(GHOST_STEP))
 
@@ -740,17 +743,25 @@ def _first_touch(p0: vec3, u: vec3, dt: float_t, r: float_t, H: Hulls, h: int, o
     ahead = float_t(2.0) * dt
     if gap <= _ZERO or gap > max_sep or wp.length(u) * ahead < gap:
         return _ZERO
+    # touching: within the rounding of the distances, which are worked from coordinates of |p0|
+    # (a ball resting at overlap 0 rolls onto a flush block at distance r from it: in float32 the
+    # block frame's 2.5 m put it 2.4e-8 over, it passed by, and the edge's normal made it hop 4.7 mm);
+    # then the first point as near as the path comes (on the block's face, not before its edge)
+    touch = r + _TOUCH_ROUNDING * (wp.length(p0) + wp.length(u) * ahead + r)
+    target = r
     end = ahead
     if _convex_distance(p0 + u * ahead, H, h, 0, one, hb) > r:
         lo, hi = _nearest_along(p0, u, _ZERO, ahead, 30, H, h, 0, one, hb)
         end = (lo + hi) * float_t(0.5)
-        if _convex_distance(p0 + u * end, H, h, 0, one, hb) > r:
+        nearest = _convex_distance(p0 + u * end, H, h, 0, one, hb)
+        if nearest > touch:
             return _ZERO  # passes by
+        target = wp.max(r, nearest)
     lo = _ZERO
     hi = end
     for _k in range(30):
         mid = (lo + hi) * float_t(0.5)
-        if _convex_distance(p0 + u * mid, H, h, 0, one, hb) > r:
+        if _convex_distance(p0 + u * mid, H, h, 0, one, hb) > target:
             lo = mid
         else:
             hi = mid
