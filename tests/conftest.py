@@ -28,21 +28,37 @@ def pytest_addoption(parser):
     )
 
 
-#: folders (under tests/) whose tests run in both precisions when `--precision` names none: the
-#: numerics float32 must hold as float64 does (collision, the solvers, the cloth)
-BOTH_PRECISIONS = ("unit/collision", "unit/solver", "unit/cloth")
+#: folders and files (under tests/) whose tests run in both precisions when `--precision` names none:
+#: the numerics float32 must hold as float64 does (collision, the solvers, the cloth) and the physics
+#: files that pass in float32 (test_independent_checks, test_stacks and test_cloth_coupling still
+#: fail 8 tests there: friction and spring loads short by rounding of positions past 1 m, a tower's
+#: sag, a drape; `pytest --precision float32 tests/physics` lists them)
+BOTH_PRECISIONS = (
+    "unit/collision",
+    "unit/solver",
+    "unit/cloth",
+    *(
+        f"physics/test_{name}.py"
+        for name in (
+            "capsules", "cloth", "cloth_mesh_features", "convex_bodies", "free_rotation", "joints",
+            "kinematic", "meshes", "mixed_scene", "particles", "restitution", "rigid_bodies",
+        )
+    ),
+)  # fmt: skip
 TESTS = Path(__file__).resolve().parent
 
 
 def pytest_generate_tests(metafunc):
     """Tests in `BOTH_PRECISIONS` run once in each precision (ids [float32], [float64]), unless marked
-    float64, run with `--precision`, or asking for `each_precision` themselves."""
+    float64 or slow, run with `--precision`, or asking for `each_precision` themselves."""
     if "_precision" not in metafunc.fixturenames or "each_precision" in metafunc.fixturenames:
         return
     if metafunc.config.getoption("--precision") is not None or metafunc.definition.get_closest_marker("float64"):
         return
-    folder = Path(str(metafunc.definition.fspath)).resolve().parent.relative_to(TESTS).as_posix()
-    if any(folder == d or folder.startswith(d + "/") for d in BOTH_PRECISIONS):
+    if metafunc.definition.get_closest_marker("slow"):
+        return  # the long runs stay one each (in float32: `-m slow --precision float32`)
+    path = Path(str(metafunc.definition.fspath)).resolve().relative_to(TESTS).as_posix()
+    if any(path == d or path.startswith(d + "/") for d in BOTH_PRECISIONS):
         metafunc.parametrize("_precision", ["float32", "float64"], indirect=True)
 
 
