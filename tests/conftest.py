@@ -49,16 +49,17 @@ TESTS = Path(__file__).resolve().parent
 
 
 def pytest_generate_tests(metafunc):
-    """Tests in `BOTH_PRECISIONS` run once in each precision (ids [float32], [float64]), unless marked
-    float64 or slow, run with `--precision`, or asking for `each_precision` themselves."""
-    if "_precision" not in metafunc.fixturenames or "each_precision" in metafunc.fixturenames:
+    """Tests in `BOTH_PRECISIONS`, and tests marked `both_precisions` elsewhere, run once in each
+    precision (ids [float32], [float64]), unless marked float64 or slow, or run with `--precision`."""
+    if "_precision" not in metafunc.fixturenames:
         return
     if metafunc.config.getoption("--precision") is not None or metafunc.definition.get_closest_marker("float64"):
         return
     if metafunc.definition.get_closest_marker("slow"):
         return  # the long runs stay one each (in float32: `-m slow --precision float32`)
     path = Path(str(metafunc.definition.fspath)).resolve().relative_to(TESTS).as_posix()
-    if any(path == d or path.startswith(d + "/") for d in BOTH_PRECISIONS):
+    listed = any(path == d or path.startswith(d + "/") for d in BOTH_PRECISIONS)
+    if listed or metafunc.definition.get_closest_marker("both_precisions"):
         metafunc.parametrize("_precision", ["float32", "float64"], indirect=True)
 
 
@@ -78,16 +79,6 @@ def _precision(request, monkeypatch):
         import tumble.precision
 
         monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", precision)
-
-
-@pytest.fixture(params=["float32", "float64"])
-def each_precision(request, monkeypatch):
-    """Run the test once in each precision (its worlds default to it, whatever `--precision` says):
-    for numerics float32 must hold as float64 does, in the default run too. Returns the precision."""
-    import tumble.precision
-
-    monkeypatch.setattr(tumble.precision, "DEFAULT_PRECISION", request.param)
-    return request.param
 
 
 @pytest.fixture

@@ -271,7 +271,7 @@ def test_a_block_slides_across_the_seam_of_two_coplanar_blocks_as_on_one(body, f
     assert max(z) <= 2 * give and min(z) >= -2 * give
 
 
-@pytest.mark.usefixtures("each_precision")
+@pytest.mark.both_precisions
 @pytest.mark.parametrize("rate", [240, 60])
 @pytest.mark.parametrize(
     "body, floor", [("sphere", "box"), ("sphere", "hull"), ("capsule", "box"), ("capsule", "hull")]

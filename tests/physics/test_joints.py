@@ -338,7 +338,6 @@ def test_fixed_joint_holds_a_cantilever():
 LIGHT_BOB = 0.02  # radius [m] of a 1 kg sphere on a 1 m arm
 
 
-@pytest.mark.usefixtures("each_precision")
 def test_fixed_joint_holds_a_light_body_far_from_its_anchor():
     """A 1 kg sphere of r = 2 cm welded to the world 1 m from its centre hangs at the soft joint's
     stretch under m g, g h^2 / (pi / 2)^2 (1 um; see the module's note on sag), and does not turn.
@@ -354,7 +353,6 @@ def test_fixed_joint_holds_a_light_body_far_from_its_anchor():
     assert np.abs(world.body_angular_velocity[bob.index]).max() < 1e-6
 
 
-@pytest.mark.usefixtures("each_precision")
 def test_hinge_keeps_a_light_bob_in_its_plane():
     """A hinged bob pushed across the hinge plane at 1 m/s stays in it: the push is taken by the
     first substep's rows, so the bob strays less than a tenth of one substep's travel, v h / 10.
@@ -367,7 +365,6 @@ def test_hinge_keeps_a_light_bob_in_its_plane():
     assert np.abs(across).max() < 1.0 * DT / 8 / 10
 
 
-@pytest.mark.usefixtures("each_precision")
 def test_hinge_limit_stops_a_light_bob():
     """A bob of r = 2 cm on a 1 m arm, released level, swings down onto a 45 degree limit and stays
     there: the limit stops the whole pendulum (effective moment I + m L^2), inelastically, and it
@@ -395,7 +392,6 @@ def test_hinge_limit_stops_a_light_bob():
     assert world.joint_error.max() < 1e-5
 
 
-@pytest.mark.usefixtures("each_precision")
 def test_hinge_motor_swings_a_light_bob_at_its_torque():
     """A 1 N m motor swings a bob of r = 2 cm on a 1 m arm (no gravity) at alpha = 1 / (I + m L^2)
     up to its target 2 rad/s, then holds it: the motor drives the whole pendulum. (With the bob's

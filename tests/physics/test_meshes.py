@@ -124,7 +124,6 @@ def test_box_landing_flat_on_a_flat_grid_mesh_bounces_as_on_a_plane(corner):
     assert np.abs(mesh[:, :3] - plane[:, :3]).max() <= 1e-3
 
 
-@pytest.mark.usefixtures("each_precision")
 def test_box_lying_across_a_tessellated_ridge_rests_level():
     """A box lowered flat onto a roof's ridge (z = -0.3 |x|, a grid of 0.02 m cells: the ridge is 100
     collinear mesh edges) rests on the whole ridge line under it, level.

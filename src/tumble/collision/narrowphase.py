@@ -743,18 +743,17 @@ def _first_touch(p0: vec3, u: vec3, dt: float_t, r: float_t, H: Hulls, h: int, o
     ahead = float_t(2.0) * dt
     if gap <= _ZERO or gap > max_sep or wp.length(u) * ahead < gap:
         return _ZERO
-    # touching: within the rounding of the distances, which are worked from coordinates of |p0|
-    # (a ball resting at overlap 0 rolls onto a flush block at distance r from it: in float32 the
-    # block frame's 2.5 m put it 2.4e-8 over, it passed by, and the edge's normal made it hop 4.7 mm);
-    # then the first point as near as the path comes (on the block's face, not before its edge)
-    touch = r + _TOUCH_ROUNDING * (wp.length(p0) + wp.length(u) * ahead + r)
     target = r
     end = ahead
     if _convex_distance(p0 + u * ahead, H, h, 0, one, hb) > r:
         lo, hi = _nearest_along(p0, u, _ZERO, ahead, 30, H, h, 0, one, hb)
         end = (lo + hi) * float_t(0.5)
         nearest = _convex_distance(p0 + u * end, H, h, 0, one, hb)
-        if nearest > touch:
+        # touching: within the rounding of the distances, which are worked from coordinates of |p0|
+        # (a ball resting at overlap 0 rolls onto a flush block at distance r from it: in float32 the
+        # block frame's 2.5 m put it 2.4e-8 over, it passed by, and the edge's normal made it hop
+        # 4.7 mm); then the first point as near as the path comes (on the face, not before the edge)
+        if nearest > r + _TOUCH_ROUNDING * (wp.length(p0) + wp.length(u) * ahead + r):
             return _ZERO  # passes by
         target = wp.max(r, nearest)
     lo = _ZERO
