@@ -40,6 +40,9 @@ from ..solver.rigid import inv_inertia_times, inv_inertia_world
 from ..structs import array_struct, cached_struct
 from .arrays import Particles
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 #: the arrays of the body pins, one row per pin (`BodyPins.particle`, `.body`, `.local`)
 PIN_FIELDS = {
     "particle": wp.int32,  # the pinned particle

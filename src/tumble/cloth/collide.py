@@ -59,6 +59,9 @@ from ..solver.rigid import inv_inertia_times
 from ..structs import cached_struct
 from .arrays import Limits, Particles, Tethers, corners
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 PLANE = wp.constant(int(ShapeType.PLANE))
 SPHERE = wp.constant(int(ShapeType.SPHERE))
 BOX = wp.constant(int(ShapeType.BOX))

@@ -24,6 +24,9 @@ from ..launch import LaunchCache, each_end, launch_each, vector
 from ..real import float_t, vec3
 from .arrays import Particles, Springs, Stretch, Structural, Tethers
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.kernel
 def _spring_forces(particles: Particles, springs: Springs, serial: int):

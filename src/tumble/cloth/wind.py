@@ -39,6 +39,9 @@ from ..real import float_t, vec3
 from ..structs import array_struct
 from .arrays import Particles, corners
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 #: classes without kernels that the float32 copy of this module shares (tumble.precision)
 __shared__ = ("Wind",)
 

@@ -45,6 +45,9 @@ from ..shapes import ShapeType
 from ..state import host_values, host_view
 from .hashgrid import Grid, HashGrid, cell_hash, cell_of
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 #: extra swept radius [m] so that resting neighbours stay paired
 MARGIN = 0.002
 #: the fat list's slack, as a fraction of each body's bound radius (besides another step's motion):

@@ -26,6 +26,9 @@ from ..launch import LaunchCache, launch
 from ..real import float_t, vec3
 from ..structs import cached_struct
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 #: hash table slots per point (a power of two): flat point sets fill a quarter of each block's slots
 TABLE_LOAD = 4
 

@@ -74,6 +74,9 @@ from ..state import ArraySet, host_values
 from ..structs import array_struct, fill_struct
 from .rigid import add_to_velocity, inv_inertia_times, inv_inertia_world, safe_inverse
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 vec4 = wp.types.vector(length=4, dtype=float_t)
 
 #: contact stiffness as a fraction of the substep rate (1/8: stiff, yet calm in tall stacks;

@@ -27,6 +27,9 @@ from ..model import body_struct
 from ..real import BodyArrays, float_t, quat, quatw, vec3, vec3w, wide_t
 from .rigid import inv_inertia_times
 
+# no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.func
 def _velocity(i: int, b: BodyArrays, gravity: vec3, h: float_t, use_warm: int):
