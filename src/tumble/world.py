@@ -580,9 +580,9 @@ class World:
         """Pin cloth particles (indices into `world.cloth`'s arrays) to a body where they are now: they
         follow it and pull on it (two-way). Same as `world.cloth.pin_to_body(particles, body)`.
 
-        A dynamic body that hangs on cloth needs world substeps of 1/180 s or shorter (the default is
-        1/1920 s; at dt = 1/60 s at least 3 substeps): with longer ones the cloth's pull on it grows
-        every step until the state is not finite (docs/design.md, "Cloth with bodies")."""
+        Share a body's load over many pins (a bar along a cloth's edge): a dynamic body hung from one
+        pin, or a few, much heavier or lighter than their particles, is not held stably and can
+        diverge (docs/design.md, "Cloth with bodies")."""
         row = self._row(body)
         b = self.bodies
         self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
