@@ -822,10 +822,13 @@ class ClothSystem:
             bad = int(np.nonzero(~np.isfinite(speed2))[0][0])
             cloth = next(c for c in self.cloths if c.particle_start <= bad < c.particle_start + c.particle_count)
             j, i = divmod(bad - cloth.particle_start, cloth.nx)
+            # a body hung from one pin or a few diverges whatever the substeps (docs/design.md, "Cloth with bodies")
+            remedy = "lower its stiffness or set world.cloth.substeps higher"
+            if self.body_pins.count:
+                remedy += ", and spread the load of bodies pinned to it over more pins"
             raise SimulationError(
                 f"velocity of cloth {cloth.index} particle {bad} (grid point i = {i}, j = {j}) is not finite at "
-                f"t = {time:.6g} s (step {step}); the cloth diverged: lower its stiffness "
-                f"or set world.cloth.substeps higher"
+                f"t = {time:.6g} s (step {step}); the cloth diverged: {remedy}"
             )
 
         # self-collision, a Verlet list: the pairs closer than their thickness + margin; two
