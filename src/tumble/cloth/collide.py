@@ -83,6 +83,40 @@ class Near:
     h: float_t  # the substep [s]
     taut: float_t  # a tether holds its particle from taut x its limit on (`collide_bodies`)
     strict: int  # 1: particles give way only within their slack (`collide_bodies`)
+    # per particle: the body row it does not touch (-1: none; empty: no body pins): its pin's, or that
+    # of a pin one structural spring away (`shielded_bodies`)
+    shield: wp.array(dtype=wp.int32)
+
+
+@wp.func
+def _shielded(near: Near, p: int, b: int):
+    """Whether particle p skips body row b: it is pinned to b, or next to a particle pinned to b."""
+    return near.shield.shape[0] > 0 and near.shield[p] == b
+
+
+def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, limited: np.ndarray) -> np.ndarray:
+    """Per particle, the body row whose contacts it skips, (count,) int32, -1 for none.
+
+    A body pin holds its particle on (or in) its body, and the stretch limit holds the particle's
+    grid neighbours within a structural spring of it: pushed out of that body they would fight the pin
+    every substep, which made a sphere hung from a cloth's corner diverge (the triangles round the
+    pin cannot leave a sphere whose centre holds it) and a box pinned by the middle of its top
+    face gain joules. So a pinned particle and the particles one structural spring from it do not
+    touch the pin's body (as bodies joined by a joint do not collide); every other particle does.
+
+    Args:
+        count: particles.
+        pin_particle, pin_body: the body pins' particles and body rows, (k,) each.
+        limited: the structural springs' particles, (s, 2).
+    """
+    pinned = np.full(count, -1, dtype=np.int32)
+    pinned[pin_particle] = pin_body
+    shield = np.full(count, -1, dtype=np.int32)
+    for end in (0, 1):
+        a, other = limited[:, end], limited[:, 1 - end]
+        shield[other[pinned[a] >= 0]] = pinned[a[pinned[a] >= 0]]
+    shield[pin_particle] = pin_body
+    return shield
 
 
 @wp.func
@@ -358,7 +392,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             b = near.candidates[k % count]
             dynamic_pass = k >= count
             k += 1
-            if (bodies.inv_mass[b] > zero) != dynamic_pass:
+            if (bodies.inv_mass[b] > zero) != dynamic_pass or _shielded(near, p, b):
                 continue
             c = bodies.position[b]
             q = bodies.orientation[b]
@@ -558,6 +592,8 @@ def _catch_small_spheres(
             b = near.candidates[k]
             r = bodies.radius[b]
             if bodies.shape[b] != SPHERE or r >= edge:
+                continue
+            if _shielded(near, i0, b) or _shielded(near, i1, b) or _shielded(near, i2, b):
                 continue
             c = bodies.position[b]
             a0 = x[i0]
@@ -775,6 +811,8 @@ def _collide_features(
             shape = bodies.shape[b]
             if shape != MESH and (shape != BOX or bodies.inv_mass[b] > zero):
                 continue
+            if _shielded(near, i0, b) or _shielded(near, i1, b) or _shielded(near, i2, b):
+                continue
             c = bodies.position[b]
             q = bodies.orientation[b]
             mu = wp.sqrt(mu_cloth * bodies.friction[b])
@@ -963,7 +1001,9 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
     return np.nonzero(near)[0].astype(np.int32)
 
 
-def near_bodies(candidates, bodies, hulls, meshes, counts, h, *, taut: float = 0.97, strict: bool = False) -> Near:
+def near_bodies(
+    candidates, bodies, hulls, meshes, counts, h, shield, *, taut: float = 0.97, strict: bool = False
+) -> Near:
     """The bodies the cloth may touch this step, as the contact kernels take them.
 
     Args:
@@ -974,6 +1014,7 @@ def near_bodies(candidates, bodies, hulls, meshes, counts, h, *, taut: float = 0
         counts: per body row, the particles that touched it in the previous pass and (zeroed before
             each pass) in this one, two arrays of shape (n,) int32.
         h: substep [s].
+        shield: per particle, the body row it does not touch, (P,) int32, or empty (`shielded_bodies`).
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
             chatter at ~0.2 m/s; with the ramp a box in a hammock settles to ~0.02 m/s).
@@ -985,6 +1026,7 @@ def near_bodies(candidates, bodies, hulls, meshes, counts, h, *, taut: float = 0
     near.bodies, near.hulls, near.meshes, near.candidates = bodies, hulls, meshes, candidates
     near.contacts_prev, near.contacts_next = counts
     near.h, near.taut, near.strict = float_t(h), float_t(taut), int(strict)
+    near.shield = shield
     return near
 
 

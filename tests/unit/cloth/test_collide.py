@@ -122,3 +122,18 @@ def test_separate_pairs_pushes_a_listed_pair_to_its_thickness_by_inverse_mass():
     assert out[1, 0] - out[0, 0] == pytest.approx(0.03, abs=1e-15)
     assert -out[0, 0] == pytest.approx(0.005, abs=1e-15) and out[1, 0] - 0.01 == pytest.approx(0.015, abs=1e-15)
     assert np.array_equal(out[2], [5.0, 0.0, 0.0])  # past the count: not read
+
+
+def test_shielded_bodies_are_the_pins_bodies_at_and_next_to_the_pins():
+    """A 4 x 3 grid (rows of 4) with particle 5 pinned to body row 7 and particle 11 to body row 2: 5 and its
+    four grid neighbours skip body 7, 11 and its two skip body 2, the rest touch everything (-1)."""
+    nx, ny = 4, 3
+    index = np.arange(nx * ny).reshape(ny, nx)
+    springs = np.vstack([np.column_stack([index[:, :-1].ravel(), index[:, 1:].ravel()]),
+                         np.column_stack([index[:-1, :].ravel(), index[1:, :].ravel()])])  # fmt: skip
+    shield = collide.shielded_bodies(nx * ny, np.array([5, 11]), np.array([7, 2]), springs)
+    expected = np.full(nx * ny, -1)
+    expected[[5, 4, 6, 1, 9]] = 7
+    expected[[11, 10, 7]] = 2
+    assert shield.dtype == np.int32 and shield.tolist() == expected.tolist()
+    assert collide.shielded_bodies(3, np.zeros(0, np.int32), np.zeros(0, np.int32), springs[:0]).tolist() == [-1] * 3
