@@ -172,6 +172,31 @@ def sum_pin_load(pins, force, particles: Particles, gravity, total, h, *, cache:
         )
 
 
+def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, limited: np.ndarray) -> np.ndarray:
+    """Per particle, the body row whose contacts it skips, (count,) int32, -1 for none.
+
+    A body pin holds its particle on (or in) its body, and the stretch limit holds the particle's
+    grid neighbours within a structural spring of it: pushed out of that body they would fight the pin
+    every substep, which made a sphere hung from a cloth's corner diverge (the triangles round the
+    pin cannot leave a sphere whose centre holds it) and a box pinned by the middle of its top
+    face gain joules. So a pinned particle and the particles one structural spring from it do not
+    touch the pin's body (as bodies joined by a joint do not collide); every other particle does.
+
+    Args:
+        count: particles.
+        pin_particle, pin_body: the body pins' particles and body rows, (k,) each.
+        limited: the structural springs' particles, (s, 2).
+    """
+    pinned = np.full(count, -1, dtype=np.int32)
+    pinned[pin_particle] = pin_body
+    shield = np.full(count, -1, dtype=np.int32)
+    for end in (0, 1):
+        a, other = limited[:, end], limited[:, 1 - end]
+        shield[other[pinned[a] >= 0]] = pinned[a[pinned[a] >= 0]]
+    shield[pin_particle] = pin_body
+    return shield
+
+
 class BodyPins:
     """Particles pinned to points of bodies (rows of the world's body arrays).
 
@@ -188,6 +213,10 @@ class BodyPins:
     order: wp.array | None = None
     start: wp.array | None = None
     _groups: tuple | None = None
+    # per particle, the body row it does not touch, and the pins it was made from (`shielded`); left out of
+    # snapshots (`snapshot.py`), made again from the pins
+    _shield: tuple | None = None
+    SNAPSHOT_CACHES = frozenset({"_shield"})
 
     def __init__(self, device: str):
         self.device = device
@@ -230,6 +259,18 @@ class BodyPins:
         start = np.flatnonzero(np.r_[True, bodies[1:] != bodies[:-1]]) if len(order) else np.zeros(0, np.int64)
         self.order = wp.array(order.astype(np.int32), dtype=wp.int32, device=self.device)
         self.start = wp.array(np.r_[start, len(order)].astype(np.int32), dtype=wp.int32, device=self.device)
+
+    def shielded(self, count: int, structural) -> wp.array:
+        """Per particle of `count`, the body row it does not touch (`shielded_bodies`, from the structural
+        springs' particles (s, 2) `structural`), (count,) int32; empty without pins. Made again only when
+        the pins, their body rows or the particle count changed."""
+        key = (count, self._particle.tobytes(), self._body.tobytes())
+        if self._shield is None or self._shield[1] != key:
+            rows = np.zeros(0, dtype=np.int32)
+            if self.count:
+                rows = shielded_bodies(count, self._particle, self._body, structural)
+            self._shield = (wp.array(rows, dtype=wp.int32, device=self.device), key)
+        return self._shield[0]
 
     def _struct(self) -> Pins:
         """The pin arrays as the kernels take them, built again only when the arrays were."""

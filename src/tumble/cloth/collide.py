@@ -84,7 +84,7 @@ class Near:
     taut: float_t  # a tether holds its particle from taut x its limit on (`collide_bodies`)
     strict: int  # 1: particles give way only within their slack (`collide_bodies`)
     # per particle: the body row it does not touch (-1: none; empty: no body pins): its pin's, or that
-    # of a pin one structural spring away (`shielded_bodies`)
+    # of a pin one structural spring away (`attach.shielded_bodies`)
     shield: wp.array(dtype=wp.int32)
 
 
@@ -92,31 +92,6 @@ class Near:
 def _shielded(near: Near, p: int, b: int):
     """Whether particle p skips body row b: it is pinned to b, or next to a particle pinned to b."""
     return near.shield.shape[0] > 0 and near.shield[p] == b
-
-
-def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, limited: np.ndarray) -> np.ndarray:
-    """Per particle, the body row whose contacts it skips, (count,) int32, -1 for none.
-
-    A body pin holds its particle on (or in) its body, and the stretch limit holds the particle's
-    grid neighbours within a structural spring of it: pushed out of that body they would fight the pin
-    every substep, which made a sphere hung from a cloth's corner diverge (the triangles round the
-    pin cannot leave a sphere whose centre holds it) and a box pinned by the middle of its top
-    face gain joules. So a pinned particle and the particles one structural spring from it do not
-    touch the pin's body (as bodies joined by a joint do not collide); every other particle does.
-
-    Args:
-        count: particles.
-        pin_particle, pin_body: the body pins' particles and body rows, (k,) each.
-        limited: the structural springs' particles, (s, 2).
-    """
-    pinned = np.full(count, -1, dtype=np.int32)
-    pinned[pin_particle] = pin_body
-    shield = np.full(count, -1, dtype=np.int32)
-    for end in (0, 1):
-        a, other = limited[:, end], limited[:, 1 - end]
-        shield[other[pinned[a] >= 0]] = pinned[a[pinned[a] >= 0]]
-    shield[pin_particle] = pin_body
-    return shield
 
 
 @wp.func
@@ -1014,7 +989,7 @@ def near_bodies(
         counts: per body row, the particles that touched it in the previous pass and (zeroed before
             each pass) in this one, two arrays of shape (n,) int32.
         h: substep [s].
-        shield: per particle, the body row it does not touch, (P,) int32, or empty (`shielded_bodies`).
+        shield: per particle, the body row it does not touch, (P,) int32, or empty (`attach.shielded_bodies`).
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
             chatter at ~0.2 m/s; with the ramp a box in a hammock settles to ~0.02 m/s).

@@ -215,9 +215,6 @@ class ClothSystem:
     # defaults, so that a world restored from a snapshot older than them has them too
     _structs: tuple | None = None  # the particle and topology arrays (`_kernel_structs`)
     _near_bodies: tuple | None = None  # the bodies near the cloth (`_near`)
-    _shield: tuple | None = None  # the body each particle does not touch, and what it was made from (`_shielded`)
-    #: left out of snapshots, made again from the pins (`snapshot.py`)
-    SNAPSHOT_CACHES = frozenset({"_shield"})
     _modes: tuple | None = None  # the wind's modes (`wind.Modes`)
 
     def __init__(
@@ -752,7 +749,8 @@ class ClothSystem:
         again only when what it holds changed: the candidates, the body arrays, the substep."""
         assert self._bodies is not None  # set by begin_step
         counts = (self.state.body_contacts, self._contacts_next)
-        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, self._shielded())
+        shield = self.body_pins.shielded(self.particles.count, self._host("structural_ids"))
+        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, shield)
         settings = (hi, self.strict_limit)
         cached = self._near_bodies
         if cached is None or cached[2] != settings or any(a is not b for a, b in zip(cached[1], held, strict=True)):
@@ -761,20 +759,6 @@ class ClothSystem:
             )
             cached = self._near_bodies = (near, held, settings)
         return cached[0]
-
-    def _shielded(self) -> wp.array:
-        """Per particle, the body row it does not touch (`collide.shielded_bodies`; empty without body
-        pins), made again only when the pins, their body rows or the particles changed."""
-        pins = self.body_pins
-        key = (self.particles.count, pins._particle.tobytes(), pins._body.tobytes())
-        if self._shield is None or self._shield[1] != key:
-            shield = np.zeros(0, dtype=np.int32)
-            if pins.count:
-                shield = collide.shielded_bodies(
-                    self.particles.count, pins._particle, pins._body, self._host("structural_ids")
-                )
-            self._shield = (wp.array(shield, dtype=wp.int32, device=self.device), key)
-        return self._shield[0]
 
     def _collide_bodies(self, s: ClothStructs, near: collide.Near) -> None:
         """Particles, then triangles against small spheres, out of the near bodies; bodies pushed back."""
