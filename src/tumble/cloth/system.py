@@ -755,7 +755,7 @@ class ClothSystem:
         cached = self._near_bodies
         if cached is None or cached[2] != settings or any(a is not b for a, b in zip(cached[1], held, strict=True)):
             near = collide.near_bodies(
-                self._candidates, self._bodies[0], hulls, meshes, counts, hi, held[-1], strict=self.strict_limit
+                self._candidates, self._bodies[0], hulls, meshes, counts, hi, shield, strict=self.strict_limit
             )
             cached = self._near_bodies = (near, held, settings)
         return cached[0]

@@ -768,19 +768,21 @@ def _first_touch(p0: vec3, u: vec3, dt: float_t, r: float_t, H: Hulls, h: int, o
 
 
 @wp.func
-def _nearest_on_segment(p0: vec3, u: vec3, t: float_t, lo: float_t, hi: float_t, h: vec3):
-    """t moved, while p0 + t u is outside the box (half extents h), to the segment's point nearest
-    the box's point nearest it, twice (alternating projections, which never move the pair apart).
+def _nearest_on_segment(p0: vec3, u: vec3, hh: float_t, h: vec3):
+    """The t in [-hh, hh] of the segment point p0 + t u nearest a box (half extents h): golden
+    section (`_golden_min`), then, while the point is outside the box, moved to the segment's point
+    nearest the box's point nearest it, twice (alternating projections, which never move the pair apart).
 
     Where a segment's distance from the box is flat (a capsule lying along an edge), golden section
     stops anywhere within sqrt(eps) of the distance past the flat part: the box point there is the
     edge's end, and the normal tilted along the segment by as much, 4e-4 rad in float32 (2e-8 in
     float64). Projected back, the segment point lies over the edge and the normal is square to it."""
+    t = _golden_min(p0, u, -hh, hh, Hulls(), -1, vec3(), h)  # a box: no hull
     for _k in range(2):
         q, _n, d = box_closest(p0 + u * t, h)
         if d <= _ZERO:
             return t
-        t = wp.clamp(wp.dot(q - p0, u) / wp.dot(u, u), lo, hi)
+        t = wp.clamp(wp.dot(q - p0, u) / wp.dot(u, u), -hh, hh)
     return t
 
 
@@ -805,13 +807,13 @@ def collide_box_capsule(
     hh = _capsule_half_height(rb, hb)
     p0 = wp.quat_rotate_inv(A.q, B.x - A.x)
     u = wp.quat_rotate_inv(A.q, _axis(B.q, 2))
-    t = _nearest_on_segment(p0, u, _golden_min(p0, u, -hh, hh, Hulls(), -1, vec3(), ha), -hh, hh, ha)  # no hull
+    t = _nearest_on_segment(p0, u, hh, ha)
     motion = wp.quat_rotate_inv(A.q, dv)
     shift = motion * _first_touch(p0 + u * t, motion, dt, rb, Hulls(), -1, vec3(), ha, max_sep)
     back = wp.quat_rotate(A.q, shift)  # world frame, from the capsule's place at impact to now
     if wp.length_sq(shift) > _ZERO:
         p0 = p0 + shift
-        t = _nearest_on_segment(p0, u, _golden_min(p0, u, -hh, hh, Hulls(), -1, vec3(), ha), -hh, hh, ha)
+        t = _nearest_on_segment(p0, u, hh, ha)
     q, out, d = box_closest(p0 + u * t, ha)
     # the box face nearest the contact normal; a segment nearly parallel to it (within ~11 deg)
     # is clipped to the face rectangle, and its two ends are the manifold (a line contact)
