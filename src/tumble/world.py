@@ -1193,7 +1193,13 @@ class World:
         if cloth is not None:
             hulls, meshes = self.hulls.struct(), self.meshes.struct()
             cloth.begin_step(
-                h, self.substeps, bodies=bodies, gravity=self.gravity, time=self.time, step=self.step_count
+                h,
+                self.substeps,
+                bodies=bodies,
+                gravity=self.gravity,
+                time=self.time,
+                step=self.step_count,
+                held=self.joints.held_bodies() if cloth.body_pins.count else None,
             )
             lap("cloth")
 

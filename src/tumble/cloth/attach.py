@@ -21,10 +21,17 @@ rounding (p = p0 + (m_body + m_cloth) g t for a bar carrying a cloth in free fal
 each pin's momentum change to the body one substep late instead (as before the weld)
 multiplied every velocity error by -m_pins / m_body a substep (about a thin rod's own axis,
 -I_pins / I_rod): a 1 kg curtain hung 0.1 m below the axis of a 0.5 kg hinged rod flew off.
-What is still explicit is the pull: the stretch limit moves the cloth as if its pins could not
-move and hands their body the whole impulse, which a body much lighter than its pins overshoots
-(a bar a third of its pins' mass, at a cloth's foot, breaks loose for a moment; it diverged
-before the weld).
+The stretch limit's and tethers' pull is not explicit: within their sweeps a pin on a free dynamic
+body is a point of that body (`Carried`). A correction between a free particle and such a pin is
+shared by the particle's inverse mass and the body's at the pin along the correction, 1/m +
+(r x u) . I^-1 (r x u); the body's share is a pending shift and turn of the body, which every later
+correction of the substep sees at all of its pins (Gauss-Seidel on the CPU); the same impulse goes
+to the pin load. After the constraints the body is moved by its shift and turn (`move_bodies`), its
+pins with it, and `react_constraints` hands it the impulse as a velocity change: the step a free
+particle takes. A body light at its pin (a small box hung far below it, turning about its centre)
+so takes its share of the correction, where the whole impulse computed as if the pin could not
+move made it overshoot (such a box diverged at 0.05 and 0.2 kg). Bodies a joint holds (`hold`)
+keep that explicit pull: the limit cannot know what the joint lets them do.
 """
 
 from __future__ import annotations
@@ -56,6 +63,75 @@ Pins = array_struct("Pins", PIN_FIELDS, "", __name__)
 PinGroups = array_struct("PinGroups", {"order": wp.int32, "start": wp.int32}, "", __name__)
 
 
+@wp.struct
+class Carried:
+    """The pins of the stretch limit and tethers that a dynamic body carries (`BodyPins.carried`):
+    their corrections move the body (a pending shift and turn of the pin's body, this substep's)."""
+
+    count: int  # particles `pin` covers (0: no body pins, and `pin` is not read)
+    pin: wp.array(dtype=wp.int32)  # per particle: its body pin's row, -1 for none
+    group: wp.array(dtype=wp.int32)  # per pin: its body's group (the rows of `shift` and `turn`)
+    group_body: wp.array(dtype=wp.int32)  # per group: its body's row
+    body: wp.array(dtype=wp.int32)  # per pin: its body's row
+    local: wp.array(dtype=vec3)  # per pin: its point in the body's frame [m]
+    shift: wp.array(dtype=vec3)  # per group: the corrections' translation of the body so far [m]
+    turn: wp.array(dtype=vec3)  # per group: their rotation of it so far [rad]
+    bodies: BodyArrays
+
+
+def no_carried_pins(device) -> Carried:
+    """A `Carried` with no pins on bodies (for the stretch limit of a cloth alone)."""
+    c = Carried()
+    c.count = 0
+    c.pin = c.group = c.group_body = c.body = wp.full(1, -1, dtype=wp.int32, device=device)
+    c.local = c.shift = c.turn = wp.zeros(1, dtype=vec3, device=device)
+    return c
+
+
+@wp.func
+def carried_pin(c: Carried, p: int, w: float_t):
+    """Particle p's pin row if a dynamic body carries it (its inverse mass `w` is 0), else -1."""
+    if w != float_t(0.0) or p >= c.count:
+        return -1
+    k = c.pin[p]
+    if k < 0:
+        return -1
+    if c.bodies.inv_mass[c.body[k]] == float_t(0.0):
+        return -1  # a static or kinematic body: its pins do not give way
+    return k
+
+
+@wp.func
+def _arm(c: Carried, k: int):
+    """Pin k's offset from its body's centre, world frame [m]."""
+    return wp.quat_rotate(c.bodies.orientation[c.body[k]], c.local[k])
+
+
+@wp.func
+def carried_position(c: Carried, k: int, x: vec3):
+    """Where pin k (its particle at `x`) is with its body moved by the corrections so far."""
+    g = c.group[k]
+    return x + c.shift[g] + wp.cross(c.turn[g], _arm(c, k))
+
+
+@wp.func
+def carried_inverse_mass(c: Carried, k: int, u: vec3):
+    """The inverse mass [1/kg] of pin k's body at the pin along the unit vector u: 1/m + (r x u) . I^-1 (r x u)."""
+    b = c.body[k]
+    ru = wp.cross(_arm(c, k), u)
+    return c.bodies.inv_mass[b] + wp.dot(ru, inv_inertia_times(c.bodies.orientation[b], c.bodies.inv_inertia[b], ru))
+
+
+@wp.func
+def carry(c: Carried, k: int, impulse: vec3):
+    """Pin k's body takes the position-level impulse [kg m] at the pin: shift += J / m, turn += I^-1 (r x J)."""
+    b = c.body[k]
+    g = c.group[k]
+    wp.atomic_add(c.shift, g, impulse * c.bodies.inv_mass[b])
+    turn = inv_inertia_times(c.bodies.orientation[b], c.bodies.inv_inertia[b], wp.cross(_arm(c, k), impulse))
+    wp.atomic_add(c.turn, g, turn)
+
+
 @wp.kernel
 def _reaction(
     pins: Pins,
@@ -77,6 +153,26 @@ def _reaction(
         dv = F * (im * h)
         dw = inv_inertia_times(bodies.orientation[b], bodies.inv_inertia[b], wp.cross(r, F)) * h
         add_velocity(b, dv, dw, bodies.velocity, bodies.angular_velocity, bodies.inv_mass, serial)
+
+
+@wp.kernel
+def _move_bodies(c: Carried, serial: int):
+    # one thread a body with pins: the shift and the turn (about its centre) its pins' corrections gave it
+    for g in range(wp.tid(), each_end(wp.tid(), serial, c.shift.shape[0])):
+        b = c.group_body[g]
+        if c.bodies.inv_mass[b] == float_t(0.0):
+            continue
+        dx = c.shift[g]
+        dtheta = c.turn[g]
+        if wp.length_sq(dx) == float_t(0.0) and wp.length_sq(dtheta) == float_t(0.0):
+            continue  # no correction moved it (a body joints hold: its pins stayed put)
+        c.bodies.position[b] = c.bodies.position[b] + dx
+        c.bodies.delta_position[b] = c.bodies.delta_position[b] + dx
+        c.bodies.delta_rotation[b] = c.bodies.delta_rotation[b] + dtheta
+        angle = wp.length(dtheta)
+        if angle > float_t(0.0):
+            turn = wp.quat_from_axis_angle(dtheta / angle, angle)
+            c.bodies.orientation[b] = wp.normalize(turn * c.bodies.orientation[b])
 
 
 @wp.kernel
@@ -216,7 +312,12 @@ class BodyPins:
     # per particle, the body row it does not touch, and the pins it was made from (`shielded`); left out of
     # snapshots (`snapshot.py`), made again from the pins
     _shield: tuple | None = None
-    SNAPSHOT_CACHES = frozenset({"_shield"})
+    # the pins as the stretch limit and tethers take them (`carried`): (struct, key, its arrays); left out
+    # of snapshots, made again from the pins
+    _carry: tuple | None = None
+    # the body rows joints hold this step (`hold`), whose pins stay put in the stretch limit; set every step
+    _held: np.ndarray = np.zeros(0, dtype=np.int32)
+    SNAPSHOT_CACHES = frozenset({"_shield", "_carry", "_held"})
 
     def __init__(self, device: str):
         self.device = device
@@ -271,6 +372,59 @@ class BodyPins:
                 rows = shielded_bodies(count, self._particle, self._body, structural)
             self._shield = (wp.array(rows, dtype=wp.int32, device=self.device), key)
         return self._shield[0]
+
+    def hold(self, rows: np.ndarray) -> None:
+        """The body rows joints hold this step (`JointSet.held_bodies`): their pins stay put in the stretch
+        limit, which hands them its pull as an impulse, as it cannot know what the joints let them do
+        (moved as if free, a hinged rod was pulled off its hinge by up to 3 cm)."""
+        self._held = rows
+
+    def carried(self, count: int, bodies) -> Carried:
+        """The pins as the stretch limit and tethers take them (`Carried`), for `count` particles and the
+        world's body rows `bodies`, but for those on bodies joints hold (`hold`); made again only when the
+        pins, the particle count, the held bodies or the body arrays changed. Its shifts and turns are
+        this substep's (`begin_constraints` clears them)."""
+        held = self._held
+        body_struct = self._body_struct(bodies)
+        key = (count, self._particle.tobytes(), self._body.tobytes(), held.tobytes())
+        arrays = (self.body, self.local, body_struct)
+        cached = self._carry
+        if cached is None or cached[1] != key or any(a is not b for a, b in zip(cached[2], arrays, strict=True)):
+            c = Carried()
+            c.count = count if self.count else 0
+            pin = np.full(max(1, count), -1, dtype=np.int32)
+            free = ~np.isin(self._body, held)
+            pin[self._particle[free]] = np.flatnonzero(free).astype(np.int32)
+            group = np.zeros(max(1, self.count), dtype=np.int32)
+            bodies_of = np.zeros(1, dtype=np.int32)
+            if self.count:
+                bodies_of, group[: self.count] = np.unique(self._body, return_inverse=True)
+            c.pin = wp.array(pin, dtype=wp.int32, device=self.device)
+            c.group = wp.array(group, dtype=wp.int32, device=self.device)
+            c.group_body = wp.array(bodies_of.astype(np.int32), dtype=wp.int32, device=self.device)
+            groups = len(bodies_of)
+            c.body, c.local = self.body, self.local
+            c.shift = wp.zeros(groups, dtype=vec3, device=self.device)
+            c.turn = wp.zeros(groups, dtype=vec3, device=self.device)
+            c.bodies = body_struct
+            cached = self._carry = (c, key, arrays)
+        return cached[0]
+
+    def begin_constraints(self, count: int, bodies) -> Carried:
+        """The `carried` pins with no correction yet: once a cloth substep, before its stretch limit."""
+        c = self.carried(count, bodies)
+        if self.count:
+            c.shift.zero_()
+            c.turn.zero_()
+        return c
+
+    def move_bodies(self, carried: Carried, bodies) -> None:
+        """Move each dynamic body carrying pins by its corrections of this substep (`carried`'s shift and
+        turn), as the stretch limit moved the particles, and put its pins on it again: a body's position
+        is then where its velocity change (`react_constraints`) says, as a free particle's is."""
+        if self.count == 0:
+            return
+        launch_each(_move_bodies, carried.shift.shape[0], [carried], self.device)
 
     def _struct(self) -> Pins:
         """The pin arrays as the kernels take them, built again only when the arrays were."""

@@ -23,6 +23,7 @@ import warp as wp
 from ..launch import LaunchCache, each_end, launch_each, vector
 from ..real import float_t, vec3
 from .arrays import Particles, Springs, Stretch, Structural, Tethers
+from .attach import Carried, carried_inverse_mass, carried_pin, carried_position, carry
 
 # no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
 wp.set_module_options({"enable_backward": False})
@@ -67,10 +68,29 @@ def _integrate(particles: Particles, gravity: vec3, h: float_t, pin_alpha: float
         f[p] = vec3(float_t(0.0))
 
 
+@wp.func
+def _end(particles: Particles, carried: Carried, p: int):
+    """A spring end's position, inverse mass and pin row on a dynamic body (-1: none); a carried pin
+    is where the corrections so far have moved its body."""
+    w = particles.inv_mass[p]
+    x = particles.position[p]
+    k = carried_pin(carried, p, w)
+    if k >= 0:
+        x = carried_position(carried, k, x)
+    return x, w, k
+
+
 @wp.kernel
-def _limit_stretch(particles: Particles, stretch: Stretch, margin: float_t, relax: float_t, reverse: int, serial: int):
+def _limit_stretch(
+    particles: Particles,
+    stretch: Stretch,
+    carried: Carried,
+    margin: float_t,
+    relax: float_t,
+    reverse: int,
+    serial: int,
+):
     x = particles.position
-    inv_m = particles.inv_mass
     pin_load = particles.pin_load
     count = stretch.ids.shape[0]
     for k in range(wp.tid(), each_end(wp.tid(), serial, count)):
@@ -79,39 +99,52 @@ def _limit_stretch(particles: Particles, stretch: Stretch, margin: float_t, rela
             s = count - 1 - k
         i = stretch.ids[s, 0]
         j = stretch.ids[s, 1]
-        wi = inv_m[i]
-        wj = inv_m[j]
-        if wi + wj <= float_t(0.0):
+        xi, wi, ki = _end(particles, carried, i)
+        xj, wj, kj = _end(particles, carried, j)
+        if wi + wj <= float_t(0.0) and ki < 0 and kj < 0:
             continue
-        d = x[j] - x[i]
+        d = xj - xi
         length = wp.length(d)
         # Provot: a spring longer than its limit is shortened to margin * limit (slightly inside, so
         # that the sweeps converge to "no spring over the limit"), both ends moving along the spring
-        # in proportion to their inverse masses
+        # in proportion to their inverse masses; a pin on a dynamic body gives way by its body's
+        # inverse mass at the pin along the spring
         target = stretch.limit[s] * margin
         excess = length - target
         if excess > float_t(0.0):
             w = wi + wj
+            if ki >= 0:
+                w += carried_inverse_mass(carried, ki, d / length)
+            if kj >= 0:
+                w += carried_inverse_mass(carried, kj, d / length)
             c = d * (excess * relax / (length * w))
             wp.atomic_add(x, i, c * wi)
             wp.atomic_sub(x, j, c * wj)
-            # a pinned end feels the free end's pull, its momentum change times h: m_j (c w_j) = c [kg m]
+            # a pinned end feels the free end's pull, its momentum change times h: m_j (c w_j) = c [kg m];
+            # a dynamic body carrying it moves by its response to that impulse
             if wi == float_t(0.0):
                 wp.atomic_add(pin_load, i, c)
+                if ki >= 0:
+                    carry(carried, ki, c)
             if wj == float_t(0.0):
                 wp.atomic_sub(pin_load, j, c)
+                if kj >= 0:
+                    carry(carried, kj, -c)
 
 
 @wp.kernel
-def _over_limit(particles: Particles, stretch: Stretch, violated: wp.array(dtype=wp.int32), serial: int):
-    x = particles.position
+def _over_limit(
+    particles: Particles, stretch: Stretch, carried: Carried, violated: wp.array(dtype=wp.int32), serial: int
+):
     ids = stretch.ids
     for s in range(wp.tid(), each_end(wp.tid(), serial, ids.shape[0])):
         # one spring over its limit settles the answer: on the CPU, where the springs are checked
         # in order, the rest of the check is then skipped
         if violated[0] != 0:
             return
-        if wp.length(x[ids[s, 1]] - x[ids[s, 0]]) > stretch.limit[s]:
+        xi, wi, ki = _end(particles, carried, ids[s, 0])
+        xj, wj, kj = _end(particles, carried, ids[s, 1])
+        if wp.length(xj - xi) > stretch.limit[s]:
             violated[0] = 1
 
 
@@ -162,6 +195,7 @@ def limit_stretch(
     particles: Particles,
     stretch: Stretch,
     violated,
+    carried: Carried,
     *,
     min_iterations: int = 2,
     max_iterations: int = 32,
@@ -184,6 +218,8 @@ def limit_stretch(
             (divided by the substep it is the impulse the pins take).
         stretch: the limited (structural) springs and their largest lengths (1 + max_stretch) l0.
         violated: scratch flag, shape (1,) int32.
+        carried: the pins on dynamic bodies (`BodyPins.carried`): they give way by their body's
+            inverse mass at the pin, and the corrections move the body (its pending shift and turn).
         min_iterations, max_iterations: bounds on the number of sweeps (0: check first, sweep only
             if some spring is over its limit).
         margin: over-long springs are shortened to margin * limit, so that the sweeps end
@@ -206,13 +242,13 @@ def limit_stretch(
         while it < min(target, max_iterations):
             # plain projections first (enough for cloth that is barely over its limit), then
             # over-relaxed ones, which converge much faster where the whole cloth is taut
-            sweep = [particles, stretch, margin, 1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0]
+            sweep = [particles, stretch, carried, margin, 1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0]
             launch_each(_limit_stretch, count, sweep, device, cache)
             it += 1
         if it >= max_iterations:
             return it
         violated.zero_()
-        launch_each(_over_limit, count, [particles, stretch, violated], device, cache)
+        launch_each(_over_limit, count, [particles, stretch, carried, violated], device, cache)
         if int((flag if flag is not None else violated.numpy())[0]) == 0:
             return it
         target = it + 2
@@ -259,9 +295,10 @@ def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray,
 
 
 @wp.kernel
-def _limit_tethers(particles: Particles, tethers: Tethers, margin: float_t, serial: int):
+def _limit_tethers(particles: Particles, tethers: Tethers, carried: Carried, margin: float_t, serial: int):
     # one thread per particle, its tethers in turn: no two threads move the same particle, and
-    # pins do not move, so the sweep is the same on the CPU and on CUDA
+    # pins do not move but with a dynamic body carrying them (on CUDA, each thread then sees the
+    # body moved by the threads before it, in no fixed order)
     x = particles.position
     inv_m = particles.inv_mass
     for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
@@ -273,19 +310,32 @@ def _limit_tethers(particles: Particles, tethers: Tethers, margin: float_t, seri
         for t in range(t0, t0 + particles.tether_count[p]):
             a = tethers.pin[t]
             if inv_m[a] <= float_t(0.0):
-                d = xp - x[a]
+                xa, wa, ka = _end(particles, carried, a)
+                d = xp - xa
                 length = wp.length(d)
                 excess = length - tethers.limit[t] * margin
                 if excess > float_t(0.0):
                     # pull the particle back onto the sphere of radius margin * limit about the pin
+                    # (a dynamic body's pin gives way by its share: the body's inverse mass at the pin)
                     dx = d * (excess / length)
+                    if ka >= 0:
+                        dx = dx * (w / (w + carried_inverse_mass(carried, ka, d / length)))
                     xp = xp - dx
                     # the pin feels the particle's pull, m_p |dx| along the tether [kg m]
                     wp.atomic_add(particles.pin_load, a, dx / w)
+                    if ka >= 0:
+                        carry(carried, ka, dx / w)
         x[p] = xp
 
 
-def limit_tethers(particles: Particles, tethers: Tethers, *, margin: float = 0.99, cache: LaunchCache | None = None):
+def limit_tethers(
+    particles: Particles,
+    tethers: Tethers,
+    carried: Carried,
+    *,
+    margin: float = 0.99,
+    cache: LaunchCache | None = None,
+):
     """Long-range attachments: keep each free particle within its limit of its pins (see `grid.tethers`).
 
     Args:
@@ -293,9 +343,10 @@ def limit_tethers(particles: Particles, tethers: Tethers, *, margin: float = 0.9
             its pin is pinned (`inv_mass` 0); `pin_load` adds the tethers' pull on their pins,
             m_p dx [kg m]; `tether_first`, `tether_count` give each particle's tethers.
         tethers: each tether's pin and largest length.
+        carried: the pins on dynamic bodies (`BodyPins.carried`), as in `limit_stretch`.
         margin: particles are kept within margin * limit, the same margin as `limit_stretch`, so
             that a taut chain of springs between a particle and its pin fits inside both limits.
     """
     if tethers.pin.shape[0]:
         x = particles.position
-        launch_each(_limit_tethers, x.shape[0], [particles, tethers, margin], x.device, cache)
+        launch_each(_limit_tethers, x.shape[0], [particles, tethers, carried, margin], x.device, cache)

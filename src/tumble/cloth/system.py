@@ -682,15 +682,16 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         near = self._near(hi, hulls, meshes) if touching else None
         particles.pin_load.zero_()
+        carried = self.body_pins.begin_constraints(self.particles.count, bodies)  # pins that move their bodies
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
-            self.last_stretch_sweeps = self._limit(s, 1.0 if touching else self.stretch_relaxation)
+            self.last_stretch_sweeps = self._limit(s, carried, 1.0 if touching else self.stretch_relaxation)
 
             # self-collision: pairs listed at the start of the step pushed to their thickness; then
             # the stretch limit again, only if those pushes over-stretched a spring
             if self.self_collision and self.state.pair_count:
                 collide.separate_pairs(particles, self.state.pairs, self.state.pair_count, cache=cache)
-                self._limit(s, 1.0, tethers=False, min_iterations=0)
+                self._limit(s, carried, 1.0, tethers=False, min_iterations=0)
 
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
@@ -713,9 +714,12 @@ class ClothSystem:
         # pins in `collide`). Static bodies too: a cloth wrapping a cube's top corners, where no
         # inextensible sheet fits, was left 23 % stretched as it landed and 14 % at rest
         if near is not None:
-            self._limit(s, 1.0)
+            self._limit(s, carried, 1.0)
 
-        # the pins' reactions: bodies feel the stretch limit's pull on their pins; every pin's load is summed
+        # the pins' reactions: bodies move as the stretch limit's corrections at their pins moved them,
+        # their pins with them, and feel the pull as a velocity change; every pin's load is summed
+        self.body_pins.move_bodies(carried, bodies)
+        self.body_pins.follow(particles, bodies)
         self.body_pins.react_constraints(particles, bodies, hi)
         attach.sum_pin_load(
             top["pin_index"], particles.pin_load, particles, (0.0, 0.0, 0.0), self._pin_impulse, 1.0 / hi, cache=cache
@@ -727,17 +731,27 @@ class ClothSystem:
         springs.update_velocities(particles, hi, cache=cache)
         self.body_pins.ride(particles, bodies)
 
-    def _limit(self, s: ClothStructs, relax: float, *, tethers: bool = True, min_iterations: int | None = None) -> int:
+    def _limit(
+        self,
+        s: ClothStructs,
+        carried: attach.Carried,
+        relax: float,
+        *,
+        tethers: bool = True,
+        min_iterations: int | None = None,
+    ) -> int:
         """The stretch limit: tethers to the pins (unless `tethers` is False), then Provot's sweeps
         (`stretch_iterations`, the minimum replaced by `min_iterations` if given; over-relaxed by
-        `relax`); the pins' share goes into `particle_pin_load`. Returns the number of sweeps."""
+        `relax`); the pins' share goes into `particle_pin_load`, and pins on dynamic bodies give way
+        with their bodies (`carried`). Returns the number of sweeps."""
         if tethers:
-            springs.limit_tethers(s.particles, s.tethers, cache=self._cache)
+            springs.limit_tethers(s.particles, s.tethers, carried, cache=self._cache)
         lo_it, hi_it = self.stretch_iterations
         return springs.limit_stretch(
             s.particles,
             s.stretch,
             self._violated,
+            carried,
             min_iterations=lo_it if min_iterations is None else min_iterations,
             max_iterations=hi_it,
             relax=relax,
@@ -772,7 +786,9 @@ class ClothSystem:
         else:
             wp.copy(self.state.body_contacts, self._contacts_next)
 
-    def begin_step(self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0) -> None:
+    def begin_step(
+        self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0, held: np.ndarray | None = None
+    ) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
 
         Args:
@@ -782,9 +798,12 @@ class ClothSystem:
             gravity: [m/s^2], shape (3,), for this step.
             time: the world's clock at the start of the step [s] (the wind's time).
             step: the world's step count (named in errors).
+            held: the body rows a joint holds (`JointSet.held_bodies`): their pins stay put in the stretch
+                limit, which hands them its pull, as the limit cannot know what the joint lets them do.
         """
         if self.particles.count == 0:
             return
+        self.body_pins.hold(np.zeros(0, dtype=np.int32) if held is None else held)
         dt = h * max(1, int(substeps))
         a = self.particles.arrays
         self._gravity = np.array(gravity, dtype=np.float64)

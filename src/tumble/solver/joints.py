@@ -1373,6 +1373,14 @@ class JointSet(RowGroup):
             cb = np.where(b >= 0, per_body[np.maximum(b, 0)], 1)
             self.write("joint_scale", slice(0, n), 1.0 / np.maximum(np.maximum(ca, cb), 1))
 
+    def held_bodies(self) -> np.ndarray:
+        """The body rows some unbroken joint holds, sorted, int32 (read from the device: a copy on CUDA)."""
+        if self.count == 0:
+            return np.zeros(0, dtype=np.int32)
+        on = self.numpy("joint_enabled") != 0
+        rows = np.concatenate([self.numpy("joint_body_a")[on], self.numpy("joint_body_b")[on]])
+        return np.unique(rows[rows >= 0]).astype(np.int32)
+
     def _ints(self, values: np.ndarray) -> wp.array:
         """An int32 array on the device (one spare entry: never empty)."""
         return wp.array(np.append(values, 0).astype(np.int32), dtype=wp.int32, device=self.device)

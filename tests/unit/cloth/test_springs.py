@@ -11,6 +11,7 @@ import warp as wp
 
 from tumble.cloth import springs
 from tumble.cloth.arrays import PARTICLE_FIELDS, Particles, Springs, Stretch, Tethers
+from tumble.cloth.attach import no_carried_pins
 from tumble.model import fields_of
 from tumble.state import ArraySet, float_t
 from tumble.structs import fill_struct
@@ -63,7 +64,7 @@ def test_stretch_limit_on_plain_arrays():
     """A spring stretched to 2 l0 is brought back to at most (1 + s) l0, pinned end fixed."""
     p, arrays = particles([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]], inv_mass=[0.0, 1.0])
     flag = wp.zeros(1, dtype=wp.int32)
-    springs.limit_stretch(p, table(Stretch, "stretch_", ids=[[0, 1]], limit=[1.1]), flag)
+    springs.limit_stretch(p, table(Stretch, "stretch_", ids=[[0, 1]], limit=[1.1]), flag, no_carried_pins("cpu"))
     out = arrays["particle_position"].numpy()
     assert out[0] == pytest.approx([0.0, 0.0, 0.0])
     assert 1.0 < out[1, 0] <= 1.1
@@ -78,7 +79,7 @@ def test_tethers_on_plain_arrays():
     arrays["particle_tether_count"].assign(np.array([0, 0, 2, 0], dtype=np.int32))
     tethers = table(Tethers, "tether_", pin=[0, 1], limit=[1.2, 1.2])
     for _ in range(20):  # alternating projections onto two balls converge into their overlap
-        springs.limit_tethers(p, tethers)
+        springs.limit_tethers(p, tethers, no_carried_pins("cpu"))
     out = arrays["particle_position"].numpy()
     assert np.linalg.norm(out[2] - out[0]) <= 0.99 * 1.2 + 1e-9
     assert np.linalg.norm(out[2] - out[1]) <= 0.99 * 1.2 + 1e-9
@@ -87,5 +88,5 @@ def test_tethers_on_plain_arrays():
     # pin 1 released (inverse mass > 0): its tether no longer acts
     arrays["particle_position"].assign(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [9.0, 9.0, 9.0]]))
     arrays["particle_inv_mass"].assign(np.array([0.0, 1.0, 1.0, 1.0]))
-    springs.limit_tethers(p, tethers)
+    springs.limit_tethers(p, tethers, no_carried_pins("cpu"))
     assert arrays["particle_position"].numpy()[2] == pytest.approx([0.0, -1.0, 0.0])
