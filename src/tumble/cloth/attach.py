@@ -66,16 +66,25 @@ PinGroups = array_struct("PinGroups", {"order": wp.int32, "start": wp.int32}, ""
 @wp.struct
 class Carried:
     """The pins of the stretch limit and tethers that a dynamic body carries (`BodyPins.carried`):
-    their corrections move the body (a pending shift and turn of the pin's body, this substep's)."""
+    their corrections move the body and its pins as one rigid body, as the weld then moves them (a
+    pending shift of their centre of mass and turn about it, this substep's)."""
 
     count: int  # particles `pin` covers (0: no body pins, and `pin` is not read)
     pin: wp.array(dtype=wp.int32)  # per particle: its body pin's row, -1 for none
-    group: wp.array(dtype=wp.int32)  # per pin: its body's group (the rows of `shift` and `turn`)
+    group: wp.array(dtype=wp.int32)  # per pin: its body's group (the rows of the arrays below)
     group_body: wp.array(dtype=wp.int32)  # per group: its body's row
+    order: wp.array(dtype=wp.int32)  # the pin rows group after group (`BodyPins.order`)
+    start: wp.array(dtype=wp.int32)  # where each group's pins begin in `order` (one more row than groups)
+    particle: wp.array(dtype=wp.int32)  # per pin: its particle
     body: wp.array(dtype=wp.int32)  # per pin: its body's row
     local: wp.array(dtype=vec3)  # per pin: its point in the body's frame [m]
-    shift: wp.array(dtype=vec3)  # per group: the corrections' translation of the body so far [m]
-    turn: wp.array(dtype=vec3)  # per group: their rotation of it so far [rad]
+    # per group, the body and its pins as one rigid body (`_composite`, at the substep's start): inverse mass
+    # [1/kg], centre of mass from the body's centre (world frame) [m], world inverse inertia about it
+    inv_mass: wp.array(dtype=float_t)
+    centre: wp.array(dtype=vec3)
+    inv_inertia: wp.array(dtype=mat33)
+    shift: wp.array(dtype=vec3)  # per group: the corrections' translation of the centre of mass so far [m]
+    turn: wp.array(dtype=vec3)  # per group: their rotation about it so far [rad]
     bodies: BodyArrays
 
 
@@ -83,8 +92,11 @@ def no_carried_pins(device) -> Carried:
     """A `Carried` with no pins on bodies (for the stretch limit of a cloth alone)."""
     c = Carried()
     c.count = 0
-    c.pin = c.group = c.group_body = c.body = wp.full(1, -1, dtype=wp.int32, device=device)
-    c.local = c.shift = c.turn = wp.zeros(1, dtype=vec3, device=device)
+    ints = wp.full(1, -1, dtype=wp.int32, device=device)
+    c.pin = c.group = c.group_body = c.order = c.start = c.particle = c.body = ints
+    c.local = c.centre = c.shift = c.turn = wp.zeros(1, dtype=vec3, device=device)
+    c.inv_mass = wp.zeros(1, dtype=float_t, device=device)
+    c.inv_inertia = wp.zeros(1, dtype=mat33, device=device)
     return c
 
 
@@ -103,8 +115,8 @@ def carried_pin(c: Carried, p: int, w: float_t):
 
 @wp.func
 def _arm(c: Carried, k: int):
-    """Pin k's offset from its body's centre, world frame [m]."""
-    return wp.quat_rotate(c.bodies.orientation[c.body[k]], c.local[k])
+    """Pin k's offset from the centre of mass of its body and pins, world frame [m]."""
+    return wp.quat_rotate(c.bodies.orientation[c.body[k]], c.local[k]) - c.centre[c.group[k]]
 
 
 @wp.func
@@ -116,20 +128,53 @@ def carried_position(c: Carried, k: int, x: vec3):
 
 @wp.func
 def carried_inverse_mass(c: Carried, k: int, u: vec3):
-    """The inverse mass [1/kg] of pin k's body at the pin along the unit vector u: 1/m + (r x u) . I^-1 (r x u)."""
-    b = c.body[k]
+    """The inverse mass [1/kg] of pin k's body with its pins at the pin along the unit vector u:
+    1/M + (r x u) . I^-1 (r x u), r from their centre of mass."""
+    g = c.group[k]
     ru = wp.cross(_arm(c, k), u)
-    return c.bodies.inv_mass[b] + wp.dot(ru, inv_inertia_times(c.bodies.orientation[b], c.bodies.inv_inertia[b], ru))
+    return c.inv_mass[g] + wp.dot(ru, c.inv_inertia[g] * ru)
 
 
 @wp.func
 def carry(c: Carried, k: int, impulse: vec3):
-    """Pin k's body takes the position-level impulse [kg m] at the pin: shift += J / m, turn += I^-1 (r x J)."""
-    b = c.body[k]
+    """Pin k's body with its pins takes the position-level impulse J [kg m] at the pin: shift += J / M,
+    turn += I^-1 (r x J)."""
     g = c.group[k]
-    wp.atomic_add(c.shift, g, impulse * c.bodies.inv_mass[b])
-    turn = inv_inertia_times(c.bodies.orientation[b], c.bodies.inv_inertia[b], wp.cross(_arm(c, k), impulse))
-    wp.atomic_add(c.turn, g, turn)
+    wp.atomic_add(c.shift, g, impulse * c.inv_mass[g])
+    wp.atomic_add(c.turn, g, c.inv_inertia[g] * wp.cross(_arm(c, k), impulse))
+
+
+@wp.kernel
+def _composite(c: Carried, particles: Particles, serial: int):
+    # one thread a body with pins: it and its pins as one rigid body (as `_weld` moves them), no correction yet
+    for g in range(wp.tid(), each_end(wp.tid(), serial, c.shift.shape[0])):
+        c.shift[g] = vec3()
+        c.turn[g] = vec3()
+        b = c.group_body[g]
+        im = c.bodies.inv_mass[b]
+        if im == float_t(0.0):
+            continue  # a static or kinematic body: its pins are not carried
+        q = c.bodies.orientation[b]
+        eye = wp.identity(n=3, dtype=float_t)
+        total = float_t(1.0) / im
+        s = vec3()  # first moment of the pins about the body's centre
+        for e in range(c.start[g], c.start[g + 1]):
+            k = c.order[e]
+            m = particles.mass[c.particle[k]]
+            total += m
+            s += wp.quat_rotate(q, c.local[k]) * m
+        centre = s / total
+        # X: what the body's own inertia lacks about the centre of mass, its mass at -centre and the pins';
+        # I^-1 = (I_b + X)^-1 = (1 + W X)^-1 W with W = I_b^-1, which holds where W has no inverse (as `_weld`)
+        X = (eye * wp.dot(centre, centre) - wp.outer(centre, centre)) / im
+        for e in range(c.start[g], c.start[g + 1]):
+            k = c.order[e]
+            r = wp.quat_rotate(q, c.local[k]) - centre
+            X += (eye * wp.dot(r, r) - wp.outer(r, r)) * particles.mass[c.particle[k]]
+        W = inv_inertia_world(q, c.bodies.inv_inertia[b])
+        c.inv_mass[g] = float_t(1.0) / total
+        c.centre[g] = centre
+        c.inv_inertia[g] = wp.inverse(eye + W * X) * W
 
 
 @wp.kernel
@@ -157,15 +202,16 @@ def _reaction(
 
 @wp.kernel
 def _move_bodies(c: Carried, serial: int):
-    # one thread a body with pins: the shift and the turn (about its centre) its pins' corrections gave it
+    # one thread a body with pins: the shift and the turn its pins' corrections gave it with its pins
     for g in range(wp.tid(), each_end(wp.tid(), serial, c.shift.shape[0])):
         b = c.group_body[g]
         if c.bodies.inv_mass[b] == float_t(0.0):
             continue
-        dx = c.shift[g]
         dtheta = c.turn[g]
-        if wp.length_sq(dx) == float_t(0.0) and wp.length_sq(dtheta) == float_t(0.0):
+        if wp.length_sq(c.shift[g]) == float_t(0.0) and wp.length_sq(dtheta) == float_t(0.0):
             continue  # no correction moved it (a body joints hold: its pins stayed put)
+        # the body's centre, at -centre from the centre of mass, moves with the turn about it
+        dx = c.shift[g] - wp.cross(dtheta, c.centre[g])
         c.bodies.position[b] = c.bodies.position[b] + dx
         c.bodies.delta_position[b] = c.bodies.delta_position[b] + dx
         c.bodies.delta_rotation[b] = c.bodies.delta_rotation[b] + dtheta
@@ -386,8 +432,10 @@ class BodyPins:
         this substep's (`begin_constraints` clears them)."""
         held = self._held
         body_struct = self._body_struct(bodies)
+        if self.start is None:
+            self._group()
         key = (count, self._particle.tobytes(), self._body.tobytes(), held.tobytes())
-        arrays = (self.body, self.local, body_struct)
+        arrays = (self.particle, self.body, self.local, self.order, self.start, body_struct)
         cached = self._carry
         if cached is None or cached[1] != key or any(a is not b for a, b in zip(cached[2], arrays, strict=True)):
             c = Carried()
@@ -403,19 +451,22 @@ class BodyPins:
             c.group = wp.array(group, dtype=wp.int32, device=self.device)
             c.group_body = wp.array(bodies_of.astype(np.int32), dtype=wp.int32, device=self.device)
             groups = len(bodies_of)
-            c.body, c.local = self.body, self.local
+            c.particle, c.body, c.local, c.order, c.start = self.particle, self.body, self.local, self.order, self.start
+            c.inv_mass = wp.zeros(groups, dtype=float_t, device=self.device)
+            c.inv_inertia = wp.zeros(groups, dtype=mat33, device=self.device)
+            c.centre = wp.zeros(groups, dtype=vec3, device=self.device)
             c.shift = wp.zeros(groups, dtype=vec3, device=self.device)
             c.turn = wp.zeros(groups, dtype=vec3, device=self.device)
             c.bodies = body_struct
             cached = self._carry = (c, key, arrays)
         return cached[0]
 
-    def begin_constraints(self, count: int, bodies) -> Carried:
-        """The `carried` pins with no correction yet: once a cloth substep, before its stretch limit."""
+    def begin_constraints(self, particles: Particles, count: int, bodies) -> Carried:
+        """The `carried` pins with no correction yet, each body with its pins (their masses from
+        `particles`) as one rigid body: once a cloth substep, before its stretch limit."""
         c = self.carried(count, bodies)
         if self.count:
-            c.shift.zero_()
-            c.turn.zero_()
+            launch_each(_composite, c.shift.shape[0], [c, particles], self.device)
         return c
 
     def move_bodies(self, carried: Carried, bodies) -> None:

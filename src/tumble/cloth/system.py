@@ -682,7 +682,7 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         near = self._near(hi, hulls, meshes) if touching else None
         particles.pin_load.zero_()
-        carried = self.body_pins.begin_constraints(self.particles.count, bodies)  # pins that move their bodies
+        carried = self.body_pins.begin_constraints(particles, self.particles.count, bodies)  # pins moving bodies
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
             self.last_stretch_sweeps = self._limit(s, carried, 1.0 if touching else self.stretch_relaxation)
