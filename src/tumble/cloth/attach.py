@@ -430,6 +430,10 @@ class BodyPins:
         world's body rows `bodies`, but for those on bodies joints hold (`hold`); made again only when the
         pins, the particle count, the held bodies or the body arrays changed. Its shifts and turns are
         this substep's (`begin_constraints` clears them)."""
+        if self.count == 0:  # a cloth without body pins: nothing to look up in every sweep
+            if self._carry is None or self._carry[1] is not None:
+                self._carry = (no_carried_pins(self.device), None, ())
+            return self._carry[0]
         held = self._held
         body_struct = self._body_struct(bodies)
         if self.start is None:

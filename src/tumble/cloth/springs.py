@@ -69,83 +69,116 @@ def _integrate(particles: Particles, gravity: vec3, h: float_t, pin_alpha: float
 
 
 @wp.func
-def _end(particles: Particles, carried: Carried, p: int):
-    """A spring end's position, inverse mass and pin row on a dynamic body (-1: none); a carried pin
-    is where the corrections so far have moved its body."""
-    w = particles.inv_mass[p]
-    x = particles.position[p]
+def _carried_end(carried: Carried, p: int, x: vec3, w: float_t):
+    """Particle p (at x, inverse mass w) as a spring end: its position and its pin row on a dynamic body
+    (-1: none); a carried pin is where the corrections so far have moved its body. (Called only where a
+    body carries pins: the sweeps of a cloth without any read nothing more than before.)"""
     k = carried_pin(carried, p, w)
     if k >= 0:
-        x = carried_position(carried, k, x)
-    return x, w, k
+        return carried_position(carried, k, x), k
+    return x, k
 
 
-@wp.kernel
-def _limit_stretch(
-    particles: Particles,
-    stretch: Stretch,
-    carried: Carried,
-    margin: float_t,
-    relax: float_t,
-    reverse: int,
-    serial: int,
-):
-    x = particles.position
-    pin_load = particles.pin_load
-    count = stretch.ids.shape[0]
-    for k in range(wp.tid(), each_end(wp.tid(), serial, count)):
-        s = k
-        if reverse != 0:
-            s = count - 1 - k
-        i = stretch.ids[s, 0]
-        j = stretch.ids[s, 1]
-        xi, wi, ki = _end(particles, carried, i)
-        xj, wj, kj = _end(particles, carried, j)
-        if wi + wj <= float_t(0.0) and ki < 0 and kj < 0:
-            continue
-        d = xj - xi
-        length = wp.length(d)
-        # Provot: a spring longer than its limit is shortened to margin * limit (slightly inside, so
-        # that the sweeps converge to "no spring over the limit"), both ends moving along the spring
-        # in proportion to their inverse masses; a pin on a dynamic body gives way by its body's
-        # inverse mass at the pin along the spring
-        target = stretch.limit[s] * margin
-        excess = length - target
-        if excess > float_t(0.0):
-            w = wi + wj
-            if ki >= 0:
-                w += carried_inverse_mass(carried, ki, d / length)
-            if kj >= 0:
-                w += carried_inverse_mass(carried, kj, d / length)
-            c = d * (excess * relax / (length * w))
-            wp.atomic_add(x, i, c * wi)
-            wp.atomic_sub(x, j, c * wj)
-            # a pinned end feels the free end's pull, its momentum change times h: m_j (c w_j) = c [kg m];
-            # a dynamic body carrying it moves by its response to that impulse
-            if wi == float_t(0.0):
-                wp.atomic_add(pin_load, i, c)
-                if ki >= 0:
-                    carry(carried, ki, c)
-            if wj == float_t(0.0):
-                wp.atomic_sub(pin_load, j, c)
-                if kj >= 0:
-                    carry(carried, kj, -c)
+def _make_limit_stretch(carrying: bool):
+    """`_limit_stretch`, with pins on bodies (`carrying`: they give way with their bodies) or without (a
+    cloth without body pins, whose sweeps then compile as they did before there were any: the test for
+    them in every spring cost its stretch limit 9 %)."""
+
+    @wp.kernel(name="_limit_stretch_carrying" if carrying else "_limit_stretch")
+    def limit(
+        particles: Particles,
+        stretch: Stretch,
+        carried: Carried,
+        margin: float_t,
+        relax: float_t,
+        reverse: int,
+        serial: int,
+    ):
+        x = particles.position
+        inv_m = particles.inv_mass
+        pin_load = particles.pin_load
+        count = stretch.ids.shape[0]
+        for k in range(wp.tid(), each_end(wp.tid(), serial, count)):
+            s = k
+            if reverse != 0:
+                s = count - 1 - k
+            i = stretch.ids[s, 0]
+            j = stretch.ids[s, 1]
+            wi = inv_m[i]
+            wj = inv_m[j]
+            xi = x[i]
+            xj = x[j]
+            ki = int(-1)
+            kj = int(-1)
+            if wp.static(carrying):
+                xi, ki = _carried_end(carried, i, xi, wi)
+                xj, kj = _carried_end(carried, j, xj, wj)
+            if wi + wj <= float_t(0.0) and ki < 0 and kj < 0:
+                continue
+            d = xj - xi
+            length = wp.length(d)
+            # Provot: a spring longer than its limit is shortened to margin * limit (slightly inside, so
+            # that the sweeps converge to "no spring over the limit"), both ends moving along the spring
+            # in proportion to their inverse masses; a pin on a dynamic body gives way by its body's
+            # inverse mass at the pin along the spring
+            target = stretch.limit[s] * margin
+            excess = length - target
+            if excess > float_t(0.0):
+                w = wi + wj
+                if wp.static(carrying):
+                    if ki >= 0:
+                        w += carried_inverse_mass(carried, ki, d / length)
+                    if kj >= 0:
+                        w += carried_inverse_mass(carried, kj, d / length)
+                c = d * (excess * relax / (length * w))
+                wp.atomic_add(x, i, c * wi)
+                wp.atomic_sub(x, j, c * wj)
+                # a pinned end feels the free end's pull, its momentum change times h: m_j (c w_j) = c [kg m];
+                # a dynamic body carrying it moves by its response to that impulse
+                if wi == float_t(0.0):
+                    wp.atomic_add(pin_load, i, c)
+                    if wp.static(carrying):
+                        if ki >= 0:
+                            carry(carried, ki, c)
+                if wj == float_t(0.0):
+                    wp.atomic_sub(pin_load, j, c)
+                    if wp.static(carrying):
+                        if kj >= 0:
+                            carry(carried, kj, -c)
+
+    return limit
 
 
-@wp.kernel
-def _over_limit(
-    particles: Particles, stretch: Stretch, carried: Carried, violated: wp.array(dtype=wp.int32), serial: int
-):
-    ids = stretch.ids
-    for s in range(wp.tid(), each_end(wp.tid(), serial, ids.shape[0])):
-        # one spring over its limit settles the answer: on the CPU, where the springs are checked
-        # in order, the rest of the check is then skipped
-        if violated[0] != 0:
-            return
-        xi, wi, ki = _end(particles, carried, ids[s, 0])
-        xj, wj, kj = _end(particles, carried, ids[s, 1])
-        if wp.length(xj - xi) > stretch.limit[s]:
-            violated[0] = 1
+#: the stretch limit's sweep, by whether a body carries pins
+_LIMIT_STRETCH = {carrying: _make_limit_stretch(carrying) for carrying in (False, True)}
+
+
+def _make_over_limit(carrying: bool):
+    """`_over_limit`, with pins on bodies or without (as `_make_limit_stretch`)."""
+
+    @wp.kernel(name="_over_limit_carrying" if carrying else "_over_limit")
+    def over(particles: Particles, stretch: Stretch, carried: Carried, violated: wp.array(dtype=wp.int32), serial: int):
+        x = particles.position
+        ids = stretch.ids
+        for s in range(wp.tid(), each_end(wp.tid(), serial, ids.shape[0])):
+            # one spring over its limit settles the answer: on the CPU, where the springs are checked
+            # in order, the rest of the check is then skipped
+            if violated[0] != 0:
+                return
+            i = ids[s, 0]
+            j = ids[s, 1]
+            xi = x[i]
+            xj = x[j]
+            if wp.static(carrying):
+                xi, ki = _carried_end(carried, i, xi, particles.inv_mass[i])
+                xj, kj = _carried_end(carried, j, xj, particles.inv_mass[j])
+            if wp.length(xj - xi) > stretch.limit[s]:
+                violated[0] = 1
+
+    return over
+
+
+_OVER_LIMIT = {carrying: _make_over_limit(carrying) for carrying in (False, True)}
 
 
 @wp.kernel
@@ -243,12 +276,12 @@ def limit_stretch(
             # plain projections first (enough for cloth that is barely over its limit), then
             # over-relaxed ones, which converge much faster where the whole cloth is taut
             sweep = [particles, stretch, carried, margin, 1.0 if it < plain else relax, it % 2 if relax == 1.0 else 0]
-            launch_each(_limit_stretch, count, sweep, device, cache)
+            launch_each(_LIMIT_STRETCH[carried.count > 0], count, sweep, device, cache)
             it += 1
         if it >= max_iterations:
             return it
         violated.zero_()
-        launch_each(_over_limit, count, [particles, stretch, carried, violated], device, cache)
+        launch_each(_OVER_LIMIT[carried.count > 0], count, [particles, stretch, carried, violated], device, cache)
         if int((flag if flag is not None else violated.numpy())[0]) == 0:
             return it
         target = it + 2
@@ -294,38 +327,52 @@ def stable_substep(particle_stiffness: np.ndarray, particle_damping: np.ndarray,
     return 0.9 * float(np.min(np.where(np.isfinite(h), h, 0.0)))
 
 
-@wp.kernel
-def _limit_tethers(particles: Particles, tethers: Tethers, carried: Carried, margin: float_t, serial: int):
-    # one thread per particle, its tethers in turn: no two threads move the same particle, and
-    # pins do not move but with a dynamic body carrying them (on CUDA, each thread then sees the
-    # body moved by the threads before it, in no fixed order)
-    x = particles.position
-    inv_m = particles.inv_mass
-    for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
-        w = inv_m[p]
-        if w <= float_t(0.0):
-            continue
-        xp = x[p]
-        t0 = particles.tether_first[p]
-        for t in range(t0, t0 + particles.tether_count[p]):
-            a = tethers.pin[t]
-            if inv_m[a] <= float_t(0.0):
-                xa, wa, ka = _end(particles, carried, a)
-                d = xp - xa
-                length = wp.length(d)
-                excess = length - tethers.limit[t] * margin
-                if excess > float_t(0.0):
-                    # pull the particle back onto the sphere of radius margin * limit about the pin
-                    # (a dynamic body's pin gives way by its share: the body's inverse mass at the pin)
-                    dx = d * (excess / length)
-                    if ka >= 0:
-                        dx = dx * (w / (w + carried_inverse_mass(carried, ka, d / length)))
-                    xp = xp - dx
-                    # the pin feels the particle's pull, m_p |dx| along the tether [kg m]
-                    wp.atomic_add(particles.pin_load, a, dx / w)
-                    if ka >= 0:
-                        carry(carried, ka, dx / w)
-        x[p] = xp
+def _make_limit_tethers(carrying: bool):
+    """`_limit_tethers`, with pins on bodies or without (as `_make_limit_stretch`)."""
+
+    @wp.kernel(name="_limit_tethers_carrying" if carrying else "_limit_tethers")
+    def limit(particles: Particles, tethers: Tethers, carried: Carried, margin: float_t, serial: int):
+        # one thread per particle, its tethers in turn: no two threads move the same particle, and
+        # pins do not move but with a dynamic body carrying them (on CUDA, each thread then sees the
+        # body moved by the threads before it, in no fixed order)
+        x = particles.position
+        inv_m = particles.inv_mass
+        for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
+            w = inv_m[p]
+            if w <= float_t(0.0):
+                continue
+            xp = x[p]
+            t0 = particles.tether_first[p]
+            for t in range(t0, t0 + particles.tether_count[p]):
+                a = tethers.pin[t]
+                wa = inv_m[a]
+                if wa <= float_t(0.0):
+                    xa = x[a]
+                    ka = int(-1)
+                    if wp.static(carrying):
+                        xa, ka = _carried_end(carried, a, xa, wa)
+                    d = xp - xa
+                    length = wp.length(d)
+                    excess = length - tethers.limit[t] * margin
+                    if excess > float_t(0.0):
+                        # pull the particle back onto the sphere of radius margin * limit about the pin
+                        # (a dynamic body's pin gives way by its share: the body's inverse mass at the pin)
+                        dx = d * (excess / length)
+                        if wp.static(carrying):
+                            if ka >= 0:
+                                dx = dx * (w / (w + carried_inverse_mass(carried, ka, d / length)))
+                        xp = xp - dx
+                        # the pin feels the particle's pull, m_p |dx| along the tether [kg m]
+                        wp.atomic_add(particles.pin_load, a, dx / w)
+                        if wp.static(carrying):
+                            if ka >= 0:
+                                carry(carried, ka, dx / w)
+            x[p] = xp
+
+    return limit
+
+
+_LIMIT_TETHERS = {carrying: _make_limit_tethers(carrying) for carrying in (False, True)}
 
 
 def limit_tethers(
@@ -349,4 +396,6 @@ def limit_tethers(
     """
     if tethers.pin.shape[0]:
         x = particles.position
-        launch_each(_limit_tethers, x.shape[0], [particles, tethers, carried, margin], x.device, cache)
+        launch_each(
+            _LIMIT_TETHERS[carried.count > 0], x.shape[0], [particles, tethers, carried, margin], x.device, cache
+        )
