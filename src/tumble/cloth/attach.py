@@ -30,8 +30,10 @@ to the pin load. After the constraints the body is moved by its shift and turn (
 pins with it, and `react_constraints` hands it the impulse as a velocity change: the step a free
 particle takes. A body light at its pin (a small box hung far below it, turning about its centre)
 so takes its share of the correction, where the whole impulse computed as if the pin could not
-move made it overshoot (such a box diverged at 0.05 and 0.2 kg). Bodies a joint holds (`hold`)
-keep that explicit pull: the limit cannot know what the joint lets them do.
+move made it overshoot (such a box diverged at 0.05 and 0.2 kg). A body that its joints turn about
+a pivot fixed in the world (`hold`) is turned about it, with inverse mass 0 and its inertia about the
+pivot (about the pivot's axis alone, for a line). Other bodies a joint holds keep that explicit
+pull: the limit cannot know what the joint lets them do.
 """
 
 from __future__ import annotations
@@ -78,8 +80,14 @@ class Carried:
     particle: wp.array(dtype=wp.int32)  # per pin: its particle
     body: wp.array(dtype=wp.int32)  # per pin: its body's row
     local: wp.array(dtype=vec3)  # per pin: its point in the body's frame [m]
+    # per group, a pivot its joints hold the body about (`BodyPins.hold`): 1 if one, its point [m] and unit
+    # axis (zero: a point) in the world
+    pivoted: wp.array(dtype=wp.int32)
+    pivot: wp.array(dtype=vec3)
+    axis: wp.array(dtype=vec3)
     # per group, the body and its pins as one rigid body (`_composite`, at the substep's start): inverse mass
-    # [1/kg], centre of mass from the body's centre (world frame) [m], world inverse inertia about it
+    # [1/kg], the point it turns about from the body's centre (world frame) [m]: its centre of mass, or
+    # its pivot (inverse mass 0); world inverse inertia about that point (about a pivot's axis alone)
     inv_mass: wp.array(dtype=float_t)
     centre: wp.array(dtype=vec3)
     inv_inertia: wp.array(dtype=mat33)
@@ -88,13 +96,17 @@ class Carried:
     bodies: BodyArrays
 
 
+#: no body turns about a pivot (`BodyPins.hold`)
+_NO_PIVOTS = (np.zeros(0, dtype=np.int32), np.zeros((0, 3)), np.zeros((0, 3)))
+
+
 def no_carried_pins(device) -> Carried:
     """A `Carried` with no pins on bodies (for the stretch limit of a cloth alone)."""
     c = Carried()
     c.count = 0
     ints = wp.full(1, -1, dtype=wp.int32, device=device)
-    c.pin = c.group = c.group_body = c.order = c.start = c.particle = c.body = ints
-    c.local = c.centre = c.shift = c.turn = wp.zeros(1, dtype=vec3, device=device)
+    c.pin = c.group = c.group_body = c.order = c.start = c.particle = c.body = c.pivoted = ints
+    c.local = c.centre = c.shift = c.turn = c.pivot = c.axis = wp.zeros(1, dtype=vec3, device=device)
     c.inv_mass = wp.zeros(1, dtype=float_t, device=device)
     c.inv_inertia = wp.zeros(1, dtype=mat33, device=device)
     return c
@@ -163,8 +175,13 @@ def _composite(c: Carried, particles: Particles, serial: int):
             m = particles.mass[c.particle[k]]
             total += m
             s += wp.quat_rotate(q, c.local[k]) * m
+        # the point they turn about: their centre of mass, or the pivot their joints hold them at
         centre = s / total
-        # X: what the body's own inertia lacks about the centre of mass, its mass at -centre and the pins';
+        c.inv_mass[g] = float_t(1.0) / total
+        if c.pivoted[g] != 0:
+            centre = c.pivot[g] - c.bodies.position[b]
+            c.inv_mass[g] = float_t(0.0)
+        # X: what the body's own inertia lacks about that point, its mass at -centre and the pins';
         # I^-1 = (I_b + X)^-1 = (1 + W X)^-1 W with W = I_b^-1, which holds where W has no inverse (as `_weld`)
         X = (eye * wp.dot(centre, centre) - wp.outer(centre, centre)) / im
         for e in range(c.start[g], c.start[g + 1]):
@@ -172,9 +189,25 @@ def _composite(c: Carried, particles: Particles, serial: int):
             r = wp.quat_rotate(q, c.local[k]) - centre
             X += (eye * wp.dot(r, r) - wp.outer(r, r)) * particles.mass[c.particle[k]]
         W = inv_inertia_world(q, c.bodies.inv_inertia[b])
-        c.inv_mass[g] = float_t(1.0) / total
+        inv_inertia = wp.inverse(eye + W * X) * W
+        a = c.axis[g]
+        if c.pivoted[g] != 0 and wp.length_sq(a) > float_t(0.0):
+            # about the pivot's axis alone: a a^T / (a . I a), with a . I_b a from the body's principal moments
+            # (a locked one, inverse moment 0, holds the axis still)
+            ab = wp.quat_rotate_inv(q, a)
+            inv_i = c.bodies.inv_inertia[b]
+            locked = int(0)
+            moment = wp.dot(a, X * a)
+            for i in range(3):
+                if inv_i[i] > float_t(0.0):
+                    moment += ab[i] * ab[i] / inv_i[i]
+                elif ab[i] != float_t(0.0):
+                    locked = 1
+            inv_inertia = mat33()
+            if locked == 0 and moment > float_t(0.0):
+                inv_inertia = wp.outer(a, a) / moment
         c.centre[g] = centre
-        c.inv_inertia[g] = wp.inverse(eye + W * X) * W
+        c.inv_inertia[g] = inv_inertia
 
 
 @wp.kernel
@@ -363,7 +396,8 @@ class BodyPins:
     _carry: tuple | None = None
     # the body rows joints hold this step (`hold`), whose pins stay put in the stretch limit; set every step
     _held: np.ndarray = np.zeros(0, dtype=np.int32)
-    SNAPSHOT_CACHES = frozenset({"_shield", "_carry", "_held"})
+    _pivots: tuple = (np.zeros(0, dtype=np.int32), np.zeros((0, 3)), np.zeros((0, 3)))
+    SNAPSHOT_CACHES = frozenset({"_shield", "_carry", "_held", "_pivots"})
 
     def __init__(self, device: str):
         self.device = device
@@ -419,11 +453,14 @@ class BodyPins:
             self._shield = (wp.array(rows, dtype=wp.int32, device=self.device), key)
         return self._shield[0]
 
-    def hold(self, rows: np.ndarray) -> None:
-        """The body rows joints hold this step (`JointSet.held_bodies`): their pins stay put in the stretch
-        limit, which hands them its pull as an impulse, as it cannot know what the joints let them do
-        (moved as if free, a hinged rod was pulled off its hinge by up to 3 cm)."""
+    def hold(self, rows: np.ndarray, pivots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+        """The body rows joints hold this step (`JointSet.held_bodies`), and of them those that turn about a
+        point or a line fixed in the world (`JointSet.pivots`: rows, points, axes). The stretch limit moves
+        a pivoted body by turning it about its pivot; the pins of the other held bodies stay put in it, and
+        it hands them its pull as an impulse, as it cannot know what their joints let them do (moved as if
+        free, a hinged rod was pulled off its hinge by up to 3 cm)."""
         self._held = rows
+        self._pivots = pivots if pivots is not None else _NO_PIVOTS
 
     def carried(self, count: int, bodies) -> Carried:
         """The pins as the stretch limit and tethers take them (`Carried`), for `count` particles and the
@@ -434,11 +471,18 @@ class BodyPins:
             if self._carry is None or self._carry[1] is not None:
                 self._carry = (no_carried_pins(self.device), None, ())
             return self._carry[0]
-        held = self._held
+        pivot_rows, pivot_points, pivot_axes = self._pivots
+        held = np.setdiff1d(self._held, pivot_rows)
         body_struct = self._body_struct(bodies)
         if self.start is None:
             self._group()
-        key = (count, self._particle.tobytes(), self._body.tobytes(), held.tobytes())
+        key = (
+            count,
+            self._particle.tobytes(),
+            self._body.tobytes(),
+            held.tobytes(),
+            *(a.tobytes() for a in self._pivots),
+        )
         arrays = (self.particle, self.body, self.local, self.order, self.start, body_struct)
         cached = self._carry
         if cached is None or cached[1] != key or any(a is not b for a, b in zip(cached[2], arrays, strict=True)):
@@ -455,6 +499,14 @@ class BodyPins:
             c.group = wp.array(group, dtype=wp.int32, device=self.device)
             c.group_body = wp.array(bodies_of.astype(np.int32), dtype=wp.int32, device=self.device)
             groups = len(bodies_of)
+            at = np.searchsorted(bodies_of, pivot_rows)
+            mine = (at < groups) & (bodies_of[np.minimum(at, groups - 1)] == pivot_rows)
+            pivoted = np.zeros(groups, dtype=np.int32)
+            pivot, axis = np.zeros((groups, 3)), np.zeros((groups, 3))
+            pivoted[at[mine]], pivot[at[mine]], axis[at[mine]] = 1, pivot_points[mine], pivot_axes[mine]
+            c.pivoted = wp.array(pivoted, dtype=wp.int32, device=self.device)
+            c.pivot = wp.array(pivot, dtype=vec3, device=self.device)
+            c.axis = wp.array(axis, dtype=vec3, device=self.device)
             c.particle, c.body, c.local, c.order, c.start = self.particle, self.body, self.local, self.order, self.start
             c.inv_mass = wp.zeros(groups, dtype=float_t, device=self.device)
             c.inv_inertia = wp.zeros(groups, dtype=mat33, device=self.device)

@@ -787,7 +787,16 @@ class ClothSystem:
             wp.copy(self.state.body_contacts, self._contacts_next)
 
     def begin_step(
-        self, h: float, substeps: int, *, bodies, gravity, time: float, step: int = 0, held: np.ndarray | None = None
+        self,
+        h: float,
+        substeps: int,
+        *,
+        bodies,
+        gravity,
+        time: float,
+        step: int = 0,
+        held: np.ndarray | None = None,
+        pivots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
 
@@ -799,11 +808,12 @@ class ClothSystem:
             time: the world's clock at the start of the step [s] (the wind's time).
             step: the world's step count (named in errors).
             held: the body rows a joint holds (`JointSet.held_bodies`): their pins stay put in the stretch
-                limit, which hands them its pull, as the limit cannot know what the joint lets them do.
+                limit, which hands them its pull, as the limit cannot know what the joint lets them do;
+                but those in `pivots` (`JointSet.pivots`: rows, points, axes), which it turns about them.
         """
         if self.particles.count == 0:
             return
-        self.body_pins.hold(np.zeros(0, dtype=np.int32) if held is None else held)
+        self.body_pins.hold(np.zeros(0, dtype=np.int32) if held is None else held, pivots)
         dt = h * max(1, int(substeps))
         a = self.particles.arrays
         self._gravity = np.array(gravity, dtype=np.float64)

@@ -110,7 +110,7 @@ from enum import IntEnum
 import numpy as np
 import warp as wp
 
-from .. import validate
+from .. import npmath, validate
 from ..launch import LaunchCache, launch
 from ..model import Field, Role, body_arrays, fields_of
 from ..real import BodyArrays, float_t, mat33, mat33w, quat, vec3, vec3w, wide_t
@@ -130,6 +130,10 @@ JOINT_DAMPING_RATIO = 2.0
 #: joints that cannot all hold (a 4 g sphere between a turning kinematic box and a static body) were
 #: flung at the error's full rate and diverged (a random search: 12 of 360 such worlds against 20)
 JOINT_PUSH_SPEED = wp.constant(float_t(3.0))
+
+
+#: anchors closer than this [m] (axes closer than this angle [rad]) are one pivot (`JointSet.pivots`)
+PIVOT_TOLERANCE = 1.0e-6
 
 
 class JointKind(IntEnum):
@@ -1380,6 +1384,59 @@ class JointSet(RowGroup):
         on = self.numpy("joint_enabled") != 0
         rows = np.concatenate([self.numpy("joint_body_a")[on], self.numpy("joint_body_b")[on]])
         return np.unique(rows[rows >= 0]).astype(np.int32)
+
+    def pivots(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of the body rows `rows` (`held_bodies`), those that turn about a point or a line fixed in the
+        world, and nothing else: every unbroken joint on them is a ball or a hinge (no limit, no motor) to
+        the world, and their anchors share a point (balls alone) or lie on one line (along the hinges' one
+        axis, or through two or more balls). Returns (rows, points, axes): the rows, (k,), a point of each
+        pivot [m], (k, 3), and its unit axis, (k, 3), zero for a point (the body turns about any axis).
+        (Read from the device: a copy on CUDA.)"""
+        none = (np.zeros(0, dtype=np.int32), np.zeros((0, 3)), np.zeros((0, 3)))
+        if self.count == 0 or len(rows) == 0:
+            return none
+        a, b = self.numpy("joint_body_a"), self.numpy("joint_body_b")
+        on = self.numpy("joint_enabled") != 0
+        kind = self.numpy("joint_kind")
+        free = (self.numpy("joint_limit") == 0) & (self.numpy("joint_motor") == 0)
+        world_a = a < 0
+        point = np.where(world_a[:, None], self.numpy("joint_local_a"), self.numpy("joint_local_b"))
+        frame = np.where(world_a[:, None], self.numpy("joint_frame_a"), self.numpy("joint_frame_b"))
+        found = []
+        for row in rows:
+            mine = on & ((a == row) | (b == row))
+            if not mine.any():
+                continue
+            ok = mine & ((a < 0) | (b < 0)) & free & ((kind == JointKind.BALL) | (kind == JointKind.HINGE))
+            if (mine & ~ok).any():
+                continue  # another joint, a limit or a motor: the stretch limit leaves the body to them
+            pts = point[mine]
+            hinge = kind[mine] == JointKind.HINGE
+            axis = np.zeros(3)
+            if hinge.any():
+                axes = np.array([npmath.quat_rotate(q, (1.0, 0.0, 0.0)) for q in frame[mine][hinge]])
+                axis = axes[0] / np.linalg.norm(axes[0])
+                if (
+                    np.linalg.norm(np.cross(axes, axis), axis=1).max()
+                    > PIVOT_TOLERANCE * np.linalg.norm(axes, axis=1).max()
+                ):
+                    continue  # hinges about different axes hold the body still
+            else:
+                spread = pts - pts[0]
+                far = np.linalg.norm(spread, axis=1)
+                if far.max() > PIVOT_TOLERANCE:
+                    axis = spread[np.argmax(far)] / far.max()  # balls at two points or more: the line through them
+            off = pts - pts[0]
+            if np.linalg.norm(off - np.outer(off @ axis, axis), axis=1).max() > PIVOT_TOLERANCE:
+                continue  # anchors off one line (or, balls alone, off one point): the body cannot turn
+            found.append((row, pts[0], axis))
+        if not found:
+            return none
+        return (
+            np.array([f[0] for f in found], dtype=np.int32),
+            np.array([f[1] for f in found], dtype=np.float64),
+            np.array([f[2] for f in found], dtype=np.float64),
+        )
 
     def _ints(self, values: np.ndarray) -> wp.array:
         """An int32 array on the device (one spare entry: never empty)."""

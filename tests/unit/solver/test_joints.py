@@ -329,3 +329,30 @@ def test_a_kind_that_is_not_a_name_is_refused_naming_kind(kind):
         world.add_joint(kind, a, None, anchor=(0, 0, 2))
     assert error.value.key == "kind"
     assert world.add_joint(JointKind.BALL, a, None, anchor=(0, 0, 2)) is not None
+
+
+def test_pivots_are_the_points_and_lines_world_joints_turn_a_body_about():
+    """`JointSet.pivots`: a rod on two coaxial hinges turns about their axis, a ball on one ball joint about
+    its anchor, three balls in a row about their line; three balls off one line hold a body still, and a
+    hinge with a limit, or a joint to another body, leaves the body out."""
+    world = tumble.World()
+    rod = world.add_box(position=(0, 0, 2.1), half_extents=(0.55, 0.02, 0.02), mass=0.1)
+    for end in (-0.55, 0.55):
+        world.add_joint("hinge", rod, None, anchor=(end, 0, 2.1), axis=(1, 0, 0))
+    ball = world.add_sphere(position=(1, 1, 1), radius=0.1, mass=1)
+    world.add_joint("ball", ball, None, anchor=(1, 1, 1.5))
+    row = world.add_sphere(position=(3, 1, 1), radius=0.1, mass=1)
+    for y in (1.0, 1.5, 2.0):
+        world.add_joint("ball", row, None, anchor=(3, y, 1.5))
+    still = world.add_sphere(position=(5, 1, 1), radius=0.1, mass=1)
+    for anchor in ((5, 1, 1.5), (5.5, 1, 1.5), (5, 2, 1.5)):
+        world.add_joint("ball", still, None, anchor=anchor)
+    limited = world.add_sphere(position=(7, 1, 1), radius=0.1, mass=1)
+    world.add_joint("hinge", limited, None, anchor=(7, 1, 1.5), axis=(0, 1, 0), lower=-1.0, upper=1.0)
+    pair = [world.add_sphere(position=(9 + k, 1, 1), radius=0.1, mass=1) for k in range(2)]
+    world.add_joint("ball", pair[0], pair[1], anchor=(9.5, 1, 1))
+
+    rows, points, axes = world.joints.pivots(world.joints.held_bodies())
+    assert rows.tolist() == [world.body_row(b) for b in (rod, ball, row)]
+    np.testing.assert_allclose(points, [(-0.55, 0, 2.1), (1, 1, 1.5), (3, 1, 1.5)])
+    np.testing.assert_allclose(axes, [(1, 0, 0), (0, 0, 0), (0, 1, 0)], atol=1e-12)
