@@ -160,6 +160,26 @@ def test_a_light_bar_hanging_at_the_foot_of_a_cloth_stays_with_it(bar_mass):
     assert max(strain) <= cloth.max_stretch + 0.01
 
 
+def _run_watching(world, seconds: float, also=None):
+    """Run `world` for `seconds`: its energy at the start (kinetic, gravitational and the cloth's springs),
+    and after every step that energy and the cloth's largest strain (and `also(world)` called)."""
+
+    def energy():
+        return world.kinetic_energy() + world.potential_energy() + world.cloth.elastic_energy()
+
+    e0 = energy()
+    energies, strain = [], []
+
+    def watch(w):
+        energies.append(energy())
+        strain.append(w.cloth.max_strain())
+        if also is not None:
+            also(w)
+
+    world.run(seconds, callback=watch)
+    return e0, energies, strain
+
+
 @pytest.mark.parametrize("mass", [0.1, 1.0])
 @pytest.mark.parametrize("where", ["corner", "middle of the foot"])
 def test_a_small_sphere_hung_by_its_centre_from_one_cloth_pin_gains_no_energy(where, mass):
@@ -178,17 +198,7 @@ def test_a_small_sphere_hung_by_its_centre_from_one_cloth_pin_gains_no_energy(wh
     ball = world.add_sphere(position=world.cloth.particle_position[k], radius=0.005, mass=mass)
     world.pin_cloth_to_body([k], ball)
 
-    def energy():
-        return world.kinetic_energy() + world.potential_energy() + world.cloth.elastic_energy()
-
-    e0 = energy()
-    energies, strain = [], []
-
-    def watch(w):
-        energies.append(energy())
-        strain.append(w.cloth.max_strain())
-
-    world.run(4.0, callback=watch)
+    e0, energies, strain = _run_watching(world, 4.0)
     assert max(energies) <= e0 + 1e-9 * abs(e0)  # rounding of sums over 122 bodies and particles
     assert np.all(np.isfinite(world.body_position)) and np.all(np.isfinite(world.cloth.particle_position))
     if mass <= 0.3:  # up to the cloth's own weight; 1 kg on one corner pulls it to 12.7 % (a 10 kg bar: 12.7 %)
@@ -222,17 +232,7 @@ def test_a_body_light_at_its_one_pin_gains_no_energy_and_keeps_the_limit(body, m
         hung = world.add_box(position=centre, half_extents=(half, half, half), mass=mass)
     world.pin_cloth_to_body([k], hung)
 
-    def energy():
-        return world.kinetic_energy() + world.potential_energy() + world.cloth.elastic_energy()
-
-    e0 = energy()
-    energies, strain = [], []
-
-    def watch(w):
-        energies.append(energy())
-        strain.append(w.cloth.max_strain())
-
-    world.run(4.0, callback=watch)
+    e0, energies, strain = _run_watching(world, 4.0)
     assert np.all(np.isfinite(energies))
     assert max(energies) <= e0 + 1e-9 * abs(e0)  # rounding of sums over 37 bodies and particles
     assert max(strain) <= cloth.max_stretch + 0.01
@@ -255,18 +255,8 @@ def test_a_rod_on_a_ball_joint_turned_by_its_cloth_pins_keeps_the_limit(mass):
     world.cloth.pin_to_body([cloth.particle(2, 1), cloth.particle(2, 2)], rod)
     world.add_joint("ball", rod, None, anchor=centre)
 
-    def energy():
-        return world.kinetic_energy() + world.potential_energy() + world.cloth.elastic_energy()
-
-    e0 = energy()
-    energies, strain, error = [], [], []
-
-    def watch(w):
-        energies.append(energy())
-        strain.append(w.cloth.max_strain())
-        error.append(float(np.max(w.joint_error)))
-
-    world.run(4.0, callback=watch)
+    error = []
+    e0, energies, strain = _run_watching(world, 4.0, also=lambda w: error.append(float(np.max(w.joint_error))))
     assert max(energies) <= e0 + 1e-9 * abs(e0)
     assert max(strain) <= cloth.max_stretch + 0.01
     assert max(error) < 1e-4  # the soft joint's own drift under the load (measured 2.9e-6 to 1.1e-5 m)
