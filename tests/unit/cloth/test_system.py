@@ -178,8 +178,8 @@ def test_energies_and_strain():
 @pytest.mark.parametrize("body_pin", [False, True])
 def test_diverging_cloth_raises_simulation_error(body_pin):
     """Springs far too stiff for forced substeps blow up: a SimulationError names the particle. With a
-    body pinned to the cloth the remedy adds spreading its load over more pins (a body light at its
-    pins can diverge whatever the substeps: docs/design.md, "Cloth with bodies")."""
+    body pinned to the cloth the remedy adds spreading its load over more pins (a jointed body light at
+    its pins can still diverge whatever the substeps: docs/design.md, "Cloth with bodies")."""
     world = make_world()
     world.add_cloth(resolution=(8, 8), stiffness=1.0e7, max_stretch=None, pins="top-edge")
     world.cloth.substeps = 1
