@@ -1192,7 +1192,6 @@ class World:
         # cloth, step start: its substeps, user forces, wind, the bodies that can reach it
         if cloth is not None:
             hulls, meshes = self.hulls.struct(), self.meshes.struct()
-            held = self.joints.held_bodies() if cloth.body_pins.count else None  # what the stretch limit moves
             cloth.begin_step(
                 h,
                 self.substeps,
@@ -1200,8 +1199,7 @@ class World:
                 gravity=self.gravity,
                 time=self.time,
                 step=self.step_count,
-                held=held,
-                pivots=self.joints.pivots(held) if held is not None else None,
+                joints=self.joints,
             )
             lap("cloth")
 

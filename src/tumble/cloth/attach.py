@@ -38,6 +38,8 @@ pull: the limit cannot know what the joint lets them do.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import warp as wp
 
@@ -48,6 +50,9 @@ from ..solver.joints import add_velocity
 from ..solver.rigid import inv_inertia_times, inv_inertia_world
 from ..structs import array_struct, cached_struct
 from .arrays import Particles
+
+if TYPE_CHECKING:
+    from ..solver.joints import JointSet
 
 # no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
 wp.set_module_options({"enable_backward": False})
@@ -238,11 +243,9 @@ def _move_bodies(c: Carried, serial: int):
     # one thread a body with pins: the shift and the turn its pins' corrections gave it with its pins
     for g in range(wp.tid(), each_end(wp.tid(), serial, c.shift.shape[0])):
         b = c.group_body[g]
-        if c.bodies.inv_mass[b] == float_t(0.0):
-            continue
         dtheta = c.turn[g]
         if wp.length_sq(c.shift[g]) == float_t(0.0) and wp.length_sq(dtheta) == float_t(0.0):
-            continue  # no correction moved it (a body joints hold: its pins stayed put)
+            continue  # no correction moved it (a static or kinematic body, or one joints hold: its pins stayed put)
         # the body's centre, at -centre from the centre of mass, moves with the turn about it
         dx = c.shift[g] - wp.cross(dtheta, c.centre[g])
         c.bodies.position[b] = c.bodies.position[b] + dx
@@ -372,6 +375,15 @@ def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, 
     return shield
 
 
+def _by_body(body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pins grouped by body, groups in the order of their body rows: (order, start), the pin rows
+    group after group and where each group begins (one more entry than groups)."""
+    order = np.argsort(body, kind="stable")
+    rows = body[order]
+    start = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if len(order) else np.zeros(0, np.int64)
+    return order, np.r_[start, len(order)]
+
+
 class BodyPins:
     """Particles pinned to points of bodies (rows of the world's body arrays).
 
@@ -394,7 +406,8 @@ class BodyPins:
     # the pins as the stretch limit and tethers take them (`carried`): (struct, key, its arrays); left out
     # of snapshots, made again from the pins
     _carry: tuple | None = None
-    # the body rows joints hold this step (`hold`), whose pins stay put in the stretch limit; set every step
+    # of the bodies with pins, those joints hold this step and the limit leaves to them (`hold`), and those
+    # it turns about a pivot: (rows, points, axes); set every step
     _held: np.ndarray = np.zeros(0, dtype=np.int32)
     _pivots: tuple = (np.zeros(0, dtype=np.int32), np.zeros((0, 3)), np.zeros((0, 3)))
     SNAPSHOT_CACHES = frozenset({"_shield", "_carry", "_held", "_pivots"})
@@ -435,11 +448,9 @@ class BodyPins:
 
     def _group(self) -> None:
         """The pins grouped by body (`order`, `start`), from the host arrays."""
-        order = np.argsort(self._body, kind="stable")
-        bodies = self._body[order]
-        start = np.flatnonzero(np.r_[True, bodies[1:] != bodies[:-1]]) if len(order) else np.zeros(0, np.int64)
+        order, start = _by_body(self._body)
         self.order = wp.array(order.astype(np.int32), dtype=wp.int32, device=self.device)
-        self.start = wp.array(np.r_[start, len(order)].astype(np.int32), dtype=wp.int32, device=self.device)
+        self.start = wp.array(start.astype(np.int32), dtype=wp.int32, device=self.device)
 
     def shielded(self, count: int, structural) -> wp.array:
         """Per particle of `count`, the body row it does not touch (`shielded_bodies`, from the structural
@@ -453,14 +464,18 @@ class BodyPins:
             self._shield = (wp.array(rows, dtype=wp.int32, device=self.device), key)
         return self._shield[0]
 
-    def hold(self, rows: np.ndarray, pivots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
-        """The body rows joints hold this step (`JointSet.held_bodies`), and of them those that turn about a
-        point or a line fixed in the world (`JointSet.pivots`: rows, points, axes). The stretch limit moves
-        a pivoted body by turning it about its pivot; the pins of the other held bodies stay put in it, and
-        it hands them its pull as an impulse, as it cannot know what their joints let them do (moved as if
-        free, a hinged rod was pulled off its hinge by up to 3 cm)."""
-        self._held = rows
-        self._pivots = pivots if pivots is not None else _NO_PIVOTS
+    def hold(self, joints: JointSet | None) -> None:
+        """Once a step: which bodies with pins the world's `joints` hold (`JointSet.held_bodies`), and of
+        them which turn about a point or a line fixed in the world (`JointSet.pivots`). The stretch limit
+        turns a pivoted body about its pivot; the pins of the other held bodies stay put in it, and it hands
+        them its pull as an impulse, as it cannot know what their joints let them do (moved as if free, a
+        hinged rod was pulled off its hinge by up to 3 cm)."""
+        self._held, self._pivots = np.zeros(0, dtype=np.int32), _NO_PIVOTS
+        if joints is None or joints.count == 0 or self.count == 0:
+            return
+        held = np.intersect1d(joints.held_bodies(), self._body).astype(np.int32)
+        self._pivots = joints.pivots(held)
+        self._held = np.setdiff1d(held, self._pivots[0]).astype(np.int32)
 
     def carried(self, count: int, bodies) -> Carried:
         """The pins as the stretch limit and tethers take them (`Carried`), for `count` particles and the
@@ -472,7 +487,6 @@ class BodyPins:
                 self._carry = (no_carried_pins(self.device), None, ())
             return self._carry[0]
         pivot_rows, pivot_points, pivot_axes = self._pivots
-        held = np.setdiff1d(self._held, pivot_rows)
         body_struct = self._body_struct(bodies)
         if self.start is None:
             self._group()
@@ -480,25 +494,26 @@ class BodyPins:
             count,
             self._particle.tobytes(),
             self._body.tobytes(),
-            held.tobytes(),
+            self._held.tobytes(),
             *(a.tobytes() for a in self._pivots),
         )
         arrays = (self.particle, self.body, self.local, self.order, self.start, body_struct)
         cached = self._carry
         if cached is None or cached[1] != key or any(a is not b for a, b in zip(cached[2], arrays, strict=True)):
             c = Carried()
-            c.count = count if self.count else 0
+            c.count = count
             pin = np.full(max(1, count), -1, dtype=np.int32)
-            free = ~np.isin(self._body, held)
+            free = ~np.isin(self._body, self._held)
             pin[self._particle[free]] = np.flatnonzero(free).astype(np.int32)
-            group = np.zeros(max(1, self.count), dtype=np.int32)
-            bodies_of = np.zeros(1, dtype=np.int32)
-            if self.count:
-                bodies_of, group[: self.count] = np.unique(self._body, return_inverse=True)
+            # the groups of `order` and `start` (`_group`), which `_composite` walks
+            order, start = _by_body(self._body)
+            groups = len(start) - 1
+            bodies_of = self._body[order[start[:-1]]]
+            group = np.empty(self.count, dtype=np.int32)
+            group[order] = np.repeat(np.arange(groups, dtype=np.int32), np.diff(start))
             c.pin = wp.array(pin, dtype=wp.int32, device=self.device)
             c.group = wp.array(group, dtype=wp.int32, device=self.device)
             c.group_body = wp.array(bodies_of.astype(np.int32), dtype=wp.int32, device=self.device)
-            groups = len(bodies_of)
             at = np.searchsorted(bodies_of, pivot_rows)
             mine = (at < groups) & (bodies_of[np.minimum(at, groups - 1)] == pivot_rows)
             pivoted = np.zeros(groups, dtype=np.int32)

@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -55,6 +55,9 @@ from . import attach, collide, grid, springs
 from .arrays import PARTICLE_FIELDS, TOPOLOGY, Limits, Particles, Springs, Stretch, Structural, Tethers
 from .attach import BodyPins
 from .wind import AIR_DENSITY, MODE_FIELDS, Modes, Wind, accumulate_air_forces, sample_wind
+
+if TYPE_CHECKING:
+    from ..solver.joints import JointSet
 
 #: default spring stiffness [N/m] per kind; a square grid's sheet stiffness equals ks, at any resolution
 DEFAULT_STIFFNESS = {"structural": 12.0, "shear": 1.2, "bend": 0.3}
@@ -795,8 +798,7 @@ class ClothSystem:
         gravity,
         time: float,
         step: int = 0,
-        held: np.ndarray | None = None,
-        pivots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        joints: JointSet | None = None,
     ) -> None:
         """Stage, once at the start of a world step: cloth substeps, user forces, wind, candidate bodies.
 
@@ -807,13 +809,13 @@ class ClothSystem:
             gravity: [m/s^2], shape (3,), for this step.
             time: the world's clock at the start of the step [s] (the wind's time).
             step: the world's step count (named in errors).
-            held: the body rows a joint holds (`JointSet.held_bodies`): their pins stay put in the stretch
-                limit, which hands them its pull, as the limit cannot know what the joint lets them do;
-                but those in `pivots` (`JointSet.pivots`: rows, points, axes), which it turns about them.
+            joints: the world's `JointSet`, if any: the stretch limit leaves the pins of bodies that joints
+                hold in place and hands them its pull, as it cannot know what the joints let them do, but
+                turns those held about a fixed point or line about it (`BodyPins.hold`).
         """
         if self.particles.count == 0:
             return
-        self.body_pins.hold(np.zeros(0, dtype=np.int32) if held is None else held, pivots)
+        self.body_pins.hold(joints)
         dt = h * max(1, int(substeps))
         a = self.particles.arrays
         self._gravity = np.array(gravity, dtype=np.float64)
