@@ -285,6 +285,45 @@ def test_cloth_made_inside_a_surface_settles_on_it(surface, inside):
     assert np.linalg.norm(world.cloth.center_of_mass() - centre - normal * inside) <= g * DT**2 + 1e-9
 
 
+@pytest.mark.parametrize("kind", ["static", "kinematic"])
+def test_coarse_cloth_made_through_a_small_sphere_leaves_it_without_a_leap(kind):
+    """A 4 x 4 cloth (edges of 0.33 m) made through a resting ball of 0.12 m, whose contacts its triangles
+    take: pushed out of the ball without that push becoming speed (as a particle made inside a surface
+    is, above), it then falls. No particle may go faster than free fall for the time run, g t: before,
+    the push became speed, and particles left the ball at 23 m/s (4.1 m/s now, g t = 4.9 m/s)."""
+    world = tumble.World(dt=DT)
+    world.add_cloth(size=(1, 1), resolution=(4, 4), position=(0, 0, 1.0), mass=0.1)
+    fixed = {"static": True} if kind == "static" else {"kinematic": True}
+    radius, below = 0.12, 0.05
+    world.add_sphere(position=(0.02, 0.03, 1.0 - below), radius=radius, **fixed)
+    g, steps = 9.81, 120
+    fastest = 0.0
+    for _ in range(steps):
+        world.step()
+        fastest = max(fastest, float(np.linalg.norm(world.cloth.particle_velocity, axis=1).max()))
+    assert fastest <= g * steps * DT, fastest
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.3])
+def test_small_sphere_poking_through_a_coarse_pinned_cloth_does_not_throw_it(offset):
+    """A static ball of 0.12 m poking 6 cm through a 4 x 4 cloth pinned at its corners, no gravity:
+    the triangles cannot leave it without stretching (the cloth is held taut), so contact and stretch
+    limit share the overlap; no particle may move faster than clearing the whole overlap in one step
+    (overlap / dt, 15.6 m/s). Before, particles reached 19 m/s (0.45 m/s now). At `offset` 0.3 the ball is
+    next to a pinned corner, where a push on a triangle moved its free particle by the depth over its
+    barycentric weight (a kinematic ball there threw one 15 m in one pass): 25 m/s before, 0.69 now."""
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    world.add_cloth(size=(1, 1), resolution=(4, 4), position=(0, 0, 1.0), mass=0.1, pins="corners")
+    radius, through = 0.12, 0.06
+    world.add_sphere(position=(0.03 - offset, 0.02 - offset, 1.0 - radius + through), radius=radius, static=True)
+    fastest = 0.0
+    for _ in range(120):
+        world.step()
+        fastest = max(fastest, float(np.linalg.norm(world.cloth.particle_velocity, axis=1).max()))
+    overlap = through + 0.005  # and half the thickness
+    assert fastest <= overlap / DT, fastest
+
+
 def test_wind_and_turbulence_are_deterministic():
     """Two runs with the same seed give bit-identical states; another seed differs."""
 
@@ -330,6 +369,28 @@ def test_ball_rests_on_cloth_lying_on_ground():
     # the cloth is not pushed into the ground and the ball not through the cloth
     assert world.cloth.particle_position[:, 2].min() >= thickness - 1e-6
     assert world.body_position[ball.index, 2] == pytest.approx(radius + 2 * thickness, abs=0.1 * thickness)
+
+
+@pytest.mark.parametrize("inside", [0.005, 0.01])
+def test_ball_placed_into_a_cloth_lying_on_the_ground_is_not_thrown(inside):
+    """A ball placed on a cloth lying on the floor with part of the cloth's thickness (`inside`, up to all
+    of it) inside the ball: the particles, held by the floor, cannot give way, and the ball is pushed out.
+    That push must not become speed: the ball may never rise above its rest height over a particle
+    (r + 2 thickness) nor move faster than the overlap cleared in one step (thickness / dt, 2.4 m/s).
+    Before, the push out of 1 cm became 12 m/s and the ball flew 6.5 m up."""
+    thickness, radius = 0.01, 0.1
+    world = tumble.World(dt=DT)
+    world.add_plane()
+    world.add_cloth(size=(1.0, 1.0), resolution=(24, 24), position=(0, 0, thickness), thickness=thickness)
+    ball = world.add_sphere(position=(0.0, 0.0, radius + 2 * thickness - inside), radius=radius, mass=1.0)
+    highest, fastest = 0.0, 0.0
+    for _ in range(240):
+        world.step()
+        highest = max(highest, float(world.body_position[ball.index, 2]))
+        fastest = max(fastest, float(np.linalg.norm(world.body_velocity[ball.index])))
+    assert highest <= radius + 2 * thickness, highest
+    assert fastest <= thickness / DT, fastest
+    assert world.cloth.particle_position[:, 2].min() >= thickness - 1e-6
 
 
 def test_box_in_hammock_settles():

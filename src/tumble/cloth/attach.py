@@ -350,6 +350,14 @@ def sum_pin_load(pins, force, particles: Particles, gravity, total, h, *, cache:
         )
 
 
+def pinned_rows(count: int, pin_particle: np.ndarray, pin_body: np.ndarray) -> np.ndarray:
+    """Per particle of `count`, the body row it is pinned to, (count,) int32, -1 for none (`pin_particle`,
+    `pin_body`: the body pins' particles and body rows, (k,) each)."""
+    pinned = np.full(count, -1, dtype=np.int32)
+    pinned[pin_particle] = pin_body
+    return pinned
+
+
 def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, limited: np.ndarray) -> np.ndarray:
     """Per particle, the body row whose contacts it skips, (count,) int32, -1 for none.
 
@@ -365,8 +373,7 @@ def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, 
         pin_particle, pin_body: the body pins' particles and body rows, (k,) each.
         limited: the structural springs' particles, (s, 2).
     """
-    pinned = np.full(count, -1, dtype=np.int32)
-    pinned[pin_particle] = pin_body
+    pinned = pinned_rows(count, pin_particle, pin_body)
     shield = np.full(count, -1, dtype=np.int32)
     for end in (0, 1):
         a, other = limited[:, end], limited[:, 1 - end]
@@ -452,16 +459,22 @@ class BodyPins:
         self.order = wp.array(order.astype(np.int32), dtype=wp.int32, device=self.device)
         self.start = wp.array(start.astype(np.int32), dtype=wp.int32, device=self.device)
 
-    def shielded(self, count: int, structural) -> wp.array:
-        """Per particle of `count`, the body row it does not touch (`shielded_bodies`, from the structural
-        springs' particles (s, 2) `structural`), (count,) int32; empty without pins. Made again only when
-        the pins, their body rows or the particle count changed."""
+    def shielded(self, count: int, structural) -> tuple[wp.array, wp.array]:
+        """Per particle of `count`: the body row it does not touch (`shielded_bodies`, from the structural
+        springs' particles (s, 2) `structural`) and the body row it is pinned to (`pinned_rows`), (count,)
+        int32 each, -1 for none; both empty without pins. Made again only when the pins, their body rows
+        or the particle count changed."""
         key = (count, self._particle.tobytes(), self._body.tobytes())
         if self._shield is None or self._shield[1] != key:
-            rows = np.zeros(0, dtype=np.int32)
+            shield = pinned = np.zeros(0, dtype=np.int32)
             if self.count:
-                rows = shielded_bodies(count, self._particle, self._body, structural)
-            self._shield = (wp.array(rows, dtype=wp.int32, device=self.device), key)
+                shield = shielded_bodies(count, self._particle, self._body, structural)
+                pinned = pinned_rows(count, self._particle, self._body)
+            arrays: tuple[wp.array, wp.array] = (
+                wp.array(shield, dtype=wp.int32, device=self.device),
+                wp.array(pinned, dtype=wp.int32, device=self.device),
+            )
+            self._shield = (arrays, key)
         return self._shield[0]
 
     def hold(self, joints: JointSet | None) -> None:

@@ -58,6 +58,7 @@ from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
 from ..structs import cached_struct
 from .arrays import Limits, Particles, Tethers, corners
+from .attach import Carried, carried_pin
 
 # no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
 wp.set_module_options({"enable_backward": False})
@@ -68,6 +69,12 @@ BOX = wp.constant(int(ShapeType.BOX))
 CAPSULE = wp.constant(int(ShapeType.CAPSULE))
 CONVEX = wp.constant(int(ShapeType.CONVEX))
 MESH = wp.constant(int(ShapeType.MESH))
+#: most a particle moves in one triangle or edge contact, in units of the contact's depth: pushed at a
+#: point by its particles' weights (barycentric weight times inverse mass), each moves in proportion to its
+#: weight, which for a point near a particle that cannot move (a pin, a taut tether) is the depth over a
+#: tiny weight; a kinematic sphere between a pin and a free particle threw that particle 15 m. Where
+#: every particle gives way the most is 1.37 x depth, so the cap leaves those contacts as they were
+LEVER_LIMIT = wp.constant(float_t(2.0))
 
 
 @wp.struct
@@ -86,6 +93,8 @@ class Near:
     # per particle: the body row it does not touch (-1: none; empty: no body pins): its pin's, or that
     # of a pin one structural spring away (`attach.shielded_bodies`)
     shield: wp.array(dtype=wp.int32)
+    # per particle: the body row it is pinned to (-1: none; empty: no body pins)
+    pinned: wp.array(dtype=wp.int32)
 
 
 @wp.func
@@ -95,35 +104,65 @@ def _shielded(near: Near, p: int, b: int):
 
 
 @wp.func
-def _give_way(p: int, xp: vec3, n: vec3, w_p: float_t, particles: Particles, tethers: Tethers, taut: float_t):
-    """Inverse mass with which particle p at xp yields to a push along n: less the tauter its tethers.
+def _holding(near: Near, carried: Carried, particles: Particles, pin: int, b: int):
+    """Whether a taut tether to particle `pin` holds its particle against body row b's push: `pin` is pinned,
+    and not to another body that the stretch limit moves (`carried_pin`: a free dynamic body, or one
+    turned about a pivot). Such a body gives way with its pins, and the stretch limit pulls it along by
+    its own inverse mass at the pin. (Held fast, a heavy box's push on cloth tethered to a light
+    capsule's pins went to the capsule whole, as an impulse: 700 times the box's mass, it spun up to
+    7,000 rad/s in one step.) A fixed pin holds, as does a pin on a body that other joints hold (they
+    take the load) or on b itself (b cannot push its own cloth away from itself, `_route_to_pins`)."""
+    if particles.inv_mass[pin] > float_t(0.0):
+        return False
+    if near.pinned.shape[0] > 0 and near.pinned[pin] == b:
+        return True
+    return carried_pin(carried, pin, float_t(0.0)) < 0
 
-    A tether that the push would stretch holds its particle: free below taut x its limit, fixed
-    at the limit, linear in between (a sudden switch made bodies resting on cloth chatter).
+
+@wp.func
+def _give_way(
+    p: int,
+    xp: vec3,
+    n: vec3,
+    w_p: float_t,
+    particles: Particles,
+    tethers: Tethers,
+    near: Near,
+    carried: Carried,
+    b: int,
+):
+    """Inverse mass with which particle p at xp yields to body row b's push along n: less the tauter its tethers.
+
+    A tether that the push would stretch holds its particle (`_holding`): free below taut x its
+    limit, fixed at the limit, linear in between (a sudden switch made bodies resting on cloth chatter).
     """
     w = w_p
     t = particles.tether_first[p]
     t_end = t + particles.tether_count[p]
     while t < t_end:
-        arm = xp - particles.position[tethers.pin[t]]
-        if wp.dot(arm, n) > float_t(0.0):
+        pin = tethers.pin[t]
+        arm = xp - particles.position[pin]
+        if wp.dot(arm, n) > float_t(0.0) and _holding(near, carried, particles, pin, b):
             lim = tethers.limit[t]
-            slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - taut))
+            slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - near.taut))
             w = wp.min(w, w_p * wp.clamp(slack, float_t(0.0), float_t(1.0)))
         t += 1
     return w
 
 
 @wp.func
-def _tether_hold(t: int, xp: vec3, u: vec3, particles: Particles, tethers: Tethers, taut: float_t):
-    """How tether t of a particle at xp resists a push along u: (pull, tight), pull = cos of the angle
-    between u and the tether (0 when the push does not lengthen it or its pin is free) and tight its
-    tautness, 0 below taut x its limit, 1 at the limit (the `_give_way` ramp)."""
+def _tether_hold(
+    t: int, xp: vec3, u: vec3, particles: Particles, tethers: Tethers, near: Near, carried: Carried, b: int
+):
+    """How tether t of a particle at xp resists body row b's push along u: (pull, tight), pull = cos of the
+    angle between u and the tether (0 when the push does not lengthen it or it does not hold the particle,
+    `_holding`) and tight its tautness, 0 below taut x its limit, 1 at the limit (the `_give_way` ramp)."""
     zero = float_t(0.0)
     pull = zero
     tight = zero
     pin = tethers.pin[t]
-    if particles.inv_mass[pin] <= zero:
+    taut = near.taut
+    if _holding(near, carried, particles, pin, b):
         arm = xp - particles.position[pin]
         length = wp.length(arm)
         if length > float_t(1.0e-12):
@@ -134,16 +173,23 @@ def _tether_hold(t: int, xp: vec3, u: vec3, particles: Particles, tethers: Tethe
 
 
 @wp.func
-def _route_to_pins(p: int, xp: vec3, held: vec3, particles: Particles, tethers: Tethers, taut: float_t):
-    """A push `held` [kg m] on particle p that the cloth took without moving p (its tethers or limited
-    springs held it) goes on to the pins that hold it: shared among p's tethers that the push
+def _route_to_pins(
+    p: int, xp: vec3, held: vec3, particles: Particles, tethers: Tethers, near: Near, carried: Carried, b: int
+):
+    """A push `held` [kg m] of body row b on particle p that the cloth took without moving p (its tethers
+    or limited springs held it) goes on to the pins that hold it: shared among p's tethers that the push
     lengthens, each in proportion to its tautness (as `_give_way` ramps it) and to how straight the
     push pulls on it; by pull alone when none is near its limit. The pins' loads then sum to
     `held`, so the body's push ends on the pins (`particles.pin_load`) and momentum is kept.
+
+    Returns the part of `held` that fell on pins of b itself, which is not passed on: the caller takes it
+    off b's push instead, since a body cannot push on itself through its own cloth (passed on to its
+    pins, the push and its return acted at different points of b and turned it).
     """
+    own = vec3()
     size = wp.length(held)
     if size <= float_t(0.0):
-        return
+        return own
     u = held / size
     zero = float_t(0.0)
     total = zero
@@ -151,18 +197,23 @@ def _route_to_pins(p: int, xp: vec3, held: vec3, particles: Particles, tethers: 
     t0 = particles.tether_first[p]
     t_end = t0 + particles.tether_count[p]
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, particles, tethers, taut)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b)
         total += pull * tight
         along += pull
     if along <= zero:
-        return
+        return own
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, particles, tethers, taut)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b)
         share = pull / along
         if total > zero:
             share = pull * tight / total
         if share > zero:
-            wp.atomic_add(particles.pin_load, tethers.pin[t], held * share)
+            pin = tethers.pin[t]
+            if near.pinned.shape[0] > 0 and near.pinned[pin] == b:
+                own += held * share
+            else:
+                wp.atomic_add(particles.pin_load, pin, held * share)
+    return own
 
 
 @wp.func
@@ -198,22 +249,34 @@ def _coulomb(
 
 
 @wp.func
-def _push_body(b: int, impulse: vec3, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, h: float_t, bodies: BodyArrays):
+def _push_body(
+    b: int,
+    impulse: vec3,
+    still: float_t,
+    r_b: vec3,
+    q: quat,
+    inv_i: vec3,
+    w_lin: float_t,
+    h: float_t,
+    bodies: BodyArrays,
+):
     """Two-way coupling: a dynamic body gets `impulse` (a displacement times mass) at r_b from its centre.
 
     As in position-based dynamics it moves and turns by it, and its velocities change by it / h
     (so that cloth held by its stretch limit can hold the body up instead of the two trading
-    ever larger pushes over the substeps).
+    ever larger pushes over the substeps), but for the fraction `still` of it, which only moves it
+    (the part that undoes an overlap the contact began the substep in, `_collide_bodies`).
     """
     if w_lin > float_t(0.0):
         dx_b = impulse * w_lin
         dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
+        moving = float_t(1.0) - still
         wp.atomic_add(bodies.position, b, dx_b)
-        wp.atomic_add(bodies.velocity, b, dx_b / h)
+        wp.atomic_add(bodies.velocity, b, dx_b * moving / h)
         # q' = q + 1/2 (dtheta, 0) q (small angle; the rigid integrator renormalises), else the
         # rotational part of the overlap is never undone
         wp.atomic_add(bodies.orientation, b, float_t(0.5) * (quat(dtheta[0], dtheta[1], dtheta[2], float_t(0.0)) * q))
-        wp.atomic_add(bodies.angular_velocity, b, dtheta / h)
+        wp.atomic_add(bodies.angular_velocity, b, dtheta * moving / h)
         # the rigid contact solver tracks each body's motion over the step
         wp.atomic_add(bodies.delta_position, b, dx_b)
         wp.atomic_add(bodies.delta_rotation, b, dtheta)
@@ -228,9 +291,19 @@ def _slack_along(a: vec3, n: vec3, limit: float_t):
 
 
 @wp.func
-def _slack(p: int, xp: vec3, n: vec3, particles: Particles, limits: Limits, tethers: Tethers):
-    """How far particle p may move along n before one of its limited springs or tethers reaches its limit
-    (the other ends held where they are)."""
+def _slack(
+    p: int,
+    xp: vec3,
+    n: vec3,
+    particles: Particles,
+    limits: Limits,
+    tethers: Tethers,
+    near: Near,
+    carried: Carried,
+    b: int,
+):
+    """How far particle p may move along n before one of its limited springs or its tethers that hold it
+    (`_holding`) reaches its limit (the other ends held where they are)."""
     x = particles.position
     s = float_t(1.0e30)
     k = limits.first[p]
@@ -242,7 +315,7 @@ def _slack(p: int, xp: vec3, n: vec3, particles: Particles, limits: Limits, teth
     t_end = t + particles.tether_count[p]
     while t < t_end:
         pin = tethers.pin[t]
-        if particles.inv_mass[pin] <= float_t(0.0):
+        if _holding(near, carried, particles, pin, b):
             s = wp.min(s, _slack_along(xp - x[pin], n, tethers.limit[t]))
         t += 1
     return s
@@ -347,7 +420,7 @@ def _surface(
 
 
 @wp.kernel
-def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near: Near, serial: int):
+def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near: Near, carried: Carried, serial: int):
     x = particles.position
     x_prev = particles.position_prev
     thickness = particles.thickness
@@ -397,7 +470,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             elif wp.dot(support, n) < zero:
                 w_c = zero
             if w_b > zero and w_c > zero:
-                w_c = wp.min(w_c, _give_way(p, xp, n, w_p, particles, tethers, near.taut))
+                w_c = wp.min(w_c, _give_way(p, xp, n, w_p, particles, tethers, near, carried, b))
             if w_c + w_b <= zero:
                 continue
             # normal, mass-weighted: lambda = depth / (w_c + c w_b) moves the particle lambda w_c along n
@@ -409,7 +482,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             move = lam * w_c
             lam_b = lam
             if near.strict != 0 and w_b > zero and move > zero:
-                slack = _slack(p, xp, n, particles, limits, tethers)
+                slack = _slack(p, xp, n, particles, limits, tethers, near, carried, b)
                 if move > slack:
                     move = slack
                     lam_b = (depth - slack) / (split * w_b)
@@ -421,7 +494,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * near.h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
             move_t = lam_t * w_c
             if near.strict != 0 and w_b > zero and move_t > zero:
-                move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers))
+                move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers, near, carried, b))
             xp = xp - tdir * move_t
             # a body at rest (static, or kinematic and still) pushes the particle out of an overlap it
             # began the substep in (made inside a surface) without making that push speed: the velocity
@@ -444,15 +517,37 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
                 overlap = thickness[p] - d_start
                 if was_in and overlap > zero:
                     x_prev[p] = x_prev[p] + n * wp.min(overlap, move)
-            _push_body(b, tdir * lam_t - n * lam_b, r_b, q, inv_i, w_lin, near.h, bodies)
+            # a dynamic body pressing a particle against a static one (which cannot give way) undoes an
+            # overlap the particle began the substep in without making it speed (the particle's start
+            # taken where the body then was, v h back): that part of the push only moves the body (the
+            # relax pass of rigid contacts does the same). A 1 kg ball placed on a cloth lying on the
+            # floor, the cloth's thickness (1 cm) inside the ball, was thrown 14 m up at 19 m/s
+            still = zero
+            if w_b > zero and wp.dot(support, n) < zero:
+                was_in, d_start, n_start = _surface(
+                    bodies.shape[b],
+                    b,
+                    x_prev[p] + bodies.velocity[b] * near.h,
+                    x_prev[p] + bodies.velocity[b] * near.h,
+                    bodies,
+                    near.hulls,
+                    near.meshes,
+                    float_t(2.0) * thickness[p],
+                )
+                overlap = thickness[p] - d_start
+                if was_in and overlap > zero:
+                    still = wp.min(overlap / depth, float_t(1.0))
+                    x_prev[p] = x_prev[p] + n * (move * still)
             # what the body gave the particle beyond the particle's own momentum change, m_p times its
-            # move, the cloth held (taut tethers, the strict slack): it goes on to the pins; a particle
-            # pressed against a static body passes it to that body instead
+            # move, the cloth held (taut tethers, the strict slack): it goes on to the pins, but for the
+            # part held by the body's own pins, which the body does not give (`_route_to_pins`); a
+            # particle pressed against a static body passes it to that body instead
+            own = vec3()
             if w_b > zero and wp.dot(support, n) >= zero:
                 m_p = float_t(1.0) / w_p
-                _route_to_pins(
-                    p, xp, n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p), particles, tethers, near.taut
-                )
+                held = n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p)
+                own = _route_to_pins(p, xp, held, particles, tethers, near, carried, b)
+            _push_body(b, tdir * lam_t - n * lam_b + own, still, r_b, q, inv_i, w_lin, near.h, bodies)
 
         x[p] = xp
 
@@ -546,7 +641,12 @@ def _off_triangle(c: vec3, c_start: vec3, a0: vec3, a1: vec3, a2: vec3, s0: vec3
 
 @wp.kernel
 def _catch_small_spheres(
-    particles: Particles, tethers: Tethers, triangles: wp.array2d(dtype=wp.int32), near: Near, serial: int
+    particles: Particles,
+    tethers: Tethers,
+    triangles: wp.array2d(dtype=wp.int32),
+    near: Near,
+    carried: Carried,
+    serial: int,
 ):
     x = particles.position
     x_prev = particles.position_prev
@@ -584,17 +684,31 @@ def _catch_small_spheres(
             # particles held by taut tethers give way less, as against any body
             w_b = bodies.inv_mass[b]
             split = float_t(wp.max(near.contacts_prev[b], 1))
-            g0 = _give_way(i0, a0, -n, w0, particles, tethers, near.taut)
-            g1 = _give_way(i1, a1, -n, w1, particles, tethers, near.taut)
-            g2 = _give_way(i2, a2, -n, w2, particles, tethers, near.taut)
+            g0 = _give_way(i0, a0, -n, w0, particles, tethers, near, carried, b)
+            g1 = _give_way(i1, a1, -n, w1, particles, tethers, near, carried, b)
+            g2 = _give_way(i2, a2, -n, w2, particles, tethers, near, carried, b)
             w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
             if w_tri + split * w_b <= zero:
                 continue
             wp.atomic_add(near.contacts_next, b, 1)
             lam = depth / (w_tri + split * w_b)
+            lam = lam * _lever_scale(lam, depth, beta[0] * g0, beta[1] * g1, beta[2] * g2)
             wp.atomic_sub(x, i0, n * (lam * beta[0] * g0))
             wp.atomic_sub(x, i1, n * (lam * beta[1] * g1))
             wp.atomic_sub(x, i2, n * (lam * beta[2] * g2))
+            # a sphere at rest (static, or kinematic and still) pushes the triangle out of an overlap it
+            # began the substep in (made through the sphere) without making that push speed, as it does a
+            # particle (`_collide_bodies`): the start positions move with it by the part of the push that
+            # the start's overlap asks. A 4 x 4 cloth made through a ball of 0.12 m left it at 23 m/s
+            if w_b == zero and wp.length_sq(bodies.velocity[b]) == zero:
+                was_in, beta_start, n_start, overlap = _off_triangle(
+                    c, c, x_prev[i0], x_prev[i1], x_prev[i2], x_prev[i0], x_prev[i1], x_prev[i2], r + gap
+                )
+                if was_in:
+                    undo = n * (lam * wp.min(overlap / depth, float_t(1.0)))
+                    wp.atomic_sub(x_prev, i0, undo * (beta[0] * g0))
+                    wp.atomic_sub(x_prev, i1, undo * (beta[1] * g1))
+                    wp.atomic_sub(x_prev, i2, undo * (beta[2] * g2))
 
             # friction on the triangle point's tangential motion relative to the sphere's surface
             q = bodies.orientation[b]
@@ -611,7 +725,18 @@ def _catch_small_spheres(
             wp.atomic_sub(x, i0, tdir * (lam_t * beta[0] * g0))
             wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
             wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
-            _push_body(b, tdir * lam_t + n * lam, r_b, q, inv_i, w_b, near.h, bodies)
+            _push_body(b, tdir * lam_t + n * lam, zero, r_b, q, inv_i, w_b, near.h, bodies)
+
+
+@wp.func
+def _lever_scale(lam: float_t, depth: float_t, m0: float_t, m1: float_t, m2: float_t):
+    """The factor (at most 1) on a contact's lambda, which moves particle i by lam * m_i (m_i its weight at
+    the contact, >= 0), that keeps every particle's move within LEVER_LIMIT x depth; 1 where it is."""
+    most = lam * wp.max(m0, wp.max(m1, m2))
+    cap = LEVER_LIMIT * depth
+    if most > cap:
+        return cap / most
+    return float_t(1.0)
 
 
 @wp.func
@@ -681,7 +806,9 @@ def _keep_vertex_off(
         w_tri = beta[0] * beta[0] * w0 + beta[1] * beta[1] * w1 + beta[2] * beta[2] * w2
         if w_tri > zero:
             lam = depth / w_tri
-            moved = a0 * beta[0] + a1 * beta[1] + a2 * beta[2] - n * depth
+            scale = _lever_scale(lam, depth, beta[0] * w0, beta[1] * w1, beta[2] * w2)
+            lam = lam * scale
+            moved = a0 * beta[0] + a1 * beta[1] + a2 * beta[2] - n * (depth * scale)
             slip = moved - (s0 * beta[0] + s1 * beta[1] + s2 * beta[2])
             none = vec3(zero, zero, zero)
             tdir, lam_t = _coulomb(slip, n, none, w_tri, zero, one, mu, lam, quat(zero, zero, zero, one), none)
@@ -752,7 +879,9 @@ def _keep_edge_off(
             if depth <= zero or w_edge <= zero:
                 continue
             lam = depth / w_edge
-            slip = d + n * depth - d_start
+            scale = _lever_scale(lam, depth, (one - s) * wa, s * wb, zero)
+            lam = lam * scale
+            slip = d + n * (depth * scale) - d_start
             none = vec3(zero, zero, zero)
             tdir, lam_t = _coulomb(slip, n, none, w_edge, zero, one, mu, lam, quat(zero, zero, zero, one), none)
             move = wp.quat_rotate(q, n * lam - tdir * lam_t)
@@ -977,7 +1106,7 @@ def candidate_bodies(world_bodies, lo: np.ndarray, hi: np.ndarray, reach: float,
 
 
 def near_bodies(
-    candidates, bodies, hulls, meshes, counts, h, shield, *, taut: float = 0.97, strict: bool = False
+    candidates, bodies, hulls, meshes, counts, h, shield, pinned, *, taut: float = 0.97, strict: bool = False
 ) -> Near:
     """The bodies the cloth may touch this step, as the contact kernels take them.
 
@@ -990,6 +1119,8 @@ def near_bodies(
             each pass) in this one, two arrays of shape (n,) int32.
         h: substep [s].
         shield: per particle, the body row it does not touch, (P,) int32, or empty (`attach.shielded_bodies`).
+        pinned: per particle, the body row it is pinned to, (P,) int32, or empty (`attach.pinned_rows`): a
+            tether to a pin on a dynamic body does not hold its particle against a push (`_holding`).
         taut: a tether longer than taut x its limit starts to hold its particle against bodies,
             fully at the limit (a gradual ramp: an on/off switch made bodies resting on cloth
             chatter at ~0.2 m/s; with the ramp a box in a hammock settles to ~0.02 m/s).
@@ -1001,12 +1132,18 @@ def near_bodies(
     near.bodies, near.hulls, near.meshes, near.candidates = bodies, hulls, meshes, candidates
     near.contacts_prev, near.contacts_next = counts
     near.h, near.taut, near.strict = float_t(h), float_t(taut), int(strict)
-    near.shield = shield
+    near.shield, near.pinned = shield, pinned
     return near
 
 
 def collide_bodies(
-    particles: Particles, tethers: Tethers, limits: Limits, near: Near, *, cache: LaunchCache | None = None
+    particles: Particles,
+    tethers: Tethers,
+    limits: Limits,
+    near: Near,
+    carried: Carried,
+    *,
+    cache: LaunchCache | None = None,
 ):
     """Push particles out of the near bodies, with friction, and push the bodies back.
 
@@ -1019,14 +1156,17 @@ def collide_bodies(
         tethers: each tether's pin and largest length (a particle's are `particles.tether_first`, ...).
         limits: each particle's limited springs.
         near: the bodies to test, the contact counts and the pass's settings (`near_bodies`).
+        carried: the pins on free dynamic bodies with those bodies' inverse masses at them
+            (`BodyPins.begin_constraints`): a tether to such a pin does not hold its particle against
+            another body's push (`_holding`).
     """
     if near.candidates.shape[0]:
         x = particles.position
-        launch_each(_collide_bodies, x.shape[0], [particles, tethers, limits, near], x.device, cache)
+        launch_each(_collide_bodies, x.shape[0], [particles, tethers, limits, near, carried], x.device, cache)
 
 
 def catch_small_spheres(
-    particles: Particles, tethers: Tethers, triangles, near: Near, *, cache: LaunchCache | None = None
+    particles: Particles, tethers: Tethers, triangles, near: Near, carried: Carried, *, cache: LaunchCache | None = None
 ):
     """Keep spheres that fit between particles from passing through the cloth's triangles.
 
@@ -1040,7 +1180,9 @@ def catch_small_spheres(
     """
     count = triangles.shape[0]
     if near.candidates.shape[0] and count:
-        launch_each(_catch_small_spheres, count, [particles, tethers, triangles, near], triangles.device, cache)
+        launch_each(
+            _catch_small_spheres, count, [particles, tethers, triangles, near, carried], triangles.device, cache
+        )
 
 
 def edge_owners(triangles: np.ndarray) -> np.ndarray:

@@ -685,7 +685,8 @@ class ClothSystem:
         touching = self._candidates.shape[0] > 0
         near = self._near(hi, hulls, meshes) if touching else None
         particles.pin_load.zero_()
-        carried = self.body_pins.begin_constraints(particles, self.particles.count, bodies)  # pins moving bodies
+        # pins on bodies the stretch limit moves (`Carried`): they give way to the pushes of other bodies
+        carried = self.body_pins.begin_constraints(particles, self.particles.count, bodies)
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
             self.last_stretch_sweeps = self._limit(s, carried, 1.0 if touching else self.stretch_relaxation)
@@ -699,12 +700,12 @@ class ClothSystem:
             # bodies: out of planes, spheres, boxes, capsules, hulls and meshes, with friction;
             # bodies get the reaction
             if near is not None:
-                self._collide_bodies(s, near)
+                self._collide_bodies(s, near, carried)
                 # bodies pushed some particles into the layer above: part them, then push out of
                 # the bodies once more (only the part of a fold that touches a body settles here)
                 if self.self_collision and self.state.pair_count:
                     collide.separate_pairs(particles, self.state.pairs, self.state.pair_count, cache=cache)
-                    self._collide_bodies(s, near)
+                    self._collide_bodies(s, near, carried)
 
         # the triangles against the sharp features of static meshes and boxes, once the particles
         # are settled against the faces (once a substep: their cost is one BVH query a triangle)
@@ -766,23 +767,23 @@ class ClothSystem:
         again only when what it holds changed: the candidates, the body arrays, the substep."""
         assert self._bodies is not None  # set by begin_step
         counts = (self.state.body_contacts, self._contacts_next)
-        shield = self.body_pins.shielded(self.particles.count, self._host("structural_ids"))
-        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, shield)
+        shield, pinned = self.body_pins.shielded(self.particles.count, self._host("structural_ids"))
+        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, shield, pinned)
         settings = (hi, self.strict_limit)
         cached = self._near_bodies
         if cached is None or cached[2] != settings or any(a is not b for a, b in zip(cached[1], held, strict=True)):
             near = collide.near_bodies(
-                self._candidates, self._bodies[0], hulls, meshes, counts, hi, shield, strict=self.strict_limit
+                self._candidates, self._bodies[0], hulls, meshes, counts, hi, shield, pinned, strict=self.strict_limit
             )
             cached = self._near_bodies = (near, held, settings)
         return cached[0]
 
-    def _collide_bodies(self, s: ClothStructs, near: collide.Near) -> None:
+    def _collide_bodies(self, s: ClothStructs, near: collide.Near, carried: attach.Carried) -> None:
         """Particles, then triangles against small spheres, out of the near bodies; bodies pushed back."""
         self._contacts_next.zero_()
-        collide.collide_bodies(s.particles, s.tethers, s.limits, near, cache=self._cache)
+        collide.collide_bodies(s.particles, s.tethers, s.limits, near, carried, cache=self._cache)
         triangles = self.model.topology["triangles"]
-        collide.catch_small_spheres(s.particles, s.tethers, triangles, near, cache=self._cache)
+        collide.catch_small_spheres(s.particles, s.tethers, triangles, near, carried, cache=self._cache)
         # this pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)
         if self.device == "cpu":
             host_view(self.state.body_contacts)[:] = host_view(self._contacts_next)  # the host views are the arrays
