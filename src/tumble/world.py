@@ -580,9 +580,11 @@ class World:
         """Pin cloth particles (indices into `world.cloth`'s arrays) to a body where they are now: they
         follow it and pull on it (two-way). Same as `world.cloth.pin_to_body(particles, body)`.
 
-        The particles at and next to the pins do not touch the body. A body light at its pins (lighter
-        than their particles, or turned about a long lever) can overshoot and diverge: share its load
-        over more pins (docs/design.md, "Cloth with bodies")."""
+        The particles at and next to the pins do not touch the body. The stretch limit moves a free body
+        with its pins, however light; a jointed body light at its pins (lighter than their particles,
+        or turned about a long lever) other than one hinged or ball-jointed to the world alone takes
+        the cloth's pull as an impulse and can overshoot: share its load over more pins
+        (docs/design.md, "Cloth with bodies")."""
         row = self._row(body)
         b = self.bodies
         self.cloth.attach_to_body(particles, row, b.numpy("body_position")[row], b.numpy("body_orientation")[row])
