@@ -393,6 +393,27 @@ def test_ball_placed_into_a_cloth_lying_on_the_ground_is_not_thrown(inside):
     assert world.cloth.particle_position[:, 2].min() >= thickness - 1e-6
 
 
+@pytest.mark.parametrize("resolution", [6, 8])
+def test_ball_dropped_on_a_coarse_cloth_lying_on_the_ground_rests_on_it(resolution):
+    """A ball of 0.1 m dropped from 0.3 m onto a coarse cloth (grid spacing 0.14 to 0.2 m, so its
+    triangles take the contact) lying on the floor: the floor holds the triangle's particles, so the
+    ball is stopped by the cloth, not the cloth driven into the floor. No particle may move faster
+    than the ball's landing speed, sqrt(2 g h) (1.9 m/s); the ball rests on the triangles, r + thickness / 2
+    above the cloth's particles (to 1 mm). Before, the pushed particles sprang out of the floor at up to 24 m/s."""
+    thickness, radius, drop = 0.01, 0.1, 0.3
+    world = tumble.World(dt=DT)
+    world.add_plane()
+    world.add_cloth(size=(1, 1), resolution=(resolution, resolution), position=(0, 0, thickness), mass=0.1)
+    ball = world.add_sphere(position=(0.01, 0.02, drop), radius=radius, mass=1.0)
+    fastest = 0.0
+    for _ in range(360):
+        world.step()
+        fastest = max(fastest, float(np.linalg.norm(world.cloth.particle_velocity, axis=1).max()))
+    g = 9.81
+    assert fastest <= math.sqrt(2 * g * (drop - radius - thickness)), fastest
+    assert world.body_position[ball.index, 2] == pytest.approx(thickness + radius + thickness / 2, abs=1e-3)
+
+
 def test_box_in_hammock_settles():
     """A box dropped into a cloth held at its corners comes to rest instead of chattering.
 

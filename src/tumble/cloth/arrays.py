@@ -40,6 +40,13 @@ PARTICLE_FIELDS: tuple[Field, ...] = (
     Field(
         "particle_pin_load", vec3, Role.SCRATCH, "kg m", "the stretch limit's and tethers' pull on a pin, this substep"
     ),
+    Field(
+        "particle_support",
+        vec3,
+        Role.SCRATCH,
+        "",
+        "sum of the outward normals of the static bodies the particle touched in the last contact pass",
+    ),
     Field("particle_tether_first", wp.int32, Role.MODEL, "", "first tether of the particle (derived from the pins)"),
     Field("particle_tether_count", wp.int32, Role.MODEL, "", "its number of tethers (derived from the pins)"),
 )

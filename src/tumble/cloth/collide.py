@@ -550,6 +550,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             _push_body(b, tdir * lam_t - n * lam_b + own, still, r_b, q, inv_i, w_lin, near.h, bodies)
 
         x[p] = xp
+        particles.support[p] = support  # for the triangles' contacts (`_catch_small_spheres`)
 
 
 @wp.func
@@ -687,6 +688,17 @@ def _catch_small_spheres(
             g0 = _give_way(i0, a0, -n, w0, particles, tethers, near, carried, b)
             g1 = _give_way(i1, a1, -n, w1, particles, tethers, near, carried, b)
             g2 = _give_way(i2, a2, -n, w2, particles, tethers, near, carried, b)
+            # nor do particles that a static body holds from the other side (this pass's particle contacts)
+            supported = False
+            if wp.dot(particles.support[i0], n) > zero:
+                g0 = zero
+                supported = True
+            if wp.dot(particles.support[i1], n) > zero:
+                g1 = zero
+                supported = True
+            if wp.dot(particles.support[i2], n) > zero:
+                g2 = zero
+                supported = True
             w_tri = beta[0] * beta[0] * g0 + beta[1] * beta[1] * g1 + beta[2] * beta[2] * g2
             if w_tri + split * w_b <= zero:
                 continue
@@ -725,7 +737,17 @@ def _catch_small_spheres(
             wp.atomic_sub(x, i0, tdir * (lam_t * beta[0] * g0))
             wp.atomic_sub(x, i1, tdir * (lam_t * beta[1] * g1))
             wp.atomic_sub(x, i2, tdir * (lam_t * beta[2] * g2))
-            _push_body(b, tdir * lam_t + n * lam, zero, r_b, q, inv_i, w_b, near.h, bodies)
+            # a dynamic sphere pressing the triangle against a static body undoes an overlap it began the
+            # substep in without making it speed, as for a particle (`_collide_bodies`; its start v h back)
+            still = zero
+            if supported and w_b > zero:
+                c_start = c - bodies.velocity[b] * near.h
+                was_in, beta_start, n_start, overlap = _off_triangle(
+                    c_start, c_start, x_prev[i0], x_prev[i1], x_prev[i2], x_prev[i0], x_prev[i1], x_prev[i2], r + gap
+                )
+                if was_in:
+                    still = wp.min(overlap / depth, float_t(1.0))
+            _push_body(b, tdir * lam_t + n * lam, still, r_b, q, inv_i, w_b, near.h, bodies)
 
 
 @wp.func
