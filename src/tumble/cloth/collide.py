@@ -58,7 +58,7 @@ from ..shapes import ShapeType
 from ..solver.rigid import inv_inertia_times
 from ..structs import cached_struct
 from .arrays import Limits, Particles, Tethers, corners
-from .attach import Carried, carried_pin
+from .attach import Carried, carried_inverse_mass, carried_pin
 
 # no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
 wp.set_module_options({"enable_backward": False})
@@ -104,19 +104,24 @@ def _shielded(near: Near, p: int, b: int):
 
 
 @wp.func
-def _holding(near: Near, carried: Carried, particles: Particles, pin: int, b: int):
-    """Whether a taut tether to particle `pin` holds its particle against body row b's push: `pin` is pinned,
-    and not to another body that the stretch limit moves (`carried_pin`: a free dynamic body, or one
-    turned about a pivot). Such a body gives way with its pins, and the stretch limit pulls it along by
-    its own inverse mass at the pin. (Held fast, a heavy box's push on cloth tethered to a light
-    capsule's pins went to the capsule whole, as an impulse: 700 times the box's mass, it spun up to
-    7,000 rad/s in one step.) A fixed pin holds, as does a pin on a body that other joints hold (they
-    take the load) or on b itself (b cannot push its own cloth away from itself, `_route_to_pins`)."""
+def _holding(near: Near, carried: Carried, particles: Particles, pin: int, b: int, w_b: float_t, n: vec3):
+    """Whether a taut tether to particle `pin` holds its particle against the push along n of body row b,
+    whose inverse mass at the contact is w_b: `pin` is pinned, and not to a body that the stretch limit
+    moves (`carried_pin`: a free dynamic body, or one turned about a pivot) and that is lighter at the
+    pin along n than b is at the contact (`carried_inverse_mass`, about the pivot for a pivoted one).
+    Such a body gives way with its pins, and the stretch limit then pulls it along by its own inverse
+    mass. (Held fast, a heavy box's push on cloth tethered to a light capsule's pins went to the capsule
+    whole, as an impulse: 700 times the box's mass, it spun up to 7,000 rad/s in one step.) A fixed pin
+    holds, as do a pin on a body that other joints hold (they take the load), on a heavier one, and on
+    b itself (b cannot push its own cloth away from itself, `_route_to_pins`)."""
     if particles.inv_mass[pin] > float_t(0.0):
         return False
     if near.pinned.shape[0] > 0 and near.pinned[pin] == b:
         return True
-    return carried_pin(carried, pin, float_t(0.0)) < 0
+    k = carried_pin(carried, pin, float_t(0.0))
+    if k < 0:
+        return True
+    return carried_inverse_mass(carried, k, n) <= w_b
 
 
 @wp.func
@@ -130,6 +135,7 @@ def _give_way(
     near: Near,
     carried: Carried,
     b: int,
+    w_b: float_t,
 ):
     """Inverse mass with which particle p at xp yields to body row b's push along n: less the tauter its tethers.
 
@@ -142,7 +148,7 @@ def _give_way(
     while t < t_end:
         pin = tethers.pin[t]
         arm = xp - particles.position[pin]
-        if wp.dot(arm, n) > float_t(0.0) and _holding(near, carried, particles, pin, b):
+        if wp.dot(arm, n) > float_t(0.0) and _holding(near, carried, particles, pin, b, w_b, n):
             lim = tethers.limit[t]
             slack = (lim - wp.length(arm)) / (lim * (float_t(1.0) - near.taut))
             w = wp.min(w, w_p * wp.clamp(slack, float_t(0.0), float_t(1.0)))
@@ -152,7 +158,15 @@ def _give_way(
 
 @wp.func
 def _tether_hold(
-    t: int, xp: vec3, u: vec3, particles: Particles, tethers: Tethers, near: Near, carried: Carried, b: int
+    t: int,
+    xp: vec3,
+    u: vec3,
+    particles: Particles,
+    tethers: Tethers,
+    near: Near,
+    carried: Carried,
+    b: int,
+    w_b: float_t,
 ):
     """How tether t of a particle at xp resists body row b's push along u: (pull, tight), pull = cos of the
     angle between u and the tether (0 when the push does not lengthen it or it does not hold the particle,
@@ -162,7 +176,7 @@ def _tether_hold(
     tight = zero
     pin = tethers.pin[t]
     taut = near.taut
-    if _holding(near, carried, particles, pin, b):
+    if _holding(near, carried, particles, pin, b, w_b, u):
         arm = xp - particles.position[pin]
         length = wp.length(arm)
         if length > float_t(1.0e-12):
@@ -174,7 +188,15 @@ def _tether_hold(
 
 @wp.func
 def _route_to_pins(
-    p: int, xp: vec3, held: vec3, particles: Particles, tethers: Tethers, near: Near, carried: Carried, b: int
+    p: int,
+    xp: vec3,
+    held: vec3,
+    particles: Particles,
+    tethers: Tethers,
+    near: Near,
+    carried: Carried,
+    b: int,
+    w_b: float_t,
 ):
     """A push `held` [kg m] of body row b on particle p that the cloth took without moving p (its tethers
     or limited springs held it) goes on to the pins that hold it: shared among p's tethers that the push
@@ -197,13 +219,13 @@ def _route_to_pins(
     t0 = particles.tether_first[p]
     t_end = t0 + particles.tether_count[p]
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b, w_b)
         total += pull * tight
         along += pull
     if along <= zero:
         return own
     for t in range(t0, t_end):
-        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b)
+        pull, tight = _tether_hold(t, xp, u, particles, tethers, near, carried, b, w_b)
         share = pull / along
         if total > zero:
             share = pull * tight / total
@@ -301,6 +323,7 @@ def _slack(
     near: Near,
     carried: Carried,
     b: int,
+    w_b: float_t,
 ):
     """How far particle p may move along n before one of its limited springs or its tethers that hold it
     (`_holding`) reaches its limit (the other ends held where they are)."""
@@ -315,7 +338,7 @@ def _slack(
     t_end = t + particles.tether_count[p]
     while t < t_end:
         pin = tethers.pin[t]
-        if _holding(near, carried, particles, pin, b):
+        if _holding(near, carried, particles, pin, b, w_b, n):
             s = wp.min(s, _slack_along(xp - x[pin], n, tethers.limit[t]))
         t += 1
     return s
@@ -470,7 +493,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             elif wp.dot(support, n) < zero:
                 w_c = zero
             if w_b > zero and w_c > zero:
-                w_c = wp.min(w_c, _give_way(p, xp, n, w_p, particles, tethers, near, carried, b))
+                w_c = wp.min(w_c, _give_way(p, xp, n, w_p, particles, tethers, near, carried, b, w_b))
             if w_c + w_b <= zero:
                 continue
             # normal, mass-weighted: lambda = depth / (w_c + c w_b) moves the particle lambda w_c along n
@@ -482,7 +505,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             move = lam * w_c
             lam_b = lam
             if near.strict != 0 and w_b > zero and move > zero:
-                slack = _slack(p, xp, n, particles, limits, tethers, near, carried, b)
+                slack = _slack(p, xp, n, particles, limits, tethers, near, carried, b, w_b)
                 if move > slack:
                     move = slack
                     lam_b = (depth - slack) / (split * w_b)
@@ -494,7 +517,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             tdir, lam_t = _coulomb((xp - x_prev[p]) - vb * near.h, n, r_b, w_c, w_lin, split, mu, lam, q, inv_i)
             move_t = lam_t * w_c
             if near.strict != 0 and w_b > zero and move_t > zero:
-                move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers, near, carried, b))
+                move_t = wp.min(move_t, _slack(p, xp, -tdir, particles, limits, tethers, near, carried, b, w_b))
             xp = xp - tdir * move_t
             # a body at rest (static, or kinematic and still) pushes the particle out of an overlap it
             # began the substep in (made inside a surface) without making that push speed: the velocity
@@ -546,7 +569,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             if w_b > zero and wp.dot(support, n) >= zero:
                 m_p = float_t(1.0) / w_p
                 held = n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p)
-                own = _route_to_pins(p, xp, held, particles, tethers, near, carried, b)
+                own = _route_to_pins(p, xp, held, particles, tethers, near, carried, b, w_b)
             _push_body(b, tdir * lam_t - n * lam_b + own, still, r_b, q, inv_i, w_lin, near.h, bodies)
 
         x[p] = xp
@@ -685,9 +708,9 @@ def _catch_small_spheres(
             # particles held by taut tethers give way less, as against any body
             w_b = bodies.inv_mass[b]
             split = float_t(wp.max(near.contacts_prev[b], 1))
-            g0 = _give_way(i0, a0, -n, w0, particles, tethers, near, carried, b)
-            g1 = _give_way(i1, a1, -n, w1, particles, tethers, near, carried, b)
-            g2 = _give_way(i2, a2, -n, w2, particles, tethers, near, carried, b)
+            g0 = _give_way(i0, a0, -n, w0, particles, tethers, near, carried, b, w_b)
+            g1 = _give_way(i1, a1, -n, w1, particles, tethers, near, carried, b, w_b)
+            g2 = _give_way(i2, a2, -n, w2, particles, tethers, near, carried, b, w_b)
             # nor do particles that a static body holds from the other side (this pass's particle contacts)
             supported = False
             if wp.dot(particles.support[i0], n) > zero:
