@@ -490,3 +490,30 @@ def test_a_ball_through_free_cloth_keeps_the_momentum():
     # substeps) of them (measured: 1.4e-5 N s)
     n = world.step_count * max(world.cloth.substeps_for(DT), world.substeps)
     assert worst < in_float32(1e-12, ulps(np.sqrt(2 * 0.2 * 0.5 * (0.3**2 + 2.0**2) * (0.2 + 0.05)), n))
+
+
+@pytest.mark.parametrize("joint", ["distance", "ball"])
+def test_a_hammock_hung_from_jointed_balls_holds_a_heavy_ball(joint):
+    """A 0.2 kg hammock whose corners are pinned to 1 kg balls hung 0.3 m below the world on ropes
+    (distance joints) or ball joints; a 5 kg ball is dropped 0.3 m into it. The taut cloth under the
+    ball must hold it as it holds one on fixed corners: the ball never falls below 0.5 m (the cloth,
+    1 m wide, hangs from 1.0 m at most 10 % long) and rests in it. Letting every particle tethered to
+    a pin on a moving body give way to the ball let it fall through the ball-jointed hammock."""
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    world.add_cloth(size=(1, 1), resolution=(10, 10), position=(0, 0, 1.0), mass=0.2)
+    x = world.cloth.particle_position
+    for corner in ((-0.5, -0.5, 1), (0.5, -0.5, 1), (-0.5, 0.5, 1), (0.5, 0.5, 1)):
+        k = int(np.argmin(np.linalg.norm(x - corner, axis=1)))
+        holder = world.add_sphere(position=x[k], radius=0.02, mass=1.0)
+        if joint == "distance":
+            world.add_joint("distance", None, holder, anchor_a=x[k] + (0, 0, 0.3))
+        else:
+            world.add_joint("ball", None, holder, anchor=x[k] + (0, 0, 0.3))
+        world.pin_cloth_to_body([k], holder)
+    ball = world.add_sphere(position=(0.05, 0.0, 1.3), radius=0.1, mass=5.0)
+    lowest = np.inf
+    for _ in range(480):
+        world.step()
+        lowest = min(lowest, float(world.body_position[ball.index, 2]))
+    assert lowest > 0.5, lowest
+    assert world.cloth.max_strain() <= 0.1 + 0.02
