@@ -442,6 +442,18 @@ def _surface(
     return found, d, n
 
 
+@wp.func
+def _start_overlap(near: Near, b: int, start: vec3, thickness: float_t):
+    """How deep [m] into its `thickness` from body row b a particle at `start` was (0 or less: clear of it);
+    with `start` where it began the substep, the overlap a contact began the substep in."""
+    found, d, n = _surface(
+        near.bodies.shape[b], b, start, start, near.bodies, near.hulls, near.meshes, float_t(2.0) * thickness
+    )
+    if not found:
+        return float_t(0.0)
+    return thickness - d
+
+
 @wp.kernel
 def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near: Near, carried: Carried, serial: int):
     x = particles.position
@@ -527,18 +539,8 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             # landed (its start outside) keeps the inelastic stop; one sliding over an edge keeps its
             # speed (the overlap is its start's own distance from the surface, not its motion along n)
             if w_b == zero and wp.length_sq(vb) == zero and wp.dot(n, xp - x_prev[p]) > zero:
-                was_in, d_start, n_start = _surface(
-                    bodies.shape[b],
-                    b,
-                    x_prev[p],
-                    x_prev[p],
-                    bodies,
-                    near.hulls,
-                    near.meshes,
-                    float_t(2.0) * thickness[p],
-                )
-                overlap = thickness[p] - d_start
-                if was_in and overlap > zero:
+                overlap = _start_overlap(near, b, x_prev[p], thickness[p])
+                if overlap > zero:
                     x_prev[p] = x_prev[p] + n * wp.min(overlap, move)
             # a dynamic body pressing a particle against a static one (which cannot give way) undoes an
             # overlap the particle began the substep in without making it speed (the particle's start
@@ -547,18 +549,8 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
             # floor, the cloth's thickness (1 cm) inside the ball, was thrown 14 m up at 19 m/s
             still = zero
             if w_b > zero and wp.dot(support, n) < zero:
-                was_in, d_start, n_start = _surface(
-                    bodies.shape[b],
-                    b,
-                    x_prev[p] + bodies.velocity[b] * near.h,
-                    x_prev[p] + bodies.velocity[b] * near.h,
-                    bodies,
-                    near.hulls,
-                    near.meshes,
-                    float_t(2.0) * thickness[p],
-                )
-                overlap = thickness[p] - d_start
-                if was_in and overlap > zero:
+                overlap = _start_overlap(near, b, x_prev[p] + bodies.velocity[b] * near.h, thickness[p])
+                if overlap > zero:
                     still = wp.min(overlap / depth, float_t(1.0))
                     x_prev[p] = x_prev[p] + n * (move * still)
             # what the body gave the particle beyond the particle's own momentum change, m_p times its
