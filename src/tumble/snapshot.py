@@ -546,6 +546,11 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
         except ArchiveError as exc:
             raise SnapshotError(f"{path}: not a Tumble snapshot file ({exc})") from None
         with np.load(path, allow_pickle=False) as data:
+            if "manifest" not in data.files and "time" in data.files:
+                raise SnapshotError(
+                    f"{path}: a recording (tumble run --record), not a saved state: resume from a file "
+                    "written by tumble run --save-state (or tumble.save_snapshot)"
+                )
             manifest = json.loads(bytes(data["manifest"]).decode())
             if not isinstance(manifest, dict) or "format" not in manifest:
                 raise ValueError("no manifest")

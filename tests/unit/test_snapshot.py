@@ -274,6 +274,21 @@ def test_an_npz_without_a_manifest_is_refused(tmp_path):
         snapshot.read(path)
 
 
+def test_a_recording_given_as_a_snapshot_is_named_for_what_it_is(tmp_path, capsys):
+    """`tumble run --resume REC.npz` with a recording (`--record`) said "not a Tumble snapshot file
+    (KeyError: 'manifest is not a file in the archive')"; it now says it is a recording and which file
+    --resume takes, in one line, exit status 2."""
+    from tumble.cli import main
+
+    recording = tmp_path / "ball.npz"
+    assert main(["run", "bouncing_ball", "--duration", "0.1", "--record", str(recording)]) == 0
+    capsys.readouterr()
+    assert main(["run", "--resume", str(recording)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "KeyError" not in err, err
+    assert f"{recording}: a recording (tumble run --record), not a saved state" in err and "--save-state" in err
+
+
 def test_cli_save_state_and_resume(tmp_path):
     """`tumble run SCENE --duration 1 --save-state F` then `tumble run --resume F --duration 1` equals a 2 s run."""
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
