@@ -358,7 +358,7 @@ def pinned_rows(count: int, pin_particle: np.ndarray, pin_body: np.ndarray) -> n
     return pinned
 
 
-def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, limited: np.ndarray) -> np.ndarray:
+def shielded_bodies(pinned: np.ndarray, limited: np.ndarray) -> np.ndarray:
     """Per particle, the body row whose contacts it skips, (count,) int32, -1 for none.
 
     A body pin holds its particle on (or in) its body, and the stretch limit holds the particle's
@@ -369,16 +369,15 @@ def shielded_bodies(count: int, pin_particle: np.ndarray, pin_body: np.ndarray, 
     touch the pin's body (as bodies joined by a joint do not collide); every other particle does.
 
     Args:
-        count: particles.
-        pin_particle, pin_body: the body pins' particles and body rows, (k,) each.
+        pinned: per particle, the body row it is pinned to, -1 for none (`pinned_rows`), (count,).
         limited: the structural springs' particles, (s, 2).
     """
-    pinned = pinned_rows(count, pin_particle, pin_body)
-    shield = np.full(count, -1, dtype=np.int32)
+    shield = np.full(len(pinned), -1, dtype=np.int32)
     for end in (0, 1):
         a, other = limited[:, end], limited[:, 1 - end]
         shield[other[pinned[a] >= 0]] = pinned[a[pinned[a] >= 0]]
-    shield[pin_particle] = pin_body
+    at_pin = pinned >= 0
+    shield[at_pin] = pinned[at_pin]
     return shield
 
 
@@ -468,8 +467,8 @@ class BodyPins:
         if self._shield is None or self._shield[1] != key:
             shield = pinned = np.zeros(0, dtype=np.int32)
             if self.count:
-                shield = shielded_bodies(count, self._particle, self._body, structural)
                 pinned = pinned_rows(count, self._particle, self._body)
+                shield = shielded_bodies(pinned, structural)
             arrays: tuple[wp.array, wp.array] = (
                 wp.array(shield, dtype=wp.int32, device=self.device),
                 wp.array(pinned, dtype=wp.int32, device=self.device),

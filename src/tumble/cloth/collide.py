@@ -104,6 +104,12 @@ def _shielded(near: Near, p: int, b: int):
 
 
 @wp.func
+def _pinned_to(near: Near, pin: int, b: int):
+    """Whether particle `pin` is pinned to body row b."""
+    return near.pinned.shape[0] > 0 and near.pinned[pin] == b
+
+
+@wp.func
 def _holding(near: Near, carried: Carried, particles: Particles, pin: int, b: int, w_b: float_t, n: vec3):
     """Whether a taut tether to particle `pin` holds its particle against the push along n of body row b,
     whose inverse mass at the contact is w_b: `pin` is pinned, and not to a body that the stretch limit
@@ -116,7 +122,7 @@ def _holding(near: Near, carried: Carried, particles: Particles, pin: int, b: in
     b itself (b cannot push its own cloth away from itself, `_route_to_pins`)."""
     if particles.inv_mass[pin] > float_t(0.0):
         return False
-    if near.pinned.shape[0] > 0 and near.pinned[pin] == b:
+    if _pinned_to(near, pin, b):
         return True
     k = carried_pin(carried, pin, float_t(0.0))
     if k < 0:
@@ -231,7 +237,7 @@ def _route_to_pins(
             share = pull * tight / total
         if share > zero:
             pin = tethers.pin[t]
-            if near.pinned.shape[0] > 0 and near.pinned[pin] == b:
+            if _pinned_to(near, pin, b):
                 own += held * share
             else:
                 wp.atomic_add(particles.pin_load, pin, held * share)

@@ -131,9 +131,10 @@ def test_shielded_bodies_are_the_pins_bodies_at_and_next_to_the_pins():
     index = np.arange(nx * ny).reshape(ny, nx)
     springs = np.vstack([np.column_stack([index[:, :-1].ravel(), index[:, 1:].ravel()]),
                          np.column_stack([index[:-1, :].ravel(), index[1:, :].ravel()])])  # fmt: skip
-    shield = attach.shielded_bodies(nx * ny, np.array([5, 11]), np.array([7, 2]), springs)
+    shield = attach.shielded_bodies(attach.pinned_rows(nx * ny, np.array([5, 11]), np.array([7, 2])), springs)
     expected = np.full(nx * ny, -1)
     expected[[5, 4, 6, 1, 9]] = 7
     expected[[11, 10, 7]] = 2
     assert shield.dtype == np.int32 and shield.tolist() == expected.tolist()
-    assert attach.shielded_bodies(3, np.zeros(0, np.int32), np.zeros(0, np.int32), springs[:0]).tolist() == [-1] * 3
+    no_pins = attach.pinned_rows(3, np.zeros(0, np.int32), np.zeros(0, np.int32))
+    assert attach.shielded_bodies(no_pins, springs[:0]).tolist() == [-1] * 3
