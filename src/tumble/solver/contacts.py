@@ -9,8 +9,9 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   the combined friction mu = sqrt(mu_a mu_b) and restitution e = max(e_a, e_b);
 - per substep: warm start (the first substep applies last step's matched impulses in a pass of
   its own; later ones get the previous substep's, summed per body by its relax pass, through
-  `integrate_velocities`), `solve` (friction first, then the normal, since non-penetration
-  matters more) with bias (the soft constraint pushes overlapping bodies apart at a bounded
+  `integrate_velocities`), `solve` (a manifold's rows friction first, then the normal, since
+  non-penetration matters more; a lone contact's normal row first, so that its friction is
+  bounded by the pass's own load, then friction, and a lever's normal row once more) with bias (the soft constraint pushes overlapping bodies apart at a bounded
   speed), integrate positions, then `solve` again without bias ("relax"), which removes the
   push-out velocity again, so penetration recovery adds no kinetic energy -- the role split
   impulses play in older solvers;
@@ -900,12 +901,15 @@ def _lone_lever(k: int, rows: wp.array(dtype=ContactRow), bias: float_t, ms: flo
     """One pass over the lone contact k whose anchor has a lever (a corner, a capsule's end; its
     anchors not turning within the step), its normal row's target `bias, ms, isc`
     (`_normal_target`): the sticking block of its three rows (`_sticking_point`), or where that
-    would leave the friction cone, its friction row then its normal row, as any lone contact.
-    Returns the pair's velocity changes."""
+    would leave the friction cone, its rows swept: normal, friction, normal. Friction is bounded by
+    this pass's load, as a lone sphere's is (an inelastic impact's friction, else one pass late),
+    and the normal row has the last word, since a friction impulse at a lever moves the normal
+    speed. Returns the pair's velocity changes."""
     ra = rows[k].r_a
     rb = rows[k].r_b
     dv, held = _sticking_point(rows, k, bias, ms, isc, pair, Delta())
     if held == 0:
+        dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
         dv, _ = _friction_row(rows, k, ra, rb, rows[k].friction * rows[k].impulse_n, pair, dv)
         dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
     return dv
@@ -1041,7 +1045,7 @@ def _make_solve_manifold(exact_pair: bool):
                 turn_b = dthb
 
         if size == 1:
-            # a lone contact: its friction row, then its normal row (non-penetration matters more)
+            # a lone contact: its normal row, then its friction row (below)
             ra = rows[k].r_a
             rb = rows[k].r_b
             fa = ra
@@ -1057,8 +1061,14 @@ def _make_solve_manifold(exact_pair: bool):
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
             bias, ms, isc = _normal_target(_gap(rows, k, b, dxa, dtha, dxb, dthb, 1), p, static, False)
             if serial == 0 or not lever or turning or rows[k].friction == float_t(0.0):
-                dv, _ = _friction_row(rows, k, fa, fb, rows[k].friction * rows[k].impulse_n, pair, dv)
+                # the normal row first, then friction bounded by this pass's load. Friction first saw the
+                # last pass's, none at an inelastic impact (e = 0, no collision pass): a ball landing at
+                # 3 m/s with 2 m/s across a rough floor slid on (zero g: for good; in gravity for 14
+                # steps, at mu m g) instead of rolling off at 5/7 of it. A sphere's friction impulse moves
+                # no normal speed (its anchor is on the normal through its centre), so its normal row
+                # ends the same either way
                 dv, _ = _normal_row(rows, k, bias, ms, isc, pair, dv)
+                dv, _ = _friction_row(rows, k, fa, fb, rows[k].friction * rows[k].impulse_n, pair, dv)
             else:
                 dv = _lone_lever(k, rows, bias, ms, isc, pair)
         else:
