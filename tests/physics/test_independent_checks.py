@@ -717,6 +717,61 @@ def test_a_body_dropped_flat_bounces_to_e_squared_without_turning(shape, floor):
     assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.1
 
 
+@pytest.mark.parametrize("shape", ["box", "hull"])
+@pytest.mark.parametrize("mu", [0.5, 0.2])
+def test_a_cube_landing_flat_across_the_floor_slows_without_tipping(shape, mu):
+    """A 0.2 m cube lands flat at (2, 0, -3) m/s, e = 0.5, no gravity. The impulse-momentum solution:
+    j_n = (1 + e) m v_n = 4.5 N s; friction stops the sliding if it can (mu j_n >= m v_t) or takes
+    mu j_n; its moment about the centre, 0.1 m x j_t, is within the most the corners can give
+    (0.1 m x j_n), so the load shifts forward and the cube does not turn. It leaves at (v_t - j_t / m,
+    0, e v_n) without spin. (Friction applied once after the normal impulses turned it: 12 rad/s.)
+
+    The block's rounds stop when no impulse changes the speeds by MANIFOLD_TOLERANCE [m/s]; each
+    leaves ~0.6 of the last's sliding, so the speeds are within a few times that.
+    """
+    half, m, vt, vn, e = 0.1, 1.0, 2.0, 3.0, 0.5
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    w.add_plane(restitution=e, friction=mu)
+    common = dict(position=(0, 0, half + 0.03), mass=m, restitution=e, friction=mu, velocity=(vt, 0, -vn))
+    if shape == "box":
+        cube = w.add_box(half_extents=(half,) * 3, **common)
+    else:
+        corners = [(x, y, z) for x in (-half, half) for y in (-half, half) for z in (-half, half)]
+        cube = w.add_convex(points=corners, **common)
+    w.run(0.1)
+    jt = min(m * vt, mu * (1 + e) * m * vn)
+    tol = 4 * float(contacts.MANIFOLD_TOLERANCE)
+    np.testing.assert_allclose(w.body_velocity[cube], [vt - jt / m, 0, e * vn], atol=tol, rtol=0)
+    np.testing.assert_allclose(w.body_angular_velocity[cube], 0.0, atol=tol / half)
+
+
+def test_a_tall_box_landing_across_the_floor_tips_only_when_its_corners_cannot_hold_the_friction():
+    """A 0.1 x 0.1 x 0.6 m box lands upright at (2, 0, -3) m/s, e = 0.3, no gravity: j_n = 3.9 N s. With
+    mu = 0.1 its friction, 0.39 N s at 0.3 m below the centre, is within the corners' most (0.05 m x
+    3.9 N s): it slides on at 2 - 0.39 m/s without turning. With mu = 1 it is not, and the box tips
+    forward; neither gains energy."""
+    results = {}
+    for mu in (0.1, 1.0):
+        w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+        w.add_plane(restitution=0.3, friction=mu)
+        box = w.add_box(
+            position=(0, 0, 0.35),
+            half_extents=(0.05, 0.05, 0.3),
+            mass=1.0,
+            restitution=0.3,
+            friction=mu,
+            velocity=(2, 0, -3),
+        )
+        e0 = w.kinetic_energy()
+        w.run(0.05)
+        assert w.kinetic_energy() < e0
+        results[mu] = w.body_velocity[box].copy(), w.body_angular_velocity[box].copy()
+    tol = 4 * float(contacts.MANIFOLD_TOLERANCE)
+    np.testing.assert_allclose(results[0.1][0], [2 - 0.39, 0, 0.9], atol=tol, rtol=0)
+    np.testing.assert_allclose(results[0.1][1], 0.0, atol=tol / 0.05)
+    assert results[1.0][1][1] > 1.0  # tipping forward, about +y
+
+
 @pytest.mark.parametrize("floor", ["plane", "mesh"])
 def test_a_capsule_dropped_flat_bounces_to_e_squared_without_turning(floor):
     """A capsule landing flat has two simultaneous end contacts: by symmetry it bounces to e^2 m and does not turn."""
