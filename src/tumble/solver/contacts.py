@@ -1480,7 +1480,7 @@ def _centre_friction(
 def _twist_friction(b: BodyArrays, ia: int, ib: int, n: vec3, jw: float_t, limit: float_t, relax: float_t, whole: int):
     """A twist step about n: the impulse [N m s] that stops the relative spin about n, added to the
     accumulated jw and clamped to |jw| <= limit (`whole` 0), or alone, at most limit (`whole` 1).
-    Returns the new jw, the velocity changes and the spin change times `lever` left to the caller."""
+    Returns the new jw, the velocity changes and the change of the relative spin about n [rad/s]."""
     twa = inv_inertia_times(b.orientation[ia], b.inv_inertia[ia], n)
     twb = inv_inertia_times(b.orientation[ib], b.inv_inertia[ib], n)
     k_w = wp.dot(n, twa) + wp.dot(n, twb)
@@ -1549,6 +1549,9 @@ def _patch_impact_friction(
     jw = float_t(0.0)  # accumulated twist impulse on b about n [N m s]
     load = load0
     torque = torque0
+    arm = float_t(0.0)  # the patch's widest point from its centre [m]: a spin change moves it by arm times as much
+    for i in range(size):
+        arm = wp.max(arm, rows[k + i].twist_arm)
     rounds = int(0)
     while rounds < PATCH_IMPACT_ROUNDS:
         jt, d, moved = _centre_friction(b, ia, ib, ca, cb, n, jt, mu * load, relax, 0)
@@ -1564,7 +1567,7 @@ def _patch_impact_friction(
             load += normals[i]
             torque += normals[i] * rows[k + i].twist_arm
         rounds += 1
-        if changed == 0 and moved <= MANIFOLD_TOLERANCE and turned <= MANIFOLD_TOLERANCE * mu * (torque + load):
+        if changed == 0 and moved <= MANIFOLD_TOLERANCE and turned * arm <= MANIFOLD_TOLERANCE:
             break
     gain = _energy_change(b, ia, va, wa, total.va, total.wa) + _energy_change(b, ib, vb, wb, total.vb, total.wb)
     if gain > float_t(0.0):

@@ -113,15 +113,17 @@ def test_prepare_gives_the_effective_masses_of_a_tilted_box_corner():
 
 
 def test_normal_impulse_stops_the_approach():
-    """A ball touching the plane at 0.7 m/s: jn = m v, the ball stops along n; slip untouched (no jn yet)."""
+    """A ball touching the plane at 0.7 m/s: jn = m v, the ball stops along n. The normal row runs first, so
+    the same pass's friction is bounded by this jn (mu jn = 0.7 N s): it stops the slip of 0.3 m/s, which takes
+    m_t v_t = (2/7) m 0.3 = 0.171 N s, and the ball rolls at 5/7 of it."""
     world, ball = ball_on_plane(velocity=(0.3, 0.0, -0.7))
     bodies, contacts = prepared(world)
     solver = solver_of(world)
     assert contacts.count == 1
     solver.solve(bodies, contacts, DT, use_bias=False)
     assert contacts.row_values("impulse_n")[0] == pytest.approx(2.0 * 0.7, rel=1e-12)
-    np.testing.assert_allclose(ball.velocity, [0.3, 0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose(ball.angular_velocity, 0.0, atol=1e-12)
+    np.testing.assert_allclose(ball.velocity, [0.3 * 5 / 7, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(ball.angular_velocity, [0.0, 0.3 * 5 / 7 / 0.5, 0.0], atol=1e-12)
 
 
 def test_normal_impulse_never_pulls():
