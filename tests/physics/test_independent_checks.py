@@ -829,6 +829,65 @@ def test_an_end_or_corner_striking_a_grippy_floor_sticks_as_the_impulse_momentum
     np.testing.assert_allclose(L, np.cross(c, J), atol=tol * np.linalg.norm(c))
 
 
+def _point_strike(shape: str, e: float, mu: float, v: float = 2.0, m: float = 1.0):
+    """A capsule's end or a box's single lowest corner striking a floor at v [m/s], tilted 45 degrees, no
+    gravity: the world, the body, its contact point c from the centre and K = 1/m - [c]x I^-1 [c]x."""
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
+    w.add_plane(restitution=e, friction=mu)
+    tilt = Rotation.from_euler("y", -45, degrees=True)
+    kw = dict(velocity=(0, 0, -v), mass=m, restitution=e, friction=mu)
+    if shape == "capsule":
+        r, a = 0.01, 0.49
+        q = tilt * Rotation.from_euler("y", 90, degrees=True)
+        c = q.apply([0, 0, -a]) + np.array([0, 0, -r])
+        body = w.add_capsule(position=(0, 0, 0.01 - c[2]), radius=r, half_height=a, orientation=q.as_quat(), **kw)
+    else:
+        he = np.array([0.3, 0.05, 0.05])
+        q = tilt * Rotation.from_euler("x", 25, degrees=True)
+        corners = q.apply(np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * he)
+        c = corners[np.argmin(corners[:, 2])]
+        body = w.add_box(position=(0, 0, 0.01 - c[2]), half_extents=tuple(he), orientation=q.as_quat(), **kw)
+    cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    K = np.eye(3) / m - cx @ np.linalg.inv(w.body_inertia_world[body]) @ cx
+    return w, body, c, K
+
+
+@pytest.mark.parametrize("shape", ["capsule", "box"])
+def test_an_end_or_corner_sticking_on_a_grippy_floor_bounces_with_1_plus_e_times_the_inelastic_impulse(shape):
+    """The strike above with e = 0.5, mu = 5: the point sticks throughout, so Newton's and Poisson's
+    restitution agree, J = (1 + e) J_0 with K J_0 = -v_p, and the energy lost is (1 - e^2) of the
+    inelastic impact's. (Friction applied once after the normal impulse turned the body and sent the
+    point back into the floor: the bounce was lost, v about what e = 0 gives.)"""
+    v, m, e = 2.0, 1.0, 0.5
+    w, body, c, K = _point_strike(shape, e, 5.0, v, m)
+    J0 = np.linalg.solve(K, [0.0, 0.0, v])
+    assert math.hypot(J0[0], J0[1]) < 5.0 * J0[2]  # sticking
+    e0 = w.kinetic_energy()
+    w.run(0.05)
+    spin = w.body_angular_velocity[body]
+    tol = 2 * np.linalg.norm(spin) * w.dt / w.substeps * np.linalg.norm(c) * v
+    np.testing.assert_allclose(w.body_velocity[body], np.array([0, 0, -v]) + (1 + e) * J0 / m, atol=tol)
+    lost_inelastic = 0.5 * J0 @ K @ J0
+    assert w.kinetic_energy() == pytest.approx(e0 - (1 - e * e) * lost_inelastic, abs=tol * v * m)
+
+
+def test_a_capsule_end_sliding_on_the_floor_takes_mu_times_the_normal_impulse():
+    """The capsule's end strikes with e = 0.5, mu = 0.3: too little friction to stop it, so it slides
+    throughout, along -x (the strike lies in the x-z plane): J = j_n (n + mu x_hat), with j_n the impulse that
+    leaves the point's normal speed at e v, j_n = (1 + e) v / (n . K (n + mu x_hat))."""
+    v, m, e, mu = 2.0, 1.0, 0.5, 0.3
+    w, body, c, K = _point_strike("capsule", e, mu, v, m)
+    direction = np.array([mu, 0.0, 1.0])
+    jn = (1 + e) * v / (K @ direction)[2]
+    J = jn * direction
+    slip_after = (np.array([0, 0, -v]) + K @ J)[0]
+    assert slip_after < 0  # still sliding the same way at the end: mu j_n along +x throughout
+    w.run(0.05)
+    spin = w.body_angular_velocity[body]
+    tol = 2 * np.linalg.norm(spin) * w.dt / w.substeps * np.linalg.norm(c) * v
+    np.testing.assert_allclose(w.body_velocity[body], np.array([0, 0, -v]) + J / m, atol=tol)
+
+
 @pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
 @pytest.mark.parametrize("tilt_deg", [30.0, 60.0])
 def test_a_tilted_rod_landing_on_its_end_takes_the_one_point_impulse(tilt_deg, e):

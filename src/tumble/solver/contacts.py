@@ -1580,6 +1580,100 @@ def _patch_impact_friction(
         _add_pair(b, ia, ib, d, serial)
 
 
+@wp.func
+def _point_mass_matrix(b: BodyArrays, ia: int, ib: int, ra: vec3, rb: vec3, n: vec3, t1: vec3, t2: vec3):
+    """K, the velocity change per unit impulse at anchors ra, rb [m] along (n, t1, t2), at the bodies'
+    current orientations: K_ij = d_i . d_j (1/m_a + 1/m_b) + (r_a x d_i) . I_a^-1 (r_a x d_j) + (b's)."""
+    qa = b.orientation[ia]
+    qb = b.orientation[ib]
+    ia_inv = b.inv_inertia[ia]
+    ib_inv = b.inv_inertia[ib]
+    im = b.inv_mass[ia] + b.inv_mass[ib]
+    an = wp.cross(ra, n)
+    a1 = wp.cross(ra, t1)
+    a2 = wp.cross(ra, t2)
+    bn = wp.cross(rb, n)
+    b1 = wp.cross(rb, t1)
+    b2 = wp.cross(rb, t2)
+    ian = inv_inertia_times(qa, ia_inv, an)
+    ia1 = inv_inertia_times(qa, ia_inv, a1)
+    ia2 = inv_inertia_times(qa, ia_inv, a2)
+    ibn = inv_inertia_times(qb, ib_inv, bn)
+    ib1 = inv_inertia_times(qb, ib_inv, b1)
+    ib2 = inv_inertia_times(qb, ib_inv, b2)
+    knn = im + wp.dot(an, ian) + wp.dot(bn, ibn)
+    kn1 = wp.dot(an, ia1) + wp.dot(bn, ib1)
+    kn2 = wp.dot(an, ia2) + wp.dot(bn, ib2)
+    k11 = im + wp.dot(a1, ia1) + wp.dot(b1, ib1)
+    k12 = wp.dot(a1, ia2) + wp.dot(b1, ib2)
+    k22 = im + wp.dot(a2, ia2) + wp.dot(b2, ib2)
+    return mat33(knn, kn1, kn2, kn1, k11, k12, kn2, k12, k22)
+
+
+@wp.func(inline=False)
+def _lone_impact_sticking(
+    k: int,
+    rows: wp.array(dtype=ContactRow),
+    b: BodyArrays,
+    u: float_t,
+    jn: float_t,
+    applied: Delta,
+    share: float_t,
+    centres: vec3,
+    serial: int,
+):
+    """The collision of a lone point with a lever (a corner, a rod's end), its normal impulse jn [N s]
+    applied (`applied`, which brought its normal speed to u [m/s]), made to stick where it can: the
+    impulse change dJ with K dJ = (0, -v_t1, -v_t2) at the point (`_point_mass_matrix`), kept (1) when
+    the whole impulse pushes and lies in the friction cone, |J_t| <= mu J_n, and the collision then
+    gains the pair no energy; else nothing is changed (0) and friction acts once (`_impact`).
+
+    Friction applied once after the normal impulse moved the point's normal speed through the
+    body's turn, and the bounce was lost: a 1 m rod striking a mu = 5 floor on its end at 2 m/s,
+    45 degrees, e = 0.5, left at (0.745, 0, -0.735) m/s, about what e = 0 gives, against the
+    sticking impulse's (1.125, 0, -0.093), where J = (1 + e) times the e = 0 impulse (a point that
+    sticks throughout: Newton's and Poisson's restitution agree) and the energy lost is 1 - e^2 of
+    the e = 0 impact's.
+    """
+    ia = rows[k].body_a
+    ib = rows[k].body_b
+    n = rows[k].normal
+    t1 = rows[k].tangent1
+    t2 = rows[k].tangent2
+    mu = rows[k].friction
+    ra, rb = _met(share, rows[k].r_a, rows[k].r_b, centres)
+    kmat = _point_mass_matrix(b, ia, ib, ra, rb, n, t1, t2)
+    det = wp.determinant(kmat)
+    if not (det > float_t(1.0e-12) * kmat[0, 0] * kmat[1, 1] * kmat[2, 2]):
+        return 0
+    va = b.velocity[ia]
+    wa = b.angular_velocity[ia]
+    vb = b.velocity[ib]
+    wb = b.angular_velocity[ib]
+    v = vb + wp.cross(wb, rb) - va - wp.cross(wa, ra)
+    d = wp.inverse(kmat) * vec3(u - wp.dot(v, n), -wp.dot(v, t1), -wp.dot(v, t2))
+    total_n = jn + d[0]
+    if total_n < float_t(0.0) or d[1] * d[1] + d[2] * d[2] > mu * mu * total_n * total_n:
+        return 0  # it would pull or slide: friction once instead
+    P = n * d[0] + t1 * d[1] + t2 * d[2]
+    ima = b.inv_mass[ia]
+    imb = b.inv_mass[ib]
+    change = _delta(
+        -P * ima,
+        -inv_inertia_times(b.orientation[ia], b.inv_inertia[ia], wp.cross(ra, P)),
+        P * imb,
+        inv_inertia_times(b.orientation[ib], b.inv_inertia[ib], wp.cross(rb, P)),
+    )
+    # the whole collision's energy change, from the velocities before its normal impulse
+    whole = _sum(applied, change)
+    gain = _energy_change(b, ia, va - applied.va, wa - applied.wa, whole.va, whole.wa)
+    gain = gain + _energy_change(b, ib, vb - applied.vb, wb - applied.wb, whole.vb, whole.wb)
+    if gain > float_t(0.0):
+        return 0
+    _add_pair(b, ia, ib, change, serial)
+    return 1
+
+
 def _make_impact(exact_pair: bool):
     """`_impact`, or with `exact_pair` `_impact_pair_first`: the same collision, where a two-row patch
     whose rows both collide first has its normal impulses solved exactly (`_impact_pair`). Two
@@ -1604,7 +1698,9 @@ def _make_impact(exact_pair: bool):
         add kinetic energy either: dKE = j v_d + j^2 / (2 m_d) <= 0 for 0 <= j <= -2 m_d v_d. A
         patch's friction (at its centre, and its twist) is solved with its normal rows in turn
         instead, since its moment shifts the load between the corners (`_patch_impact_friction`,
-        which keeps the rule where that would add energy).
+        which keeps the rule where that would add energy); so is a lone point with a lever, after
+        trying it as one sticking block (`_lone_impact_sticking`), since its friction moves its
+        normal speed.
         """
         ia = rows[k].body_a
         ib = rows[k].body_b
@@ -1638,6 +1734,13 @@ def _make_impact(exact_pair: bool):
             if rows[k].friction > float_t(0.0):
                 _patch_impact_friction(k, size, rows, b, u4, j4, hits, share, centres, serial)
             return 1
+        if size == 1 and j4[0] > float_t(0.0) and rows[k].friction > float_t(0.0):
+            # a lone point with a lever (a corner, a rod's end): its friction moves its normal speed.
+            # It sticks as one block where it can, else its rows are solved in turn, as a patch's
+            if rows[k].mass_n * (b.inv_mass[ia] + b.inv_mass[ib]) < float_t(1.0) - float_t(1.0e-6):
+                if _lone_impact_sticking(k, rows, b, u4[0], j4[0], applied, share, centres, serial) == 0:
+                    _patch_impact_friction(k, size, rows, b, u4, j4, hits, share, centres, serial)
+                return 1
         # friction: along the sliding velocity d = -v_t / |v_t|, at most mu j and at most the
         # impulse m_d |v_t| that stops the sliding, 1 / m_d = 1/m_a + 1/m_b + (r_a x d) . I_a^-1 (r_a x d) + ...
         ima = b.inv_mass[ia]
