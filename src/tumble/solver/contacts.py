@@ -38,7 +38,10 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   travels along a chain of touching bodies in either direction within the substep; each
   impulse alone cannot add energy, so no sequence of them can. The contact is then
   separating, and the inelastic solve that follows leaves it alone; resting contacts
-  (approach below the threshold) never bounce.
+  (approach below the threshold) never bounce. An inelastic contact (e = 0) faster than the
+  threshold collides too, landing: to the approach that closes its gap within the next substep
+  (a stack struck from above, a ball squeezed between others, is stopped in the pass's sweeps at
+  once, instead of by the soft rows a pass a substep, which pushed its bodies apart again).
 
 Soft constraint coefficients for stiffness f [Hz] and damping ratio zeta at substep h:
 omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1, a3 = 1 / (1 + a2);
@@ -95,6 +98,8 @@ IMPACT_SWEEPS = wp.constant(16)
 #: Each round leaves ~0.6 of the last's sliding at a cube's face centre (the turn that friction's moment
 #: gives, which the corners take back): 2 m/s stops to MANIFOLD_TOLERANCE in ~25 rounds
 PATCH_IMPACT_ROUNDS = wp.constant(64)
+#: `_rebound`'s answer for a contact that does not collide (its speeds may be negative: a landing)
+NO_IMPACT = wp.constant(float_t(-1.0e30))
 #: anchors on the owner closer than this fraction of its bound radius are the same contact
 MATCH_TOLERANCE = 0.5
 #: a manifold: a pair's consecutive contacts (the narrow phase writes a pair's points together),
@@ -1238,8 +1243,6 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     the kick, so that no impulse falls between a substep's kick and its position update).
     """
     e = rows[k].restitution
-    if e == float_t(0.0):
-        return float_t(-1.0)
     ia = rows[k].body_a
     ib = rows[k].body_b
     n = rows[k].normal
@@ -1248,7 +1251,7 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     ma, mb = _met(share, ra, rb, centres)
     vn = _speed_along(b, ia, ib, ma, mb, n)
     if vn >= float_t(0.0):
-        return float_t(-1.0)
+        return NO_IMPACT
     # relative acceleration along n from gravity on the dynamic bodies (< 0: closing)
     ga = float_t(0.0)
     gb = float_t(0.0)
@@ -1260,20 +1263,30 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     # the threshold keeps contacts that carry load (an impulse this substep) from bouncing; a
     # contact that carries none is a fresh impact and bounces down to `floor`, the approach
     # speed gravity alone gives in two substeps (0 without gravity: a gas stays elastic)
+    # (an inelastic contact only lands faster than the threshold: below it the soft rows stop it, as
+    # they stopped every e = 0 contact before; with the fresh floor a box pivoting on a mesh's edge
+    # landed its corners one by one every substep and turned about the other axes in float32)
     limit = p.threshold
-    if rows[k].impulse_n == float_t(0.0):
+    if rows[k].impulse_n == float_t(0.0) and e > float_t(0.0):
         limit = wp.min(p.threshold, p.floor)
+    if e == float_t(0.0) and rows[k].radii != float_t(0.0):
+        # two spheres landing: closing along their line of centres now, not only along the step start's
+        # normal, which a ball sliding over a sphere's curve drops below (it would be held to the
+        # tangent plane and thrown off early)
+        centres_now = b.position[ib] - b.position[ia]
+        if wp.dot(b.velocity[ib] - b.velocity[ia], centres_now) > -limit * wp.length(centres_now):
+            return NO_IMPACT
     # cheap exit, before the gap: the impact speed^2 below (vi2) grows with the gap s (by -2 g_n
     # s), and a contact that collides has s <= -(v_n + g_n h) h (the closing test), so a
     # contact whose bound at that largest gap is well under the limit would return 0 there too
     # (resting contacts under load; the factor 2 is far beyond any rounding)
     gap = -(vn + gn * p.h) * p.h
     if vn * vn - float_t(2.0) * gn * gap + gn * p.h * vn < float_t(0.5) * limit * limit:
-        return float_t(-1.0)
+        return NO_IMPACT
     # current gap, linearised along the step start's normal (`_gap`: not the exact one of two spheres)
     s = _gap(rows, k, b, b.delta_position[ia], b.delta_rotation[ia], b.delta_position[ib], b.delta_rotation[ib], 0)
     if s + (vn + gn * p.h) * p.h > float_t(0.0):
-        return float_t(-1.0)  # still apart at the end of the substep: a later pass collides it
+        return NO_IMPACT  # still apart at the end of the substep: a later pass collides it
     # the bounce, in the energy the substeps conserve: semi-implicit Euler under a constant
     # acceleration g_n (v' = v + g_n h, then s' = s + v' h) keeps E = v^2 / 2 - g_n s + g_n h v / 2
     # exactly (not v^2 / 2 - g_n s), taken over (s, v) at the end of a substep. A contact at gap
@@ -1286,13 +1299,17 @@ def _rebound(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactP
     eb = float_t(0.5) * vn * vn - gn * s + float_t(0.5) * gn * p.h * vn
     vi2 = float_t(2.0) * eb  # the impact speed^2 of the discrete flight (v_n^2 - 2 g_n s as h -> 0)
     if vi2 <= limit * limit:
-        return float_t(-1.0)
+        return NO_IMPACT
     rhs = e * e * eb + gn * s
-    u = float_t(0.0)
+    # where the bounce's energy is below the gap's (e^2 E_b + g_n s <= 0: e = 0, or a small e met
+    # while still apart), the contact lands instead: the approach that closes the gap s exactly at
+    # the end of the next substep (s + (u + g_n h) h = 0), never faster than it comes. Stopped where
+    # it was, it hung up to a substep's travel above the surface (4 mm at 8.5 m/s) and fell again
+    u = wp.max(-s / p.h - gn * p.h, vn)
     if rhs > float_t(0.0):
         gh = gn * p.h
-        u = float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs))
-    u = wp.min(wp.max(u, float_t(0.0)), -vn)
+        u = wp.max(float_t(0.5) * (-gh + wp.sqrt(gh * gh + float_t(8.0) * rhs)), float_t(0.0))
+    u = wp.min(u, -vn)
     rows[k].relative_velocity = -wp.sqrt(vi2)
     return u
 
@@ -1413,7 +1430,7 @@ def _impact_sweeps(
             i = m
             if sweep % 2 == 1:
                 i = size - 1 - m
-            if u4[i] >= float_t(0.0):
+            if u4[i] > NO_IMPACT:
                 kk = k + i
                 n = rows[kk].normal
                 ra, rb = _met(share, rows[kk].r_a, rows[kk].r_b, centres)
@@ -1712,7 +1729,7 @@ def _make_impact(exact_pair: bool):
         hits = int(0)
         for i in range(size):
             u4[i] = _rebound(k + i, rows, b, p, share, centres)
-            if u4[i] >= float_t(0.0):
+            if u4[i] > NO_IMPACT:
                 hits += 1
         if hits == 0:
             return 0
