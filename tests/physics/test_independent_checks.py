@@ -780,6 +780,34 @@ def test_a_capsule_dropped_flat_bounces_to_e_squared_without_turning(floor):
     assert spin < float(contacts.MANIFOLD_TOLERANCE) / 0.2
 
 
+def _point_strike(shape: str, e: float, mu: float, v: float = 2.0, m: float = 1.0, threshold: float = 0.0):
+    """A capsule's end or a box's (convex box's, `hull`) single lowest corner striking a floor at v [m/s],
+    tilted 45 degrees, no gravity: the world, the body, its contact point c from the centre and
+    K = 1/m - [c]x I^-1 [c]x (I the world inertia before the impact)."""
+    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=threshold)
+    w.add_plane(restitution=e, friction=mu)
+    tilt = Rotation.from_euler("y", -45, degrees=True)
+    kw = dict(velocity=(0, 0, -v), mass=m, restitution=e, friction=mu)
+    if shape == "capsule":
+        r, a = 0.01, 0.49
+        q = tilt * Rotation.from_euler("y", 90, degrees=True)
+        c = q.apply([0, 0, -a]) + np.array([0, 0, -r])
+        body = w.add_capsule(position=(0, 0, 0.01 - c[2]), radius=r, half_height=a, orientation=q.as_quat(), **kw)
+    else:
+        he = np.array([0.3, 0.05, 0.05])
+        q = tilt * Rotation.from_euler("x", 25, degrees=True)
+        corners = q.apply(np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * he)
+        c = corners[np.argmin(corners[:, 2])]
+        if shape == "box":
+            body = w.add_box(position=(0, 0, 0.01 - c[2]), half_extents=tuple(he), orientation=q.as_quat(), **kw)
+        else:
+            unturned = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * he
+            body = w.add_convex(position=(0, 0, 0.01 - c[2]), points=unturned, orientation=q.as_quat(), **kw)
+    cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    K = np.eye(3) / m - cx @ np.linalg.inv(w.body_inertia_world[body]) @ cx
+    return w, body, c, K
+
+
 @pytest.mark.parametrize("shape", ["capsule", "box", "hull"])
 def test_an_end_or_corner_striking_a_grippy_floor_sticks_as_the_impulse_momentum_equations_say(shape):
     """A capsule's end, or a box's (convex box's) single lowest corner, strikes a floor at 2 m/s (e = 0,
@@ -794,31 +822,8 @@ def test_an_end_or_corner_striking_a_grippy_floor_sticks_as_the_impulse_momentum
     substep of the impact, |w| h |c| of the lever, on speeds of order v (the bound below, 2e-3 m/s).
     """
     v, m, mu = 2.0, 1.0, 5.0
-    w = tumble.World(gravity=(0, 0, 0))
+    w, body, c, K = _point_strike(shape, 0.0, mu, v, m, threshold=0.5)  # the World's default threshold
     h = w.dt / w.substeps
-    w.add_plane(restitution=0.0, friction=mu)
-    tilt = Rotation.from_euler("y", -45, degrees=True)
-    if shape == "capsule":
-        r, a = 0.01, 0.49
-        q = tilt * Rotation.from_euler("y", 90, degrees=True)  # the capsule's axis (body z) tilted in x-z
-        c = q.apply([0, 0, -a]) + np.array([0, 0, -r])  # the bottom of the lower end's sphere
-        add = dict(radius=r, half_height=a)
-    else:
-        he = np.array([0.3, 0.05, 0.05])
-        q = tilt * Rotation.from_euler("x", 25, degrees=True)  # one corner lowest
-        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * he
-        c = q.apply(corners)[np.argmin(q.apply(corners)[:, 2])]
-        add = dict(half_extents=tuple(he)) if shape == "box" else dict(points=corners)
-    kw = dict(orientation=q.as_quat(), velocity=(0, 0, -v), mass=m, restitution=0.0, friction=mu)
-    if shape == "capsule":
-        body = w.add_capsule(position=(0, 0, 0.01 - c[2]), **add, **kw)
-    elif shape == "box":
-        body = w.add_box(position=(0, 0, 0.01 - c[2]), **add, **kw)
-    else:
-        body = w.add_convex(position=(0, 0, 0.01 - c[2]), **add, **kw)
-    inv_inertia = np.linalg.inv(w.body_inertia_world[body])  # before the impact: the orientation q
-    cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-    K = np.eye(3) / m - cx @ inv_inertia @ cx
     J = np.linalg.solve(K, [0.0, 0.0, v])
     assert math.hypot(J[0], J[1]) < mu * J[2]  # sticking
     w.run(0.05)
@@ -827,29 +832,6 @@ def test_an_end_or_corner_striking_a_grippy_floor_sticks_as_the_impulse_momentum
     tol = 2 * np.linalg.norm(spin) * h * np.linalg.norm(c) * v
     np.testing.assert_allclose(w.body_velocity[body], np.array([0, 0, -v]) + J / m, atol=tol)
     np.testing.assert_allclose(L, np.cross(c, J), atol=tol * np.linalg.norm(c))
-
-
-def _point_strike(shape: str, e: float, mu: float, v: float = 2.0, m: float = 1.0):
-    """A capsule's end or a box's single lowest corner striking a floor at v [m/s], tilted 45 degrees, no
-    gravity: the world, the body, its contact point c from the centre and K = 1/m - [c]x I^-1 [c]x."""
-    w = tumble.World(gravity=(0, 0, 0), restitution_threshold=0.0)
-    w.add_plane(restitution=e, friction=mu)
-    tilt = Rotation.from_euler("y", -45, degrees=True)
-    kw = dict(velocity=(0, 0, -v), mass=m, restitution=e, friction=mu)
-    if shape == "capsule":
-        r, a = 0.01, 0.49
-        q = tilt * Rotation.from_euler("y", 90, degrees=True)
-        c = q.apply([0, 0, -a]) + np.array([0, 0, -r])
-        body = w.add_capsule(position=(0, 0, 0.01 - c[2]), radius=r, half_height=a, orientation=q.as_quat(), **kw)
-    else:
-        he = np.array([0.3, 0.05, 0.05])
-        q = tilt * Rotation.from_euler("x", 25, degrees=True)
-        corners = q.apply(np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * he)
-        c = corners[np.argmin(corners[:, 2])]
-        body = w.add_box(position=(0, 0, 0.01 - c[2]), half_extents=tuple(he), orientation=q.as_quat(), **kw)
-    cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-    K = np.eye(3) / m - cx @ np.linalg.inv(w.body_inertia_world[body]) @ cx
-    return w, body, c, K
 
 
 @pytest.mark.parametrize("shape", ["capsule", "box"])

@@ -11,10 +11,10 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   its own; later ones get the previous substep's, summed per body by its relax pass, through
   `integrate_velocities`), `solve` (a manifold's rows friction first, then the normal, since
   non-penetration matters more; a lone contact's normal row first, so that its friction is
-  bounded by the pass's own load, then friction, and a lever's normal row once more) with bias (the soft constraint pushes overlapping bodies apart at a bounded
-  speed), integrate positions, then `solve` again without bias ("relax"), which removes the
-  push-out velocity again, so penetration recovery adds no kinetic energy -- the role split
-  impulses play in older solvers;
+  bounded by the pass's own load, then friction, and a lever's normal row once more) with bias
+  (the soft constraint pushes overlapping bodies apart at a bounded speed), integrate positions,
+  then `solve` again without bias ("relax"), which removes the push-out velocity again, so
+  penetration recovery adds no kinetic energy -- the role split impulses play in older solvers;
 - the normal impulse is clamped to >= 0, the friction impulse to the disc |jt| <= mu jn;
 - a manifold (a pair's consecutive contacts sharing one normal, up to `MANIFOLD_ROWS`: a face's corners) is solved
   as one block: its rows are swept forward and backward in turn until no impulse changes by
@@ -905,6 +905,13 @@ def _sticking_point(
     return out, 1
 
 
+@wp.func(inline=True)
+def _has_lever(rows: wp.array(dtype=ContactRow), k: int, inv_masses: float_t):
+    """Whether row k's anchor has a lever (r x n not 0 on a dynamic body), read from its normal mass:
+    then 1 / m_n > 1/m_a + 1/m_b (`inv_masses`), beyond rounding."""
+    return rows[k].mass_n * inv_masses < float_t(1.0) - float_t(1.0e-6)
+
+
 @wp.func(inline=False)
 def _lone_lever(k: int, rows: wp.array(dtype=ContactRow), bias: float_t, ms: float_t, isc: float_t, pair: Pair):
     """One pass over the lone contact k whose anchor has a lever (a corner, a capsule's end; its
@@ -1066,7 +1073,7 @@ def _make_solve_manifold(exact_pair: bool):
             # only as a block of its three rows (`_lone_lever`, a function of its own, not inlined, so
             # that the loop a sphere's contact runs stays as it was: its anchor is on the normal through
             # its centre, no lever but for rounding); the test is one product of fields read anyway
-            lever = rows[k].mass_n * (pair.ima + pair.imb) < float_t(1.0) - float_t(1.0e-6)
+            lever = _has_lever(rows, k, pair.ima + pair.imb)
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
             bias, ms, isc = _normal_target(_gap(rows, k, b, dxa, dtha, dxb, dthb, 1), p, static, False)
             if serial == 0 or not lever or turning or rows[k].friction == float_t(0.0):
@@ -1410,8 +1417,8 @@ def _impact_sweeps(
 ):
     """The collision's normal rows of the manifold at k swept, forward and backward in turn, until none
     changes its velocity by MANIFOLD_TOLERANCE (at most IMPACT_SWEEPS; one sweep for a lone colliding
-    row, which it leaves exact): each colliding row i (u4[i] >= 0) to its separating speed u4[i], its
-    accumulated impulse j4[i] >= 0, inertia at the current orientations. Returns j4, 1 if any
+    row, which it leaves exact): each colliding row i (u4[i] > NO_IMPACT) to its normal speed u4[i]
+    (`_rebound`), its accumulated impulse j4[i] >= 0, inertia at the current orientations. Returns j4, 1 if any
     impulse changed, and the velocity changes made."""
     ia = rows[k].body_a
     ib = rows[k].body_b
@@ -1452,6 +1459,18 @@ def _impact_sweeps(
         if hits == 1:
             moving = int(0)
     return out, changed, total
+
+
+@wp.func
+def _impact_load(rows: wp.array(dtype=ContactRow), k: int, size: int, j4: vec4):
+    """The load sum_i j_i [N s] of a collision's normal impulses j4 on the manifold at k, and its twist
+    limit's sum_i j_i arm_i [N m s] (as `_block_load` for the solve's accumulated impulses)."""
+    load = float_t(0.0)
+    torque = float_t(0.0)
+    for i in range(size):
+        load += j4[i]
+        torque += j4[i] * rows[k + i].twist_arm
+    return load, torque
 
 
 @wp.func
@@ -1555,11 +1574,7 @@ def _patch_impact_friction(
     wa = b.angular_velocity[ia]
     vb = b.velocity[ib]
     wb = b.angular_velocity[ib]
-    load0 = float_t(0.0)
-    torque0 = float_t(0.0)
-    for i in range(size):
-        load0 += j4[i]
-        torque0 += j4[i] * rows[k + i].twist_arm
+    load0, torque0 = _impact_load(rows, k, size, j4)
     normals = j4
     total = Delta()
     jt = vec3()  # accumulated friction impulse on b [N s], in the plane of the patch
@@ -1578,11 +1593,7 @@ def _patch_impact_friction(
         # the normal rows again: the friction's moment moved the corners
         normals, changed, d = _impact_sweeps(k, size, rows, b, u4, normals, hits, share, centres, serial)
         total = _sum(total, d)
-        load = float_t(0.0)
-        torque = float_t(0.0)
-        for i in range(size):
-            load += normals[i]
-            torque += normals[i] * rows[k + i].twist_arm
+        load, torque = _impact_load(rows, k, size, normals)
         rounds += 1
         if changed == 0 and moved <= MANIFOLD_TOLERANCE and turned * arm <= MANIFOLD_TOLERANCE:
             break
@@ -1754,7 +1765,7 @@ def _make_impact(exact_pair: bool):
         if size == 1 and j4[0] > float_t(0.0) and rows[k].friction > float_t(0.0):
             # a lone point with a lever (a corner, a rod's end): its friction moves its normal speed.
             # It sticks as one block where it can, else its rows are solved in turn, as a patch's
-            if rows[k].mass_n * (b.inv_mass[ia] + b.inv_mass[ib]) < float_t(1.0) - float_t(1.0e-6):
+            if _has_lever(rows, k, b.inv_mass[ia] + b.inv_mass[ib]):
                 if _lone_impact_sticking(k, rows, b, u4[0], j4[0], applied, share, centres, serial) == 0:
                     _patch_impact_friction(k, size, rows, b, u4, j4, hits, share, centres, serial)
                 return 1
