@@ -207,3 +207,17 @@ def test_float32_spin_keeps_its_angular_momentum_to_rounding(axis):
     bound = 4.0 * np.sqrt(n) * eps  # 19,200 substeps: 6.6e-5
     assert worst_len < bound
     assert worst_dir < bound
+
+
+@pytest.mark.parametrize("rate", [1000.0, 3000.0, 10000.0])
+def test_a_box_spinning_faster_than_its_substeps_resolve_keeps_its_energy(rate):
+    """A substep turning the box by more than MAX_SPLIT_TURN (0.05 rad) splits its rotation into parts that
+    turn no further, so the energy error stays within the bound for that turn, MAX_SPLIT_TURN^2, however
+    fast it spins: at 3,000 rad/s (1.6 rad a substep) in one part the box gained 44 times its kinetic
+    energy in 2 s, moving towards its minor axis while L stayed exact."""
+    from tumble.solver.integrate import MAX_SPLIT_TURN
+
+    w0 = rate * CASES["tilted 1,2,6"] / np.linalg.norm(CASES["tilted 1,2,6"])
+    run = spin(w0, 2.0)
+    err = np.abs(run["E"] / run["E0"] - 1.0)
+    assert err.max() < float(MAX_SPLIT_TURN) ** 2

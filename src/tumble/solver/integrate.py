@@ -14,8 +14,9 @@ Reads and writes body positions, orientations and velocities; costs O(bodies).
   symmetrically, x(h/2) y(h/2) z(h) y(h/2) x(h/2), the step is second order, symplectic and
   time-reversible: the world angular momentum L = R P is carried exactly (each turn moves the
   body and P by inverse rotations), |L| = |P| to rounding, and the energy error stays bounded,
-  O((h w)^2), without secular drift. Spheres and bodies with equal moments (P parallel to w)
-  take the exact one-rotation step q' = exp(w h / 2) q.
+  O((h w)^2), without secular drift. A body turning more than MAX_SPLIT_TURN in a substep takes
+  the splitting in equal parts that turn no further. Spheres and bodies with equal moments (P
+  parallel to w) take the exact one-rotation step q' = exp(w h / 2) q.
 """
 
 from __future__ import annotations
@@ -29,6 +30,12 @@ from .rigid import inv_inertia_times
 
 # no adjoint code: nothing differentiates through Tumble's kernels, and it doubles the compile time
 wp.set_module_options({"enable_backward": False})
+
+
+#: largest turn [rad] of one splitting step of the rotation (`_position`); a body turning further in a
+#: substep takes that substep's splitting in equal parts, at most MAX_SPLIT_PARTS of them
+MAX_SPLIT_TURN = wp.constant(wide_t(0.05))
+MAX_SPLIT_PARTS = wp.constant(1024)
 
 
 @wp.func
@@ -92,18 +99,28 @@ def _position(i: int, b: BodyArrays, h: float_t):
         if speed > wide_t(0.0):
             b.orientation[i] = quat(wp.normalize(_turn(wi / speed, speed * hw) * qi))
         return
-    # body-frame angular momentum P = I w_body, then the splitting x(h/2) y(h/2) z(h) y(h/2) x(h/2)
+    # body-frame angular momentum P = I w_body, then the splitting x(h/2) y(h/2) z(h) y(h/2) x(h/2), in
+    # `turns` equal parts when the body turns more than MAX_SPLIT_TURN in the substep (one part below it,
+    # as always: O((h w)^2) holds the energy only while h w is small; a thin box spinning at 3,000 rad/s,
+    # 1.6 rad a substep, in one part gained 44 times its kinetic energy in 2 s, its L kept exactly)
     wb = wp.quat_rotate_inv(qi, wi)
     p = vec3w(wb[0] / ii[0], wb[1] / ii[1], wb[2] / ii[2])
-    half = wide_t(0.5) * hw
+    turns = int(1)
+    turn = wp.length(wb) * hw
+    if turn > MAX_SPLIT_TURN:
+        turns = int(wp.min(wp.ceil(turn / MAX_SPLIT_TURN), wide_t(MAX_SPLIT_PARTS)))
+    part = hw / wide_t(turns)
+    half = wide_t(0.5) * part
     ex = vec3w(wide_t(1.0), wide_t(0.0), wide_t(0.0))
     ey = vec3w(wide_t(0.0), wide_t(1.0), wide_t(0.0))
     ez = vec3w(wide_t(0.0), wide_t(0.0), wide_t(1.0))
-    qa, p = _spin_about(qi, p, ex, ii[0], half)
-    qa, p = _spin_about(qa, p, ey, ii[1], half)
-    qa, p = _spin_about(qa, p, ez, ii[2], hw)
-    qa, p = _spin_about(qa, p, ey, ii[1], half)
-    qa, p = _spin_about(qa, p, ex, ii[0], half)
+    qa = qi
+    for _ in range(turns):
+        qa, p = _spin_about(qa, p, ex, ii[0], half)
+        qa, p = _spin_about(qa, p, ey, ii[1], half)
+        qa, p = _spin_about(qa, p, ez, ii[2], part)
+        qa, p = _spin_about(qa, p, ey, ii[1], half)
+        qa, p = _spin_about(qa, p, ex, ii[0], half)
     q1 = wp.normalize(qa)
     b.orientation[i] = quat(q1)
     b.angular_velocity[i] = vec3(wp.quat_rotate(q1, vec3w(p[0] * ii[0], p[1] * ii[1], p[2] * ii[2])))
