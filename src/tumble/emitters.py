@@ -179,7 +179,7 @@ class Emitter:
         self.friction = validate.friction(friction)
         self.random_orientation = validate.flag(random_orientation, "random_orientation")
         self.angular_speed = validate.bounds(angular_speed, "angular_speed")
-        self.seed = None if seed is None else validate.integer(seed, "seed", low=0)
+        self.seed = None if seed is None else validate.seed(seed)
         self.world_key: int | None = None  # the World it was added to (`World.add_emitter`)
         self.emitted = 0
         self._owed = 0.0

@@ -33,6 +33,9 @@ MAX_SUBSTEPS = 1000
 MAX_CLOTH_SUBSTEPS = 10_000
 #: largest number of steps in one run (duration / dt): about 12 days at 1 ms a step
 MAX_STEPS = 10**9
+#: largest seed of a random generator (the world's, an emitter's, the wind's): seeds are kept as int64
+#: (recordings, snapshots); NumPy would take any integer, and one of 400 digits passed `tumble check`
+MAX_SEED = 2**63 - 1
 #: most bodies one emitter releases in one step (rate * dt): each new body is tested against the
 #: ones placed before it in the same step, so the cost grows as its square (1,000: ~1.5 s, 2,000: ~6 s,
 #: 10,000: ~100 s measured on one loaded core)

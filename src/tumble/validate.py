@@ -15,6 +15,7 @@ import operator
 
 import numpy as np
 
+from . import limits
 from .limits import MAX_IMAGE_SIDE
 
 #: longest repr of a bad value quoted in a message
@@ -80,11 +81,20 @@ def unit(v) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+def as_float(value) -> float:
+    """A real number as a float: an integer too large for one (10**400) is infinite, with its sign, so
+    that the finiteness checks refuse it by name instead of `float` raising OverflowError."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
+
+
 def _real(value, name: str, what: str) -> float:
     """`value` as a float if it is a real number (not a bool, not a string), else TypeError."""
     if not is_real(value):
         raise TypeError(f"{name} must be {what}, got {show(value)}")
-    return float(value)
+    return as_float(value)
 
 
 def number(
@@ -126,16 +136,26 @@ def friction(value, name: str = "friction") -> float:
     return number(value, name, low=0.0)
 
 
-def integer(value, name: str, *, low: int | None = None) -> int:
-    """An integer >= low; an integral float (8.0) is taken, 2.5 is refused rather than truncated."""
+def integer(value, name: str, *, low: int | None = None, high: int | None = None) -> int:
+    """An integer in [low, high]; an integral float (8.0) is taken, 2.5 is refused rather than truncated."""
     what = "an integer" if low is None else f"an integer >= {low}"
+    if high is not None:
+        what = f"an integer in [{low}, {high}]"
     v = _real(value, name, what)
-    if not math.isfinite(v) or v != math.floor(v):
+    if isinstance(value, numbers.Integral):
+        i = int(value)  # exact, however large (not through a float)
+    elif not math.isfinite(v) or v != math.floor(v):
         raise ValueError(f"{name} must be {what}, got {show(value)}")
-    i = int(value) if isinstance(value, numbers.Integral) else int(v)
-    if low is not None and i < low:
+    else:
+        i = int(v)
+    if (low is not None and i < low) or (high is not None and i > high):
         raise ValueError(f"{name} must be {what}, got {show(value)}")
     return i
+
+
+def seed(value, name: str = "seed") -> int:
+    """A random generator's seed: an integer in [0, limits.MAX_SEED]."""
+    return integer(value, name, low=0, high=limits.MAX_SEED)
 
 
 def integers(value, name: str, n: int, *, low: int | None = None) -> tuple[int, ...]:

@@ -695,6 +695,7 @@ def run_variant(task: dict) -> dict:
                     strain = max(strain, float(cloth.max_strain()))
                 if frames is not None:
                     frames.append(renderer.render(world, camera))
+        world.check_finite()  # (each step checks the state it starts from: this is what the last one left)
         stepping = time.perf_counter() - stepping
 
         row.update(
@@ -747,25 +748,14 @@ def _write_kept(world, folder: Path, keep: set, recorder, frames, fps: float) ->
             written.append(record.name)
     try:
         if "video" in keep and frames:
-            import imageio.v2 as imageio
+            from .io.video import FfmpegWriter
 
-            with atomic_path(folder / "video.mp4") as tmp:
-                writer = imageio.get_writer(
-                    str(tmp),
-                    format="FFMPEG",
-                    mode="I",
-                    fps=float(fps),
-                    codec="libx264",
-                    quality=8,
-                    pixelformat="yuv420p",
-                    macro_block_size=2,
-                    ffmpeg_log_level="error",
-                )
-                try:
-                    for image in frames:
-                        writer.append_data(image)
-                finally:
-                    writer.close()
+            # (`tumble render`'s writer: ffmpeg's failures, a full disk among them, raise one line, and the
+            # short file is not renamed into place)
+            size = (frames[0].shape[1], frames[0].shape[0])
+            with atomic_path(folder / "video.mp4") as tmp, FfmpegWriter(tmp, size, fps) as writer:
+                for image in frames:
+                    writer.append(image)
             written.append("video.mp4")
         if "usd" in keep:
             usd_exporter()(record, folder / "scene.usdc")  # the recording, at its fps; written atomically

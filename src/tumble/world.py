@@ -47,6 +47,7 @@ from .state import (
     ClothId,
     Handle,
     JointId,
+    cast,
     host_values,
     host_view,
     readonly,
@@ -153,7 +154,7 @@ class World:
         self.dt = dt
         self.substeps = substeps
         self.restitution_threshold = restitution_threshold
-        self.seed = validate.integer(seed, "seed", low=0)
+        self.seed = validate.seed(seed)
         validate.text(device, "device")
         init_warp()
         if device.startswith("cuda") and not wp.is_cuda_available():
@@ -216,7 +217,9 @@ class World:
 
     @gravity.setter
     def gravity(self, value: Sequence[float] | np.ndarray) -> None:
-        self._gravity = validate.vector(value, "gravity")
+        g = validate.vector(value, "gravity")
+        cast(g, precisions.types_of(self._precision).numpy, "gravity")  # (a float32 world's kernels take it)
+        self._gravity = g
 
     @property
     def dt(self) -> float:
@@ -354,7 +357,7 @@ class World:
             The new bodies' ids, in order.
         """
         o = given(options, SOLID_DEFAULTS, "World.add_spheres")
-        x = validate.rows(position, "position", 3)
+        x = self._body_positions(position)
         r = validate.positive_rows(radius, "radius", len(x))
         m = self._masses(o, _shapes.sphere_volume(r))
         inertia = _shapes.sphere_inertia(m, r)
@@ -367,7 +370,7 @@ class World:
     ) -> list[BodyId]:
         """Add n boxes in one call; arguments as `add_spheres`, with half extents [m], shape (3,) or (n, 3)."""
         o = given(options, SOLID_DEFAULTS, "World.add_boxes")
-        x = validate.rows(position, "position", 3)
+        x = self._body_positions(position)
         h = validate.rows(half_extents, "half_extents", 3, len(x))
         if np.any(h <= 0.0):
             raise ValueError(f"half_extents must all be > 0, got {validate.show(half_extents)}")
@@ -405,7 +408,7 @@ class World:
     ) -> list[BodyId]:
         """Add n capsules in one call; arguments as `add_spheres`, with `half_height` one value or shape (n,)."""
         o = given(options, SOLID_DEFAULTS, "World.add_capsules")
-        x = validate.rows(position, "position", 3)
+        x = self._body_positions(position)
         r = validate.positive_rows(radius, "radius", len(x))
         a = validate.positive_rows(half_height, "half_height", len(x))
         m = self._masses(o, _shapes.capsule_volume(r, a))
@@ -444,7 +447,9 @@ class World:
         from .io.meshfile import hull_points
 
         if (points is None) == (file is None):
-            raise ValueError("add_convex takes points or file, not both")
+            raise ValueError(
+                f"add_convex takes points or file, {'neither was given' if points is None else 'not both'}"
+            )
         points, name = hull_points(points, file)
         factor = validate.scale(scale)
         proto = hull_from_points(np.asarray(points, dtype=np.float64) * factor, name=name)
@@ -1011,6 +1016,18 @@ class World:
             bound=bound,
         )
 
+    def _body_positions(self, position) -> np.ndarray:
+        """The rows of `position` (`validate.rows`) for new bodies, refused before they are copied when the
+        world's bodies would not fit in memory (`limits.check_memory`: a broadcast of 10^9 rows was
+        copied until the system ended the process)."""
+        try:
+            shape = np.shape(position)
+        except ValueError:  # ragged rows: validate.rows names them
+            shape = ()
+        if len(shape) == 2:
+            limits.check_memory("position", "bodies", self.body_count + shape[0], limits.BYTES_PER_BODY)
+        return validate.rows(position, "position", 3)
+
     def _add_bodies(
         self,
         *,
@@ -1363,7 +1380,19 @@ class World:
             self.step()
             if callback is not None:
                 callback(self)
+        self.check_finite()  # (each step checks the state it starts from: this is the last one's result)
         return steps
+
+    def check_finite(self) -> None:
+        """Raise `SimulationError`, naming the body or cloth particle, if a state is not finite.
+
+        Every step checks the state it starts from; code that steps and then saves, records or exports
+        what the last step left (as `run` and the command line do) calls this first, so that a run
+        that diverged in its last step is not saved as if it had not.
+        """
+        self._validate()
+        if self._cloth is not None:
+            self._cloth.check_finite(self.time, self.step_count)
 
     def _validate(self) -> None:
         n = self.bodies.count

@@ -380,7 +380,7 @@ def test_time_sums_runs_of_different_dt():
     [
         (lambda: tumble.World(substeps=2.5), ValueError, r"substeps must be an integer >= 1, got 2.5"),
         (lambda: tumble.World(substeps="8"), TypeError, r"substeps must be an integer >= 1, got '8'"),
-        (lambda: tumble.World(seed=-1), ValueError, r"seed must be an integer >= 0, got -1"),
+        (lambda: tumble.World(seed=-1), ValueError, r"seed must be an integer in \[0, 9223372036854775807\], got -1"),
         (lambda: tumble.World(restitution_threshold=float("nan")), ValueError, r"restitution_threshold must be"),
         (lambda: tumble.World(dt="fast"), TypeError, r"dt must be a number, got 'fast'"),
         (lambda: tumble.World(gravity="down"), TypeError, r"gravity must be 3 finite numbers, got 'down'"),

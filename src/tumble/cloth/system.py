@@ -606,6 +606,29 @@ class ClothSystem:
             )
         return int(n)
 
+    def check_finite(self, time: float, step: int) -> float:
+        """The particles' largest speed [m/s]; SimulationError naming the particle if a velocity is not
+        finite (at simulated time `time`, step `step`, for the message): the cloth diverged."""
+        p = self.particles.count
+        v = self.particles.arrays["particle_velocity"].numpy()[:p]
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed2 = np.einsum("ij,ij->i", v, v)
+        speed = float(np.sqrt(speed2.max())) if p else 0.0
+        if not math.isfinite(speed):
+            # report where the cloth blew up rather than let NaNs spread into the bodies
+            bad = int(np.nonzero(~np.isfinite(speed2))[0][0])
+            cloth = next(c for c in self.cloths if c.particle_start <= bad < c.particle_start + c.particle_count)
+            j, i = divmod(bad - cloth.particle_start, cloth.nx)
+            # a body light at its pins overshoots whatever the substeps (docs/design.md, "Cloth with bodies")
+            remedy = "lower its stiffness or set world.cloth.substeps higher"
+            if self.body_pins.count:
+                remedy += ", and spread the load of bodies pinned to it over more pins"
+            raise SimulationError(
+                f"velocity of cloth {cloth.index} particle {bad} (grid point i = {i}, j = {j}) is not finite at "
+                f"t = {time:.6g} s (step {step}); the cloth diverged: {remedy}"
+            )
+        return speed
+
     def substep(self, h: float, *, bodies, hulls, meshes) -> None:
         """Stage, once per world substep of `h` seconds: the cloth substeps that end in it, coupled to the bodies.
 
@@ -846,23 +869,7 @@ class ClothSystem:
             )
             sample_wind(self._kernel_structs().particles, wind.velocity, self._modes[0], time, cache=self._cache)
 
-        v = a["particle_velocity"].numpy()[:p]
-        with np.errstate(over="ignore", invalid="ignore"):
-            speed2 = np.einsum("ij,ij->i", v, v)
-        speed = float(np.sqrt(speed2.max()))
-        if not math.isfinite(speed):
-            # report where the cloth blew up rather than let NaNs spread into the bodies
-            bad = int(np.nonzero(~np.isfinite(speed2))[0][0])
-            cloth = next(c for c in self.cloths if c.particle_start <= bad < c.particle_start + c.particle_count)
-            j, i = divmod(bad - cloth.particle_start, cloth.nx)
-            # a body light at its pins overshoots whatever the substeps (docs/design.md, "Cloth with bodies")
-            remedy = "lower its stiffness or set world.cloth.substeps higher"
-            if self.body_pins.count:
-                remedy += ", and spread the load of bodies pinned to it over more pins"
-            raise SimulationError(
-                f"velocity of cloth {cloth.index} particle {bad} (grid point i = {i}, j = {j}) is not finite at "
-                f"t = {time:.6g} s (step {step}); the cloth diverged: {remedy}"
-            )
+        speed = self.check_finite(time, step)
 
         # self-collision, a Verlet list: the pairs closer than their thickness + margin; two
         # particles close in by at most 2 v_max dt per step, so the list stays valid until that

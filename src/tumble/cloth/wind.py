@@ -88,7 +88,7 @@ class Wind:
             setattr(self, name, validate.number(getattr(self, name), f"wind {name}", low=0.0))
         self.scale = validate.positive(self.scale, "wind scale")
         self.modes = validate.integer(self.modes, "wind modes", low=1)
-        self.seed = validate.integer(self.seed, "wind seed", low=0)
+        self.seed = validate.seed(self.seed, "wind seed")
 
     def mode_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The seeded modes: wave vectors (K, 3) [1/m], amplitude vectors (K, 3) [m/s],

@@ -100,12 +100,13 @@ def _check_arguments(args: argparse.Namespace) -> None:
         check_output(args.record, suffixes=(".npz",), option="--record")
     if args.save_state is not None:
         check_output(args.save_state, suffixes=(".npz",), option="--save-state")
-    if args.record is not None and args.save_state is not None:
+    if args.record is not None:
         from pathlib import Path
 
-        if Path(args.record).resolve() == Path(args.save_state).resolve():
-            # the state would be written over the recording, which is lost
-            raise TumbleError(f"--record and --save-state name the same file {args.record!r}; give two files")
+        for option, other in (("--save-state", args.save_state), ("--resume", args.resume)):
+            if other is not None and Path(args.record).resolve() == Path(other).resolve():
+                # the recording would be written over the state, which is lost
+                raise TumbleError(f"--record and {option} name the same file {args.record!r}; give two files")
     if args.device == "cuda":
         import warp as wp
 
@@ -188,6 +189,7 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
         first_step = time.perf_counter() - start
         err.print(f"first step done in {first_step:.2f} s", highlight=False)
         wall = _step_on(world, steps, recorder, err, interrupted)
+    world.check_finite()  # (each step checks the state it starts from: this is what the last one left)
 
     if recorder is not None:
         recorder.save(args.record)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator, Sequence
@@ -158,14 +159,16 @@ def atomic_path(path) -> Iterator[Path]:
 
 
 @contextlib.contextmanager
-def atomic_folder(path, *, pattern: str = "frame_*.png") -> Iterator[Path]:
+def atomic_folder(path, *, frames: str = r"frame_\d{5,}\.png") -> Iterator[Path]:
     """Yield a temporary folder beside `path`; when the block succeeds its files become `path`.
 
     A new `path` is the temporary folder renamed. An existing folder gets each new file by
-    `os.replace`, and its files matching `pattern` that the new set lacks (frames of a longer
-    earlier render) are removed; other files in it are left alone. On failure the temporary
-    folder is removed and `path` is untouched.
+    `os.replace`, and its files whose whole name matches the regular expression `frames` (the
+    numbered frames Tumble writes, frame_00042.png) that the new set lacks (frames of a longer
+    earlier render) are removed; other files in it (a user's frame_cover.png or frame_0001.png
+    too) are left alone. On failure the temporary folder is removed and `path` is untouched.
     """
+    numbered = re.compile(frames)
     target = Path(path)
     tmp = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp"))
     try:
@@ -179,8 +182,8 @@ def atomic_folder(path, *, pattern: str = "frame_*.png") -> Iterator[Path]:
         new = {f.name for f in tmp.iterdir()}
         for name in sorted(new):
             os.replace(tmp / name, target / name)
-        for old in target.glob(pattern):
-            if old.name not in new:
+        for old in target.iterdir():
+            if old.name not in new and numbered.fullmatch(old.name) and old.is_file():
                 old.unlink()
         tmp.rmdir()
     except BaseException as exc:

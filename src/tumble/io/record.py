@@ -552,6 +552,15 @@ def _check_tables(rec: dict[str, np.ndarray], path: Path) -> None:
     for name, tail in _FIXED.items():
         if name in rec and rec[name].shape != tail:
             raise bad(name, f"has shape {rec[name].shape}, expected {tail}")
+    for name in (*BODY_STATE, *PARTICLE_STATE, *JOINT_STATE, "gravity", "camera_position", "camera_target"):
+        # the state a run left (`World.check_finite`): NaN marks the rows of removed bodies, an infinity
+        # is never written (a plane's bound radius is infinite, and is not state)
+        state = rec.get(name)
+        if state is not None and state.dtype.kind == "f" and np.isinf(state).any():
+            raise bad(name, "holds an infinity")
+    for name in ("dt", "fps"):  # readers divide by them
+        if name in rec and not float(rec[name]) > 0.0:
+            raise bad(name, f"holds {float(rec[name]):g}, not a positive number")
     if "shape" in rec and "shape_names" in rec and rec["shape"].size:
         if rec["shape"].max() >= len(rec["shape_names"]):
             raise bad("shape", f"holds {int(rec['shape'].max())}, past the {len(rec['shape_names'])} shape names")

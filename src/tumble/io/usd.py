@@ -149,6 +149,7 @@ def simulate(
         recorder(world)
         if recorder.frame_count > before:
             advance()
+    world.check_finite()  # (each step checks the state it starts from: this is what the last one left)
     return recorder.arrays()
 
 

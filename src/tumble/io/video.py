@@ -109,6 +109,7 @@ def render_frames(
             target = start + k / float(fps)
             while world.time < target - 0.5 * dt:
                 world.step()
+            world.check_finite()  # (a step checks the state it starts from, not the one it leaves)
             yield renderer.render(world, camera)
     finally:
         renderer.dither = dither_before

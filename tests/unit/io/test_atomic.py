@@ -99,20 +99,27 @@ def test_atomic_file_commits_or_discards(tmp_path):
 
 
 def test_atomic_folder_creates_or_updates_a_frame_folder(tmp_path):
-    """A new folder appears whole; rewriting one drops stale frames and keeps unrelated files."""
+    """A new folder appears whole; rewriting one drops stale numbered frames (frame_ and five or more
+    digits, as Tumble writes them) and keeps every other file, a user's frame_cover.png or frame_0001.png too."""
     frames = tmp_path / "frames"
     with atomic_folder(frames) as tmp:
         for k in range(3):
-            (tmp / f"frame_{k:04d}.png").write_bytes(b"%d" % k)
+            (tmp / f"frame_{k:05d}.png").write_bytes(b"%d" % k)
         assert not frames.exists()
-    assert sorted(p.name for p in frames.iterdir()) == ["frame_0000.png", "frame_0001.png", "frame_0002.png"]
-    (frames / "notes.txt").write_text("mine")
+    assert sorted(p.name for p in frames.iterdir()) == ["frame_00000.png", "frame_00001.png", "frame_00002.png"]
+    for name in ("notes.txt", "frame_cover.png", "frame_0001.png"):
+        (frames / name).write_text("mine")
     with atomic_folder(frames) as tmp:
-        (tmp / "frame_0000.png").write_bytes(b"new")
-    assert sorted(p.name for p in frames.iterdir()) == ["frame_0000.png", "notes.txt"]
-    assert (frames / "frame_0000.png").read_bytes() == b"new"
+        (tmp / "frame_00000.png").write_bytes(b"new")
+    assert sorted(p.name for p in frames.iterdir()) == [
+        "frame_00000.png",
+        "frame_0001.png",
+        "frame_cover.png",
+        "notes.txt",
+    ]
+    assert (frames / "frame_00000.png").read_bytes() == b"new"
     with pytest.raises(RuntimeError), atomic_folder(frames) as tmp:
-        (tmp / "frame_0000.png").write_bytes(b"broken")
+        (tmp / "frame_00000.png").write_bytes(b"broken")
         raise RuntimeError("encoder failed")
-    assert (frames / "frame_0000.png").read_bytes() == b"new"
+    assert (frames / "frame_00000.png").read_bytes() == b"new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"]

@@ -8,6 +8,7 @@ naming the key it blames. `Check.kind` is the type as the scene reference writes
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -39,7 +40,7 @@ class Check:
 def _number(value) -> float:
     if not validate.is_real(value):
         raise Bad(f"must be a number, got {show(value)}")
-    v = float(value)
+    v = validate.as_float(value)
     if not validate.within(v):
         raise Bad(f"must be finite, got {show(value)}")
     return v
@@ -93,8 +94,10 @@ def integer(*, low: int | None = None, high: int | None = None, limit: str | Non
         if low is not None and value < low:
             raise Bad(f"must be >= {low}, got {value}")
         if high is not None and value > high:
+            # (a number of 400 digits as its power of ten, not a line of 400 digits)
+            shown = f"{value:,}" if value < 10**24 else f"about 1e{int(value.bit_length() * math.log10(2))}"
             raise Bad(
-                f"{value:,} is too large: must be <= {high:,}" + (f" ({limit}, docs/scenes.md#limits)" if limit else "")
+                f"{shown} is too large: must be <= {high:,}" + (f" ({limit}, docs/scenes.md#limits)" if limit else "")
             )
         return int(value)
 
@@ -131,7 +134,7 @@ def _vector(value, n: int) -> list[float]:
         raise Bad(f"must have {n} components, got {len(value)}")
     if not all(validate.is_real(v) for v in value):
         raise Bad(f"must be a list of {n} numbers, got {show(value)}")
-    out = [float(v) for v in value]
+    out = [validate.as_float(v) for v in value]
     if not all(validate.within(v) for v in out):
         raise Bad(f"must be finite, got {show(value)}")
     return out

@@ -11,6 +11,8 @@ from __future__ import annotations
 import difflib
 import importlib.resources
 import os
+import re
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -141,6 +143,8 @@ def parse_scene(text: str, path=None) -> Scene:
         raise SceneError(f"invalid TOML: {exc}", path=path) from None
     except RecursionError:
         raise SceneError("invalid TOML: arrays or tables nested too deeply", path=path) from None
+    except ValueError:  # Python's limit on the digits of an integer it converts from text
+        raise SceneError(f"invalid TOML: {_long_number(text)}", path=path) from None
     scene = Scene(path=None if path is None else str(path), text=text)
     for name, raw in doc.items():
         spec = SCHEMA.get(name)
@@ -164,6 +168,15 @@ def parse_scene(text: str, path=None) -> Scene:
             scene.tables[name] = parse_table(spec, raw, path, None)
     check_limits(scene)
     return scene
+
+
+def _long_number(text: str) -> str:
+    """Where the first integer too long for Python to read (over `sys.get_int_max_str_digits()` digits) is."""
+    limit = sys.get_int_max_str_digits()
+    digits = text.replace("_", "")
+    found = re.search(rf"\d{{{limit + 1},}}", digits) if limit else None
+    where = "" if found is None else f" (at line {digits.count(chr(10), 0, found.start()) + 1})"
+    return f"an integer of more than {limit:,} digits{where}"
 
 
 def check_limits(scene: Scene, *, dt: float | None = None) -> None:
@@ -275,7 +288,8 @@ def read_scene(path) -> Scene:
             path=path,
         )
     try:
-        text = data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")  # newlines as text mode reads them
+        # newlines as text mode reads them; a byte-order mark (Notepad writes one) is not TOML
+        text = data.decode("utf-8").removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n")
     except UnicodeDecodeError as exc:
         if data[:4] == b"PK\x03\x04":  # a zip: what --record and --save-state write
             raise SceneError(_NOT_A_SCENE, path=path) from None
@@ -293,6 +307,8 @@ def read_scene(path) -> Scene:
 
 def resolve_scene_path(path) -> Path:
     """`path` itself, or, for a bare name like "sphere_pile", the bundled sample of that name."""
+    if str(path) == "":  # (Path("") is the current folder)
+        raise FileNotFoundError("no scene file given: the name is empty")
     p = Path(path)
     if not p.exists() and p.parent == Path(".") and (SAMPLES_DIR / p.with_suffix(".toml").name).exists():
         return SAMPLES_DIR / p.with_suffix(".toml").name
@@ -300,6 +316,8 @@ def resolve_scene_path(path) -> Path:
         raise FileNotFoundError(f"{path}: no such scene file")
     if p.is_dir():
         raise IsADirectoryError(f"{path}: is a directory, not a scene file")
+    if not p.is_file():  # a named pipe waits for a writer, a device never ends: neither is read
+        raise SceneError("not a regular file (a pipe or a device), not a scene file", path=path)
     return p
 
 

@@ -155,6 +155,12 @@ def _body_fields(size_key: str, size: Field) -> dict[str, Field]:
         **_MASS,
         **_material(_solid),
         "static": _static_field(),
+        "kinematic": Field(
+            boolean(),
+            _solid("kinematic"),
+            "",
+            "moves only by its velocity and angular velocity, unaffected by gravity and contacts (infinite mass)",
+        ),
         "orientation": Field(quaternion(), _solid("orientation"), "", "initial orientation quaternion (x, y, z, w)"),
         "angular_velocity": Field(
             vector(3), _solid("angular_velocity"), "rad/s", "initial angular velocity, world frame"
@@ -195,7 +201,10 @@ SCHEMA: dict[str, TableSpec] = {
                     "solver substeps per step",
                 ),
                 "seed": Field(
-                    integer(low=0), _world("seed"), "", "seed of the world's random generator (emitters without a seed)"
+                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    _world("seed"),
+                    "",
+                    "seed of the world's random generator (emitters without a seed)",
                 ),
                 "restitution_threshold": Field(
                     number(low=0),
@@ -333,7 +342,13 @@ SCHEMA: dict[str, TableSpec] = {
                     _shown(DEFAULT_DENSITY),
                 ),
                 **_material(_emitter),
-                "seed": Field(integer(low=0), None, "", "seed of this emitter's generator", "from [world] seed"),
+                "seed": Field(
+                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    None,
+                    "",
+                    "seed of this emitter's generator",
+                    "from [world] seed",
+                ),
                 "random_orientation": Field(
                     boolean(), None, "", "uniformly random initial orientations", _shown(_emitter("random_orientation"))
                 ),
@@ -424,7 +439,12 @@ SCHEMA: dict[str, TableSpec] = {
                 "scale": Field(
                     number(low=0, low_open=True), _wind_default("scale"), "m", "length scale of the turbulence"
                 ),
-                "seed": Field(integer(low=0), _wind_default("seed"), "", "seed of the turbulence field"),
+                "seed": Field(
+                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    _wind_default("seed"),
+                    "",
+                    "seed of the turbulence field",
+                ),
                 "drag": Field(number(low=0), _wind_default("drag"), "", "drag coefficient of a cloth face"),
                 "lift": Field(number(low=0), _wind_default("lift"), "", "lift coefficient of a cloth face"),
                 "air_density": Field(number(low=0), _wind_default("air_density"), "kg/m^3", "density of the air"),
