@@ -486,6 +486,46 @@ def test_a_row_of_touching_bodies_struck_inelastically_moves_off_as_one(shape):
     assert w.kinetic_energy() == pytest.approx(ke0 / (n + 1), rel=2 * (n + 1) * tol / v0)
 
 
+def test_a_heavy_box_landing_inelastically_on_a_tower_leaves_it_standing():
+    """A 10 kg cube lands at 8 m/s, a little off centre, on a settled tower of ten 1 kg cubes, e = 0
+    everywhere: the collision runs down the tower into the floor, and the tower stands, top-heavy and
+    swaying. Bound: through 3 s every cube stays on the one below it (centres within a quarter of a side
+    apart, the heavy one on top), and none of the tower's cubes leaves its support. (With the collision
+    pass pushing overlaps apart at -s / h, every resting contact of the struck tower did: its cubes flew up
+    at up to 1.5 m/s and it fell 1.3 m aside.)"""
+    half = 0.1
+    w = tumble.World(dt=1 / 240)
+    w.add_plane(restitution=0.0, friction=0.6)
+    column = [
+        w.add_box(
+            position=(0, 0, half + 2 * half * i + 0.0005 * i),
+            half_extents=(half, half, half),
+            mass=1.0,
+            restitution=0.0,
+            friction=0.6,
+        )
+        for i in range(10)
+    ]
+    w.run(0.25)
+    top = w.body_position[column[-1]].copy()
+    column.append(
+        w.add_box(
+            position=(0.02, 0.01, top[2] + 0.4),
+            half_extents=(half, half, half),
+            mass=10.0,
+            restitution=0.0,
+            friction=0.6,
+            velocity=(0, 0, -8.0),
+        )
+    )
+    for _ in range(round(3.0 / w.dt)):
+        w.step()
+        x = w.body_position[column]
+        assert np.linalg.norm(np.diff(x[:, :2], axis=0), axis=1).max() < 0.5 * half
+        assert np.diff(x[:, 2]).min() > 1.9 * half  # each on the one below, none slipped off beside it
+    assert w.body_position[column[-1], 2] == pytest.approx(top[2] + 2 * half, abs=0.05 * half)
+
+
 @pytest.mark.parametrize("shape", ["ball", "box"])
 @pytest.mark.parametrize("light", [0.5, 0.2])
 @pytest.mark.parametrize("v0", [2.0, 8.0])
