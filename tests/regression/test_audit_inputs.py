@@ -205,3 +205,13 @@ def test_a_float32_world_refuses_a_gravity_its_floats_cannot_hold():
     with pytest.raises(ValueError, match="gravity: 1e\\+40 does not fit a float32 world"):
         world.gravity = (0, 0, 1e40)
     assert tumble.World(gravity=(0, 0, -1e39), precision="float64").gravity[2] == -1e39
+
+
+def test_export_names_a_rate_above_the_steps_before_the_memory_it_would_take(write_scene, tmp_path, capsys):
+    """--fps 1e9 was refused as "duration: 100,000,001 frames need about 51 GB", not for its rate."""
+    pytest.importorskip("pxr")
+    path = write_scene(BALL)
+    out = tmp_path / "e.usda"
+    assert main(["export", str(path), "-o", str(out), "--fps", "1e9", "--duration", "0.1", "--no-progress"]) == 2
+    _one_line_error(capsys, "fps 1e+09 is more than the world's 240 steps per second")
+    assert not out.exists()

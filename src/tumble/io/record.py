@@ -91,11 +91,7 @@ class Recorder:
     """
 
     def __init__(self, world, fps: float = 60.0):
-        fps = validate.positive(fps, "fps")
-        # one frame a step at most: a higher rate would be stored as the recording's fps while
-        # its frames are a step apart, and exports would time them by the false rate
-        if fps > 1.0 / float(world.dt) * (1 + 1e-9):
-            raise limits.LimitError(f"fps {fps:g} is more than the world's {1.0 / float(world.dt):g} steps per second")
+        fps = check_rate(world, validate.positive(fps, "fps"))
         self.world = world
         self.fps = fps
         self.start_time = float(world.time)
@@ -434,6 +430,15 @@ def load_recording(path) -> dict[str, np.ndarray]:
             f"{p}: recording array 'time' is not finite and increasing: the file is damaged or was edited"
         )
     return out
+
+
+def check_rate(world, fps: float) -> float:
+    """`fps`, refused (LimitError) above the world's steps a second: one frame a step at most. A higher
+    rate would be stored as the recording's fps while its frames are a step apart, and exports would
+    time them by the false rate."""
+    if fps > 1.0 / float(world.dt) * (1 + 1e-9):
+        raise limits.LimitError(f"fps {fps:g} is more than the world's {1.0 / float(world.dt):g} steps per second")
+    return fps
 
 
 def frame_bytes(world) -> tuple[int, int, int]:

@@ -164,8 +164,9 @@ def _check_world_frames(world, fps: float, n: int, *, key: str) -> None:
     """Refuse `n` frames at `fps` past the step limit or the memory their recording needs
     (docs/scenes.md#limits), before anything is simulated."""
     from .. import limits
-    from .record import frame_bytes
+    from .record import check_rate, frame_bytes
 
+    check_rate(world, fps)  # (first: a rate of 1e9 fps would be refused as 51 GB of frames)
     limits.check_steps(key, (n - 1) / fps, world.dt)
     limits.check_memory(key, "frames", n, frame_bytes(world)[0])
 
