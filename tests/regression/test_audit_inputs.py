@@ -215,3 +215,24 @@ def test_export_names_a_rate_above_the_steps_before_the_memory_it_would_take(wri
     assert main(["export", str(path), "-o", str(out), "--fps", "1e9", "--duration", "0.1", "--no-progress"]) == 2
     _one_line_error(capsys, "fps 1e+09 is more than the world's 240 steps per second")
     assert not out.exists()
+
+
+def test_a_cloth_a_hundred_times_thicker_than_it_is_wide_is_refused(write_scene, capsys):
+    """thickness = 1e300 was taken, and the cloth diverged in its first step with advice to lower its
+    stiffness."""
+    path = write_scene("[[cloth]]\nsize = [1, 1]\nposition = [0, 0, 1]\nresolution = [10, 10]\nthickness = 1e300\n")
+    assert main(["check", str(path)]) == 2
+    _one_line_error(capsys, str(path), "thickness 1e+300 m is more than 100 times the cloth's size 1 x 1 m")
+    world = tumble.World()
+    world.add_cloth(size=(0.5, 0.2), resolution=(4, 4), thickness=50.0)  # up to 100 times its larger side
+    with pytest.raises(ValueError, match="thickness 51 m is more than 100 times"):
+        world.add_cloth(size=(0.5, 0.2), resolution=(4, 4), thickness=51.0)
+
+
+def test_a_cloth_blown_apart_by_its_wind_is_told_to_check_the_wind(write_scene, capsys):
+    path = write_scene(
+        "[[cloth]]\nsize = [1, 1]\nposition = [0, 0, 1]\nresolution = [10, 10]\n[wind]\nvelocity = [1e308, 0, 0]\n"
+    )
+    assert main(["run", str(path), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.splitlines()  # (after run's "first step done" line)
+    assert "the cloth diverged" in err[-1] and "check the wind's speed and turbulence" in err[-1], err

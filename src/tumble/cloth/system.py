@@ -324,7 +324,8 @@ class ClothSystem:
             max_stretch: largest strain of structural springs kept by the stretch limit (0.1 = 10 %);
                 None for no limit.
             pins: None, "corners", "top-corners", "top-edge" or a list of [i, j] grid points.
-            thickness: distance kept from bodies and between non-neighbouring particles [m], > 0.
+            thickness: distance kept from bodies and between non-neighbouring particles [m], > 0 and at most
+                100 times the cloth's larger side.
             friction: Coulomb friction coefficient against bodies (>= 0).
 
         Raises:
@@ -363,6 +364,12 @@ class ClothSystem:
         if max_stretch is not None:
             max_stretch = validate.number(max_stretch, "max_stretch", low=0.0)
         thickness = validate.positive(thickness, "thickness")
+        if thickness > 100.0 * max(size):
+            # (1e300 was taken, and the cloth diverged in its first step, "lower its stiffness")
+            raise ValueError(
+                f"thickness {thickness:g} m is more than 100 times the cloth's size {width:g} x {height:g} m: it is the "
+                "distance the cloth keeps from bodies and from itself, a few millimetres for fabric"
+            )
         friction = validate.friction(friction)
         pinned = grid.pin_indices(pins, nx, ny)
 
@@ -621,6 +628,8 @@ class ClothSystem:
             j, i = divmod(bad - cloth.particle_start, cloth.nx)
             # a body light at its pins overshoots whatever the substeps (docs/design.md, "Cloth with bodies")
             remedy = "lower its stiffness or set world.cloth.substeps higher"
+            if self.control.wind is not None:
+                remedy += ", or check the wind's speed and turbulence"
             if self.body_pins.count:
                 remedy += ", and spread the load of bodies pinned to it over more pins"
             raise SimulationError(
