@@ -38,3 +38,7 @@ class SimulationError(TumbleError, RuntimeError):
 
 class HandleError(TumbleError, ValueError):
     """A handle (BodyId, ClothId, Emitter) that belongs to another World, or to a removed entity."""
+
+
+class NoSuchIdError(HandleError, IndexError):
+    """An int id past the ones a World has given out (also an IndexError, as an index out of range is)."""

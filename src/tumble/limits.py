@@ -26,6 +26,9 @@ from .errors import TumbleError
 #: largest time step [s]: a body falling under 9.81 m/s^2 moves g dt^2 = 10 cm in one step of
 #: 0.1 s, more than the thickness of the thin shapes contacts are tested against
 MAX_DT = 0.1
+#: smallest time step [s]: a step of 5e-324 s made 1 / h overflow (ZeroDivisionError in the solver's
+#: parameters) and a float32 cloth's rates non-finite; a nanosecond is far below any step a scene needs
+MIN_DT = 1e-9
 #: largest number of solver substeps per step (the cost of a step is linear in it)
 MAX_SUBSTEPS = 1000
 #: most cloth substeps in one step: springs too stiff for the step need dt / stable substep of them

@@ -493,10 +493,12 @@ def _assign(owner, name, value) -> None:
 
 
 def save(snap: Snapshot, path: str | os.PathLike[str]) -> Path:
-    """Write `snap` to `path` (.npz), atomically."""
-    from .io.atomic import atomic_path
+    """Write `snap` to `path` (.npz), atomically (OutputError, naming `path`, if it cannot be written)."""
+    from .io.atomic import atomic_path, check_output
 
-    path = Path(path)
+    if not isinstance(snap, Snapshot):
+        raise TypeError(f"a snapshot to save must be a Snapshot (world.snapshot()), got {type(snap).__name__}")
+    path = check_output(path, suffixes=(".npz",), option="")
     manifest: dict[str, Any] = {
         "format": FORMAT,
         "values": snap.values,

@@ -31,7 +31,7 @@ from . import shapes as _shapes
 from .cloth.system import ClothSystem  # its add_cloth's and set_wind's keywords are World's (both precisions')
 from .collision.hashgrid import spatial_order
 from .emitters import Emitter
-from .errors import HandleError, SimulationError
+from .errors import HandleError, NoSuchIdError, SimulationError
 from .keywords import given, keywords_of
 from .launch import LaunchCache
 from .model import BODY_FIELD, Control, Model, State, body_row_group
@@ -113,7 +113,7 @@ class World:
 
     Args:
         gravity: gravitational acceleration [m/s^2], shape (3,).
-        dt: fixed time step [s] used by `step()` and `run()`, in (0, 0.1] (`tumble.limits.MAX_DT`).
+        dt: fixed time step [s] used by `step()` and `run()`, in [1e-9, 0.1] (`tumble.limits.MIN_DT`, `MAX_DT`).
         substeps: solver substeps per step (more = stiffer stacks, less penetration), an integer in
             [1, 1000] (`tumble.limits.MAX_SUBSTEPS`); `run` refuses more than 10^9 steps. Contact
             stiffness is 1/8 of the substep rate, so a stack's sag goes as (dt / substeps)^2: for
@@ -798,7 +798,7 @@ class World:
         """
         ids, rows = self._rows(body)
         k = len(rows)
-        h = self.dt if dt is None else validate.positive(dt, "dt")
+        h = self.dt if dt is None else _step_length(dt)
         kinds = self.bodies.numpy("body_kind")[rows]
         if np.any(kinds != BodyKind.KINEMATIC):
             raise ValueError(
@@ -943,7 +943,7 @@ class World:
                 if b.world_key is not None and not 0 <= i < self._id_count:  # its id was freed with it
                     raise HandleError(f"body {i} was removed from this World")
             if not 0 <= i < self._id_count:
-                raise IndexError(f"body {i} does not exist (the world has {self._id_count} body ids)")
+                raise NoSuchIdError(f"body {i} does not exist (the world has {self._id_count} body ids)")
             if isinstance(b, Handle):
                 if b.generation != self._body_generation[i]:
                     raise HandleError(
@@ -1603,10 +1603,11 @@ class World:
 
 
 def _step_length(dt) -> float:
-    """A step's length [s] as `World.dt` and `step(dt)` take it: in (0, `limits.MAX_DT`] (a step(0.5)
-    was taken where dt = 0.5 was refused). `emit(dt)` and `collide(dt)`, which step nothing, take any
+    """A step's length [s] as `World.dt`, `step(dt)` and `set_kinematic_target(dt=)` take it: in
+    [`limits.MIN_DT`, `limits.MAX_DT`] (a step(0.5) was taken where dt = 0.5 was refused; a step of
+    5e-324 s raised ZeroDivisionError). `emit(dt)` and `collide(dt)`, which step nothing, take any
     positive length."""
-    return validate.number(dt, "dt", low=0.0, high=limits.MAX_DT, above=True)
+    return validate.number(dt, "dt", low=limits.MIN_DT, high=limits.MAX_DT)
 
 
 class _Laps:

@@ -236,3 +236,55 @@ def test_a_cloth_blown_apart_by_its_wind_is_told_to_check_the_wind(write_scene, 
     assert main(["run", str(path), "--duration", "0.1"]) == 2
     err = capsys.readouterr().err.splitlines()  # (after run's "first step done" line)
     assert "the cloth diverged" in err[-1] and "check the wind's speed and turbulence" in err[-1], err
+
+
+# ------------------------------------------------------------------------------ the API's lifecycle (a second audit)
+
+
+def test_a_step_too_short_for_the_solver_is_refused():
+    """step(dt=5e-324) raised ZeroDivisionError inside the solver; a float32 cloth stepped by 1e-300 s went
+    NaN. Steps are at least limits.MIN_DT (1 ns), everywhere a step length is taken."""
+    world = tumble.World()
+    world.add_plane()
+    world.add_sphere(position=(0, 0, 0.1), radius=0.1)
+    for call in (lambda: world.step(dt=5e-324), lambda: setattr(world, "dt", 1e-300)):
+        with pytest.raises(ValueError, match=r"dt must be in \[1e-09, 0.1\]"):
+            call()
+    kinematic = world.add_box(position=(1, 0, 1), half_extents=(0.1, 0.1, 0.1), kinematic=True)
+    with pytest.raises(ValueError, match=r"dt must be in \[1e-09, 0.1\]"):
+        world.set_kinematic_target(kinematic, position=(2, 0, 1), dt=5e-324)
+    world.step(dt=limits.MIN_DT)
+    assert world.time == limits.MIN_DT
+
+
+def test_an_int_id_past_the_worlds_is_a_tumble_error_and_an_index_error():
+    """body(999) raised a bare IndexError, which `except tumble.TumbleError` missed."""
+    world = tumble.World()
+    world.add_sphere(position=(0, 0, 1), radius=0.1)
+    for call in (lambda: world.body(999), lambda: world.remove_body(999), lambda: world.body_state(999)):
+        with pytest.raises(tumble.HandleError, match="body 999 does not exist") as info:
+            call()
+        assert isinstance(info.value, IndexError)
+
+
+def test_a_joint_to_another_worlds_body_is_a_tumble_error():
+    world, other = tumble.World(), tumble.World()
+    body = other.add_sphere(position=(0, 0, 1), radius=0.1)
+    with pytest.raises(tumble.TumbleError, match="body_b: body 0 belongs to another World"):
+        world.add_joint("ball", None, body)
+
+
+def test_save_snapshot_names_a_wrong_argument_or_path(tmp_path):
+    """save_snapshot("x", path) raised AttributeError; a missing folder was reported by the temporary file's
+    name; a .txt path was written as an npz."""
+    from tumble.io.atomic import OutputError
+
+    world = tumble.World()
+    world.add_sphere(position=(0, 0, 1), radius=0.1)
+    with pytest.raises(TypeError, match="must be a Snapshot"):
+        tumble.save_snapshot("x", tmp_path / "s.npz")
+    with pytest.raises(OutputError, match=f"no such directory '{tmp_path / 'nope'}'"):
+        tumble.save_snapshot(world.snapshot(), tmp_path / "nope" / "s.npz")
+    with pytest.raises(OutputError, match="must end in .npz"):
+        tumble.save_snapshot(world.snapshot(), tmp_path / "s.txt")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

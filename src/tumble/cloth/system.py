@@ -44,7 +44,7 @@ import numpy as np
 import warp as wp
 
 from .. import limits, validate
-from ..errors import HandleError, SimulationError
+from ..errors import HandleError, NoSuchIdError, SimulationError
 from ..launch import LaunchCache
 from ..model import Role, body_arrays, fields_of
 from ..real import float_t, vec3
@@ -1065,7 +1065,7 @@ class ClothSystem:
             if handle.world_key is not None and self.world_key is not None and handle.world_key != self.world_key:
                 raise HandleError(f"cloth {int(handle)} belongs to another World")
         if not 0 <= int(handle) < len(self.cloths):
-            raise IndexError(f"cloth {int(handle)} does not exist (the world has {len(self.cloths)} cloths)")
+            raise NoSuchIdError(f"cloth {int(handle)} does not exist (the world has {len(self.cloths)} cloths)")
         return self.cloths[int(handle)]
 
     @property

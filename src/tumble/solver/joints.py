@@ -111,6 +111,7 @@ import numpy as np
 import warp as wp
 
 from .. import npmath, validate
+from ..errors import TumbleError
 from ..launch import LaunchCache, launch
 from ..model import Field, Role, body_arrays, fields_of
 from ..real import BodyArrays, float_t, mat33, mat33w, quat, vec3, vec3w, wide_t
@@ -1552,8 +1553,9 @@ class JointSet(RowGroup):
 # ---------------------------------------------------------------------------- building one joint
 
 
-class JointArgumentError(ValueError):
-    """A bad argument of `World.add_joint`; `key` names it (scene files report it as the table's key)."""
+class JointArgumentError(TumbleError, ValueError):
+    """A bad argument of `World.add_joint`; `key` names it (scene files report it as the table's key). A
+    TumbleError, as every error Tumble raises on purpose is (`except tumble.TumbleError` missed it)."""
 
     def __init__(self, key: str, message: str):
         super().__init__(f"{key}: {message}")

@@ -188,7 +188,7 @@ SCHEMA: dict[str, TableSpec] = {
             {
                 "gravity": Field(vector(3), _world("gravity"), "m/s^2", "gravitational acceleration"),
                 "dt": Field(
-                    number(low=0, low_open=True, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
+                    number(low=limits.MIN_DT, high=limits.MAX_DT, limit="the largest dt Tumble supports"),
                     _world("dt"),
                     "s",
                     "fixed time step",
