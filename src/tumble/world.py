@@ -1148,7 +1148,13 @@ class World:
         lap = self._lap  # lap(stage) adds the time since the last lap to profile[stage]
         lap.start()
 
-        # validate: finite state, so a NaN is reported where it appeared rather than spreading
+        # validate: finite state, so a NaN is reported where it appeared rather than spreading (and gravity,
+        # which may be changed in place: a NaN there was reported as the bodies' or the cloth's divergence)
+        g = self._gravity
+        if not math.isfinite(float(g[0]) + float(g[1]) + float(g[2])):
+            raise ValueError(
+                f"gravity must be finite, got {validate.show(g.tolist())} (set in place since the last step)"
+            )
         self._validate()
         lap("validate")
 

@@ -288,3 +288,18 @@ def test_save_snapshot_names_a_wrong_argument_or_path(tmp_path):
     with pytest.raises(OutputError, match="must end in .npz"):
         tumble.save_snapshot(world.snapshot(), tmp_path / "s.txt")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_gravity_made_nan_in_place_is_named_by_the_next_step():
+    """World.gravity may be changed in place; a NaN put there was reported as the bodies' divergence (with
+    cloth: "lower its stiffness")."""
+    world = tumble.World()
+    world.add_sphere(position=(0, 0, 1), radius=0.1)
+    world.add_cloth(size=(0.2, 0.2), resolution=(3, 3), position=(1, 0, 1))
+    world.step()
+    world.gravity[2] = np.nan
+    with pytest.raises(ValueError, match=r"gravity must be finite, got \[0.0, 0.0, nan\]"):
+        world.step()
+    world.gravity[2] = -9.81
+    world.step()
+    assert world.step_count == 2
