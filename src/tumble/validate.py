@@ -140,7 +140,7 @@ def integer(value, name: str, *, low: int | None = None, high: int | None = None
     """An integer in [low, high]; an integral float (8.0) is taken, 2.5 is refused rather than truncated."""
     what = "an integer" if low is None else f"an integer >= {low}"
     if high is not None:
-        what = f"an integer in [{low}, {high}]"
+        what = f"an integer <= {high}" if low is None else f"an integer in [{low}, {high}]"
     v = _real(value, name, what)
     if isinstance(value, numbers.Integral):
         i = int(value)  # exact, however large (not through a float)

@@ -41,7 +41,10 @@ The scheme is the "soft step" of Catto (Solver2D, 2024; Box2D v3), in 3D:
   (approach below the threshold) never bounce. An inelastic contact (e = 0) faster than the
   threshold collides too, landing: to the approach that closes its gap within the next substep
   (a stack struck from above, a ball squeezed between others, is stopped in the pass's sweeps at
-  once, instead of by the soft rows a pass a substep, which pushed its bodies apart again).
+  once, instead of by the soft rows a pass a substep, which pushed its bodies apart again); so
+  does, at any speed, one whose body another contact's collision changed earlier in the pass
+  (`struck`), with up to INELASTIC_IMPACT_SWEEPS sweeps, so that such a collision runs along a row
+  of touching bodies or down a stack into the floor.
 
 Soft constraint coefficients for stiffness f [Hz] and damping ratio zeta at substep h:
 omega = 2 pi f, a1 = 2 zeta + h omega, a2 = h omega a1, a3 = 1 / (1 + a2);
@@ -1248,10 +1251,11 @@ class Ticks:
 def _rebound(
     k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass, share: float_t, centres: vec3, struck: int
 ):
-    """The separating speed u >= 0 [m/s] contact k collides to now, if it closes within the
-    substep faster than `threshold` [m/s]; else -1 (no collision). An inelastic contact (e = 0)
-    whose body was `struck` by a collision earlier in this pass closes as part of that collision,
-    however slowly: its limit is MANIFOLD_TOLERANCE. Speeds are measured at the
+    """The normal speed u [m/s] contact k collides to now, if it closes within the substep faster than
+    `threshold` [m/s]; else NO_IMPACT. u >= 0 separates (the bounce); a landing's u may be negative,
+    the approach that closes its gap by the end of the next substep. An inelastic contact (e = 0)
+    whose body was `struck` by another contact's collision earlier in this pass closes as part of
+    that collision, at any approach above 2 |g| h (MANIFOLD_TOLERANCE without gravity). Speeds are measured at the
     anchors the collision acts at (`_met` with `share` and `centres`, as in `_impact`), so that u
     never exceeds the approach there; the gap at the row's own (`_gap`).
 
@@ -1864,8 +1868,8 @@ def _make_impacts(serial: int):
             while hits > 0 and (sweep < IMPACT_SWEEPS or (inelastic > 0 and sweep < INELASTIC_IMPACT_SWEEPS)):
                 if sweep == IMPACT_SWEEPS:
                     # the inelastic sweeps beyond: over the contacts of the bodies this pass changed, listed
-                    # once (a sweep over all of them to find these took a pile of 1,000 balls, e = 0, 40 %
-                    # longer a step); the collision goes on within them
+                    # once (a sweep over all of them to find these took a pouring pile of 1,000 balls, e = 0,
+                    # 45 % longer over its first 2 s); the collision goes on within them
                     swept = int(0)
                     for m in range(count):
                         if rows[m].manifold > 0:

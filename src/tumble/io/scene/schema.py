@@ -47,6 +47,8 @@ from .checks import (
 )
 
 REQUIRED = object()  # marks a key without a default
+#: the check of every seed key (the world's, an emitter's, the wind's): `validate.seed`'s range
+_SEED = integer(low=0, high=limits.MAX_SEED, limit="the largest seed")
 
 
 # ---------------------------------------------------------------------------------------- the schema
@@ -201,7 +203,7 @@ SCHEMA: dict[str, TableSpec] = {
                     "solver substeps per step",
                 ),
                 "seed": Field(
-                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    _SEED,
                     _world("seed"),
                     "",
                     "seed of the world's random generator (emitters without a seed)",
@@ -343,7 +345,7 @@ SCHEMA: dict[str, TableSpec] = {
                 ),
                 **_material(_emitter),
                 "seed": Field(
-                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    _SEED,
                     None,
                     "",
                     "seed of this emitter's generator",
@@ -440,7 +442,7 @@ SCHEMA: dict[str, TableSpec] = {
                     number(low=0, low_open=True), _wind_default("scale"), "m", "length scale of the turbulence"
                 ),
                 "seed": Field(
-                    integer(low=0, high=limits.MAX_SEED, limit="the largest seed"),
+                    _SEED,
                     _wind_default("seed"),
                     "",
                     "seed of the turbulence field",
