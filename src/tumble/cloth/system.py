@@ -22,7 +22,8 @@ cloth substep runs these stages, each a plain function over the arrays as the ke
    receive the opposite impulse; what the taut cloth takes without moving goes on to the pins;
    spheres small enough to pass between particles are kept off the triangles; steps 3-5 repeat
    `contact_iterations` times while bodies are near, and then the stretch limit runs once more,
-   so the cloth ends each substep within its limit;
+   so the cloth ends each substep within its limit; a particle that this leaves inside a dynamic
+   body's surface moves that body out and stops it (`collide.hold_bodies`);
 6. velocities: v = (x - x_prev) / h, so every position correction also corrects the velocity.
 
 The cloth keeps its own substep: explicit springs are stable only for h^2 k / m small, so each
@@ -751,6 +752,9 @@ class ClothSystem:
         # inextensible sheet fits, was left 23 % stretched as it landed and 14 % at rest
         if near is not None:
             self._limit(s, carried, 1.0)
+            # what the limit left inside a body's surface the cloth cannot give: the body is moved out and
+            # stopped (a body much heavier than the cloth fell through it, `collide.hold_bodies`)
+            collide.hold_bodies(s.particles, s.tethers, near, carried, cache=self._cache)
 
         # the pins' reactions: bodies move as the stretch limit's corrections at their pins moved them,
         # their pins with them, and feel the pull as a velocity change; every pin's load is summed
