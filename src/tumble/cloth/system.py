@@ -262,6 +262,10 @@ class ClothSystem:
         self._candidates_host = np.zeros(0, dtype=np.int32)
         self._reach = 0.0
         self._contacts_next = wp.zeros(16, dtype=wp.int32, device=self.device)  # this substep's body_contacts
+        # per body row: the pushes of a contact pass, applied when it ends (`collide.apply_pushes`)
+        self._pushes = tuple(wp.zeros(16, dtype=vec3, device=self.device) for _ in range(4))
+        # per body row: the particles on it at a substep's start if it is a first touch (`collide.near_bodies`)
+        self._fresh = wp.zeros(16, dtype=wp.int32, device=self.device)
         self._wind_modes: tuple[wp.array, ...] | None = None  # of control.wind, by `wind.MODE_FIELDS`
         self._grid: collide.SelfCollisionGrid | None = None
         self._bodies_near = False  # a dynamic body can reach the cloth this step
@@ -720,6 +724,10 @@ class ClothSystem:
         particles.pin_load.zero_()
         # pins on bodies the stretch limit moves (`Carried`): they give way to the pushes of other bodies
         carried = self.body_pins.begin_constraints(particles, self.particles.count, bodies)
+        if near is not None:
+            # a body's first touch: the particles on it now share its push, which waits for the pass's end
+            self._fresh.zero_()
+            collide.count_first_touches(s.particles, near, cache=self._cache)
         for _ in range(self.contact_iterations if touching else 1):
             # stretch limit: tethers to the pins, then Provot on structural springs, at most (1 + max_stretch) l0
             self.last_stretch_sweeps = self._limit(s, carried, 1.0 if touching else self.stretch_relaxation)
@@ -804,12 +812,26 @@ class ClothSystem:
         assert self._bodies is not None  # set by begin_step
         counts = (self.state.body_contacts, self._contacts_next)
         shield, pinned = self.body_pins.shielded(self.particles.count, self._host("structural_ids"))
-        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, shield, pinned)
+        size = self.state.body_contacts.shape[0]
+        if self._fresh.shape[0] != size:  # per body row, as the counts (the pushes zero between passes)
+            self._pushes = tuple(wp.zeros(size, dtype=vec3, device=self.device) for _ in range(4))
+            self._fresh = wp.zeros(size, dtype=wp.int32, device=self.device)
+        held = (self._candidates, self._bodies[0], hulls, meshes, *counts, shield, pinned, *self._pushes, self._fresh)
         settings = (hi, self.strict_limit)
         cached = self._near_bodies
         if cached is None or cached[2] != settings or any(a is not b for a, b in zip(cached[1], held, strict=True)):
             near = collide.near_bodies(
-                self._candidates, self._bodies[0], hulls, meshes, counts, hi, shield, pinned, strict=self.strict_limit
+                self._candidates,
+                self._bodies[0],
+                hulls,
+                meshes,
+                counts,
+                hi,
+                shield,
+                pinned,
+                self._pushes,
+                self._fresh,
+                strict=self.strict_limit,
             )
             cached = self._near_bodies = (near, held, settings)
         return cached[0]
@@ -818,9 +840,13 @@ class ClothSystem:
         """Particles, then triangles against small spheres, out of the near bodies; bodies pushed back."""
         self._contacts_next.zero_()
         collide.collide_bodies(s.particles, s.tethers, s.limits, near, carried, cache=self._cache)
+        collide.apply_pushes(near, cache=self._cache)  # those of bodies touched first
         triangles = self.model.topology["triangles"]
         collide.catch_small_spheres(s.particles, s.tethers, triangles, near, carried, cache=self._cache)
-        # this pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)
+        self._keep_counts()
+
+    def _keep_counts(self) -> None:
+        """This pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)."""
         if self.device == "cpu":
             host_view(self.state.body_contacts)[:] = host_view(self._contacts_next)  # the host views are the arrays
         else:
