@@ -14,7 +14,6 @@ import enum
 import inspect
 import os
 import re
-import sys
 import tempfile
 import typing
 from pathlib import Path
@@ -287,6 +286,10 @@ def write(path: Path) -> None:
 
 
 if __name__ == "__main__":
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "docs" / "api.md"
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m tumble.apidoc", description="Rewrite the API reference page.")
+    parser.add_argument("target", nargs="?", type=Path, help="the page to write (default: docs/api.md)")
+    target = parser.parse_args().target or Path(__file__).resolve().parents[2] / "docs" / "api.md"
     write(target)
     print(f"wrote {target}")
