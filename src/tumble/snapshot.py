@@ -42,14 +42,15 @@ from .limits import LimitError
 from .precision import PRECISIONS
 from .state import ArraySet, Handle, RowGroup
 
-FORMAT = 9  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
+FORMAT = 10  # 2: the body rows saved by part (model, state, control); 3: the joint and cloth rows too;
 # 4: the joints' geometric load is a body state array; 5: the cloth self-collision pairs are cloth state;
 # 6: the world's precision (a format 5 file is float64); 7: the contact solver's per-step quantities are
 # scratch rows (`ContactSet.rows`), no longer contact arrays (`_upgrade_contacts` reads formats 5 and 6);
 # 8: the hinges' angle counting whole turns is joint state (`_upgrade_joints` reads formats 5 to 7);
-# 9: the broad phase's grid is a cache (its last search: `_upgrade_broadphase` reads formats 5 to 8)
+# 9: the broad phase's grid is a cache (its last search: `_upgrade_broadphase` reads formats 5 to 8);
+# 10: the cloth's substeps of the last step are cloth state (`_upgrade_cloth` reads formats 5 to 9)
 # formats read, and the precision of those that did not save one
-_READS = {5: "float64", 6: None, 7: None, 8: None, 9: None}
+_READS = {5: "float64", 6: None, 7: None, 8: None, 9: None, 10: None}
 
 # World attributes that are not simulation state: identity, bookkeeping of the user's session,
 # diagnostics, the Warp device (a snapshot can be restored on another device of the same world),
@@ -574,6 +575,8 @@ def read(path: str | os.PathLike[str]) -> Snapshot:
             _upgrade_joints(manifest["values"], arrays)
         if manifest["format"] < 9:
             _upgrade_broadphase(manifest["values"], arrays)
+        if manifest["format"] < 10:
+            _upgrade_cloth(manifest["values"])
         return Snapshot(
             arrays,
             manifest["values"],
@@ -647,6 +650,13 @@ def _upgrade_broadphase(values: dict, arrays: dict[str, np.ndarray]) -> None:
             for key in [k for k in held if k == path or k.startswith(path + "/")]:
                 del held[key]
         values[path + "/:derived"] = True
+
+
+def _upgrade_cloth(values: dict) -> None:
+    """A format 5 to 9 file as format 10 reads it: a cloth's state had no `substeps_last`; 0 (as on a
+    world's first step) takes the world's substeps at once when a body approaches, as those versions did."""
+    if "state/cloth/pair_count" in values:
+        values["state/cloth/substeps_last"] = 0
 
 
 def _saved_precision(manifest: dict, path: Path) -> str:

@@ -97,6 +97,35 @@ def test_world_built_in_python_restores(tmp_path):
         tumble.load_snapshot(path)
 
 
+def test_a_cloth_restored_while_its_substeps_rise_repeats_the_run(tmp_path):
+    """A cloth's substeps rise to the world's by doubling a step as a body approaches (1, 2, 4, 8 for this
+    hammock): restored from a file into a new world in the middle of that rise, it repeats the run bit for
+    bit (the last step's count is cloth state, `substeps_last`; a new world would otherwise start at 8)."""
+
+    def build():
+        w = tumble.World(gravity=(0, 0, -9.81), dt=1.0 / 240.0)
+        w.add_cloth(size=(1.2, 1.2), resolution=(12, 12), position=(0, 0, 1.0), mass=0.3, pins="corners")
+        w.add_sphere(position=(0.01, 0.02, 1.3), radius=0.025, mass=0.05)
+        return w
+
+    a = build()
+    rise = []
+    while len(rise) < 2 or rise[-2:] != [1, 2]:
+        a.step()
+        rise.append(a.cloth.state.substeps_last)
+        assert len(rise) < 240, rise  # the ball reaches the cloth within 1 s
+    path = snapshot.save(a.snapshot(), tmp_path / "rising.npz")
+    for _ in range(10):
+        a.step()
+        rise.append(a.cloth.state.substeps_last)
+    assert rise[-10:-7] == [4, 8, 8], rise
+    b = build()
+    b.restore(snapshot.read(path))
+    for _ in range(10):
+        b.step()
+    assert b.state_hash() == a.state_hash()
+
+
 def test_a_body_moved_by_its_cloth_pin_restores_and_repeats_the_run(tmp_path):
     """A light box hung from one cloth pin, which the stretch limit moves with its pin (its pending shift and
     turn, a cache): restored in place, and into a new world from a file, it repeats the run bit for bit."""

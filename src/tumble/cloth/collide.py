@@ -302,6 +302,16 @@ def _move_body(bodies: BodyArrays, b: int, q: quat, dx_b: vec3, dtheta: vec3, dv
 
 
 @wp.func
+def _push_parts(impulse: vec3, still: float_t, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, h: float_t):
+    """What `impulse` (a displacement times mass) at r_b from a body's centre does to it: its move, its turn,
+    and its velocity changes, those for all but the fraction `still` (see `_push_body`)."""
+    dx_b = impulse * w_lin
+    dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
+    moving = float_t(1.0) - still
+    return dx_b, dtheta, dx_b * moving / h, dtheta * moving / h
+
+
+@wp.func
 def _push_body(
     b: int,
     impulse: vec3,
@@ -321,40 +331,28 @@ def _push_body(
     (the part that undoes an overlap the contact began the substep in, `_collide_bodies`).
     """
     if w_lin > float_t(0.0):
-        dx_b = impulse * w_lin
-        dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
-        moving = float_t(1.0) - still
-        _move_body(bodies, b, q, dx_b, dtheta, dx_b * moving / h, dtheta * moving / h)
+        dx_b, dtheta, dv, dw = _push_parts(impulse, still, r_b, q, inv_i, w_lin, h)
+        _move_body(bodies, b, q, dx_b, dtheta, dv, dw)
 
 
 @wp.func
-def _push_later(
-    b: int,
-    impulse: vec3,
-    still: float_t,
-    r_b: vec3,
-    q: quat,
-    inv_i: vec3,
-    w_lin: float_t,
-    h: float_t,
-    near: Near,
-):
-    """`_push_body`, but for a body's first touch (no particle on it in the last pass, `near.fresh`) the push is
-    kept in `near`'s push arrays until the pass ends (`apply_pushes`), so that every particle meets the body
-    where it began the pass: pushed at once, the first particle a body touched pushed it alone, by its
-    whole depth, and a ball landing square between four particles of a cloth on the floor rolled off
-    sideways at 0.3 m/s. Bodies in touch since the last pass are pushed at once, as before (pushes
-    averaged in every pass left such a ball resting 4.4 mm deep in the cloth's 10 mm layer)."""
-    if near.contacts_prev[b] != 0 or near.fresh[b] == 0:
-        _push_body(b, impulse, still, r_b, q, inv_i, w_lin, h, near.bodies)
-    elif w_lin > float_t(0.0):
-        dx_b = impulse * w_lin
-        dtheta = inv_inertia_times(q, inv_i, wp.cross(r_b, impulse))
-        moving = float_t(1.0) - still
-        wp.atomic_add(near.push_position, b, dx_b)
-        wp.atomic_add(near.push_rotation, b, dtheta)
-        wp.atomic_add(near.push_velocity, b, dx_b * moving / h)
-        wp.atomic_add(near.push_spin, b, dtheta * moving / h)
+def _push_later(b: int, impulse: vec3, still: float_t, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, near: Near):
+    """`_push_body` (substep `near.h`), but for a body's first touch (no particle on it in the last pass,
+    `near.fresh`) the push is kept in `near`'s push arrays until the pass ends (`apply_pushes`), so that
+    every particle meets the body where it began the pass: pushed at once, the first particle a body
+    touched pushed it alone, by its whole depth, and a ball landing square between four particles of a
+    cloth on the floor left sideways at 0.5 m/s. Bodies in touch since the last pass are pushed at once,
+    as before (pushes averaged in every pass left such a ball resting 4.4 mm deep in the cloth's 10 mm
+    layer)."""
+    if w_lin > float_t(0.0):
+        dx_b, dtheta, dv, dw = _push_parts(impulse, still, r_b, q, inv_i, w_lin, near.h)
+        if near.contacts_prev[b] != 0 or near.fresh[b] == 0:
+            _move_body(near.bodies, b, q, dx_b, dtheta, dv, dw)
+        else:
+            wp.atomic_add(near.push_position, b, dx_b)
+            wp.atomic_add(near.push_rotation, b, dtheta)
+            wp.atomic_add(near.push_velocity, b, dv)
+            wp.atomic_add(near.push_spin, b, dw)
 
 
 @wp.kernel
@@ -640,7 +638,7 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
                 m_p = float_t(1.0) / w_p
                 held = n * (lam_b - move * m_p) - tdir * (lam_t - move_t * m_p)
                 own = _route_to_pins(p, xp, held, particles, tethers, near, carried, b, w_b)
-            _push_later(b, tdir * lam_t - n * lam_b + own, still, r_b, q, inv_i, w_lin, near.h, near)
+            _push_later(b, tdir * lam_t - n * lam_b + own, still, r_b, q, inv_i, w_lin, near)
 
         x[p] = xp
         particles.support[p] = support  # for the triangles' contacts (`_catch_small_spheres`)
