@@ -1296,31 +1296,38 @@ def collide_bodies(
         launch_each(_collide_bodies, x.shape[0], [particles, tethers, limits, near, carried], x.device, cache)
 
 
+@wp.func
+def _inside_reach(near: Near, particles: Particles, p: int, xp: vec3, b: int, margin: float_t):
+    """Particle p at xp against body row b for the passes after the contacts: (found, d, n) as `_surface`
+    gives them, found False for a static body, the particle's own pin's (`_shielded`) and a particle
+    farther than `margin` outside the body's bounding sphere."""
+    bodies = near.bodies
+    n = vec3()
+    if bodies.inv_mass[b] <= float_t(0.0) or _shielded(near, p, b):
+        return False, float_t(0.0), n
+    reach = bodies.bound_radius[b] + margin
+    if wp.length_sq(xp - bodies.position[b]) > reach * reach:
+        return False, float_t(0.0), n
+    thickness = particles.thickness[p]
+    return _surface(
+        bodies.shape[b], b, xp, particles.position_prev[p], bodies, near.hulls, near.meshes, float_t(2.0) * thickness
+    )
+
+
 @wp.kernel
 def _count_first_touches(particles: Particles, near: Near, serial: int):
     """Per body that no particle touched in the last pass: the particles within their thickness of it now."""
     x = particles.position
-    x_prev = particles.position_prev
-    thickness = particles.thickness
-    bodies = near.bodies
-    count = near.candidates.shape[0]
-    zero = float_t(0.0)
     for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
-        if particles.inv_mass[p] <= zero:
+        if particles.inv_mass[p] <= float_t(0.0):
             continue
-        xp = x[p]
-        for k in range(count):
+        thickness = particles.thickness[p]
+        for k in range(near.candidates.shape[0]):
             b = near.candidates[k]
-            # bodies some particle touched in the last pass, static ones and a particle's own pin's: none
-            if near.contacts_prev[b] != 0 or bodies.inv_mass[b] <= zero or _shielded(near, p, b):
-                continue
-            reach = bodies.bound_radius[b] + thickness[p]
-            if wp.length_sq(xp - bodies.position[b]) > reach * reach:
-                continue
-            found, d, n = _surface(
-                bodies.shape[b], b, xp, x_prev[p], bodies, near.hulls, near.meshes, float_t(2.0) * thickness[p]
-            )
-            if found and thickness[p] - d > zero:
+            if near.contacts_prev[b] != 0:
+                continue  # some particle touched it in the last pass
+            found, d, n = _inside_reach(near, particles, p, x[p], b, thickness)
+            if found and thickness - d > float_t(0.0):
                 wp.atomic_add(near.fresh, b, 1)
 
 
@@ -1350,30 +1357,22 @@ def _hold_bodies(particles: Particles, tethers: Tethers, near: Near, carried: Ca
     pins (`_route_to_pins`), so that momentum is kept. See `hold_bodies`."""
     x = particles.position
     x_prev = particles.position_prev
-    thickness = particles.thickness
     bodies = near.bodies
-    count = near.candidates.shape[0]
     zero = float_t(0.0)
     for p in range(wp.tid(), each_end(wp.tid(), serial, x.shape[0])):
-        w_p = particles.inv_mass[p]
-        if w_p <= zero:
+        if particles.inv_mass[p] <= zero:
             continue
         xp = x[p]
-        for k in range(count):
+        for k in range(near.candidates.shape[0]):
             b = near.candidates[k]
-            w_lin = bodies.inv_mass[b]
-            if w_lin <= zero or _shielded(near, p, b):
-                continue
-            c = bodies.position[b]
-            if wp.length_sq(xp - c) > bodies.bound_radius[b] * bodies.bound_radius[b]:
-                continue  # outside its bounding sphere: not inside it
-            q = bodies.orientation[b]
-            found, d, n = _surface(
-                bodies.shape[b], b, xp, x_prev[p], bodies, near.hulls, near.meshes, float_t(2.0) * thickness[p]
-            )
+            # (a particle outside the body's bounding sphere is not inside it)
+            found, d, n = _inside_reach(near, particles, p, xp, b, zero)
             depth = -d  # inside the body's surface, not only within the particle's thickness of it
             if not found or depth <= zero:
                 continue
+            w_lin = bodies.inv_mass[b]
+            c = bodies.position[b]
+            q = bodies.orientation[b]
             split = float_t(wp.max(near.contacts_prev[b], 1))
             r_b = (xp - n * d) - c
             inv_i = bodies.inv_inertia[b]

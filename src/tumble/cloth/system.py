@@ -153,8 +153,8 @@ class ClothState:
         pair_count: the number of pairs in `pairs`.
         pair_margin: margin of the self-collision pair list [m].
         pair_travel: how much closer particles may have come since that list was built [m].
-        substeps_last: the cloth substeps of the last step (0: none yet), from which they rise to the
-            world's as a body approaches (`begin_step`).
+        substeps_last: the cloth substeps of the step under way, or of the last one between steps (0:
+            none yet), from which they rise to the world's as a body approaches (`begin_step`).
     """
 
     def __init__(self, device: str, arrays: dict[str, wp.array]):
@@ -262,7 +262,6 @@ class ClothSystem:
 
         self._stable_h = math.inf
         self._substep_index = 0
-        self._cloth_total = 0
         self._cloth_done = 0
         self._cloth_h = 0.0
         self._clock = 0.0
@@ -669,7 +668,7 @@ class ClothSystem:
         self._clock += h
         hc = self._cloth_h
         # run the cloth substeps that end within this world substep (rounding: 1e-9 of a substep)
-        while self._cloth_done < self._cloth_total and self._clock >= (self._cloth_done + 1 - 1e-9) * hc:
+        while self._cloth_done < self.state.substeps_last and self._clock >= (self._cloth_done + 1 - 1e-9) * hc:
             self._cloth_substep(hc, bodies, hulls, meshes)
             self._cloth_done += 1
 
@@ -678,7 +677,7 @@ class ClothSystem:
         so that every step runs exactly `substeps_for(dt)` of them (arguments as `substep`)."""
         if self.particles.count == 0:
             return
-        while self._cloth_done < self._cloth_total:
+        while self._cloth_done < self.state.substeps_last:
             self._cloth_substep(self._cloth_h, bodies, hulls, meshes)
             self._cloth_done += 1
 
@@ -706,7 +705,7 @@ class ClothSystem:
         top = self.model.topology
         s = self._kernel_structs()
         particles = s.particles
-        total = self._cloth_total
+        total = self.state.substeps_last
         cache = self._cache
         # forces: springs, then air on every triangle
         springs.accumulate_spring_forces(particles, s.springs, cache=cache)
@@ -851,10 +850,7 @@ class ClothSystem:
         collide.apply_pushes(near, cache=self._cache)  # those of bodies touched first
         triangles = self.model.topology["triangles"]
         collide.catch_small_spheres(s.particles, s.tethers, triangles, near, carried, cache=self._cache)
-        self._keep_counts()
-
-    def _keep_counts(self) -> None:
-        """This pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)."""
+        # this pass's counts are the next pass's previous ones (copied: the struct keeps its arrays)
         if self.device == "cpu":
             host_view(self.state.body_contacts)[:] = host_view(self._contacts_next)  # the host views are the arrays
         else:
@@ -975,7 +971,7 @@ class ClothSystem:
         if approaching and self.substeps is None and int(substeps) > total:
             last = self.state.substeps_last  # (on the first step, the world's at once)
             total = max(total, min(int(substeps), 2 * last if last else int(substeps)))
-        self._cloth_total = self.state.substeps_last = total
+        self.state.substeps_last = total  # this step's, the last one's once it is done
         self._cloth_h = dt / total
 
     def _dynamic(self, rows: np.ndarray, bodies) -> np.ndarray:
