@@ -1174,6 +1174,9 @@ def _make_solve_manifold(exact_pair: bool):
         if p.use_bias == 0:
             # relax: these impulses are final for this substep, and the next substep starts from them
             # (warm start), so sum their velocity changes per body now instead of in another pass
+            # (a twist row is a patch's, on its first row: the other rows' twist fields are zero, and
+            # not reading them keeps the pass off the record's last two cache lines)
+            twist = rows[k].mass_twist > float_t(0.0)
             P = vec3()
             wa_ = vec3()
             wb_ = vec3()
@@ -1182,12 +1185,13 @@ def _make_solve_manifold(exact_pair: bool):
                 jn = rows[kk].impulse_n
                 j1 = rows[kk].impulse_t1
                 j2 = rows[kk].impulse_t2
-                jw = rows[kk].impulse_twist
                 P = P + rows[kk].normal * jn + rows[kk].tangent1 * j1 + rows[kk].tangent2 * j2
                 wa_ = wa_ + rows[kk].angular_a_n * jn + rows[kk].angular_a_t1 * j1 + rows[kk].angular_a_t2 * j2
-                wa_ = wa_ + rows[kk].angular_a_twist * jw
                 wb_ = wb_ + rows[kk].angular_b_n * jn + rows[kk].angular_b_t1 * j1 + rows[kk].angular_b_t2 * j2
-                wb_ = wb_ + rows[kk].angular_b_twist * jw
+                if i == 0 and twist:
+                    jw = rows[kk].impulse_twist
+                    wa_ = wa_ + rows[kk].angular_a_twist * jw
+                    wb_ = wb_ + rows[kk].angular_b_twist * jw
             if pair.ima > float_t(0.0):
                 add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
             if pair.imb > float_t(0.0):
