@@ -433,7 +433,8 @@ class BodyId(Handle):
 class JointId(Handle):
     """Handle to one joint: its index in creation order (`world.joint_force[joint.index]` is its force).
 
-    Joints are never removed (a broken joint keeps its index), so the generation stays 0.
+    A joint keeps its index for good: a broken one, and one `World.remove_joint` removed, stay as
+    broken rows (`joint_broken`), so the generation stays 0.
     """
 
     _noun = "joint"

@@ -681,6 +681,40 @@ class World:
         )
         return JointId(self.joints.add(rows)[0], 0, self._key)
 
+    def remove_joint(self, joint: JointId | int) -> None:
+        """Stop a joint for good, at once: as PyBullet's `removeConstraint` or Rapier's joint removal.
+
+        From the next step it holds nothing and its warm start is gone; if it kept its two bodies
+        from colliding, they collide again; a body no other joint or pin holds can be removed. Its
+        row stays, as a broken joint's does (`joint_broken` is True there, `joint_force` and
+        `joint_torque` zero), so every other joint keeps its index and its `JointId`. Removing a
+        joint that is broken already changes nothing.
+        """
+        k = self._joint_index(joint)
+        zero = {
+            "joint_enabled": 0,
+            **{f"joint_impulse_{part}": 0.0 for part in ("linear", "angular", "axial", "lower", "upper")},
+            "joint_force": 0.0,
+            "joint_torque": 0.0,
+        }
+        for name, value in zero.items():
+            now = self.joints.numpy(name)[k]
+            self.joints.write(name, slice(k, k + 1), np.zeros_like(now)[None] + value)
+
+    def _joint_index(self, joint) -> int:
+        """Index of one joint, after checking its handle: a `JointId` of this world, or an int index."""
+        if isinstance(joint, (bool, np.bool_)) or not isinstance(joint, (int, np.integer)):
+            raise TypeError(f"joint must be a JointId (or an int index), got {validate.show(joint)}")
+        if isinstance(joint, Handle):
+            if not isinstance(joint, JointId):
+                raise TypeError(f"joint must be a JointId, got the {type(joint).__name__} {joint!r}")
+            if joint.world_key is not None and joint.world_key != self._key:
+                raise HandleError(f"joint {int(joint)} belongs to another World")
+        k = int(joint)
+        if not 0 <= k < self.joints.count:
+            raise NoSuchIdError(f"joint {k} does not exist (the world has {self.joints.count} joints)")
+        return k
+
     def _joint_body(self, body, key: str):
         try:
             i = self._row(body)
@@ -824,12 +858,16 @@ class World:
         body's id is given to the next body added, with a new generation, so its old
         handle raises `HandleError`. Until then the id's row in the views is NaN (shape and
         kind -1) and `body_alive` is False there; removing the highest ids shortens the views.
+        A body that an acting joint or a cloth pin holds is refused (`ValueError`, nothing removed):
+        remove its joints first (`remove_joint`).
         """
         ids, rows = self._rows(bodies)
         if len(np.unique(ids)) != len(ids):
             raise ValueError("bodies lists a body twice")
-        # joints and cloth pins on a body would lose their body: refused until they can be removed too
-        held = [self.joints.numpy(name) for name in ("joint_body_a", "joint_body_b")]
+        # joints and cloth pins on a body would lose their body: refused (a broken or removed joint holds
+        # nothing: it follows the removed body to the world, -1, as `JointSet.remap_bodies` does)
+        acting = self.joints.numpy("joint_enabled") != 0
+        held = [self.joints.numpy(name)[acting] for name in ("joint_body_a", "joint_body_b")]
         if self._cloth is not None:
             pins = self._cloth.body_pins
             held.append(pins.body.numpy()[: pins.count])
@@ -837,7 +875,7 @@ class World:
             if np.isin(rows, attached).any():
                 raise ValueError(
                     f"body {int(ids[np.isin(rows, attached)][0])} is held by a joint or a cloth pin; "
-                    "bodies with joints or pins cannot be removed yet"
+                    "remove its joints first (World.remove_joint); bodies with cloth pins cannot be removed"
                 )
         n = self.bodies.count
         keep = np.ones(n, dtype=bool)

@@ -16,7 +16,7 @@ import pytest
 from scipy.optimize import brentq
 
 import tumble
-from tolerances import in_float32, ulps
+from tolerances import in_float32, resolution, ulps
 
 G = 9.81
 DT = 1.0 / 240.0
@@ -477,6 +477,57 @@ def test_joint_breaks_over_its_force():
         else:
             assert z == pytest.approx(1.0, abs=1e-3)
             assert world.joint_force[0][2] == pytest.approx(10.0 * G, rel=1e-3)
+
+
+def test_a_removed_joint_lets_its_body_fall_freely():
+    """A weight hanging at rest on a rope: after `remove_joint` it falls as semi-implicit Euler gives,
+    v_n = v_0 - g n h and z_n = z_0 + n h v_0 - g h^2 n (n + 1) / 2 after n substeps of h, and the
+    joint reads as broken with no force."""
+    world = tumble.World(gravity=(0, 0, -G), dt=DT)
+    weight = world.add_sphere(position=(0, 0, 1), radius=0.05, mass=2.0)
+    other = world.add_sphere(position=(3, 0, 1), radius=0.05, mass=1.0)
+    rope = world.add_joint("rope", None, weight, anchor_a=(0, 0, 2))
+    world.add_joint("rope", None, other, anchor_a=(3, 0, 2))
+    world.run(duration=0.5)
+    assert world.joint_force[rope.index][2] == pytest.approx(2.0 * G, rel=1e-3)
+    world.remove_joint(rope)
+    assert bool(world.joint_broken[rope.index]) and not world.joint_broken[1]
+    assert not world.joint_force[rope.index].any() and not world.joint_torque[rope.index].any()
+    z0, v0 = world.body_position[weight.index, 2], world.body_velocity[weight.index, 2]
+    steps = 48
+    for _ in range(steps):
+        world.step()
+    n, h = steps * world.substeps, world.dt / world.substeps
+    v = v0 - G * n * h
+    z = z0 + n * h * v0 - G * h * h * n * (n + 1) / 2
+    assert world.body_velocity[weight.index, 2] == pytest.approx(v, abs=ulps(G * n * h, 4 * n))
+    assert world.body_position[weight.index, 2] == pytest.approx(z, abs=ulps(1.0, 4 * n))
+    assert not world.joint_force[rope.index].any()
+    # the other rope still holds its weight
+    assert world.body_position[other.index, 2] == pytest.approx(1.0, abs=1e-3)
+    assert world.joint_force[1][2] == pytest.approx(1.0 * G, rel=1e-3)
+
+
+def test_a_removed_joint_lets_the_bodies_it_kept_apart_collide():
+    """Two spheres overlapping by 5 cm on a ball joint (which keeps its pair from colliding) stay as they
+    are; once the joint is removed, their contact pushes the overlap out to the contact slop, without
+    speed (the relax pass takes the push's speed back), each sphere by half, about their fixed centre
+    of mass."""
+    from tumble.solver.contacts import LINEAR_SLOP
+
+    r = 0.1
+    world = tumble.World(gravity=(0, 0, 0), dt=DT)
+    a = world.add_sphere(position=(0, 0, 0), radius=r, mass=1.0)
+    b = world.add_sphere(position=(0.15, 0, 0), radius=r, mass=1.0)
+    joint = world.add_joint("ball", a, b, anchor=(0.075, 0, 0))
+    world.run(duration=24 * DT)
+    assert world.body_position[b.index, 0] - world.body_position[a.index, 0] == pytest.approx(0.15, abs=ulps(0.15))
+    world.remove_joint(joint)
+    world.run(duration=48 * DT)
+    xa, xb = world.body_position[a.index], world.body_position[b.index]
+    assert xb[0] - xa[0] == pytest.approx(2 * r - LINEAR_SLOP, abs=resolution(1e-6, 0.2))
+    assert (xa[0] + xb[0]) / 2 == pytest.approx(0.075, abs=ulps(0.2))
+    assert np.abs(world.body_velocity).max() == 0.0
 
 
 @pytest.mark.parametrize("ratio", [1.0, 100.0])

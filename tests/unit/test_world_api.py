@@ -14,6 +14,7 @@ import tumble.world as world_module
 from tolerances import resolution
 from tumble import BodyId, BodyKind, ClothId, HandleError
 from tumble.cloth import ClothSystem
+from tumble.errors import NoSuchIdError
 
 
 def _free_world() -> tumble.World:
@@ -557,15 +558,50 @@ def test_views_are_fresh_copies_never_stale():
         now[0, 0] = 1.0  # read-only: write through set_body_state
 
 
-def test_a_jointed_body_cannot_be_removed_yet():
-    """Removing a body held by a joint is refused (the joint would lose its body), and nothing changes."""
+def test_a_body_held_by_an_acting_joint_cannot_be_removed():
+    """Removing a body held by an acting joint is refused (the joint would lose its body), and nothing
+    changes; once the joint is removed (`remove_joint`), the body can be, and the joint keeps its index,
+    broken, with the world (-1) in the removed body's place."""
     w = _free_world()
-    w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
-    with pytest.raises(ValueError, match="body 1 is held by a joint"):
-        w.remove_bodies([2, 1])
+    j0 = w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
+    j1 = w.add_joint("ball", 0, 2, anchor=(0.5, 0, 0))
+    with pytest.raises(ValueError, match=r"body 1 is held by a joint .*remove its joints first \(World.remove_joint\)"):
+        w.remove_bodies([1, 2])
     assert w.body_alive.all() and w.body_count == 3
+    w.remove_joint(j0)
+    w.remove_joint(j0)  # again: nothing changes
+    w.remove_body(1)
+    assert w.joint_count == 2 and w.joint_broken.tolist() == [True, False]
+    assert w.joints.numpy("joint_body_b").tolist() == [-1, w.body_row(2)]
+    w.step()
+    with pytest.raises(ValueError, match="body 2 is held by a joint"):
+        w.remove_body(2)
+    w.remove_joint(j1.index)  # an int index too
     w.remove_body(2)
-    assert w.body_count == 2
+    w.step()
+    assert w.joint_broken.all()
+
+
+def test_remove_joint_refuses_what_is_not_a_joint_of_this_world():
+    """remove_joint takes a JointId of this world or an int index below joint_count; anything else is one clear error."""
+    w = _free_world()
+    joint = w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
+    other = _free_world()
+    foreign = other.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
+    with pytest.raises(HandleError, match="joint 0 belongs to another World"):
+        w.remove_joint(foreign)
+    with pytest.raises(NoSuchIdError, match=r"joint 1 does not exist \(the world has 1 joints\)"):
+        w.remove_joint(1)
+    with pytest.raises(NoSuchIdError, match="joint -1 does not exist"):
+        w.remove_joint(-1)
+    with pytest.raises(TypeError, match="joint must be a JointId, got the BodyId"):
+        w.remove_joint(w.body(1))
+    for bad in (True, 0.0, "0", None):
+        with pytest.raises(TypeError, match="joint must be a JointId"):
+            w.remove_joint(bad)
+    assert not w.joint_broken.any()
+    w.remove_joint(joint)
+    assert w.joint_broken.all()
 
 
 def test_python_api_refuses_requests_beyond_the_solver_limits():
