@@ -1614,7 +1614,8 @@ class World:
 
         Raises:
             tumble.snapshot.SnapshotError: the snapshot comes from a different kind of world (other
-                stages, emitters or cloth); nothing is changed then.
+                stages, emitters or cloth, or convex or mesh shapes added since it was taken); nothing
+                is changed then.
         """
         if not isinstance(state, Snapshot):
             raise TypeError(f"restore takes a Snapshot (from world.snapshot()), got {type(state).__name__}")

@@ -1664,7 +1664,9 @@ def joint_rows(
     if a.row >= 0 and a.row == b.row:
         raise JointArgumentError("body_b", "a joint needs two different bodies, got the same body twice")
     if not a.dynamic and not b.dynamic:
-        raise JointArgumentError("body_b", "both bodies are static (or the world): the joint would do nothing")
+        raise JointArgumentError(
+            "body_b", "neither body is dynamic (each is static, kinematic or the world): the joint would do nothing"
+        )
 
     # anchors: one shared world point, or one per body (world points, or body-frame points with frame="body")
     if frame == "body" and anchor is not None:

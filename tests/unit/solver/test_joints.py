@@ -167,11 +167,21 @@ def test_scene_joint_errors_name_table_and_key(change, message):
     text = SCENE.replace(*change)
     if message is None:  # the plane and the world: both static
         text = text.replace('body_b = "box[0]"\n', "", 1)
-        message = "[joint[0]] body_b: both bodies are static"
+        message = "[joint[0]] body_b: neither body is dynamic (each is static, kinematic or the world)"
     with pytest.raises(tumble.SceneError) as info:
         build_world(parse_scene(text, path="s.toml"))
     assert message in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_joint_between_a_static_and_a_kinematic_body_is_refused_as_such():
+    """A joint that would move nothing is refused, naming what each body is: a kinematic body is not static."""
+    world = tumble.World()
+    ground = world.add_box(position=(0, 0, 0), half_extents=(1, 1, 0.1), static=True)
+    lift = world.add_box(position=(0, 0, 1), half_extents=(0.1, 0.1, 0.1), kinematic=True)
+    with pytest.raises(ValueError, match=r"body_b: neither body is dynamic \(each is static, kinematic or the world\)"):
+        world.add_joint("ball", ground, lift, anchor=(0, 0, 0.5))
+    assert world.joint_count == 0
 
 
 def test_scene_rope_min_over_max():
