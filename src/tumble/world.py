@@ -867,16 +867,17 @@ class World:
         # joints and cloth pins on a body would lose their body: refused (a broken or removed joint holds
         # nothing: it follows the removed body to the world, -1, as `JointSet.remap_bodies` does)
         acting = self.joints.numpy("joint_enabled") != 0
-        held = [self.joints.numpy(name)[acting] for name in ("joint_body_a", "joint_body_b")]
+        ends = np.stack([self.joints.numpy(name) for name in ("joint_body_a", "joint_body_b")], axis=1)
+        jointed = np.isin(rows, ends[acting])
+        if jointed.any():
+            body, row = int(ids[jointed][0]), rows[jointed][0]
+            joint = int(np.flatnonzero(acting & (ends == row).any(axis=1))[0])
+            raise ValueError(f"body {body} is held by joint {joint}; remove its joints first (World.remove_joint)")
         if self._cloth is not None:
             pins = self._cloth.body_pins
-            held.append(pins.body.numpy()[: pins.count])
-        for attached in held:
-            if np.isin(rows, attached).any():
-                raise ValueError(
-                    f"body {int(ids[np.isin(rows, attached)][0])} is held by a joint or a cloth pin; "
-                    "remove its joints first (World.remove_joint); bodies with cloth pins cannot be removed"
-                )
+            pinned = np.isin(rows, pins.body.numpy()[: pins.count])
+            if pinned.any():
+                raise ValueError(f"body {int(ids[pinned][0])} is held by a cloth pin; pinned bodies cannot be removed")
         n = self.bodies.count
         keep = np.ones(n, dtype=bool)
         keep[rows] = False

@@ -565,7 +565,7 @@ def test_a_body_held_by_an_acting_joint_cannot_be_removed():
     w = _free_world()
     j0 = w.add_joint("ball", 0, 1, anchor=(0.5, 0, 0))
     j1 = w.add_joint("ball", 0, 2, anchor=(0.5, 0, 0))
-    with pytest.raises(ValueError, match=r"body 1 is held by a joint .*remove its joints first \(World.remove_joint\)"):
+    with pytest.raises(ValueError, match=r"body 1 is held by joint 0; remove its joints first \(World.remove_joint\)"):
         w.remove_bodies([1, 2])
     assert w.body_alive.all() and w.body_count == 3
     w.remove_joint(j0)
@@ -574,12 +574,26 @@ def test_a_body_held_by_an_acting_joint_cannot_be_removed():
     assert w.joint_count == 2 and w.joint_broken.tolist() == [True, False]
     assert w.joints.numpy("joint_body_b").tolist() == [-1, w.body_row(2)]
     w.step()
-    with pytest.raises(ValueError, match="body 2 is held by a joint"):
+    with pytest.raises(ValueError, match="body 2 is held by joint 1; "):
         w.remove_body(2)
     w.remove_joint(j1.index)  # an int index too
     w.remove_body(2)
     w.step()
     assert w.joint_broken.all()
+
+
+def test_a_body_holding_cloth_pins_cannot_be_removed():
+    """Removing a body that cloth particles are pinned to is refused, naming the pin, and nothing changes."""
+    w = tumble.World(gravity=(0, 0, 0))
+    pole = w.add_box(position=(0, 0, 1), half_extents=(0.05, 0.05, 1), mass=1.0)
+    free = w.add_sphere(position=(3, 0, 0), radius=0.1, mass=1.0)
+    w.add_cloth(size=(1, 1), resolution=(4, 4), position=(0.55, 0, 1.5))
+    w.pin_cloth_to_body([0], pole)
+    with pytest.raises(ValueError, match="body 0 is held by a cloth pin; pinned bodies cannot be removed"):
+        w.remove_bodies([free, pole])
+    assert w.body_alive.all()
+    w.remove_body(free)
+    assert w.body_alive.tolist() == [True]
 
 
 def test_remove_joint_refuses_what_is_not_a_joint_of_this_world():
