@@ -363,6 +363,27 @@ class Handle(int):
             raise HandleError(f"{self._noun} {int(self)}: its World no longer exists (or it is a bare id)")
         return world
 
+    @classmethod
+    def checked_index(cls, handle, count: int, world_key: int | None) -> int:
+        """The index that `handle`, one of this class or a plain int index, names among the `count` a
+        world with key `world_key` has: TypeError for anything else, `HandleError` for another world's
+        handle, `NoSuchIdError` for an index out of range (for kinds whose indices are never reused)."""
+        from . import validate
+        from .errors import HandleError, NoSuchIdError
+
+        noun, kind = cls._noun, cls.__name__
+        if isinstance(handle, (bool, np.bool_)) or not isinstance(handle, (int, np.integer)):
+            raise TypeError(f"{noun} must be a {kind} (or an int index), got {validate.show(handle)}")
+        if isinstance(handle, Handle):
+            if not isinstance(handle, cls):
+                raise TypeError(f"{noun} must be a {kind}, got the {type(handle).__name__} {handle!r}")
+            if handle.world_key is not None and world_key is not None and handle.world_key != world_key:
+                raise HandleError(f"{noun} {int(handle)} belongs to another World")
+        index = int(handle)
+        if not 0 <= index < count:
+            raise NoSuchIdError(f"{noun} {index} does not exist (the world has {count} {noun}s)")
+        return index
+
     def __setattr__(self, name, value):
         attr = getattr(type(self), name, None)
         if isinstance(attr, property) and attr.fset is not None:

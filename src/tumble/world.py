@@ -687,33 +687,22 @@ class World:
         From the next step it holds nothing and its warm start is gone; if it kept its two bodies
         from colliding, they collide again; a body no other joint or pin holds can be removed. Its
         row stays, as a broken joint's does (`joint_broken` is True there, `joint_force` and
-        `joint_torque` zero), so every other joint keeps its index and its `JointId`. Removing a
-        joint that is broken already changes nothing.
+        `joint_torque` zero), so every other joint keeps its index and its `JointId`. Removing it
+        again changes nothing.
         """
-        k = self._joint_index(joint)
-        zero = {
-            "joint_enabled": 0,
-            **{f"joint_impulse_{part}": 0.0 for part in ("linear", "angular", "axial", "lower", "upper")},
-            "joint_force": 0.0,
-            "joint_torque": 0.0,
-        }
-        for name, value in zero.items():
-            now = self.joints.numpy(name)[k]
-            self.joints.write(name, slice(k, k + 1), np.zeros_like(now)[None] + value)
-
-    def _joint_index(self, joint) -> int:
-        """Index of one joint, after checking its handle: a `JointId` of this world, or an int index."""
-        if isinstance(joint, (bool, np.bool_)) or not isinstance(joint, (int, np.integer)):
-            raise TypeError(f"joint must be a JointId (or an int index), got {validate.show(joint)}")
-        if isinstance(joint, Handle):
-            if not isinstance(joint, JointId):
-                raise TypeError(f"joint must be a JointId, got the {type(joint).__name__} {joint!r}")
-            if joint.world_key is not None and joint.world_key != self._key:
-                raise HandleError(f"joint {int(joint)} belongs to another World")
-        k = int(joint)
-        if not 0 <= k < self.joints.count:
-            raise NoSuchIdError(f"joint {k} does not exist (the world has {self.joints.count} joints)")
-        return k
+        k = JointId.checked_index(joint, self.joints.count, self._key)
+        stopped = (
+            "joint_enabled",
+            "joint_force",
+            "joint_torque",
+            "joint_impulse_linear",
+            "joint_impulse_angular",
+            "joint_impulse_axial",
+            "joint_impulse_lower",
+            "joint_impulse_upper",
+        )
+        for name in stopped:
+            self.joints.write(name, slice(k, k + 1), 0)
 
     def _joint_body(self, body, key: str):
         try:
@@ -866,12 +855,12 @@ class World:
             raise ValueError("bodies lists a body twice")
         # joints and cloth pins on a body would lose their body: refused (a broken or removed joint holds
         # nothing: it follows the removed body to the world, -1, as `JointSet.remap_bodies` does)
-        acting = self.joints.numpy("joint_enabled") != 0
-        ends = np.stack([self.joints.numpy(name) for name in ("joint_body_a", "joint_body_b")], axis=1)
-        jointed = np.isin(rows, ends[acting])
+        jointed = np.isin(rows, self.joints.held_bodies())
         if jointed.any():
             body, row = int(ids[jointed][0]), rows[jointed][0]
-            joint = int(np.flatnonzero(acting & (ends == row).any(axis=1))[0])
+            j = self.joints
+            on = j.numpy("joint_enabled") != 0
+            joint = int(np.flatnonzero(on & ((j.numpy("joint_body_a") == row) | (j.numpy("joint_body_b") == row)))[0])
             raise ValueError(f"body {body} is held by joint {joint}; remove its joints first (World.remove_joint)")
         if self._cloth is not None:
             pins = self._cloth.body_pins

@@ -46,12 +46,12 @@ import numpy as np
 import warp as wp
 
 from .. import limits, validate
-from ..errors import HandleError, NoSuchIdError, SimulationError
+from ..errors import HandleError, SimulationError
 from ..launch import LaunchCache
 from ..model import Role, body_arrays, fields_of
 from ..real import float_t, vec3
 from ..shapes import ShapeType
-from ..state import ArraySet, BodyId, ClothId, Handle, RowGroup, cast, host_view, numpy_dtype, readonly
+from ..state import ArraySet, BodyId, ClothId, RowGroup, cast, host_view, numpy_dtype, readonly
 from ..structs import cached_struct, fill_struct
 from . import attach, collide, grid, springs
 from .arrays import PARTICLE_FIELDS, TOPOLOGY, Limits, Particles, Springs, Stretch, Structural, Tethers
@@ -1103,16 +1103,7 @@ class ClothSystem:
 
     def cloth(self, handle: ClothId | int) -> Cloth:
         """Where the cloth `handle` (from `World.add_cloth`) lives in the particle arrays."""
-        if isinstance(handle, (bool, np.bool_)) or not isinstance(handle, (int, np.integer)):
-            raise TypeError(f"cloth must be a ClothId (or an int index), got {validate.show(handle)}")
-        if isinstance(handle, Handle):
-            if not isinstance(handle, ClothId):
-                raise TypeError(f"cloth must be a ClothId, got the {type(handle).__name__} {handle!r}")
-            if handle.world_key is not None and self.world_key is not None and handle.world_key != self.world_key:
-                raise HandleError(f"cloth {int(handle)} belongs to another World")
-        if not 0 <= int(handle) < len(self.cloths):
-            raise NoSuchIdError(f"cloth {int(handle)} does not exist (the world has {len(self.cloths)} cloths)")
-        return self.cloths[int(handle)]
+        return self.cloths[ClothId.checked_index(handle, len(self.cloths), self.world_key)]
 
     @property
     def particle_count(self) -> int:
