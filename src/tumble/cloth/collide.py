@@ -336,6 +336,13 @@ def _push_body(
 
 
 @wp.func
+def _first_touch(near: Near, b: int):
+    """Whether this pass is body row b's first touch: no particle touched it in the last pass, and some are on
+    it now (`count_first_touches`). Its pushes then share `near.fresh[b]` and wait for the pass's end."""
+    return near.contacts_prev[b] == 0 and near.fresh[b] > 0
+
+
+@wp.func
 def _push_later(b: int, impulse: vec3, still: float_t, r_b: vec3, q: quat, inv_i: vec3, w_lin: float_t, near: Near):
     """`_push_body` (substep `near.h`), but for a body's first touch (no particle on it in the last pass,
     `near.fresh`) the push is kept in `near`'s push arrays until the pass ends (`apply_pushes`), so that
@@ -346,13 +353,13 @@ def _push_later(b: int, impulse: vec3, still: float_t, r_b: vec3, q: quat, inv_i
     layer)."""
     if w_lin > float_t(0.0):
         dx_b, dtheta, dv, dw = _push_parts(impulse, still, r_b, q, inv_i, w_lin, near.h)
-        if near.contacts_prev[b] != 0 or near.fresh[b] == 0:
-            _move_body(near.bodies, b, q, dx_b, dtheta, dv, dw)
-        else:
+        if _first_touch(near, b):
             wp.atomic_add(near.push_position, b, dx_b)
             wp.atomic_add(near.push_rotation, b, dtheta)
             wp.atomic_add(near.push_velocity, b, dv)
             wp.atomic_add(near.push_spin, b, dw)
+        else:
+            _move_body(near.bodies, b, q, dx_b, dtheta, dv, dw)
 
 
 @wp.kernel
@@ -563,8 +570,8 @@ def _collide_bodies(particles: Particles, tethers: Tethers, limits: Limits, near
 
             # the body's inverse mass at the contact point along n: w_b = 1/m + (r x n) . I^-1 (r x n)
             split = float_t(wp.max(near.contacts_prev[b], 1))
-            if near.contacts_prev[b] == 0 and near.fresh[b] > 0:
-                split = float_t(near.fresh[b])  # a first touch: all the particles on it now (`_push_later`)
+            if _first_touch(near, b):
+                split = float_t(near.fresh[b])  # all the particles on it now (`_push_later`)
             wp.atomic_add(near.contacts_next, b, 1)
             r_b = (xp - n * d) - c
             w_lin = bodies.inv_mass[b]

@@ -1174,8 +1174,8 @@ def _make_solve_manifold(exact_pair: bool):
         if p.use_bias == 0:
             # relax: these impulses are final for this substep, and the next substep starts from them
             # (warm start), so sum their velocity changes per body now instead of in another pass
-            # (a twist row is a patch's, on its first row: the other rows' twist fields are zero, and
-            # not reading them keeps the pass off the record's last two cache lines)
+            # (a twist row is a patch's, on its first row: the other rows' twist fields are zero, so they are
+            # neither read nor summed)
             twist = rows[k].mass_twist > float_t(0.0)
             P = vec3()
             wa_ = vec3()
@@ -1970,7 +1970,8 @@ class ContactSet(ArraySet):
 
     #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
     #: solver structs were built from, so it differs in a restored world while meaning the same;
-    #: `rows` and `_passes` are solver scratch and parameters, made anew by every step
+    #: `rows`, `impact_order` and `_passes` are solver scratch and parameters, made anew by every step
+    #: (`impact_order` by every collision pass)
     SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes", "_struct", "impact_order"})
 
     def __init__(self, device: str):
