@@ -182,3 +182,28 @@ def test_rotation_is_deterministic():
         return w.state_hash(), w.body_count
 
     assert run() == run()
+
+
+def test_knot_of_coincident_spheres_parts_in_every_direction():
+    """Ten spheres placed at one point (zero g) part in every direction: each coincident pair pushes
+    along its own direction (`_pair_direction`), so the push-outs do not add up along one axis. When
+    every pair used +z, the knot parted as a column along z and its end flew off at 7.4 m/s.
+
+    Each contact's push-out speed is capped at MAX_PUSH_VELOCITY, but one relax sweep a substep does
+    not take all of it back in a knot where every body touches every other: measured 2.36 m/s at
+    most here (a knot of 5: 3.6, of 50: 12.7 m/s; docs/design.md). Apart in 1 s, momentum kept."""
+    from tumble.solver.contacts import MAX_PUSH_VELOCITY
+
+    w = tumble.World(gravity=(0, 0, 0))
+    ids = [w.add_sphere(position=(1, 2, 3), radius=0.1, mass=1.0) for _ in range(10)]
+    fastest = 0.0
+    for _ in range(240):
+        w.step()
+        fastest = max(fastest, float(np.linalg.norm(w.body_velocity[ids], axis=1).max()))
+    assert fastest <= MAX_PUSH_VELOCITY
+    x = w.body_position[ids]
+    gaps = np.linalg.norm(x[:, None] - x[None], axis=2) + np.eye(10)
+    assert gaps.min() > 0.2  # apart (two radii)
+    assert np.ptp(x, axis=0).min() > 0.4  # spread along every axis, not a column
+    momentum = np.asarray(w.body_velocity[ids]).sum(axis=0)  # unit masses
+    np.testing.assert_allclose(momentum, 0.0, atol=in_float32(1e-12, ulps(fastest, 10 * w.step_count * w.substeps)))

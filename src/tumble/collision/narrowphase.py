@@ -151,6 +151,34 @@ def collide_plane_box(c: Contacts, a: int, b: int, A: Pose, B: Pose, h: vec3, ma
             emit(c, a, b, A, B, n, p - n * depth[best], p, max_sep)
 
 
+# the R2 sequence's two steps (Roberts 2018: 1/g and 1/g^2, g^3 = g + 1) in units of 2^-32
+_R2_STEP_1 = wp.constant(wp.uint32(3242174889))
+_R2_STEP_2 = wp.constant(wp.uint32(2447445413))
+
+
+@wp.func
+def _pair_direction(a: int, b: int):
+    """A unit vector that differs from pair to pair, for the normal of two coincident centres.
+
+    The pair's number m (over all pairs of ids) picks point m of the R2 low-discrepancy sequence,
+    mapped to the sphere by equal areas: pairs of neighbouring ids point apart, so a knot of bodies
+    placed at one point spreads out in every direction rather than stacking along one axis, where
+    each pair's push-out would add to the next. Integer arithmetic (the sequence's fractions to
+    24 bits, exact in float32): the same pair gets the same direction in both precisions, on
+    every device.
+    """
+    lo = wp.uint32(wp.min(a, b))
+    hi = wp.uint32(wp.max(a, b))
+    m = ((hi * (hi - wp.uint32(1))) >> wp.uint32(1)) + lo
+    scale = float_t(1.0 / 16777216.0)
+    u = float_t((m * _R2_STEP_1) >> wp.uint32(8)) * scale
+    v = float_t((m * _R2_STEP_2) >> wp.uint32(8)) * scale
+    z = _ONE - float_t(2.0) * u
+    r = wp.sqrt(wp.max(_ONE - z * z, _ZERO))
+    phi = float_t(6.283185307179586) * v
+    return vec3(r * wp.cos(phi), r * wp.sin(phi), z)
+
+
 @wp.func
 def collide_sphere_sphere(
     c: Contacts,
@@ -175,7 +203,7 @@ def collide_sphere_sphere(
     """
     d = B.x - A.x
     dist = wp.length(d)
-    n = vec3(_ZERO, _ZERO, _ONE)
+    n = _pair_direction(a, b)
     if dist > float_t(1e-12):
         n = d / dist
     reach = ra + rb

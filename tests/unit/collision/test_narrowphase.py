@@ -65,6 +65,24 @@ def test_sphere_sphere_coincident_centres():
     assert depths[0] == pytest.approx(0.2)
 
 
+def test_coincident_sphere_pairs_get_different_normals():
+    """Each pair of coincident spheres has its own normal (from its ids), so a knot placed at one point
+    parts in every direction instead of along one axis; the same pair gets the same normal every time."""
+    w = tumble.World(gravity=(0, 0, 0))
+    for _ in range(4):
+        w.add_sphere(position=(1, 2, 3), radius=0.1, mass=1)
+    pairs, normals, depths, _ = contacts(w)
+    assert len(depths) == 6
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=resolution(1e-12, 1.0, 4))
+    # no two of the six normals parallel, and they span space (the knot spreads in all three axes)
+    cos = np.abs(normals @ normals.T) - np.eye(6)
+    assert cos.max() < 0.99
+    assert np.linalg.svd(normals, compute_uv=False).min() > 0.1
+    again, normals_again, _, _ = contacts(w)
+    np.testing.assert_array_equal(again, pairs)
+    np.testing.assert_array_equal(normals_again, normals)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     st.lists(st.floats(-1, 1), min_size=3, max_size=3),
