@@ -95,6 +95,15 @@ CONTACT_DAMPING_RATIO = 10.0
 LINEAR_SLOP = 2.0e-5
 #: largest speed [m/s] at which overlapping bodies are pushed apart
 MAX_PUSH_VELOCITY = 3.0
+#: Where a biased pass pushed some overlap apart faster than RELAX_TRIGGER [m/s] (CPU), its relax pass
+#: first sweeps without bias up to RELAX_SWEEPS times more, until a sweep changes no body's velocity
+#: by RELAX_TOLERANCE [m/s]: in a knot of overlapping bodies (placed so: every body touches several)
+#: one relax sweep took back too little of the push, and the knot flew apart (200 cubes of 0.2 m
+#: placed at random in a 1 m box: 36 kJ of kinetic energy, 15 m/s; docs/design.md). Resting and
+#: landing contacts push far slower (pile_5k: 0.14 m/s at its largest overlap), so they never pay.
+RELAX_TRIGGER = wp.constant(float_t(0.5))
+RELAX_SWEEPS = wp.constant(8)
+RELAX_TOLERANCE = wp.constant(float_t(0.01))
 #: most collision sweeps per pass (CPU); a resting scene takes one, a cluster of impacts a few
 IMPACT_SWEEPS = wp.constant(16)
 #: most collision sweeps per pass while inelastic contacts still collide: a collision passing along a
@@ -1031,13 +1040,19 @@ def _make_solve_manifold(exact_pair: bool):
     the other is called for two-row patches alone."""
 
     @wp.func
-    def _solve_manifold(k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: SolvePass, serial: int):
+    def _solve_manifold(
+        k: int, rows: wp.array(dtype=ContactRow), b: BodyArrays, p: SolvePass, serial: int, last: int
+    ) -> float_t:
         """One pass over the manifold that starts at row k (nothing at a row inside one): friction then
-        normal rows, with bias or without (`p.use_bias`); the relax pass also sums the rows' final
-        impulses per body for the next substep's warm start."""
+        normal rows, with bias or without (`p.use_bias`); the relax pass's `last` sweep also sums the
+        rows' final impulses per body for the next substep's warm start.
+
+        Returns, with bias, the fastest push-out of its normal rows [m/s] (0 if none pushes); without,
+        but for the `last` sweep, the largest change this sweep made to a body's velocity, squared [m^2/s^2].
+        """
         size = rows[k].manifold
         if size == 0:
-            return  # solved with the first row of its manifold
+            return float_t(0.0)  # solved with the first row of its manifold
         ia = rows[k].body_a
         ib = rows[k].body_b
         # the two bodies' velocities and this manifold's changes to them, accumulated locally, stored once
@@ -1053,6 +1068,7 @@ def _make_solve_manifold(exact_pair: bool):
         dxb = b.delta_position[ib]
         dthb = b.delta_rotation[ib]
         dv = Delta()
+        push = float_t(0.0)  # the fastest push-out (-bias) of an overlapping normal row [m/s]
         static = pair.ima == float_t(0.0) or pair.imb == float_t(0.0)
         # friction's anchors on a turning kinematic body, or on a turning dynamic one far from the contact
         # beside the other, turn with it within the step (a turntable's surface velocity at the contact
@@ -1083,6 +1099,7 @@ def _make_solve_manifold(exact_pair: bool):
             lever = _has_lever(rows, k, pair.ima + pair.imb)
             # (the normal row's target depends on the positions only, not on the friction row's impulse)
             bias, ms, isc = _normal_target(_gap(rows, k, b, dxa, dtha, dxb, dthb, 1), p, static, False)
+            push = -bias
             if serial == 0 or not lever or turning or rows[k].friction == float_t(0.0):
                 # the normal row first, then friction bounded by this pass's load. Friction first saw the
                 # last pass's, none at an inelastic impact (e = 0, no collision pass): a ball landing at
@@ -1105,6 +1122,7 @@ def _make_solve_manifold(exact_pair: bool):
                 bias4[i] = bias
                 ms4[i] = ms
                 isc4[i] = isc
+                push = wp.max(push, -bias)
             # The rows of a manifold share the body pair, so they are coupled (a corner's impulse also
             # moves the others) and the normal rows are rank-deficient (four coplanar corners, three
             # degrees of freedom): one sweep leaves each corner a different impulse and the body
@@ -1171,7 +1189,7 @@ def _make_solve_manifold(exact_pair: bool):
                 if change <= MANIFOLD_SWEEP_TOLERANCE * load and change_twist <= MANIFOLD_SWEEP_TOLERANCE * torque:
                     break  # converged: another sweep would change no impulse by more
         _add_pair(b, ia, ib, dv, serial)
-        if p.use_bias == 0:
+        if p.use_bias == 0 and last != 0:
             # relax: these impulses are final for this substep, and the next substep starts from them
             # (warm start), so sum their velocity changes per body now instead of in another pass
             # (a twist row is a patch's, on its first row: the other rows' twist fields are zero, so they are
@@ -1196,6 +1214,11 @@ def _make_solve_manifold(exact_pair: bool):
                 add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
             if pair.imb > float_t(0.0):
                 add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ib, P * pair.imb, wb_, serial)
+        if p.use_bias != 0:
+            return push
+        if last == 0:
+            return wp.max(wp.length_sq(dv.va), wp.length_sq(dv.vb))
+        return float_t(0.0)
 
     return _solve_manifold
 
@@ -1211,17 +1234,42 @@ def _make_solve(serial: int):
 
     # a name of its own: a recorded CPU graph finds a kernel by its name
     @wp.kernel(name="_solve_serial" if serial else "_solve_parallel")
-    def solve(rows: wp.array(dtype=ContactRow), b: BodyArrays, p: SolvePass, counts: wp.array(dtype=wp.int32)):
+    def solve(
+        rows: wp.array(dtype=ContactRow),
+        b: BodyArrays,
+        p: SolvePass,
+        counts: wp.array(dtype=wp.int32),
+        pushed: wp.array(dtype=wp.int32),
+    ):
         if wp.static(serial == 0):
             k = wp.tid()
             if k < counts[0]:  # launched over the capacity, the count on the device
-                _solve_manifold(k, rows, b, p, 0)
+                _solve_manifold(k, rows, b, p, 0, 1)
         else:
-            for k in range(counts[0]):
-                if _two_row_patch(rows, k):
-                    _solve_manifold_pair(k, rows, b, p, 1)  # an edge, a rod's end
-                else:
-                    _solve_manifold(k, rows, b, p, 1)
+            # the relax pass after a fast push-out: sweeps without bias until they no longer change the
+            # velocities (RELAX_TOLERANCE), then the last sweep, which keeps the impulses for the warm start
+            sweeps = int(1)
+            if p.use_bias == 0 and pushed[0] != 0:
+                sweeps = RELAX_SWEEPS + 1
+            fastest = float_t(0.0)  # the biased pass's fastest push-out; a relax sweep's largest change, squared
+            sweep = int(0)
+            while sweep < sweeps:
+                last = int(0)
+                if sweep == sweeps - 1:
+                    last = 1
+                fastest = float_t(0.0)
+                for k in range(counts[0]):
+                    if _two_row_patch(rows, k):
+                        fastest = wp.max(fastest, _solve_manifold_pair(k, rows, b, p, 1, last))  # an edge, a rod's end
+                    else:
+                        fastest = wp.max(fastest, _solve_manifold(k, rows, b, p, 1, last))
+                sweep += 1
+                if sweep < sweeps - 1 and fastest <= RELAX_TOLERANCE * RELAX_TOLERANCE:
+                    sweep = sweeps - 1  # converged: on to the last sweep
+            if p.use_bias != 0:
+                pushed[0] = 0
+                if fastest > RELAX_TRIGGER:
+                    pushed[0] = 1
 
     return solve
 
@@ -1970,9 +2018,9 @@ class ContactSet(ArraySet):
 
     #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
     #: solver structs were built from, so it differs in a restored world while meaning the same;
-    #: `rows`, `impact_order` and `_passes` are solver scratch and parameters, made anew by every step
-    #: (`impact_order` by every collision pass)
-    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes", "_struct", "impact_order"})
+    #: `rows`, `impact_order`, `pushed` and `_passes` are solver scratch and parameters, made anew by
+    #: every step (`impact_order` by every collision pass, `pushed` by every biased solve pass)
+    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes", "_struct", "impact_order", "pushed"})
 
     def __init__(self, device: str):
         super().__init__(CONTACT_FIELDS, device=device, capacity=64)
@@ -1986,6 +2034,7 @@ class ContactSet(ArraySet):
         self.rows = wp.zeros(0, dtype=ContactRow, device=device)
         # this step's and last step's contact counts, on the device, for kernels launched over the capacity
         self.counts = wp.zeros(2, dtype=wp.int32, device=device)
+        self.pushed = wp.zeros(1, dtype=wp.int32, device=device)  # 1: the last biased pass pushed fast (CPU)
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
@@ -2168,7 +2217,13 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
         return
     assert contacts._structs is not None  # built by begin_solve, which runs before every solver stage
     serial = _serial(contacts)
-    args = [contacts.rows, contacts._structs.bodies, _solve_pass(contacts, h, use_bias), contacts.counts]
+    args = [
+        contacts.rows,
+        contacts._structs.bodies,
+        _solve_pass(contacts, h, use_bias),
+        contacts.counts,
+        contacts.pushed,
+    ]
     launch(_SOLVES[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
 
 
