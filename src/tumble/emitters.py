@@ -12,12 +12,14 @@ per prototype, the narrow phase's hull arrays stay put).
 An emitter holds a rate [bodies/s] and a count; each step it owes `rate * dt` more bodies.
 Candidates are drawn from the region (a point, a box or a disc) and redrawn a few times (from a
 point: scattered ever wider around it) until a candidate's bounding sphere clears every body
-already in the world and every candidate accepted before it; a candidate that finds no free spot waits for a later step
+already in the world (a mesh by its triangles, and a closed mesh's inside too) and every candidate
+accepted before it; a candidate that finds no free spot waits for a later step
 (the emitter falls behind rather than overlap). This replaces the design report's "release
 speed" workaround: nothing overlaps at birth, so the solver never has to untangle a knot.
 
 Cost per step: O(k * n) vectorised NumPy distance tests for k new bodies among n, outside the
-kernels; k is small for any sensible rate.
+kernels; k is small for any sensible rate. A mesh adds its triangles near the region to each test,
+and a closed mesh whose bounds hold a candidate all of its triangles (the winding number).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import validate
+from .collision.meshes import closest_on_triangles, winding_number
 from .limits import MAX_RELEASE_PER_STEP
 from .npmath import quat_mul, quat_to_matrix
 from .shapes import (
@@ -49,6 +52,7 @@ from .shapes import (
 
 if TYPE_CHECKING:
     from .collision.hulls import HullSet
+    from .collision.meshes import MeshSet
     from .state import RowGroup
 
 #: jittered tries per candidate before it waits for the next step
@@ -344,8 +348,34 @@ class Emitter:
 
     # ------------------------------------------------------------------ emission
 
-    def release(self, bodies: RowGroup, dt: float) -> dict[str, np.ndarray] | None:
-        """The bodies owed for this step that find a free spot among `bodies` (the world's body arrays).
+    def _mesh_walls(self, bodies: RowGroup, meshes: MeshSet, rows: np.ndarray, half: np.ndarray) -> list[tuple]:
+        """For each mesh body in `rows` (a mask of the body rows): its pose (rotation matrix, position)
+        and, in its frame, its triangles' corners (a, b, c) that may reach a candidate (the region's
+        box of half size `half` holds every candidate's bounding sphere); with, for a closed mesh (a
+        solid) whose bounds the box may reach, all its triangles and those bounds, to tell a spot
+        inside it. Distances and the winding number are the same in the mesh's frame."""
+        walls = []
+        reach = float(np.linalg.norm(half))  # the box, as the sphere around it
+        for i in map(int, np.flatnonzero(rows)):
+            row = int(bodies.numpy("body_geometry")[i])
+            rotation = quat_to_matrix(bodies.numpy("body_orientation")[i])
+            position = bodies.numpy("body_position")[i]
+            centre = rotation.T @ (self.position - position)
+            lo, hi = centre - reach, centre + reach
+            a, b, c = meshes.corners(row)
+            near = np.all((np.minimum(np.minimum(a, b), c) <= hi) & (np.maximum(np.maximum(a, b), c) >= lo), axis=1)
+            solid = None
+            if meshes.closed[row]:
+                low, high = meshes.vertices[row].min(axis=0), meshes.vertices[row].max(axis=0)
+                if np.all((low <= hi) & (high >= lo)):
+                    solid = (a, b, c, low, high)
+            if near.any() or solid is not None:
+                walls.append((rotation, position, a[near], b[near], c[near], solid))
+        return walls
+
+    def release(self, bodies: RowGroup, dt: float, meshes: MeshSet | None = None) -> dict[str, np.ndarray] | None:
+        """The bodies owed for this step that find a free spot among `bodies` (the world's body arrays)
+        and the triangles of `meshes` (the world's meshes, placed by their bodies).
 
         Returns the new bodies' rows, as the keywords of the world's body append (the world's emit
         stage adds them), or None when none is released this step. The emitter counts them as released.
@@ -369,8 +399,7 @@ class Emitter:
         near = gap < bodies.numpy("body_bound_radius")
         spheres = (shape == ShapeType.SPHERE) & near
         boxes = (shape == ShapeType.BOX) & near
-        # capsules by their segment, convex bodies by their bounding sphere (meshes are not
-        # tested: keep the region clear of them)
+        # capsules by their segment, convex bodies by their bounding sphere, meshes by their triangles
         capsules = (shape == ShapeType.CAPSULE) & near
         hulls = (shape == ShapeType.CONVEX) & near
         planes = shape == ShapeType.PLANE
@@ -383,6 +412,9 @@ class Emitter:
         hull_x, hull_r = x_all[hulls], bodies.numpy("body_bound_radius")[hulls]
         plane_n = quat_to_matrix(bodies.numpy("body_orientation")[planes])[:, :, 2]  # each plane's local +z, by row
         plane_x = x_all[planes]
+        walls = []
+        if meshes is not None and np.any((shape == ShapeType.MESH) & near):
+            walls = self._mesh_walls(bodies, meshes, (shape == ShapeType.MESH) & near, half)
         accepted = []
         placed_x: list[np.ndarray] = []
         placed_r: list[float] = []
@@ -410,6 +442,8 @@ class Emitter:
                     clear = not np.any(np.linalg.norm(np.asarray(placed_x) - p, axis=1) < np.asarray(placed_r) + ri)
                 if clear and len(plane_n):
                     clear = not np.any(np.einsum("ij,ij->i", plane_n, p - plane_x) < ri)
+                if clear and walls:
+                    clear = _clear_of_meshes(p, ri, walls)
                 if clear:
                     accepted.append(i)
                     placed_x.append(p)
@@ -441,6 +475,20 @@ class Emitter:
             "bound": np.where(convex, cand["bound"][idx], np.inf),
             "geometry": geometry,
         }
+
+
+def _clear_of_meshes(p: np.ndarray, r: float, walls: list[tuple]) -> bool:
+    """Whether the sphere of radius r at p clears the triangles of every mesh in `walls`
+    (`Emitter._mesh_walls`) and lies outside every closed one."""
+    for rotation, position, a, b, c, solid in walls:
+        q = rotation.T @ (p - position)  # p in the mesh's frame
+        if len(a) and np.min(np.linalg.norm(closest_on_triangles(q, a, b, c) - q, axis=1)) < r:
+            return False
+        if solid is not None:
+            sa, sb, sc, low, high = solid
+            if np.all((q >= low) & (q <= high)) and abs(winding_number(q, sa, sb, sc)) > 0.5:
+                return False
+    return True
 
 
 def _basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1374,7 +1374,7 @@ class World:
         """The emit stage for a `dt` already checked (`step` has; `emit` checks it)."""
         count = 0
         for emitter in self.emitters:
-            released = emitter.release(self.bodies, dt)
+            released = emitter.release(self.bodies, dt, self.meshes)
             if released is not None:
                 count += len(self._add_bodies(**released))
         return count

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from tumble.collision.meshes import MeshSet, sharp_features
+from tumble.collision.meshes import MeshSet, closest_on_triangles, sharp_features, winding_number
 
 #: a unit square in z = 0, counter-clockwise seen from +z (two triangles)
 SQUARE = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
@@ -81,3 +81,47 @@ def test_struct_holds_the_features_of_every_row():
     assert s.feature_start.numpy().tolist() == [0, 2, 6]
     assert _count(s.feature.numpy()[2:6], 0) == 4 and _count(s.feature.numpy()[2:6], 3) == 6
     np.testing.assert_array_equal(s.id.numpy(), meshes.ids().numpy())
+
+
+def test_closest_on_triangles_matches_the_bvh_query():
+    """The host-side closest point (NumPy, by Voronoi regions) is as near as Warp's BVH query finds,
+    for points near and far from a soup of random triangles, to float32 rounding (the BVH's points)."""
+    rng = np.random.default_rng(4)
+    vertices = rng.normal(size=(90, 3))
+    triangles = np.arange(90).reshape(30, 3)
+    meshes = MeshSet("cpu")
+    meshes.add(vertices, triangles)
+    points = rng.normal(size=(200, 3)) * 1.5
+    out = wp.zeros(len(points), dtype=wp.vec3f)
+    wp.launch(_closest, len(points), [meshes.meshes[0].id, wp.array(points, dtype=wp.vec3f), out])
+    bvh = np.linalg.norm(out.numpy() - points, axis=1)
+    a, b, c = meshes.corners(0)
+    ours = np.array([np.linalg.norm(closest_on_triangles(p, a, b, c) - p, axis=1).min() for p in points])
+    np.testing.assert_allclose(ours, bvh, atol=2e-6)
+
+
+def test_closest_on_triangles_picks_each_region():
+    """A point beyond a corner, beside an edge and above the face of the triangle (0,0,0) (1,0,0) (0,1,0)."""
+    a, b, c = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
+    cases = {
+        (-1.0, -1.0, 0.5): (0, 0, 0),
+        (2.0, -0.5, 0.0): (1, 0, 0),
+        (-0.5, 3.0, 0.0): (0, 1, 0),
+        (0.5, -2.0, 1.0): (0.5, 0, 0),
+        (-2.0, 0.25, 0.0): (0, 0.25, 0),
+        (1.0, 1.0, -1.0): (0.5, 0.5, 0),
+        (0.2, 0.3, 2.0): (0.2, 0.3, 0),
+    }
+    for p, want in cases.items():
+        np.testing.assert_allclose(closest_on_triangles(np.array(p), a, b, c)[0], want, atol=1e-15)
+
+
+def test_winding_number_is_one_inside_a_closed_mesh_and_zero_outside():
+    """+1 inside a tetrahedron wound outward, -1 with its winding flipped, 0 outside."""
+    tetra = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    outward = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    a, b, c = (tetra[outward[:, k]] for k in range(3))
+    inside, outside = np.array([0.1, 0.2, 0.3]), np.array([0.6, 0.6, 0.6])
+    assert winding_number(inside, a, b, c) == pytest.approx(1.0, abs=1e-12)
+    assert winding_number(inside, a, c, b) == pytest.approx(-1.0, abs=1e-12)
+    assert winding_number(outside, a, b, c) == pytest.approx(0.0, abs=1e-12)
