@@ -95,13 +95,16 @@ CONTACT_DAMPING_RATIO = 10.0
 LINEAR_SLOP = 2.0e-5
 #: largest speed [m/s] at which overlapping bodies are pushed apart
 MAX_PUSH_VELOCITY = 3.0
-#: Where a biased pass pushed some overlap apart faster than RELAX_TRIGGER [m/s] (CPU), its relax pass
-#: first sweeps without bias up to RELAX_SWEEPS times more, until a sweep changes no body's velocity
-#: by RELAX_TOLERANCE [m/s]: in a knot of overlapping bodies (placed so: every body touches several)
-#: one relax sweep took back too little of the push, and the knot flew apart (200 cubes of 0.2 m
-#: placed at random in a 1 m box: 36 kJ of kinetic energy, 15 m/s; docs/design.md). Resting and
-#: landing contacts push far slower (pile_5k: 0.14 m/s at its largest overlap), so they never pay.
-RELAX_TRIGGER = wp.constant(float_t(0.5))
+#: Where a biased pass changed a manifold's body's velocity by more than RELAX_TRIGGER [m/s], or pushed
+#: its overlap apart faster (CPU), the relax pass first sweeps without bias, up to RELAX_SWEEPS times,
+#: over the manifolds of the bodies so marked, until a sweep changes none of their velocities by
+#: RELAX_TOLERANCE [m/s]; then its one sweep over all. One relax sweep took back too little: in a knot
+#: of overlapping bodies (placed so: every body touches several) of the push, and the knot flew apart
+#: (200 cubes of 0.2 m placed at random in a 1 m box: 36 kJ of kinetic energy, 15 m/s); and between a
+#: heavy body and the floor of a warm start's excess (a heavy ball landing on a light one left the light
+#: one's floor contact 224 times its weight, put back by the next step's warm start: random drops
+#: gained up to 0.21 J in a step). docs/design.md, "Mass ratios".
+RELAX_TRIGGER = wp.constant(float_t(0.1))
 RELAX_SWEEPS = wp.constant(8)
 RELAX_TOLERANCE = wp.constant(float_t(0.01))
 #: most collision sweeps per pass (CPU); a resting scene takes one, a cluster of impacts a few
@@ -1047,8 +1050,8 @@ def _make_solve_manifold(exact_pair: bool):
         normal rows, with bias or without (`p.use_bias`); the relax pass's `last` sweep also sums the
         rows' final impulses per body for the next substep's warm start.
 
-        Returns, with bias, the fastest push-out of its normal rows [m/s] (0 if none pushes); without,
-        but for the `last` sweep, the largest change this sweep made to a body's velocity, squared [m^2/s^2].
+        Returns, but for the relax pass's `last` sweep, the largest change this pass made to a body's
+        velocity, squared [m^2/s^2]; with bias, at least the square of its fastest push-out.
         """
         size = rows[k].manifold
         if size == 0:
@@ -1214,17 +1217,37 @@ def _make_solve_manifold(exact_pair: bool):
                 add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ia, -P * pair.ima, -wa_, serial)
             if pair.imb > float_t(0.0):
                 add_to_velocity(b.warm_velocity, b.warm_angular_velocity, ib, P * pair.imb, wb_, serial)
-        if p.use_bias != 0:
-            return push
-        if last == 0:
-            return wp.max(wp.length_sq(dv.va), wp.length_sq(dv.vb))
-        return float_t(0.0)
+        if p.use_bias == 0 and last != 0:
+            return float_t(0.0)
+        change = wp.max(wp.length_sq(dv.va), wp.length_sq(dv.vb))
+        if push > float_t(0.0):
+            change = wp.max(change, push * push)
+        return change
 
     return _solve_manifold
 
 
 _solve_manifold = _make_solve_manifold(False)
 _solve_manifold_pair = _make_solve_manifold(True)
+
+
+@wp.struct
+class Relax:
+    """Scratch of the serial solve passes: the bodies the biased pass marked, for its relax pass to sweep
+    their manifolds on (RELAX_SWEEPS); zero again after every relax pass."""
+
+    marked: wp.array(dtype=wp.int32)  # one value: 1 when some body is marked
+    body: wp.array(dtype=wp.int32)  # per body: 1 when marked
+    listed: wp.array(dtype=wp.int32)  # per contact: the first rows of the marked bodies' manifolds
+
+
+@wp.func
+def _mark(rows: wp.array(dtype=ContactRow), k: int, b: BodyArrays, relax: Relax):
+    """Mark the dynamic bodies of the manifold at k (a static body's other manifolds need no sweep)."""
+    if b.inv_mass[rows[k].body_a] > float_t(0.0):
+        relax.body[rows[k].body_a] = 1
+    if b.inv_mass[rows[k].body_b] > float_t(0.0):
+        relax.body[rows[k].body_b] = 1
 
 
 def _make_solve(serial: int):
@@ -1239,37 +1262,60 @@ def _make_solve(serial: int):
         b: BodyArrays,
         p: SolvePass,
         counts: wp.array(dtype=wp.int32),
-        pushed: wp.array(dtype=wp.int32),
+        relax: Relax,
     ):
         if wp.static(serial == 0):
             k = wp.tid()
             if k < counts[0]:  # launched over the capacity, the count on the device
                 _solve_manifold(k, rows, b, p, 0, 1)
         else:
-            # the relax pass after a fast push-out: sweeps without bias until they no longer change the
-            # velocities (RELAX_TOLERANCE), then the last sweep, which keeps the impulses for the warm start
-            sweeps = int(1)
-            if p.use_bias == 0 and pushed[0] != 0:
-                sweeps = RELAX_SWEEPS + 1
-            fastest = float_t(0.0)  # the biased pass's fastest push-out; a relax sweep's largest change, squared
-            sweep = int(0)
-            while sweep < sweeps:
-                last = int(0)
-                if sweep == sweeps - 1:
-                    last = 1
-                fastest = float_t(0.0)
-                for k in range(counts[0]):
-                    if _two_row_patch(rows, k):
-                        fastest = wp.max(fastest, _solve_manifold_pair(k, rows, b, p, 1, last))  # an edge, a rod's end
-                    else:
-                        fastest = wp.max(fastest, _solve_manifold(k, rows, b, p, 1, last))
-                sweep += 1
-                if sweep < sweeps - 1 and fastest <= RELAX_TOLERANCE * RELAX_TOLERANCE:
-                    sweep = sweeps - 1  # converged: on to the last sweep
+            count = counts[0]
+            trigger = RELAX_TRIGGER * RELAX_TRIGGER
             if p.use_bias != 0:
-                pushed[0] = 0
-                if fastest > RELAX_TRIGGER:
-                    pushed[0] = 1
+                # the biased pass marks the dynamic bodies of the manifolds it changed fast
+                marked = int(0)
+                for k in range(count):
+                    change = float_t(0.0)
+                    if _two_row_patch(rows, k):
+                        change = _solve_manifold_pair(k, rows, b, p, 1, 1)  # an edge, a rod's end
+                    else:
+                        change = _solve_manifold(k, rows, b, p, 1, 1)
+                    if change > trigger:
+                        _mark(rows, k, b, relax)
+                        marked = 1
+                relax.marked[0] = marked
+            else:
+                listed = int(0)
+                if relax.marked[0] != 0:
+                    # the manifolds of the marked bodies, swept without bias while they change the velocities
+                    for k in range(count):
+                        if rows[k].manifold > 0:
+                            if relax.body[rows[k].body_a] != 0 or relax.body[rows[k].body_b] != 0:
+                                relax.listed[listed] = k
+                                listed += 1
+                    sweep = int(0)
+                    fastest = trigger
+                    while sweep < RELAX_SWEEPS and fastest > RELAX_TOLERANCE * RELAX_TOLERANCE:
+                        fastest = float_t(0.0)
+                        for i in range(listed):
+                            k = relax.listed[i]
+                            if _two_row_patch(rows, k):
+                                fastest = wp.max(fastest, _solve_manifold_pair(k, rows, b, p, 1, 0))
+                            else:
+                                fastest = wp.max(fastest, _solve_manifold(k, rows, b, p, 1, 0))
+                        sweep += 1
+                # the relax sweep over all, which keeps the impulses for the next substep's warm start
+                for k in range(count):
+                    if _two_row_patch(rows, k):
+                        _solve_manifold_pair(k, rows, b, p, 1, 1)
+                    else:
+                        _solve_manifold(k, rows, b, p, 1, 1)
+                # unmark (every mark is on a listed manifold's body)
+                for i in range(listed):
+                    k = relax.listed[i]
+                    relax.body[rows[k].body_a] = 0
+                    relax.body[rows[k].body_b] = 0
+                relax.marked[0] = 0
 
     return solve
 
@@ -2010,6 +2056,7 @@ class SolverStructs(NamedTuple):
     previous: Previous
     owners: Owners
     ticks: Ticks
+    relax: Relax
 
 
 class ContactSet(ArraySet):
@@ -2018,9 +2065,12 @@ class ContactSet(ArraySet):
 
     #: caches that snapshots keep by name only: `_sized` holds the identities of the arrays the
     #: solver structs were built from, so it differs in a restored world while meaning the same;
-    #: `rows`, `impact_order`, `pushed` and `_passes` are solver scratch and parameters, made anew by
-    #: every step (`impact_order` by every collision pass, `pushed` by every biased solve pass)
-    SNAPSHOT_CACHES = frozenset({"_sized", "rows", "_passes", "_struct", "impact_order", "pushed"})
+    #: `rows`, `impact_order`, the `relax_` arrays and `_passes` are solver scratch and parameters, made
+    #: anew by every step (`impact_order` by every collision pass; the `relax_` arrays are zero again
+    #: after every relax pass)
+    SNAPSHOT_CACHES = frozenset(
+        {"_sized", "rows", "_passes", "_struct", "impact_order", "relax_marked", "relax_body", "relax_listed"}
+    )
 
     def __init__(self, device: str):
         super().__init__(CONTACT_FIELDS, device=device, capacity=64)
@@ -2034,7 +2084,6 @@ class ContactSet(ArraySet):
         self.rows = wp.zeros(0, dtype=ContactRow, device=device)
         # this step's and last step's contact counts, on the device, for kernels launched over the capacity
         self.counts = wp.zeros(2, dtype=wp.int32, device=device)
-        self.pushed = wp.zeros(1, dtype=wp.int32, device=device)  # 1: the last biased pass pushed fast (CPU)
         self.impact_clock = wp.zeros(1, dtype=wp.int64, device=device)  # ticks of the impact passes
         self._owner_capacity = 0
         self._sized: tuple = ()
@@ -2079,7 +2128,10 @@ class ContactSet(ArraySet):
             self.jn_warm = wp.zeros(self.capacity, dtype=float_t, device=dev)
             self.jt_world = wp.zeros(self.capacity, dtype=vec3, device=dev)
             self.rows = wp.zeros(self.capacity, dtype=ContactRow, device=dev)
+        self._size_relax(bodies.capacity)
         sized = (
+            id(self.relax_body),
+            id(self.relax_listed),
             bodies.capacity,
             self.capacity,
             p.capacity,
@@ -2101,6 +2153,8 @@ class ContactSet(ArraySet):
             self.impact_tested = wp.zeros(self.capacity, dtype=wp.int64, device=dev)
             self.impact_listed = wp.zeros(self.capacity, dtype=wp.int32, device=dev)
             self.impact_order = wp.zeros(self.capacity, dtype=wp.vec3i, device=dev)
+            relax = Relax()
+            relax.marked, relax.body, relax.listed = self.relax_marked, self.relax_body, self.relax_listed
             owners = Owners()
             owners.start, owners.count = self.owner_start, self.owner_count
             owners.fill, owners.entries = self.owner_fill, self.owner_entries
@@ -2109,7 +2163,7 @@ class ContactSet(ArraySet):
             ticks.tested, ticks.changed, ticks.clock = self.impact_tested, self.impact_changed, self.impact_clock
             ticks.listed = self.impact_listed
             ticks.order = self.impact_order
-            self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners, ticks)
+            self._structs = SolverStructs(self.struct(), body_arrays(bodies)[0], previous, owners, ticks, relax)
             self._sized = sized + (id(self.impact_changed), id(self.impact_tested), id(self.impact_listed))
         count = self.count
         if self.device == "cpu":
@@ -2118,6 +2172,18 @@ class ContactSet(ArraySet):
         else:
             self.counts.assign(np.array((count, p.count), dtype=np.int32))
         return self._sized + (count > 0,)
+
+    def _size_relax(self, body_capacity: int) -> None:
+        """The `Relax` scratch for these capacities, made when missing (a restored world keeps its own:
+        they are zero between steps) or sized for fewer bodies or contacts."""
+        have = vars(self)
+        dev = self.device
+        if "relax_marked" not in have:
+            self.relax_marked: wp.array = wp.zeros(1, dtype=wp.int32, device=dev)
+        if "relax_body" not in have or self.relax_body.shape[0] != body_capacity:
+            self.relax_body: wp.array = wp.zeros(body_capacity, dtype=wp.int32, device=dev)
+        if "relax_listed" not in have or self.relax_listed.shape[0] != self.capacity:
+            self.relax_listed: wp.array = wp.zeros(self.capacity, dtype=wp.int32, device=dev)
 
     def match_previous(self, bodies) -> None:
         """Carry last step's impulses over to the contacts that persist (warm starting)."""
@@ -2222,7 +2288,7 @@ def solve(bodies, contacts: ContactSet, h: float, *, use_bias: bool, cache: Laun
         contacts._structs.bodies,
         _solve_pass(contacts, h, use_bias),
         contacts.counts,
-        contacts.pushed,
+        contacts._structs.relax,
     ]
     launch(_SOLVES[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
 
