@@ -1236,9 +1236,11 @@ class Relax:
     """Scratch of the serial solve passes: the bodies the biased pass marked, for its relax pass to sweep
     their manifolds on (RELAX_SWEEPS); zero again after every relax pass."""
 
-    marked: wp.array(dtype=wp.int32)  # one value: 1 when some body is marked
+    # [0]: 1 when some body is marked; [1]: the manifolds the last collision pass listed in `order`
+    marked: wp.array(dtype=wp.int32)
     body: wp.array(dtype=wp.int32)  # per body: 1 when marked
     listed: wp.array(dtype=wp.int32)  # per contact: the first rows of the marked bodies' manifolds
+    order: wp.array(dtype=wp.vec3i)  # `Ticks.order`: each manifold's first row and bodies, in row order
 
 
 @wp.func
@@ -1287,12 +1289,14 @@ def _make_solve(serial: int):
             else:
                 listed = int(0)
                 if relax.marked[0] != 0:
-                    # the manifolds of the marked bodies, swept without bias while they change the velocities
-                    for k in range(count):
-                        if rows[k].manifold > 0:
-                            if relax.body[rows[k].body_a] != 0 or relax.body[rows[k].body_b] != 0:
-                                relax.listed[listed] = k
-                                listed += 1
+                    # the manifolds of the marked bodies (from the collision pass's list of them all, which
+                    # ran just before: 12 bytes a manifold, not a row's cache line), swept without bias
+                    # while they change the velocities
+                    for m in range(relax.marked[1]):
+                        e = relax.order[m]
+                        if relax.body[e[1]] != 0 or relax.body[e[2]] != 0:
+                            relax.listed[listed] = e[0]
+                            listed += 1
                     sweep = int(0)
                     fastest = trigger
                     while sweep < RELAX_SWEEPS and fastest > RELAX_TOLERANCE * RELAX_TOLERANCE:
@@ -1940,7 +1944,12 @@ def _make_impacts(serial: int):
     # a name of its own: a recorded CPU graph finds a kernel by its name
     @wp.kernel(name="_impacts_serial" if serial else "_impacts_parallel")
     def impacts(
-        rows: wp.array(dtype=ContactRow), b: BodyArrays, p: ImpactPass, ticks: Ticks, counts: wp.array(dtype=wp.int32)
+        rows: wp.array(dtype=ContactRow),
+        b: BodyArrays,
+        p: ImpactPass,
+        ticks: Ticks,
+        counts: wp.array(dtype=wp.int32),
+        relax: Relax,
     ):
         if wp.static(serial == 0):
             # one thread per contact (CUDA): atomics and the Jacobi scale
@@ -2037,6 +2046,7 @@ def _make_impacts(serial: int):
                             inelastic += hit
                 sweep += 1
             ticks.clock[0] = t
+            relax.marked[1] = firsts  # (the relax pass after it finds the marked bodies' manifolds there)
 
     return impacts
 
@@ -2155,6 +2165,7 @@ class ContactSet(ArraySet):
             self.impact_order = wp.zeros(self.capacity, dtype=wp.vec3i, device=dev)
             relax = Relax()
             relax.marked, relax.body, relax.listed = self.relax_marked, self.relax_body, self.relax_listed
+            relax.order = self.impact_order
             owners = Owners()
             owners.start, owners.count = self.owner_start, self.owner_count
             owners.fill, owners.entries = self.owner_fill, self.owner_entries
@@ -2179,7 +2190,7 @@ class ContactSet(ArraySet):
         have = vars(self)
         dev = self.device
         if "relax_marked" not in have:
-            self.relax_marked: wp.array = wp.zeros(1, dtype=wp.int32, device=dev)
+            self.relax_marked: wp.array = wp.zeros(2, dtype=wp.int32, device=dev)
         if "relax_body" not in have or self.relax_body.shape[0] != body_capacity:
             self.relax_body: wp.array = wp.zeros(body_capacity, dtype=wp.int32, device=dev)
         if "relax_listed" not in have or self.relax_listed.shape[0] != self.capacity:
@@ -2352,5 +2363,12 @@ def impacts(
 
     p = _parameters(contacts, ("impacts", tuple(map(float, gravity)), h, threshold), parameters)
     serial = _serial(contacts)
-    args = [contacts.rows, contacts._structs.bodies, p, contacts._structs.ticks, contacts.counts]
+    args = [
+        contacts.rows,
+        contacts._structs.bodies,
+        p,
+        contacts._structs.ticks,
+        contacts.counts,
+        contacts._structs.relax,
+    ]
     launch(_IMPACTS[serial], 1 if serial else contacts.capacity, args, contacts.device, cache)
