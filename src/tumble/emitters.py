@@ -356,10 +356,11 @@ class Emitter:
         inside it. Distances and the winding number are the same in the mesh's frame."""
         walls = []
         reach = float(np.linalg.norm(half))  # the box, as the sphere around it
-        for i in map(int, np.flatnonzero(rows)):
-            row = int(bodies.numpy("body_geometry")[i])
-            rotation = quat_to_matrix(bodies.numpy("body_orientation")[i])
-            position = bodies.numpy("body_position")[i]
+        rows = np.flatnonzero(rows)
+        geometry = bodies.numpy("body_geometry")[rows]
+        rotations = quat_to_matrix(bodies.numpy("body_orientation")[rows])
+        positions = bodies.numpy("body_position")[rows]
+        for row, rotation, position in zip(map(int, geometry), rotations, positions):
             centre = rotation.T @ (self.position - position)
             lo, hi = centre - reach, centre + reach
             a, b, c = meshes.corners(row)
