@@ -127,13 +127,70 @@ class Terminated(KeyboardInterrupt):
     does: every output still being written is removed, and what the user had is left as it was."""
 
 
-def _terminate(signum: int, frame: object) -> None:
-    raise Terminated()
+#: seconds between raising an interruption (SIGTERM, Ctrl-C) again while it is not seen unwinding.
+#: C code that looks an attribute up may clear whatever was raised meanwhile, the signal's exception
+#: too: NumPy, comparing an array with an enum member, asks the enum class for its special methods,
+#: and 3 of 60 renders sent `kill` at a random frame rendered on to the end
+INTERRUPT_RETRY_S = 0.5
+
+
+class _Interrupts:
+    """Handlers that raise Terminated on SIGTERM and KeyboardInterrupt on Ctrl-C, and raise it again
+    every INTERRUPT_RETRY_S until it unwinds (an exception being handled, or what one raised meanwhile)."""
+
+    def __init__(self) -> None:
+        self.pending: type[KeyboardInterrupt] | None = None
+        self.previous: dict[int, object] = {}
+
+    def install(self) -> None:
+        handlers = {signal.SIGTERM: self.received, signal.SIGINT: self.received}
+        if hasattr(signal, "setitimer"):
+            handlers[signal.SIGALRM] = self.again
+        for number, handler in handlers.items():
+            self.previous[number] = signal.signal(number, handler)
+
+    def restore(self) -> None:
+        self.pending = None
+        if hasattr(signal, "setitimer"):
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        for number, handler in self.previous.items():
+            signal.signal(number, handler)  # type: ignore[arg-type]
+        self.previous.clear()
+
+    def received(self, signum: int, frame: object) -> None:
+        self.pending = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+        if hasattr(signal, "setitimer"):
+            signal.setitimer(signal.ITIMER_REAL, INTERRUPT_RETRY_S, INTERRUPT_RETRY_S)
+        raise self.pending()
+
+    def again(self, signum: int, frame: object) -> None:
+        if self.pending is None or _unwinding():
+            return
+        raise self.pending()
+
+
+def _unwinding() -> bool:
+    """Whether an interruption is being handled here or further up (a `finally`, an `__exit__`),
+    or an exception raised meanwhile has one as its context."""
+    exc, seen = sys.exc_info()[1], 0
+    while exc is not None and seen < 100:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        exc, seen = exc.__context__, seen + 1
+    return False
 
 
 def main(argv: list[str] | None = None) -> int:
+    interrupts = _Interrupts()
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _terminate)
+        interrupts.install()
+    try:
+        return _run(argv, interrupts)
+    finally:
+        interrupts.restore()
+
+
+def _run(argv: list[str] | None, interrupts: _Interrupts) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -146,9 +203,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.command_main(args) or 0)
     except Terminated:
+        interrupts.restore()  # (here, where it is being handled, so that it is not raised again)
         print(f"tumble {args.command}: terminated", file=sys.stderr)
         return 143
     except KeyboardInterrupt:
+        interrupts.restore()
         print(f"tumble {args.command}: interrupted", file=sys.stderr)
         return 130
     except ModuleNotFoundError as exc:

@@ -64,6 +64,49 @@ def test_the_parser_lists_its_commands_and_every_option():
     assert [a.dest for a in parser.commands["check"].options if not a.option_strings] == ["scene"]
 
 
+def test_an_interruption_that_c_code_swallowed_is_raised_again_but_not_inside_its_own_cleanup(tumble_subprocess_env):
+    """C code that looks an attribute up (NumPy on an enum member) may clear the exception a signal
+    handler raised, and a render sent `kill` ran on to its end: the handlers raise it again every
+    INTERRUPT_RETRY_S until it is seen unwinding, and leave a `finally` that is cleaning up alone."""
+    script = """
+import os, signal, sys, time
+from tumble import cli
+interrupts = cli._Interrupts()
+interrupts.install()
+try:
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)
+    except BaseException:
+        pass  # swallowed, as C code does
+    start = time.monotonic()
+    while time.monotonic() - start < 10 * cli.INTERRUPT_RETRY_S:
+        pass
+    print("ran on")
+except cli.Terminated:
+    waited = time.monotonic() - start
+    print("raised again", waited <= 2 * cli.INTERRUPT_RETRY_S)
+try:
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+    finally:
+        start = time.monotonic()
+        while time.monotonic() - start < 3 * cli.INTERRUPT_RETRY_S:
+            pass
+        print("cleaned up")
+except KeyboardInterrupt as exc:
+    print("one", type(exc).__name__)
+interrupts.restore()
+"""
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60, env=tumble_subprocess_env
+    )
+    assert result.stdout.split("\n")[:3] == ["raised again True", "cleaned up", "one KeyboardInterrupt"], (
+        result.stdout + result.stderr
+    )
+
+
 def test_sigterm_unwinds_as_ctrl_c_and_leaves_no_temporary_file(tmp_path, tumble_subprocess_env):
     """`kill` (SIGTERM) during a render: exit 143 with one line, the user's earlier file unchanged and
     no temporary output left beside it (the render's atomic write is unwound, as on Ctrl-C)."""
