@@ -342,6 +342,72 @@ def test_no_tunnelling_through_a_thin_mesh_at_50_m_s(shape):
         assert w.body_position[1, 2] == pytest.approx(rest, abs=1e-3)
 
 
+# a pebble of the pebble_bowl sample (the hull of ten points, 8 cm across)
+PEBBLE = 0.08 * np.array(
+    [
+        [-0.280, 0.223, 0.220],
+        [0.486, 0.643, -0.082],
+        [0.256, -0.129, -0.302],
+        [-0.332, 0.048, -0.194],
+        [-0.090, 0.396, 0.121],
+        [0.270, 0.122, -0.037],
+        [-0.880, 0.350, -0.320],
+        [0.102, -0.038, 0.029],
+        [0.119, -0.118, 0.191],
+        [-0.606, 0.280, -0.359],
+    ]
+)
+
+
+def quat_rotate(q, v):
+    """Rotate the rows of v by the unit quaternion q = (x, y, z, w)."""
+    u, s = np.asarray(q[:3]), q[3]
+    return v + 2 * s * np.cross(u, v) + 2 * np.cross(u, np.cross(u, v))
+
+
+@pytest.mark.parametrize("floor", ["plane", "mesh"])
+def test_a_spinning_pebble_puts_no_vertex_through_the_floor_that_it_swings_down(floor):
+    """A pebble tumbling at 23 rad/s, one vertex 1.2 mm above the floor, swings another from 1.95 mm
+    above to 5.6 mm below within the step (at its velocities now), a vertex that is not among the
+    four a resting contact keeps (the deepest, the farthest from it, and the largest triangles).
+    That vertex gets a contact as well, and stays out of the floor: 3.8 mm into it before, in the
+    pebble_bowl sample 7 mm into the bowl. Bound: the distance gravity moves a body in one step
+    (g dt^2, 0.17 mm), less than which the contact, stopping it at the surface, leaves.
+    """
+    w = tumble.World(gravity=(0, 0, -G))
+    if floor == "plane":
+        w.add_plane(restitution=0.1, friction=0.6)
+    else:
+        v, t = slab_mesh(1.0, 1.0, 0.005)
+        w.add_mesh(vertices=v, triangles=t, position=(0, 0, -0.005), restitution=0.1, friction=0.6)
+    i = w.add_convex(points=PEBBLE, position=(0, 0, 1), density=2600, restitution=0.1, friction=0.6)
+    # a state of a pebble dropped at 3 m/s spinning (principal frame: the orientation is the body's)
+    q = np.array([0.545393, -0.822651, -0.133903, 0.088667])
+    w.set_body_state(
+        i,
+        position=(0.013728, 0.003286, 0.016192),
+        orientation=q / np.linalg.norm(q),
+        velocity=(0.107484, -0.316346, -0.747502),
+        angular_velocity=(-23.13876, 4.323552, 0.0),
+    )
+    vertices = np.asarray(w.hulls.prototypes[int(w.bodies.numpy("body_geometry")[i])].vertex)
+
+    def heights():
+        return (w.body_position[i] + quat_rotate(w.body_orientation[i], vertices))[:, 2]
+
+    world_vertices = w.body_position[i] + quat_rotate(w.body_orientation[i], vertices)
+    point_velocity = w.body_velocity[i] + np.cross(w.body_angular_velocity[i], world_vertices - w.body_position[i])
+    ahead = world_vertices[:, 2] + w.dt * point_velocity[:, 2]
+    crossing = np.flatnonzero((world_vertices[:, 2] > 0) & (ahead < 0))
+    assert len(crossing) >= 1  # the case: a vertex above the floor that would end the step below it
+    w.collide()
+    for k in crossing:  # a contact at it (the point midway to the floor is right below it)
+        offsets = np.linalg.norm(w.contact_point[:, :2] - world_vertices[k, :2], axis=1)
+        assert offsets.min() < 1e-6, (k, w.contact_point)
+    w.step()
+    assert heights().min() > -G * w.dt**2
+
+
 def ridge_mesh(height=0.2, half=1.0):
     """A tent: two 45 degree slopes meeting at a sharp ridge along y at z = height, wound upwards."""
     v = np.array(

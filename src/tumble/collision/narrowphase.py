@@ -1045,15 +1045,51 @@ def hull_closest(H: Hulls, h: int, sc: vec3, p: vec3):
     return q, out, best
 
 
+@wp.struct
+class Motion:
+    """The velocities of a solid (vs, ws) and of the plane or mesh it meets (vm, wm), and the step."""
+
+    vs: vec3
+    ws: vec3
+    vm: vec3
+    wm: vec3
+    dt: float_t
+
+
+@wp.func
+def _point_velocity(m: Motion, S: Pose, M: Pose, p: vec3):
+    """Velocity of the solid's point p relative to the plane's or mesh's point there."""
+    return (m.vs + wp.cross(m.ws, p - S.x)) - (m.vm + wp.cross(m.wm, p - M.x))
+
+
+@wp.func
+def _crosses(m: Motion, S: Pose, M: Pose, p: vec3, n: vec3, d: float_t):
+    """Whether the solid's point p, a distance d > 0 outside the surface (normal n there), would pass
+    through it within the step at the bodies' velocities."""
+    return d > _ZERO and d + m.dt * wp.dot(n, _point_velocity(m, S, M, p)) < _ZERO
+
+
 @wp.func
 def collide_plane_hull(
-    c: Contacts, a: int, b: int, A: Pose, B: Pose, H: Hulls, h: int, bound: float_t, max_sep: float_t
+    c: Contacts,
+    a: int,
+    b: int,
+    A: Pose,
+    B: Pose,
+    H: Hulls,
+    h: int,
+    bound: float_t,
+    max_sep: float_t,
+    motion: Motion,
 ):
-    # up to four of the vertices within the speculative distance (`_four_vertices`)
+    # up to four of the vertices within the speculative distance (`_four_vertices`), and any other
+    # that would pass through the plane this step
     n = _axis(A.q, 2)
     one = vec3(_ONE, _ONE, _ONE)
     nv = H.vertex_count[h]
-    i0, i1, i2, i3, n0, d0 = _four_vertices(B, int(ShapeType.CONVEX), H, h, one, nv, bound, A, wp.uint64(0), n, max_sep)
+    i0, i1, i2, i3, crossing, n0, d0 = _four_vertices(
+        B, int(ShapeType.CONVEX), H, h, one, nv, bound, A, wp.uint64(0), n, max_sep, motion
+    )
     if i0 < 0 or d0 > max_sep:
         return
     for k in range(4):
@@ -1061,6 +1097,13 @@ def collide_plane_hull(
         if i >= 0 and (k == 0 or i != i0):
             pi = B.x + wp.quat_rotate(B.q, _solid_vertex(int(ShapeType.CONVEX), H, h, one, i))
             emit(c, a, b, A, B, n, pi - n * wp.dot(n, pi - A.x), pi, max_sep)
+    if crossing > 0:
+        for i in range(nv):
+            if i != i0 and i != i1 and i != i2 and i != i3:
+                pi = B.x + wp.quat_rotate(B.q, _solid_vertex(int(ShapeType.CONVEX), H, h, one, i))
+                d = wp.dot(n, pi - A.x)
+                if _crosses(motion, B, A, pi, n, d):
+                    emit(c, a, b, A, B, n, pi - n * d, pi, max_sep)
 
 
 @wp.func
@@ -1624,32 +1667,36 @@ def _four_vertices(
     mesh: wp.uint64,
     n_plane: vec3,
     max_sep: float_t,
+    motion: Motion,
 ):
     """Up to four vertices of a box or hull (pose S, `_solid_vertex(shape, H, g, h, i)`, i < nv)
     to touch a plane or a mesh (`_vertex_depth`): the deepest; the one farthest from it across
     its normal; the largest triangles either side of that line. Only vertices within half the
     bound radius of the deepest count: a fast body's far side, though within the speculative
-    distance, must not displace the near side's vertices.
+    distance, must not displace the near side's vertices. It counts, too, the vertices that
+    would pass through the surface this step (`_crosses`), which the caller adds.
 
-    Returns (i0, i1, i2, i3, normal at the deepest, its depth); i0 < 0 when no vertex is within
-    `max_sep`, i2 or i3 < 0 when no vertex lies on that side; i1 == i0 when all are at one point.
+    Returns (i0, i1, i2, i3, crossing count, normal at the deepest, its depth); i0 < 0 when no vertex
+    is within `max_sep`, i2 or i3 < 0 when no vertex lies on that side; i1 == i0 when all are at one point.
     """
     i0 = int(-1)
     d0 = float_t(1.0e30)
     n0 = vec3()
+    crossing = int(0)
     for i in range(nv):
-        found, q, n, d = _vertex_depth(
-            mesh, M, n_plane, S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i)), max_sep
-        )
+        pi = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i))
+        found, q, n, d = _vertex_depth(mesh, M, n_plane, pi, max_sep)
         if found and d < d0:
             d0 = d
             i0 = i
             n0 = n
+        if found and _crosses(motion, S, M, pi, n, d):
+            crossing += 1
     i1 = i0
     i2 = int(-1)
     i3 = int(-1)
     if i0 < 0 or d0 > max_sep:
-        return i0, i1, i2, i3, n0, d0
+        return i0, i1, i2, i3, crossing, n0, d0
     p0 = S.x + wp.quat_rotate(S.q, _solid_vertex(shape, H, g, h, i0))
     limit = wp.min(max_sep, d0 + float_t(0.5) * bound)
     far = float_t(1e-12) * bound * bound
@@ -1675,7 +1722,7 @@ def _four_vertices(
             if area < amin:
                 amin = area
                 i3 = i
-    return i0, i1, i2, i3, n0, d0
+    return i0, i1, i2, i3, crossing, n0, d0
 
 
 @wp.func
@@ -1891,12 +1938,13 @@ def collide_vertices_mesh(
     bound: float_t,
     mesh: wp.uint64,
     max_sep: float_t,
+    motion: Motion,
 ):
-    """A box's or hull's vertices against a mesh: up to four, chosen as against a plane; then the
+    """A box's or hull's vertices against a mesh: up to five, chosen as against a plane; then the
     mesh's own edges, for a ridge or a spike pressing into a face between the vertices.
 
     The deepest vertex, the one farthest from it across the normal, then the largest triangles
-    either side; then one contact at the deepest point of the mesh edges inside the body, when
+    either side, and one that would pass through this step (`_four_vertices`); then one contact at the deepest point of the mesh edges inside the body, when
     that is deeper than the deepest vertex (`_mesh_edges_into_solid`). Each vertex touches as a
     sphere of radius 0 (`_sphere_mesh`): its nearest mesh point, and the concave faces next to
     it that it can reach within the step. With the nearest point alone, a box sliding in a
@@ -1906,7 +1954,7 @@ def collide_vertices_mesh(
     nv = int(8)
     if shape != int(ShapeType.BOX):
         nv = H.vertex_count[g]
-    i0, i1, i2, i3, n0, d0 = _four_vertices(A, shape, H, g, h, nv, bound, B, mesh, vec3(), max_sep)
+    i0, i1, i2, i3, crossing, n0, d0 = _four_vertices(A, shape, H, g, h, nv, bound, B, mesh, vec3(), max_sep, motion)
     # the box as the unit-cube hull (prototype 0) scaled by its half extents
     hp = g
     sc = vec3(_ONE, _ONE, _ONE)
@@ -1921,9 +1969,27 @@ def collide_vertices_mesh(
         if i >= 0 and (k == 0 or i != i0):
             pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
             _sphere_mesh(c, a, b, A, B, pi, _ZERO, mesh, max_sep)  # the vertex as a point, creases included
+    if crossing > 0:
+        for i in range(nv):
+            if i != i0 and i != i1 and i != i2 and i != i3:
+                pi = A.x + wp.quat_rotate(A.q, _solid_vertex(shape, H, g, h, i))
+                found, q, n, d = _mesh_point(mesh, B, pi, max_sep)
+                if found and _crosses(motion, A, B, pi, n, d):
+                    _sphere_mesh(c, a, b, A, B, pi, _ZERO, mesh, max_sep)
 
 
 # ---------------------------------------------------------------------------- dispatch
+
+
+@wp.func
+def _motion(body: BodyArrays, solid: int, other: int, dt: float_t):
+    m = Motion()
+    m.vs = body.velocity[solid]
+    m.ws = body.angular_velocity[solid]
+    m.vm = body.velocity[other]
+    m.wm = body.angular_velocity[other]
+    m.dt = dt
+    return m
 
 
 @wp.kernel
@@ -1979,7 +2045,7 @@ def _collide_pairs(
             elif sb == int(ShapeType.CAPSULE):
                 collide_plane_capsule(c, a, b, A, B, radius[b], half_extents[b], max_sep)
             elif sb == int(ShapeType.CONVEX):
-                collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep)
+                collide_plane_hull(c, a, b, A, B, hulls, geometry[b], bound[b], max_sep, _motion(body, b, a, dt))
         elif sa == int(ShapeType.SPHERE):
             if sb == int(ShapeType.SPHERE):
                 collide_sphere_sphere(
@@ -2043,7 +2109,21 @@ def _collide_pairs(
             elif sa == int(ShapeType.CAPSULE):
                 collide_capsule_mesh(c, a, b, A, B, radius[a], half_extents[a], mesh, max_sep)
             elif sa == int(ShapeType.BOX) or sa == int(ShapeType.CONVEX):
-                collide_vertices_mesh(c, a, b, A, B, sa, hulls, geometry[a], half_extents[a], bound[a], mesh, max_sep)
+                collide_vertices_mesh(
+                    c,
+                    a,
+                    b,
+                    A,
+                    B,
+                    sa,
+                    hulls,
+                    geometry[a],
+                    half_extents[a],
+                    bound[a],
+                    mesh,
+                    max_sep,
+                    _motion(body, a, b, dt),
+                )
 
 
 _default_hulls: dict[str, HullSet] = {}
