@@ -33,10 +33,23 @@ def _started_as_command() -> bool:
 def _quiet_startup_interrupts() -> None:
     """In the `tumble` command, a Ctrl-C that `tumble.cli.main` cannot catch yet (while Tumble,
     Warp and NumPy import, a second or two, or while the arguments are parsed) ends it with one
-    line, "tumble: interrupted", and exit status 130, not a traceback. A program that imports
-    Tumble as a library keeps Python's own handling."""
+    line, "tumble: interrupted", and exit status 130, not a traceback; a SIGTERM then ends it with
+    "tumble: terminated" and status 143 (before this, Python's default ended it silently; nothing
+    is written before the command's own handlers take over). A program that imports Tumble as a
+    library keeps Python's own handling."""
     if not _started_as_command():
         return
+    import signal
+
+    def terminated(signum, frame) -> None:
+        _sys.stderr.write("tumble: terminated\n")
+        _sys.stderr.flush()
+        _os._exit(143)
+
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, terminated)
     previous = _sys.excepthook
 
     def hook(kind, value, traceback) -> None:

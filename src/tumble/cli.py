@@ -11,6 +11,7 @@ Exit status and what is printed on stderr, for every command:
   one line, "tumble COMMAND: error: ...".
 - 1: an unexpected error (a bug): one line naming it and how to see the traceback.
 - 130: interrupted (Ctrl-C).
+- 143: terminated (SIGTERM, `kill`), unwound as on Ctrl-C.
 
 A traceback is printed only with `--debug` (before or after the command) or with the
 environment variable TUMBLE_DEBUG=1.

@@ -48,6 +48,19 @@ def test_ctrl_c_while_tumble_imports_is_one_line(tmp_path, tumble_subprocess_env
     assert result.returncode in (130, -signal.SIGINT)  # Python ends an unhandled Ctrl-C by SIGINT
 
 
+def test_sigterm_while_tumble_imports_is_one_line_and_status_143(tmp_path, tumble_subprocess_env):
+    """`kill` in `import tumble` (Warp's import), before `tumble.cli.main` handles it: "tumble: terminated",
+    status 143, where Python's default ended the process silently, killed by the signal."""
+    fake = tmp_path / "fake"
+    fake.mkdir()
+    (fake / "warp.py").write_text("import os, signal, time\nos.kill(os.getpid(), signal.SIGTERM)\ntime.sleep(60)\n")
+    env = dict(tumble_subprocess_env, PYTHONPATH=os.pathsep.join([str(fake), tumble_subprocess_env["PYTHONPATH"]]))
+    result = subprocess.run(
+        [sys.executable, "-m", "tumble", "run", "bouncing_ball"], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert (result.returncode, result.stderr) == (143, "tumble: terminated\n")
+
+
 def test_a_program_importing_tumble_keeps_its_traceback(tmp_path, tumble_subprocess_env):
     """Only the command is quiet: a program that imports Tumble sees Python's own KeyboardInterrupt."""
     env = _with_warp_interrupted(tmp_path, tumble_subprocess_env)
