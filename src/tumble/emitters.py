@@ -186,6 +186,9 @@ class Emitter:
         self.seed = None if seed is None else validate.seed(seed)
         self.world_key: int | None = None  # the World it was added to (`World.add_emitter`)
         self.emitted = 0
+        #: simulated seconds for which the emitter has owed bodies and found no free spot in its
+        #: region for any (0 while it releases them): a region inside a mesh or a heap never releases
+        self.blocked_for = 0.0
         self._owed = 0.0
         self.reset_rng()
 
@@ -451,7 +454,9 @@ class Emitter:
                     placed_r.append(cand["bound"][i])
                     break
         if not accepted:
+            self.blocked_for += dt
             return None  # no room this step: wait, and try again next step
+        self.blocked_for = 0.0
         idx = np.asarray(accepted)
         shape = cand["shape"][idx]
         convex = shape == ShapeType.CONVEX

@@ -264,12 +264,31 @@ def _print_summary(args, world, steps: int, wall: float, first_step: float, reco
         ("contacts", f"{world.contact_count:,}"),
         ("state hash", world.state_hash()),
     ]
+    if world.emitters:
+        lines.append(("emitted", _emitted(world.emitters)))
     if recorder is not None:
         lines.append(("recorded", f"{args.record} ({recorder.frame_count} frames at {recorder.fps:g} fps)"))
     width = max(len(name) for name, _ in lines)
     for name, value in lines:
         print(f"{name:<{width}}  {value}")
     sys.stdout.flush()
+
+
+#: an emitter blocked this long at the end of a run is named in the summary (a busy one waits a step or two)
+BLOCKED_NOTICE_S = 0.1
+
+
+def _emitted(emitters) -> str:
+    """'35 of 50 bodies', and which emitters have found no free spot lately ('; emitter 2 has found
+    no free spot in its region for 1.2 s: is it inside a mesh or a heap?')."""
+    text = f"{sum(e.emitted for e in emitters):,} of {sum(e.count for e in emitters):,} bodies"
+    blocked = [(k, e) for k, e in enumerate(emitters, 1) if not e.done and e.blocked_for >= BLOCKED_NOTICE_S]
+    for k, e in blocked:
+        text += (
+            f"; emitter {k} has found no free spot in its region for the last {e.blocked_for:.3g} s"
+            " (is its region inside a mesh, or under a heap?)"
+        )
+    return text
 
 
 def _count(n: int, noun: str) -> str:

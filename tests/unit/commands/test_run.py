@@ -57,6 +57,29 @@ def test_run_summary_counts_capsules_convex_bodies_and_meshes(capsys, tmp_path):
     assert "6 (1 plane, 1 sphere, 0 boxes, 1 capsule, 1 convex, 2 meshes)" in capsys.readouterr().out
 
 
+def test_run_summary_counts_the_emitted_bodies_and_names_an_emitter_that_finds_no_room(capsys, tmp_path):
+    """An emitter whose region lies inside a closed mesh never releases a body, and said nothing: the
+    summary counts the emitted bodies and names the emitter that has found no free spot, and for how long."""
+    v = [(x, y, z) for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)]
+    quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3]]
+    faces = [t for q in quads for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]])]
+    (tmp_path / "cube.obj").write_text(
+        "".join(f"v {x} {y} {z}\n" for x, y, z in v) + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces)
+    )
+    inside = EMITTING.replace("position = [0, 0, 2]", "position = [5, 0, 1]").replace(
+        "extent = [0.5, 0.5, 0.1]", "extent = [0.2, 0.2, 0.1]"
+    )
+    scene = EMITTING + inside + '[[mesh]]\nfile = "cube.obj"\nposition = [5, 0, 1]\n'
+    path = tmp_path / "inside.toml"
+    path.write_text(scene)
+    assert main(["run", str(path), "--duration", "0.5"]) == 0
+    line = next(row for row in capsys.readouterr().out.splitlines() if row.startswith("emitted"))
+    # the first emitter releases its 4 (at 40 a second, the first at 25 ms); the second tries from 25 ms on
+    assert line.split(None, 1)[1].startswith("4 of 8 bodies; emitter 2 has found no free spot in its region")
+    blocked = float(line.split("for the last ")[1].split(" s")[0])
+    assert 0.5 - 0.025 - 2 / 240 <= blocked <= 0.5 - 0.025 + 1 / 240  # tried each step since it first owed one
+
+
 def test_run_profile_lists_the_stages(write_scene, capsys):
     """Print the time per stage with --profile."""
     assert main(["run", str(write_scene(BALL)), "--duration", "0.05", "--profile"]) == 0
