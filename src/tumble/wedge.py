@@ -868,8 +868,10 @@ def cluster(address=None, *, workers: int | None = None, timeout: float = CONNEC
 
 @contextlib.contextmanager
 def interrupt_after():
-    """Hold back a Ctrl-C until the block has run, then raise it (KeyboardInterrupt), also in place
-    of an error the block raised meanwhile.
+    """Hold back a Ctrl-C or a SIGTERM until the block has run, then handle it as the handler in place
+    before the block does (KeyboardInterrupt; the command's Terminated), also in place of an error
+    the block raised meanwhile. A SIGTERM reaching a local cluster half started left Dask's exit
+    handler to close it, which failed with a traceback.
 
     Outside the main thread (where signals cannot be caught) nothing changes.
     """
@@ -879,17 +881,40 @@ def interrupt_after():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    interrupted = threading.Event()
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: interrupted.set())
+    received: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {number: signal.signal(number, lambda signum, frame: received.append(signum)) for number in held}
+
+    def restore() -> None:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
     try:
         yield
     except Exception:
-        if interrupted.is_set():  # what the Ctrl-C broke (a worker it stopped as it started)
-            raise KeyboardInterrupt from None
+        if received:  # what the signal broke (a worker it stopped as it started)
+            restore()
+            try:
+                _deliver(received[0])
+            except BaseException as exc:
+                raise exc from None
         raise
     finally:
-        signal.signal(signal.SIGINT, previous)
-    if interrupted.is_set():
+        restore()
+    if received:
+        _deliver(received[0])
+
+
+def _deliver(number: int) -> None:
+    """Handle the signal `number` as its handler now does: call it, or take the default action."""
+    import signal
+
+    handler = signal.getsignal(number)
+    if callable(handler):
+        handler(number, None)
+    elif handler == signal.SIG_DFL:
+        signal.raise_signal(number)
+    if number == signal.SIGINT:  # ignored, or a handler that returned: a Ctrl-C still ends the block
         raise KeyboardInterrupt
 
 

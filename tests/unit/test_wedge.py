@@ -299,3 +299,39 @@ def test_processes_spawned_for_a_local_cluster_start_with_sigint_blocked():
             child.join()
     assert masks == [sigint, 0]
     assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before
+
+
+def test_a_sigterm_while_a_local_cluster_starts_is_held_back_until_it_has_started(tumble_subprocess_env):
+    """SIGTERM reaching a local cluster half started left Dask's exit handler to close it, which failed
+    with a traceback (AssertionError: Status.init): `interrupt_after` holds it back, as a Ctrl-C, until
+    the block has run, then the command's handler raises Terminated; also in place of an error the
+    block raised meanwhile."""
+    import subprocess
+    import sys
+
+    script = """
+import os, signal
+from tumble import cli
+from tumble.wedge import interrupt_after
+interrupts = cli._Interrupts()
+interrupts.install()
+for fails in (False, True):
+    steps = []
+    try:
+        with interrupt_after():
+            os.kill(os.getpid(), signal.SIGTERM)
+            steps.append("ran on")
+            if fails:
+                raise RuntimeError("a worker stopped as it started")
+    except cli.Terminated:
+        steps.append("terminated")
+    except RuntimeError:
+        steps.append("the error")
+    interrupts.restore()
+    interrupts.install()
+    print(steps)
+"""
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=tumble_subprocess_env
+    )
+    assert result.stdout.splitlines() == ["['ran on', 'terminated']"] * 2, result.stdout + result.stderr
