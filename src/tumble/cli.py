@@ -11,7 +11,7 @@ Exit status and what is printed on stderr, for every command:
   one line, "tumble COMMAND: error: ...".
 - 1: an unexpected error (a bug): one line naming it and how to see the traceback.
 - 130: interrupted (Ctrl-C).
-- 143: terminated (SIGTERM, `kill`), unwound as on Ctrl-C.
+- 143: terminated (SIGTERM, `kill`), unwound as on Ctrl-C; 129 on SIGHUP (its terminal closed).
 
 A traceback is printed only with `--debug` (before or after the command) or with the
 environment variable TUMBLE_DEBUG=1.
@@ -124,8 +124,13 @@ def build_parser() -> Parser:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM (`kill`, a job's time limit), raised where the command is so that it unwinds as Ctrl-C
-    does: every output still being written is removed, and what the user had is left as it was."""
+    """SIGTERM (`kill`, a job's time limit) or SIGHUP (its terminal closed), raised where the command is
+    so that it unwinds as Ctrl-C does: every output still being written is removed, and what the user
+    had is left as it was. The command then exits with status 128 + `signum` (143, 129)."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__(signum)
+        self.signum = int(signum)
 
 
 #: seconds between raising an interruption (SIGTERM, Ctrl-C) again while it is not seen unwinding.
@@ -135,20 +140,26 @@ class Terminated(KeyboardInterrupt):
 INTERRUPT_RETRY_S = 0.5
 
 
+#: the signals that end a command: Ctrl-C (KeyboardInterrupt), then those raised as Terminated
+TERMINATING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
 class _Interrupts:
-    """Handlers that raise Terminated on SIGTERM and KeyboardInterrupt on Ctrl-C, and raise it again
-    every INTERRUPT_RETRY_S until it unwinds (an exception being handled, or what one raised meanwhile)."""
+    """Handlers that raise KeyboardInterrupt on Ctrl-C and Terminated on SIGTERM or SIGHUP, and raise
+    it again every INTERRUPT_RETRY_S until it unwinds (an exception being handled, or what one raised
+    meanwhile). A signal the command was started ignoring (`nohup`, a script's background job) stays ignored."""
 
     def __init__(self) -> None:
-        self.pending: type[KeyboardInterrupt] | None = None
+        self.pending: KeyboardInterrupt | None = None
         self.previous: dict[int, object] = {}
 
     def install(self) -> None:
-        handlers = {signal.SIGTERM: self.received, signal.SIGINT: self.received}
+        handlers = {number: self.received for number in (signal.SIGINT, *TERMINATING)}
         if hasattr(signal, "setitimer"):
             handlers[signal.SIGALRM] = self.again
         for number, handler in handlers.items():
-            self.previous[number] = signal.signal(number, handler)
+            if signal.getsignal(number) is not signal.SIG_IGN:
+                self.previous[number] = signal.signal(number, handler)
 
     def restore(self) -> None:
         self.pending = None
@@ -159,15 +170,15 @@ class _Interrupts:
         self.previous.clear()
 
     def received(self, signum: int, frame: object) -> None:
-        self.pending = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+        self.pending = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
         if hasattr(signal, "setitimer"):
             signal.setitimer(signal.ITIMER_REAL, INTERRUPT_RETRY_S, INTERRUPT_RETRY_S)
-        raise self.pending()
+        raise self.pending
 
     def again(self, signum: int, frame: object) -> None:
         if self.pending is None or _unwinding():
             return
-        raise self.pending()
+        raise self.pending
 
 
 def _unwinding() -> bool:
@@ -203,10 +214,10 @@ def _run(argv: list[str] | None, interrupts: _Interrupts) -> int:
     prefix = f"tumble {args.command}: error:"
     try:
         return int(args.command_main(args) or 0)
-    except Terminated:
+    except Terminated as exc:
         interrupts.restore()  # (here, where it is being handled, so that it is not raised again)
         print(f"tumble {args.command}: terminated", file=sys.stderr)
-        return 143
+        return 128 + exc.signum
     except KeyboardInterrupt:
         interrupts.restore()
         print(f"tumble {args.command}: interrupted", file=sys.stderr)

@@ -882,7 +882,7 @@ def interrupt_after():
         yield
         return
     received: list[int] = []
-    held = (signal.SIGINT, signal.SIGTERM)
+    held = (signal.SIGINT, *(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)))
     previous = {number: signal.signal(number, lambda signum, frame: received.append(signum)) for number in held}
 
     def restore() -> None:

@@ -64,6 +64,31 @@ def test_the_parser_lists_its_commands_and_every_option():
     assert [a.dest for a in parser.commands["check"].options if not a.option_strings] == ["scene"]
 
 
+def test_a_sighup_ignored_as_under_nohup_stays_ignored(tumble_subprocess_env):
+    """Started with SIGHUP ignored (`nohup tumble ...`), the command keeps ignoring it."""
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tumble", "run", "sphere_pile", "--duration", "600"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),
+    )
+    assert proc.stderr is not None
+    for line in proc.stderr:  # stepping
+        if line.startswith("first step done"):
+            break
+    proc.send_signal(signal.SIGHUP)
+    time.sleep(1.0)
+    running = proc.poll() is None
+    proc.terminate()
+    proc.communicate(timeout=60)
+    assert running and proc.returncode == 143
+
+
 def test_an_interruption_that_c_code_swallowed_is_raised_again_but_not_inside_its_own_cleanup(tumble_subprocess_env):
     """C code that looks an attribute up (NumPy on an enum member) may clear the exception a signal
     handler raised, and a render sent `kill` ran on to its end: the handlers raise it again every
@@ -107,9 +132,12 @@ interrupts.restore()
     )
 
 
-def test_sigterm_unwinds_as_ctrl_c_and_leaves_no_temporary_file(tmp_path, tumble_subprocess_env):
+@pytest.mark.parametrize("number", ["SIGTERM", "SIGHUP"])
+def test_sigterm_unwinds_as_ctrl_c_and_leaves_no_temporary_file(tmp_path, tumble_subprocess_env, number):
     """`kill` (SIGTERM) during a render: exit 143 with one line, the user's earlier file unchanged and
-    no temporary output left beside it (the render's atomic write is unwound, as on Ctrl-C)."""
+    no temporary output left beside it (the render's atomic write is unwound, as on Ctrl-C). SIGHUP
+    (the terminal closed) too, with status 129: it ended the render at once, leaving its temporary file."""
+    import signal
     import time
 
     out = tmp_path / "movie.mp4"
@@ -137,9 +165,9 @@ def test_sigterm_unwinds_as_ctrl_c_and_leaves_no_temporary_file(tmp_path, tumble
     while not any(p.name != out.name for p in tmp_path.iterdir()):  # the render's temporary output
         assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read() if proc.stderr else ""
         time.sleep(0.2)
-    proc.terminate()
+    proc.send_signal(getattr(signal, number))
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 143, err
+    assert proc.returncode == 128 + getattr(signal, number), err
     assert err.strip().splitlines()[-1] == "tumble render: terminated" and "Traceback" not in err
     assert out.read_bytes() == b"the user's earlier file"
     assert [p.name for p in tmp_path.iterdir()] == [out.name]

@@ -133,10 +133,10 @@ def main(args: argparse.Namespace) -> int:
     recorder = Recorder(world, fps=args.fps) if args.record else None
     try:
         _simulate(args, world, steps, recorder)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         if recorder is None and args.save_state is None:
             raise
-        # Ctrl-C: keep what was recorded (written atomically; a second Ctrl-C leaves no partial file)
+        # Ctrl-C or kill: keep what was recorded (written atomically; a second signal leaves no partial file)
         saved = []
         if recorder is not None:
             recorder.save(args.record)
@@ -144,12 +144,13 @@ def main(args: argparse.Namespace) -> int:
         if args.save_state is not None:
             snapshot.save(world.snapshot(), args.save_state)
             saved.append(f"the state to {args.save_state}")
+        signum = getattr(exc, "signum", signal.SIGINT)
         print(
-            f"tumble run: interrupted at t = {world.time:.3f} s (step {world.step_count:,}); "
-            f"saved {' and '.join(saved)}",
+            f"tumble run: {'interrupted' if signum == signal.SIGINT else 'terminated'} at t = {world.time:.3f} s "
+            f"(step {world.step_count:,}); saved {' and '.join(saved)}",
             file=sys.stderr,
         )
-        return 130
+        return 128 + signum
     if args.save_state is not None:
         snapshot.save(world.snapshot(), args.save_state)
         print(
@@ -198,32 +199,59 @@ def _simulate(args: argparse.Namespace, world, steps: int, recorder) -> None:
         _print_profile(world, steps)
 
 
+class StopRequest:
+    """The signal that asked the step loop to stop (`interrupt_between_steps`), if one has."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def is_set(self) -> bool:
+        return self.signum is not None
+
+    def exception(self) -> KeyboardInterrupt:
+        """What the loop raises: KeyboardInterrupt for a Ctrl-C, tumble.cli's Terminated for SIGTERM or SIGHUP."""
+        from ..cli import Terminated
+
+        return KeyboardInterrupt() if self.signum in (None, signal.SIGINT) else Terminated(self.signum)
+
+
 @contextlib.contextmanager
 def interrupt_between_steps():
-    """Turn a Ctrl-C into a request that the step loop honours between two steps.
+    """Turn a Ctrl-C, a SIGTERM or a SIGHUP into a request that the step loop honours between two steps.
 
-    Yields an Event that the first SIGINT sets; the loop then raises KeyboardInterrupt at a clean point
-    (the world between steps, the recorder holding whole frames). A second Ctrl-C raises at once, as
-    Python's default handler does. Outside the main thread (signals cannot be caught there) the
-    default behaviour is kept.
+    Yields a StopRequest that the first such signal sets; the loop then raises its exception at a clean
+    point (the world between steps, the recorder holding whole frames, a state to save that a resumed
+    run repeats bit for bit). A second signal raises at once, through the handlers in place before.
+    Outside the main thread (signals cannot be caught there) the default behaviour is kept.
     """
-    interrupted = threading.Event()
+    from ..cli import TERMINATING
+
+    request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
-        yield interrupted
+        yield request
         return
+    previous: dict[int, object] = {}
 
-    def request(signum, frame):
-        interrupted.set()
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # a second Ctrl-C stops at once
+    def restore() -> None:
+        for number, handler in previous.items():
+            signal.signal(number, handler)  # type: ignore[arg-type]
 
-    previous = signal.signal(signal.SIGINT, request)
+    def stop(signum, frame):
+        request.signum = signum
+        restore()  # a second signal stops at once
+        if signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    for number in (signal.SIGINT, *TERMINATING):
+        if signal.getsignal(number) is not signal.SIG_IGN:
+            previous[number] = signal.signal(number, stop)
     try:
-        yield interrupted
+        yield request
     finally:
-        signal.signal(signal.SIGINT, previous)
+        restore()
 
 
-def _step_on(world, steps: int, recorder, err, interrupted: threading.Event) -> float:
+def _step_on(world, steps: int, recorder, err, interrupted: StopRequest) -> float:
     """The steps after the first, with a progress bar when stderr is a terminal; returns their wall time."""
     start = time.perf_counter()
     every = max(1, (steps - 1) // 200)
@@ -232,14 +260,14 @@ def _step_on(world, steps: int, recorder, err, interrupted: threading.Event) -> 
     ) as advance:
         for k in range(1, steps):
             if interrupted.is_set():
-                raise KeyboardInterrupt
+                raise interrupted.exception()
             world.step()
             if recorder is not None:
                 recorder(world)
             if k % every == 0:
                 advance(completed=k)
-    if interrupted.is_set():  # Ctrl-C during the last step
-        raise KeyboardInterrupt
+    if interrupted.is_set():  # a signal during the last step
+        raise interrupted.exception()
     return time.perf_counter() - start
 
 

@@ -60,7 +60,7 @@ def run_viewer(
 
     from .window import ViewerWindow
 
-    # Ctrl-C and SIGTERM close the window: a handler that raised (KeyboardInterrupt, tumble.cli's
+    # Ctrl-C, SIGTERM and SIGHUP close the window: a handler that raised (KeyboardInterrupt, tumble.cli's
     # Terminated) inside a Qt slot only printed a traceback, and the viewer ran on. Caught from
     # before the window is made, whose setup (seconds on a loaded machine) runs Qt callbacks too
     received: list[int] = []
@@ -71,8 +71,9 @@ def run_viewer(
             received.append(signum)
             app.quit()  # (nothing before the event loop runs: the timer below quits it then)
 
-        for number in (signal.SIGINT, signal.SIGTERM):
-            previous[number] = signal.signal(number, stop)
+        for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)):
+            if number not in previous and signal.getsignal(number) is not signal.SIG_IGN:
+                previous[number] = signal.signal(number, stop)
     try:
         window = ViewerWindow(
             world, factory=factory, title=title, size=size, paused=paused, view=view, output_dir=output_dir

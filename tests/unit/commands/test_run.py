@@ -205,6 +205,54 @@ def test_a_first_ctrl_c_waits_for_the_step_to_end_and_a_second_stops_at_once():
     assert signal.getsignal(signal.SIGINT) is before  # the caller's handler is back
 
 
+def test_a_sigterm_also_waits_for_the_step_to_end(tumble_subprocess_env, tmp_path):
+    """`kill` during `tumble run --save-state` raised Terminated mid-step, and the state saved could be
+    a step half taken; and it said "interrupted", status 130. Now SIGTERM, as Ctrl-C, stops between
+    steps: "terminated", status 143, and the saved state resumes as the run would have gone on."""
+    import subprocess
+    import sys
+
+    from tumble.cli import Terminated
+    from tumble.commands.run import interrupt_between_steps
+
+    leaked: list[int] = []  # (this process's own SIGTERM handler, lest a SIGTERM not caught end pytest)
+    guard = signal.signal(signal.SIGTERM, lambda signum, frame: leaked.append(signum))
+    try:
+        with interrupt_between_steps() as request:  # in this process: the request is recorded, not raised
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.01)
+        assert not leaked and request.is_set() and isinstance(request.exception(), Terminated)
+    finally:
+        signal.signal(signal.SIGTERM, guard)
+    state = tmp_path / "state.npz"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tumble", "run", "sphere_pile", "--duration", "600", "--save-state", str(state)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=tumble_subprocess_env,
+    )
+    assert proc.stderr is not None
+    for line in proc.stderr:  # stepping once the first step is done
+        if line.startswith("first step done"):
+            break
+    time.sleep(0.5)
+    proc.terminate()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("tumble run: terminated at t = ") and last.endswith(f"saved the state to {state}")
+    steps = int(last.split("(step ")[1].split(")")[0].replace(",", ""))
+    resumed = tumble.load_snapshot(state)
+    assert resumed.step_count == steps > 1
+    fresh = tumble.load_scene("sphere_pile", precision=resumed.precision)  # (the command's, float64)
+    for _ in range(steps + 12):
+        fresh.step()
+    for _ in range(12):
+        resumed.step()
+    assert resumed.state_hash() == fresh.state_hash()
+
+
 def test_record_takes_a_frame_a_step_at_most_by_default(write_scene, tmp_path, capsys):
     """A world of dt = 0.05 s steps 20 times a second: --record without --fps records 20 frames a
     second of them (the default 60 was refused once the recorder refused rates above the step
