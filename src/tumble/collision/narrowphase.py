@@ -1940,14 +1940,15 @@ def collide_vertices_mesh(
     max_sep: float_t,
     motion: Motion,
 ):
-    """A box's or hull's vertices against a mesh: up to five, chosen as against a plane; then the
-    mesh's own edges, for a ridge or a spike pressing into a face between the vertices.
+    """A box's or hull's vertices against a mesh: up to four, chosen as against a plane, and any other
+    that would pass through the mesh within the step; then the mesh's own edges, for a ridge or a
+    spike pressing into a face between the vertices.
 
     The deepest vertex, the one farthest from it across the normal, then the largest triangles
-    either side, and one that would pass through this step (`_four_vertices`); then one contact at the deepest point of the mesh edges inside the body, when
-    that is deeper than the deepest vertex (`_mesh_edges_into_solid`). Each vertex touches as a
-    sphere of radius 0 (`_sphere_mesh`): its nearest mesh point, and the concave faces next to
-    it that it can reach within the step. With the nearest point alone, a box sliding in a
+    either side (`_four_vertices`); then one contact at the deepest point of the mesh edges inside
+    the body, when that is deeper than the deepest vertex (`_mesh_edges_into_solid`). Each vertex
+    touches as a sphere of radius 0 (`_sphere_mesh`): its nearest mesh point, and the concave faces
+    next to it that it can reach within the step. With the nearest point alone, a box sliding in a
     finely tessellated half-pipe sank its edges into each next face along the one they left and
     was pushed out after, raised without being slowed: it gained 1 % of its energy in 4 s.
     """
