@@ -881,9 +881,14 @@ def interrupt_after():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    from .cli import TERMINATING
+
     received: list[int] = []
-    held = (signal.SIGINT, *(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)))
-    previous = {number: signal.signal(number, lambda signum, frame: received.append(signum)) for number in held}
+    previous = {  # (a signal ignored, as SIGHUP under nohup, stays ignored)
+        number: signal.signal(number, lambda signum, frame: received.append(signum))
+        for number in (signal.SIGINT, *TERMINATING)
+        if signal.getsignal(number) is not signal.SIG_IGN
+    }
 
     def restore() -> None:
         for number, handler in previous.items():
@@ -914,7 +919,7 @@ def _deliver(number: int) -> None:
         handler(number, None)
     elif handler == signal.SIG_DFL:
         signal.raise_signal(number)
-    if number == signal.SIGINT:  # ignored, or a handler that returned: a Ctrl-C still ends the block
+    if number == signal.SIGINT:  # a handler that returned: a Ctrl-C still ends the block
         raise KeyboardInterrupt
 
 
