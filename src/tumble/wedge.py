@@ -881,12 +881,12 @@ def interrupt_after():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    from .cli import TERMINATING
-
     received: list[int] = []
+    # Ctrl-C and tumble.cli.TERMINATING (named here: tumble.cli imports the package, which imports this)
+    held = (signal.SIGINT, *(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)))
     previous = {  # (a signal ignored, as SIGHUP under nohup, stays ignored)
         number: signal.signal(number, lambda signum, frame: received.append(signum))
-        for number in (signal.SIGINT, *TERMINATING)
+        for number in held
         if signal.getsignal(number) is not signal.SIG_IGN
     }
 
