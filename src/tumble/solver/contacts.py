@@ -98,10 +98,10 @@ MAX_PUSH_VELOCITY = 3.0
 #: Where a biased pass changed a manifold's body's velocity by more than RELAX_TRIGGER [m/s], or pushed
 #: its overlap apart faster (CPU), the relax pass first sweeps without bias, up to RELAX_SWEEPS times,
 #: over the manifolds of the bodies so marked, until a sweep changes none of their velocities by
-#: RELAX_TOLERANCE [m/s]; then its one sweep over all. One relax sweep took back too little: in a knot
-#: of overlapping bodies (placed so: every body touches several) of the push, and the knot flew apart
-#: (200 cubes of 0.2 m placed at random in a 1 m box: 36 kJ of kinetic energy, 15 m/s); and between a
-#: heavy body and the floor of a warm start's excess (a heavy ball landing on a light one left the light
+#: RELAX_TOLERANCE [m/s]; then its one sweep over all. One relax sweep took back too little: of the push
+#: in a knot of overlapping bodies (placed so: every body touches several), and the knot flew apart
+#: (200 cubes of 0.2 m placed at random in a 1 m box: 36 kJ of kinetic energy, 15 m/s); and of a warm
+#: start's excess between a heavy body and the floor (a heavy ball landing on a light one left the light
 #: one's floor contact 224 times its weight, put back by the next step's warm start: random drops
 #: gained up to 0.21 J in a step). docs/design.md, "Mass ratios".
 RELAX_TRIGGER = wp.constant(float_t(0.1))
