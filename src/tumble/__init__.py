@@ -39,20 +39,17 @@ def _quiet_startup_interrupts() -> None:
     library keeps Python's own handling."""
     if not _started_as_command():
         return
-    import signal
+    import threading
+
+    from . import signals
 
     def terminated(signum, frame) -> None:
         _sys.stderr.write("tumble: terminated\n")
         _sys.stderr.flush()
         _os._exit(128 + signum)
 
-    import threading
-
     if threading.current_thread() is threading.main_thread():
-        for name in ("SIGTERM", "SIGHUP"):  # (SIGHUP: its terminal closed; left alone under nohup)
-            number = getattr(signal, name, None)
-            if number is not None and signal.getsignal(number) is not signal.SIG_IGN:
-                signal.signal(number, terminated)
+        signals.replace(signals.TERMINATING, terminated)
     previous = _sys.excepthook
 
     def hook(kind, value, traceback) -> None:

@@ -27,6 +27,7 @@ import sys
 import threading
 import warnings
 
+from . import signals
 from .errors import TumbleError
 
 #: subcommand -> module under tumble.commands
@@ -140,10 +141,6 @@ class Terminated(KeyboardInterrupt):
 INTERRUPT_RETRY_S = 0.5
 
 
-#: the signals that end a command: Ctrl-C (KeyboardInterrupt), then those raised as Terminated
-TERMINATING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
-
-
 class _Interrupts:
     """Handlers that raise KeyboardInterrupt on Ctrl-C and Terminated on SIGTERM or SIGHUP, and raise
     it again every INTERRUPT_RETRY_S until it unwinds (an exception being handled, or what one raised
@@ -154,20 +151,16 @@ class _Interrupts:
         self.previous: dict[int, object] = {}
 
     def install(self) -> None:
-        handlers = {number: self.received for number in (signal.SIGINT, *TERMINATING)}
+        self.previous = signals.replace(signals.ENDING, self.received)
         if hasattr(signal, "setitimer"):
-            handlers[signal.SIGALRM] = self.again
-        for number, handler in handlers.items():
-            if signal.getsignal(number) is not signal.SIG_IGN:
-                self.previous[number] = signal.signal(number, handler)
+            self.previous.update(signals.replace([signal.SIGALRM], self.again))
 
     def restore(self) -> None:
         self.pending = None
         if hasattr(signal, "setitimer"):
             signal.setitimer(signal.ITIMER_REAL, 0)
-        for number, handler in self.previous.items():
-            signal.signal(number, handler)  # type: ignore[arg-type]
-        self.previous.clear()
+        signals.restore(self.previous)
+        self.previous = {}
 
     def received(self, signum: int, frame: object) -> None:
         self.pending = KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)

@@ -875,37 +875,27 @@ def interrupt_after():
 
     Outside the main thread (where signals cannot be caught) nothing changes.
     """
-    import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    from . import signals
+
     received: list[int] = []
-    # Ctrl-C and tumble.cli.TERMINATING (named here: tumble.cli imports the package, which imports this)
-    held = (signal.SIGINT, *(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)))
-    previous = {  # (a signal ignored, as SIGHUP under nohup, stays ignored)
-        number: signal.signal(number, lambda signum, frame: received.append(signum))
-        for number in held
-        if signal.getsignal(number) is not signal.SIG_IGN
-    }
-
-    def restore() -> None:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-
+    previous = signals.replace(signals.ENDING, lambda signum, frame: received.append(signum))
     try:
         yield
     except Exception:
         if received:  # what the signal broke (a worker it stopped as it started)
-            restore()
+            signals.restore(previous)
             try:
                 _deliver(received[0])
             except BaseException as exc:
                 raise exc from None
         raise
     finally:
-        restore()
+        signals.restore(previous)
     if received:
         _deliver(received[0])
 

@@ -10,7 +10,7 @@ import sys
 import threading
 import time
 
-from .. import limits, snapshot
+from .. import limits, signals, snapshot
 from ..errors import TumbleError
 from ..io.atomic import check_output
 from ..progress import progress_bar
@@ -224,31 +224,22 @@ def interrupt_between_steps():
     run repeats bit for bit). A second signal raises at once, through the handlers in place before.
     Outside the main thread (signals cannot be caught there) the default behaviour is kept.
     """
-    from ..cli import TERMINATING
-
     request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
         yield request
         return
-    previous: dict[int, object] = {}
-
-    def restore() -> None:
-        for number, handler in previous.items():
-            signal.signal(number, handler)  # type: ignore[arg-type]
 
     def stop(signum, frame):
         request.signum = signum
-        restore()  # a second signal stops at once
+        signals.restore(previous)  # a second signal stops at once
         if signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
             signal.signal(signal.SIGINT, signal.default_int_handler)
 
-    for number in (signal.SIGINT, *TERMINATING):
-        if signal.getsignal(number) is not signal.SIG_IGN:
-            previous[number] = signal.signal(number, stop)
+    previous = signals.replace(signals.ENDING, stop)
     try:
         yield request
     finally:
-        restore()
+        signals.restore(previous)
 
 
 def _step_on(world, steps: int, recorder, err, interrupted: StopRequest) -> float:

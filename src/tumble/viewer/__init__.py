@@ -10,11 +10,12 @@
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import threading
 from collections.abc import Callable
+
+from .. import signals
 
 __all__ = ["ViewerUnavailable", "ViewerWindow", "run_viewer"]
 
@@ -71,9 +72,7 @@ def run_viewer(
             received.append(signum)
             app.quit()  # (nothing before the event loop runs: the timer below quits it then)
 
-        for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)):
-            if number not in previous and signal.getsignal(number) is not signal.SIG_IGN:
-                previous[number] = signal.signal(number, stop)
+        previous = signals.replace(signals.ENDING, stop)
     try:
         window = ViewerWindow(
             world, factory=factory, title=title, size=size, paused=paused, view=view, output_dir=output_dir
@@ -84,8 +83,7 @@ def run_viewer(
         QtCore.QTimer.singleShot(0, lambda: app.quit() if received else None)
         status = int(app.exec())
     finally:
-        for key, handler in previous.items():
-            signal.signal(key, handler)  # type: ignore[arg-type]
+        signals.restore(previous)
     if received:  # unwind as the signal would have outside Qt
         handler = previous[received[0]]
         if callable(handler):
